@@ -1,0 +1,32 @@
+# Two entry points: `make run` (the main job) and `make test` (the whole suite).
+# Everything is installed into .venv by these rules; nothing is needed by hand.
+PYTHON ?= python3
+VENV ?= .venv
+BIN = $(VENV)/bin
+OUT ?= out
+
+.PHONY: run test bench clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+
+$(VENV)/.installed: $(BIN)/python pyproject.toml
+	$(BIN)/pip install -q -e .
+	touch $@
+
+$(VENV)/.test-installed: $(VENV)/.installed
+	$(BIN)/pip install -q -e '.[test,bench]'
+	touch $@
+
+run: $(VENV)/.installed
+	$(BIN)/delaykit report --out $(OUT)
+
+test: $(VENV)/.test-installed
+	$(BIN)/python -m pytest -n 2 -q
+
+bench: $(VENV)/.test-installed
+	$(BIN)/python benchmarks/bench_simulate.py
+
+clean:
+	rm -rf $(VENV) $(OUT) .pytest_cache .hypothesis

@@ -1,0 +1,176 @@
+"""The altitude loop of a quadrotor flown over a delayed link: the one model every part of delaykit uses.
+
+The loop (the paper's Figs. 1-4)::
+
+    z'(t)  = u(t - Td)                                   integrator plant, delay on the command
+    u(t)   = sat(Kp (z_ref(t) - z(t)) - Kv w(t), vmax)   P (Kv = 0) or PV control
+    w(t)   = z'(t)                                       velocity = "true"     -> neutral delay equation
+    W(s)   = wf^2 s / (s^2 + 2 zf wf s + wf^2) Z(s)      velocity = "filtered" -> retarded delay equation
+
+With ``period`` set, the controller samples z and w at ``sample_offset + k*period`` and holds its command
+between samples.  Before the step (t < 0) the drone hovers: u = 0 and z = z0.
+
+The derivative filter is a second-order low-pass filter in series with a differentiator.  It is the
+transfer function whose poles are the paper's "-38 repeated" (wf = 38 rad/s, zf = 1), it has unit gain
+at low frequency (so it measures the velocity and the loop keeps the same steady state), it is proper, and
+as wf grows it tends to the true velocity.  See the README for how the paper's "cutoff 5.68 rad/s" fits.
+
+Examples
+--------
+>>> loop = AltitudeLoop(kp=1.31, delay=0.368)
+>>> loop
+AltitudeLoop(kp=1.31, delay=0.368 s, vmax=±1 m/s, continuous)
+>>> loop.characteristic()
+QuasiPolynomial(s + 1.31·exp(-0.368 s))
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any, Literal
+
+from .errors import InvalidValueError, check_real
+from .quasipolynomial import QuasiPolynomial
+
+__all__ = ["AltitudeLoop", "VELOCITY_CHOICES", "PAPER_PERIOD"]
+
+VELOCITY_CHOICES = ("true", "filtered")
+PAPER_PERIOD = 0.065
+"""The AR.Drone 2.0 navdata and control period used in the paper, Ts = 0.065 s."""
+
+
+@dataclass(frozen=True, repr=False)
+class AltitudeLoop:
+    """A P or PV altitude loop with a delay on the command.
+
+    Parameters
+    ----------
+    kp : float
+        Proportional gain (1/s), non-negative.
+    delay : float
+        The loop delay Td in seconds (any non-negative real).
+    kv : float
+        Velocity gain (dimensionless); 0 gives P control.
+    vmax : float or None
+        Saturation of the vertical-speed command, m/s; ``None`` for no saturation.
+    velocity : {"true", "filtered"}
+        The velocity fed to the Kv term: the true vertical speed, or the derivative filter's output.
+    filter_wn, filter_zeta : float
+        Natural frequency (rad/s) and damping of the derivative filter.
+    period : float or None
+        Controller period in seconds; ``None`` for a continuous controller.
+    sample_offset : float
+        Time of the first sample at or after the step, in ``[0, period)``.
+
+    Examples
+    --------
+    >>> AltitudeLoop(kp=2.0, delay=0.37, kv=0.3).characteristic().kind
+    'neutral'
+    >>> AltitudeLoop(kp=2.0, delay=0.37, kv=0.3, velocity="filtered").characteristic().kind
+    'retarded'
+    """
+
+    kp: float
+    delay: float
+    kv: float = 0.0
+    vmax: float | None = 1.0
+    velocity: Literal["true", "filtered"] = "true"
+    filter_wn: float = 38.0
+    filter_zeta: float = 1.0
+    period: float | None = None
+    sample_offset: float = 0.0
+
+    def __post_init__(self) -> None:
+        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
+        set_("kp", check_real("kp (proportional gain)", self.kp, minimum=0.0))
+        set_("kv", check_real("kv (velocity gain)", self.kv, minimum=0.0))
+        set_("delay", check_real("delay", self.delay, minimum=0.0))
+        if self.vmax is not None:
+            v = check_real("vmax (command limit, m/s)", self.vmax, minimum=0.0, strict=True, allow_inf=True)
+            set_("vmax", None if math.isinf(v) else v)
+        if self.velocity not in VELOCITY_CHOICES:
+            raise InvalidValueError(f"velocity must be one of {', '.join(VELOCITY_CHOICES)}; got {self.velocity!r}")
+        set_("filter_wn", check_real("filter_wn (rad/s)", self.filter_wn, minimum=0.0, strict=True))
+        set_("filter_zeta", check_real("filter_zeta", self.filter_zeta, minimum=0.0, strict=True))
+        if self.period is not None:
+            set_("period", check_real("period (s)", self.period, minimum=0.0, strict=True))
+            off = check_real("sample_offset (s)", self.sample_offset, minimum=0.0)
+            if off >= self.period:
+                raise InvalidValueError(f"sample_offset must be less than the period {self.period:g} s, got {off:g}")
+            set_("sample_offset", off)
+        else:
+            set_("sample_offset", check_real("sample_offset (s)", self.sample_offset, minimum=0.0, maximum=0.0))
+
+    @property
+    def filtered(self) -> bool:
+        """True when the Kv term sees the derivative filter's output (and Kv > 0)."""
+        return self.velocity == "filtered" and self.kv > 0.0
+
+    @property
+    def sampled(self) -> bool:
+        """True for a sampled (zero-order hold) controller."""
+        return self.period is not None
+
+    def replace(self, **changes: Any) -> "AltitudeLoop":
+        """A copy with some fields changed (validated again).
+
+        Examples
+        --------
+        >>> AltitudeLoop(kp=1.31, delay=0.368).replace(delay=0.3).delay
+        0.3
+        """
+        return dataclasses.replace(self, **changes)
+
+    def characteristic(self) -> QuasiPolynomial:
+        """The characteristic quasi-polynomial of the linearised loop (saturation ignored).
+
+        P and PV with true velocity: ``s + (Kv s + Kp) exp(-s Td)`` (neutral when Kv > 0).
+        PV with the filter ``F(s) = wf^2 s / D(s)``, ``D = s^2 + 2 zf wf s + wf^2``:
+        ``s D(s) + (Kp D(s) + Kv wf^2 s) exp(-s Td)`` (retarded).
+
+        Raises
+        ------
+        InvalidValueError
+            For a sampled controller, whose characteristic function is not a quasi-polynomial.
+
+        Examples
+        --------
+        >>> AltitudeLoop(kp=2.0, delay=0.37, kv=0.3).characteristic()
+        QuasiPolynomial(s + (0.3·s + 2)·exp(-0.37 s))
+        """
+        if self.sampled:
+            raise InvalidValueError(
+                f"a sampled controller (period {self.period:g} s) has no quasi-polynomial characteristic "
+                "function; use the continuous loop (period=None) for roots"
+            )
+        if not self.filtered:
+            return QuasiPolynomial([[1.0, 0.0], [self.kv, self.kp]], [0.0, self.delay])
+        w, zeta = self.filter_wn, self.filter_zeta
+        d = [1.0, 2 * zeta * w, w * w]
+        return QuasiPolynomial(
+            [[1.0, 2 * zeta * w, w * w, 0.0], [self.kp, self.kp * 2 * zeta * w + self.kv * w * w, self.kp * d[2]]],
+            [0.0, self.delay],
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (``vmax`` and ``period`` are ``null`` when absent)."""
+        return dataclasses.asdict(self)
+
+    def __repr__(self) -> str:
+        parts = [f"kp={self.kp:g}", f"delay={self.delay:.4g} s"]
+        if self.kv:
+            parts.append(f"kv={self.kv:g}")
+            parts.append(
+                f"filtered velocity (wn={self.filter_wn:g} rad/s, zeta={self.filter_zeta:g})"
+                if self.filtered
+                else "true velocity"
+            )
+        parts.append(f"vmax=±{self.vmax:g} m/s" if self.vmax is not None else "no saturation")
+        parts.append(
+            f"sampled every {self.period:g} s" + (f" from {self.sample_offset:g} s" if self.sample_offset else "")
+            if self.sampled
+            else "continuous"
+        )
+        return f"AltitudeLoop({', '.join(parts)})"
