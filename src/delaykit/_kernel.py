@@ -128,6 +128,15 @@ def _first_cross(c, n, target, s0):
 
 
 @njit(cache=True)
+def _crossing_time(W, n, level, a, H):
+    """Time of the first upward crossing of ``level`` on the piece, NaN if it stays below."""
+    if W[0] >= level:
+        return a
+    x = _first_cross(W, n, level, -1.0)
+    return a + x * H if x <= 1.0 else np.nan
+
+
+@njit(cache=True)
 def _all_cross(c, n, target, xs):
     """All sign changes of c(x) - target in (0, 1), refined; returns their count (stored in xs)."""
     if n <= 1:
@@ -449,9 +458,9 @@ def run_one(par, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, store):
                 wmax = w0
                 tpeak = a
         if np.isnan(t10) and hi >= 0.1:
-            t10 = a if W[0] >= 0.1 else a + min(_first_cross(W, nZ, 0.1, -1.0), 1.0) * H
+            t10 = _crossing_time(W, nZ, 0.1, a, H)
         if np.isnan(t90) and hi >= 0.9:
-            t90 = a if W[0] >= 0.9 else a + min(_first_cross(W, nZ, 0.9, -1.0), 1.0) * H
+            t90 = _crossing_time(W, nZ, 0.9, a, H)
         wend = _sum(W, nZ)
         if hi - 1.0 >= band or lo - 1.0 <= -band:
             if abs(wend - 1.0) >= band:

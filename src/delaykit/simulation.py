@@ -79,9 +79,10 @@ def _metrics_from_row(out: np.ndarray, step: float, z0: float, band: float) -> S
 
 
 def _horner(coef: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Evaluate one polynomial per point: ``coef[..., j]`` multiplies ``x**j``."""
     y = np.zeros_like(x)
-    for j in range(coef.shape[1] - 1, -1, -1):
-        y = y * x + coef[:, j]
+    for j in range(coef.shape[-1] - 1, -1, -1):
+        y = y * x + coef[..., j]
     return y
 
 
@@ -129,7 +130,7 @@ class Response:
         """Vertical speed z'(t) = u(t - Td), m/s (right-continuous at the neutral loop's jumps)."""
         t, idx, x = self._locate(t, self.starts, self.lengths)
         c = self.coeffs[idx]
-        d = c[:, 1:] * np.arange(1, c.shape[1])
+        d = c[..., 1:] * np.arange(1, c.shape[-1])
         v = _horner(d, x) / self.lengths[idx]
         return np.where((t < 0) | (t > self.t_end), 0.0, v)
 
