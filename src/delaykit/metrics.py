@@ -22,7 +22,7 @@ Examples
 --------
 >>> so = SecondOrder.from_step(overshoot=2.300, peak_time=3.055)
 >>> so
-SecondOrder(zeta=0.7684, omega_n=1.6069 rad/s, roots=-1.2347 ± 1.0284j)
+SecondOrder(zeta=0.7684, omega_n=1.6069 rad/s, roots=-1.2348 ± 1.0283j)
 """
 
 from __future__ import annotations
