@@ -1,0 +1,124 @@
+"""The command line, run as a user would (in-process through typer's runner, and once as a process)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import subprocess
+import sys
+
+import pytest
+from typer.testing import CliRunner
+
+from delaykit import AltitudeLoop, simulate
+from delaykit.cli import app, parse_delays
+from delaykit.paper import TABLE1
+
+runner = CliRunner()
+
+
+def run(*args):
+    return runner.invoke(app, list(args))
+
+
+def test_simulate_json_has_the_metrics_of_the_library():
+    res = run("simulate", "--kp", "1.31", "--delay", "0.368", "--json")
+    assert res.exit_code == 0, res.output
+    got = json.loads(res.stdout)
+    ref = simulate(AltitudeLoop(kp=1.31, delay=0.368)).metrics
+    for k in ("overshoot", "peak_time", "rise_time", "settling_time"):
+        assert got[k] == getattr(ref, k)
+
+
+def test_simulate_pv_sampled_down_step():
+    res = run("simulate", "--kp", "2", "--kv", "0.3", "--delay", "0.37", "--velocity", "filtered",
+              "--period", "0.065", "--step", "-1", "--z0", "2", "--vmax", "none", "--json")
+    assert res.exit_code == 0, res.output
+    got = json.loads(res.stdout)
+    loop = AltitudeLoop(kp=2, kv=0.3, delay=0.37, velocity="filtered", period=0.065, vmax=None)
+    assert got["overshoot"] == simulate(loop, -1.0, z0=2.0).metrics.overshoot
+    assert got["loop"]["period"] == 0.065 and got["loop"]["vmax"] is None
+
+
+def test_table1_sweep_shows_the_paper_beside_delaykit():
+    res = run("simulate", "--kp", "1.31", "--delay", "table1", "--json")
+    assert res.exit_code == 0, res.output
+    rows = json.loads(res.stdout)
+    assert [r["paper_overshoot"] for r in rows] == [mo for _, _, mo in TABLE1]
+    assert all(math.isclose(r["delay"], k * 0.065, abs_tol=1e-12) for r, (k, _, _) in zip(rows, TABLE1))
+    table = run("simulate", "--kp", "1.31", "--delay", "table1")
+    assert "paper Mo" in table.stdout and "2.300" in table.stdout
+
+
+def test_sweep_csv_and_plot(tmp_path):
+    csv_path, png = tmp_path / "r.csv", tmp_path / "r.png"
+    res = run("simulate", "--kp", "1.31", "--delay", "0.2:0.4:3", "--csv", str(csv_path), "--plot", str(png),
+              "--t-end", "5", "--dt", "0.5")
+    assert res.exit_code == 0, res.output
+    assert png.stat().st_size > 10_000
+    with open(csv_path) as fh:
+        rows = list(csv.DictReader(fh))
+    assert set(rows[0]) == {"delay", "t", "z", "z_ref", "u"}
+    assert len(rows) == 3 * 11
+    r = simulate(AltitudeLoop(kp=1.31, delay=0.3), t_end=5)
+    mid = [row for row in rows if float(row["delay"]) == 0.3]
+    assert all(math.isclose(float(x["z"]), float(r.altitude(float(x["t"]))), abs_tol=1e-8) for x in mid)
+
+
+def test_no_figure_unless_asked(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert run("simulate", "--kp", "1.31", "--delay", "0.3").exit_code == 0
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["--kp", "1", "--delay", "-0.3"], "delay must be at least 0"),
+        (["--kp", "-1", "--delay", "0.3"], "kp"),
+        (["--kp", "1", "--delay", "0.3", "--velocity", "magic"], "velocity"),
+        (["--kp", "1", "--delay", "0.3", "--period", "0"], "period"),
+        (["--kp", "1", "--delay", "0.3", "--t-end", "0"], "t_end"),
+        (["--kp", "1", "--delay", "0.3", "--step", "nan"], "step"),
+        (["--kp", "1", "--delay", "0.3", "--vmax", "fast"], "--vmax"),
+        (["--kp", "1", "--delay", "0.5:0.2:3"], "STOP"),
+        (["--kp", "1", "--delay", "soon"], "not a delay"),
+    ],
+)
+def test_bad_input_is_one_line_and_status_2(args, fragment):
+    res = run("simulate", *args)
+    assert res.exit_code == 2
+    assert fragment in res.output
+    assert "Traceback" not in res.output
+
+
+def test_help_everywhere():
+    for cmd in ([], ["simulate"], ["report"]):
+        res = run(*cmd, "--help")
+        assert res.exit_code == 0 and "Usage" in res.output
+
+
+def test_report_writes_table_and_figure(tmp_path):
+    res = run("report", "--out", str(tmp_path / "o"), "--json")
+    assert res.exit_code == 0, res.output
+    rep = json.loads(res.stdout)
+    assert rep["verdict"].startswith("reproduced to within solver error")
+    assert (tmp_path / "o" / "responses.png").stat().st_size > 10_000
+    md = (tmp_path / "o" / "table1.md").read_text()
+    assert "| 5.6646 |" in md and "2.300" in md
+    # the printed overshoots are above the exact ones, all by the equivalent of under a millisecond of delay
+    for row in rep["table1"][1:]:
+        assert 0.0 < row["difference"] < 0.05 and 0.0 < row["extra_delay"] < 1e-3
+
+
+def test_parse_delays():
+    assert parse_delays("0.1,0.2") == [0.1, 0.2]
+    assert parse_delays("0.3:0.3:1") == [0.3]
+
+
+def test_installed_script_exits_2_without_traceback():
+    proc = subprocess.run([sys.executable, "-m", "delaykit.cli", "simulate", "--kp", "1", "--delay", "-1"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert "delay must be at least 0" in proc.stderr and "Traceback" not in proc.stderr
