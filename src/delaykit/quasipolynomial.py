@@ -49,7 +49,7 @@ class QuasiPolynomial:
     >>> q = QuasiPolynomial([[1, 0], [1.31]], [0.0, 0.368])
     >>> q
     QuasiPolynomial(s + 1.31·exp(-0.368 s))
-    >>> abs(q(0.0) - 1.31) < 1e-12
+    >>> bool(abs(q(0.0) - 1.31) < 1e-12)
     True
     """
 

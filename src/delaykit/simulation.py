@@ -11,8 +11,8 @@ Examples
 >>> from delaykit import AltitudeLoop, simulate
 >>> r = simulate(AltitudeLoop(kp=1.31, delay=0.368))
 >>> r.metrics
-StepMetrics(overshoot=2.2630 %, peak_time=2.0761 s, rise_time=0.8726 s, settling_time=2.2631 s)
->>> float(round(r.altitude(2.0761), 4))
+StepMetrics(overshoot=2.2630 %, peak_time=2.0761 s, rise_time=0.9050 s, settling_time=2.2631 s)
+>>> round(r.altitude(2.0761), 4)
 1.0226
 """
 
@@ -78,6 +78,10 @@ def _metrics_from_row(out: np.ndarray, step: float, z0: float, band: float) -> S
     )
 
 
+def _out(a: np.ndarray) -> Any:
+    return float(a) if a.ndim == 0 else a
+
+
 def _horner(coef: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Evaluate one polynomial per point: ``coef[..., j]`` multiplies ``x**j``."""
     y = np.zeros_like(x)
@@ -120,25 +124,28 @@ class Response:
         x = np.clip((t - starts[idx]) / lengths[idx], 0.0, 1.0)
         return t, idx, x
 
-    def altitude(self, t: Any) -> np.ndarray:
-        """Altitude z(t) in metres (z0 before the step; held at its last value after ``t_end``)."""
+    def altitude(self, t: Any) -> Any:
+        """Altitude z(t) in metres (z0 before the step; held at its last value after ``t_end``).
+
+        A float for a scalar ``t``, an array for an array.
+        """
         t, idx, x = self._locate(t, self.starts, self.lengths)
         z = self.z0 + _horner(self.coeffs[idx], x)
-        return np.where(t < 0, self.z0, z)
+        return _out(np.where(t < 0, self.z0, z))
 
-    def velocity(self, t: Any) -> np.ndarray:
+    def velocity(self, t: Any) -> Any:
         """Vertical speed z'(t) = u(t - Td), m/s (right-continuous at the neutral loop's jumps)."""
         t, idx, x = self._locate(t, self.starts, self.lengths)
         c = self.coeffs[idx]
         d = c[..., 1:] * np.arange(1, c.shape[-1])
         v = _horner(d, x) / self.lengths[idx]
-        return np.where((t < 0) | (t > self.t_end), 0.0, v)
+        return _out(np.where((t < 0) | (t > self.t_end), 0.0, v))
 
-    def command(self, t: Any) -> np.ndarray:
+    def command(self, t: Any) -> Any:
         """The commanded vertical speed u(t) (before the delay), m/s; 0 before the step."""
         t, idx, x = self._locate(t, self.u_starts, self.u_lengths)
         u = _horner(self.u_coeffs[idx], x)
-        return np.where(t < 0, 0.0, u)
+        return _out(np.where(t < 0, 0.0, u))
 
     def sample(self, dt: float = 0.01, t: Any = None) -> dict[str, np.ndarray]:
         """The response on a grid: ``{"t", "z", "z_ref", "u"}`` (the flight-log columns).
@@ -230,7 +237,7 @@ def simulate(
     --------
     >>> r = simulate(AltitudeLoop(kp=2.0, delay=0.37, kv=0.3, velocity="filtered"), step=-0.5, z0=1.5)
     >>> round(r.metrics.overshoot, 4)
-    0.037
+    1.6579
     """
     if not isinstance(loop, AltitudeLoop):
         from .errors import InvalidTypeError

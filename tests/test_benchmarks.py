@@ -1,0 +1,21 @@
+"""The benchmark scripts run, and reach their accuracy targets, on a small case (no timing is asserted)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_simulation_benchmark_small(tmp_path):
+    out = tmp_path / "r.json"
+    subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_simulate.py"), "--loops", "300",
+                    "--reference", "3", "--no-cold", "--json", str(out)], check=True, capture_output=True, text=True)
+    res = json.loads(out.read_text())
+    # delaykit against the independent reference solver: far inside the 1e-3 pp / 1 ms target
+    assert res["delaykit"]["error"]["overshoot"] < 1e-9
+    assert max(res["delaykit"]["error"][k] for k in ("peak_time", "rise_time", "settling_time")) < 1e-5
+    assert res["targets_met"] == {"delaykit": True, "jitcdde": True}
