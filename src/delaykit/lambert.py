@@ -170,7 +170,8 @@ def lambert_roots(a0: Any, a1: Any, delay: Any, branches: Iterable[int] | int = 
     safe_td = np.where(pos, tdb, 1.0)
     for i, k in enumerate(ks):
         w = lambert_w(x, k)
-        roots[i] = np.where(pos, w / safe_td + a0b, a0b + a1b)
+        with np.errstate(all="ignore"):  # at Td = 0 the W value is not used
+            roots[i] = np.where(pos, w / safe_td + a0b, a0b + a1b)
     return LambertRoots(branches=ks, roots=roots, a0=a0, a1=a1, delay=delay)
 
 
