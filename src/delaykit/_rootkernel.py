@@ -50,8 +50,12 @@ def contour(C, A, tau, corners, n_init, max_phase, reliable, cap, out_s, out_dl)
     nc = corners.shape[0]
     total = 0.0
     m = 0
-    # explicit stack of segments: endpoints, Q values and |Q'/Q|
-    size = 4096
+    # explicit stack of segments: endpoints, Q values and |Q'/Q| (the initial segments of one edge, plus up
+    # to 63 entries for each level of refinement below them)
+    size = 0
+    for e in range(nc):
+        size = max(size, n_init[e])
+    size += 64 * 64
     sa = np.empty(size, np.complex128)
     sb = np.empty(size, np.complex128)
     wa = np.empty(size, np.complex128)
@@ -75,7 +79,7 @@ def contour(C, A, tau, corners, n_init, max_phase, reliable, cap, out_s, out_dl)
             Q0, dQ0, nz0 = qeval(C, A, tau, s0)
             if abs(Q0) <= reliable * nz0:
                 return 1, total, m, s0
-            if top >= size:
+            if top >= size:  # cannot happen: size covers n
                 return 2, total, m, s0
             sa[top] = s0
             wa[top] = Q0
@@ -109,7 +113,7 @@ def contour(C, A, tau, corners, n_init, max_phase, reliable, cap, out_s, out_dl)
                 continue
             k = int(math.ceil(1.5 * need))
             k = max(2, min(64, k))
-            if top + k >= size:
+            if top + k >= size:  # refinement deeper than 64 levels
                 return 2, total, m, a
             # sub-segments, pushed in reverse
             nxt_s = b

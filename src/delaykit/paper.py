@@ -21,7 +21,7 @@ from scipy.optimize import brentq
 from .model import PAPER_PERIOD, AltitudeLoop
 from .simulation import simulate, simulate_many
 
-__all__ = ["TABLE1", "TABLE2", "TABLE1_KP", "Table1Row", "table1", "paper_loop"]
+__all__ = ["TABLE1", "TABLE2", "TABLE3", "TABLE1_KP", "Table1Row", "Table3Row", "table1", "table3", "paper_loop"]
 
 TABLE1_KP = 1.31
 TABLE1 = (  # (K, printed Td = K Ts, printed Mo %); the starred row is the paper's estimate
@@ -33,6 +33,14 @@ TABLE1 = (  # (K, printed Td = K Ts, printed Mo %); the starred row is the paper
     (5.6646, 0.368, 2.300),
     (5.6660, 0.369, 2.305),
 )
+TABLE3 = (  # (Kv, printed "rightmost" root) of s + (2 + Kv s) exp(-0.37 s), Kp = 2.0, Td = 0.37 s
+    (0.0, complex(-1.42, 3.07)),
+    (0.1, complex(-1.98, 3.25)),
+    (0.3, complex(-3.25, 24.75)),
+    (0.5, complex(-1.84, 6.98)),
+    (0.7, complex(-0.89, 7.47)),
+)
+TABLE3_KP, TABLE3_DELAY = 2.0, 0.37
 TABLE2 = {  # five flights at Kp = 1.31: overshoot (%) and peak time (s)
     "overshoot": (2.300, 2.290, 2.300, 2.270, 2.140),
     "peak_time": (3.055, 3.084, 3.575, 3.194, 3.096),
@@ -119,3 +127,68 @@ def table1_overshoot(delay: float) -> float | None:
         if math.isclose(delay, kk * PAPER_PERIOD, abs_tol=1e-9):
             return mo
     return None
+
+
+@dataclass(frozen=True, repr=False)
+class Table3Row:
+    """One row of Table 3: the printed "rightmost" root beside the computed rightmost root.
+
+    ``printed_is_root`` says whether the printed value is a root at all (within its rounding: a root lies
+    within 0.01 of it), ``rank`` is its place in the spectrum by decreasing real part (1 = rightmost).
+    """
+
+    kv: float
+    paper: complex
+    rightmost: complex
+    neutral_line: float | None
+    printed_is_root: bool
+    rank: int | None
+
+    @property
+    def agrees(self) -> bool:
+        """The printed root is the rightmost one, to the printed two decimals."""
+        return abs(self.paper.real - self.rightmost.real) <= 0.006 and abs(self.paper.imag - self.rightmost.imag) <= 0.006
+
+    @property
+    def verdict(self) -> str:
+        """Reproduced, or what the printed value is instead."""
+        if self.agrees:
+            return "reproduced"
+        if self.printed_is_root:
+            return (f"not reproduced: the printed {self.paper.real:.2f} ± {self.paper.imag:.2f}j is a root, but "
+                    f"number {self.rank} from the right (on the neutral chain that approaches Re s = "
+                    f"{self.neutral_line:.4f}); the rightmost is {self.rightmost.real:.4f} ± {self.rightmost.imag:.4f}j")
+        return f"not reproduced: the printed value is not a root; the rightmost is {self.rightmost:.4f}"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {"kv": self.kv, "paper": [self.paper.real, self.paper.imag],
+                "rightmost": [self.rightmost.real, self.rightmost.imag], "neutral_line": self.neutral_line,
+                "printed_is_root": self.printed_is_root, "rank": self.rank, "verdict": self.verdict}
+
+    def __repr__(self) -> str:
+        return f"Table3Row(Kv={self.kv}, paper={self.paper}, rightmost={self.rightmost:.4f}: {self.verdict})"
+
+
+def table3() -> list[Table3Row]:
+    """Table 3 checked: the rightmost root of the neutral PV loop for each Kv, and where the printed one sits.
+
+    Examples
+    --------
+    >>> [r.agrees for r in table3()]
+    [True, True, False, True, True]
+    """
+    from .roots import find_roots
+    from .stability import rightmost
+
+    rows = []
+    for kv, printed in TABLE3:
+        loop = AltitudeLoop(kp=TABLE3_KP, delay=TABLE3_DELAY, kv=kv)
+        rm = rightmost(loop)
+        sp = find_roots(loop.characteristic(), (-10.0, 2.0, 0.0, abs(printed.imag) + 10.0))
+        d = np.abs(sp.roots - printed)
+        is_root = bool(d.size and d.min() <= 0.01)
+        rank = int(np.argmin(d)) + 1 if is_root else None
+        rows.append(Table3Row(kv=kv, paper=printed, rightmost=rm.root, neutral_line=(rm.neutral_lines or (None,))[0],
+                              printed_is_root=is_root, rank=rank))
+    return rows

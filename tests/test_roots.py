@@ -1,0 +1,187 @@
+"""The certified root finder and the stability layer, against closed forms and another library (qpmr)."""
+
+from __future__ import annotations
+
+import math
+
+import mpmath
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from delaykit import AltitudeLoop, InvalidValueError, QuasiPolynomial
+from delaykit.lambert import lambert_roots
+from delaykit.paper import table3
+from delaykit.roots import find_roots, neutral_lines, root_bound
+from delaykit.stability import delay_margin, rightmost, stability_map
+
+
+def lambert_set(kp, td, region):
+    """Every root of s + Kp exp(-s Td) = 0 in the region, from the Lambert W branches (exact)."""
+    r = lambert_roots(0.0, -kp, td, branches=range(-60, 61)).roots
+    x0, x1, y0, y1 = region
+    return np.sort_complex(r[(r.real >= x0) & (r.real <= x1) & (r.imag >= y0) & (r.imag <= y1)])
+
+
+@settings(max_examples=25)
+@given(kp=st.floats(0.2, 5.0), td=st.floats(0.05, 2.0))
+def test_p_loop_roots_are_the_lambert_w_roots(kp, td):
+    region = (-12.0, 3.0, -60.0, 60.0)
+    sp = find_roots(QuasiPolynomial([[1, 0], [kp]], [0, td]), region)
+    ref = lambert_set(kp, td, region)
+    assert sp.certified, sp.reason
+    assert sp.roots.size == ref.size
+    dist = np.min(np.abs(sp.roots[:, None] - ref[None, :]), axis=0)  # nearest found root to each exact one
+    assert np.max(dist / (1 + np.abs(ref))) < 1e-12
+
+
+def test_polynomials_match_numpy_roots():
+    rng = np.random.default_rng(4)
+    for _ in range(10):
+        r = rng.normal(size=5) + 1j * rng.normal(size=5)
+        sp = find_roots(QuasiPolynomial([np.poly(r)], [0.0]), (-4, 4, -4, 4))
+        assert sp.certified and sp.roots.size == 5
+        assert np.max(np.min(np.abs(sp.roots[:, None] - r[None, :]), axis=1)) < 1e-10
+
+
+def test_table3_every_qpmr_root_is_found_and_certified():
+    import qpmr
+
+    for kv in (0.0, 0.1, 0.3, 0.5, 0.7):
+        sp = find_roots(AltitudeLoop(kp=2.0, delay=0.37, kv=kv).characteristic(), (-10, 2, 0, 100))
+        theirs, _ = qpmr.qpmr(np.array([[0.0, 1.0], [2.0, kv]]), np.array([0.0, 0.37]), region=[-10, 2, 0, 100])
+        assert sp.certified
+        for z in np.asarray(theirs):
+            assert np.min(np.abs(sp.roots - z)) < 1e-8 * (1 + abs(z))
+        # each root solves the equation to working precision, checked in 50-digit arithmetic
+        for z in sp.roots:
+            s = mpmath.mpc(z.real, z.imag)
+            f = s + (2 + kv * s) * mpmath.exp(-s * mpmath.mpf("0.37"))
+            df = 1 + (kv - 0.37 * (2 + kv * s)) * mpmath.exp(-s * mpmath.mpf("0.37"))
+            assert abs(f / df) < 1e-12 * (1 + abs(z))  # Newton distance to the true root
+
+
+def test_table3_check():
+    rows = table3()
+    assert [r.agrees for r in rows] == [True, True, False, True, True]
+    kv3 = rows[2]
+    assert kv3.printed_is_root and kv3.rank == 2
+    assert abs(kv3.rightmost - complex(-3.1951, 5.5820)) < 1e-4
+    assert math.isclose(kv3.neutral_line, math.log(0.3) / 0.37, rel_tol=1e-12)
+
+
+def test_multiple_root_is_found_once_with_its_multiplicity():
+    q = QuasiPolynomial([np.poly([-6.025] * 6)], [0.0])
+    sp = find_roots(q, (-8, -4, -1, 1))
+    assert sp.certified and sp.roots.size == 1 and sp.multiplicities[0] == 6
+    assert abs(sp.roots[0] + 6.025) < 1e-8
+
+
+def test_mazanti_six_fold_root():
+    from qpmr.quasipoly import examples as ex
+
+    c, d = ex.mazanti2021multiplicity()
+    q = QuasiPolynomial([row[::-1] for row in c], list(d))
+    sp = find_roots(q, (-10, 2, 0, 50))
+    assert sp.certified
+    i = int(np.argmax(sp.multiplicities))
+    r = sp.roots[i]
+    assert sp.multiplicities[i] == 6 and abs(r.imag) == 0 and abs(r.real + 6.02) < 0.01
+    # a six-fold root: Q and its first five derivatives vanish there (relative to their scale), the sixth not
+    dq, vals = q, []
+    for _ in range(7):
+        vals.append(abs(dq(r)))
+        dq = dq.derivative()
+    assert max(vals[:6]) < 1e-6 * vals[6]
+
+
+def test_root_on_the_boundary_is_reported_in_the_closed_region():
+    # the real roots of the polynomial (s+1)(s+2)(s^2+9) lie on the Im = 0 edge; the pair +-3j on x = 0
+    q = QuasiPolynomial([np.poly([-1, -2, 3j, -3j])], [0.0])
+    sp = find_roots(q, (-3, 0, 0, 5))
+    assert sp.certified
+    want = np.array([-2, -1, 3j])
+    assert sp.roots.size == 3 and np.max(np.min(np.abs(sp.roots[:, None] - want[None, :]), axis=0)) < 1e-10
+
+
+def test_qpmr_example_3_all_201_roots():
+    from qpmr.quasipoly import examples as ex
+
+    c, d = ex.vyhlidal2014qpmr_03()
+    sp = find_roots(QuasiPolynomial([row[::-1] for row in c], list(d)), (-6, 2, 0, 200))
+    assert sp.certified and sp.count == 201 and int(sp.multiplicities.sum()) == 201
+
+
+def test_uncertified_when_the_boundary_cannot_be_resolved(monkeypatch):
+    import delaykit.roots as R
+
+    monkeypatch.setattr(R, "_CAP", 50)
+    sp = find_roots(AltitudeLoop(kp=2.0, delay=0.37, kv=0.3).characteristic(), (-10, 2, 0, 100))
+    assert not sp.certified and "samples" in sp.reason
+
+
+def test_neutral_lines_and_stability():
+    q = AltitudeLoop(kp=2.0, delay=0.37, kv=0.3).characteristic()
+    assert neutral_lines(q) == (math.log(0.3) / 0.37,)
+    assert neutral_lines(AltitudeLoop(kp=2.0, delay=0.37).characteristic()) == ()
+    r = rightmost(AltitudeLoop(kp=2.0, delay=0.37, kv=0.5))
+    assert r.stable and abs(r.root - complex(-1.8408, 6.9839)) < 1e-4
+    bad = rightmost(AltitudeLoop(kp=2.0, delay=0.37, kv=1.2))
+    assert not bad.stable and bad.neutral_lines[0] > 0
+
+
+def test_rightmost_of_p_loop_is_lambert_branch_zero():
+    for kp, td in [(1.31, 0.368), (0.5, 0.2), (3.0, 0.6)]:
+        r = rightmost(AltitudeLoop(kp=kp, delay=td))
+        ref = lambert_roots(0.0, -kp, td, branches=[0]).roots[0]
+        ref = complex(ref.real, abs(ref.imag))
+        assert abs(r.root - ref) < 1e-10 * (1 + abs(ref))
+        assert r.stable == (kp * td < math.pi / 2)
+
+
+def test_delay_margin_closed_forms():
+    # P loop: crossing at w = Kp, margin pi / (2 Kp)
+    m = delay_margin(AltitudeLoop(kp=1.31, delay=0.368))
+    assert math.isclose(m.delay, math.pi / (2 * 1.31), rel_tol=1e-12) and math.isclose(m.frequency, 1.31)
+    # neutral PV: w = Kp / sqrt(1 - Kv^2), tau = arg(j w / (Kp + j Kv w)) ... checked by the root crossing
+    loop = AltitudeLoop(kp=2.0, delay=0.37, kv=0.3)
+    m = delay_margin(loop)
+    assert math.isclose(m.frequency, 2.0 / math.sqrt(1 - 0.09), rel_tol=1e-12)
+    q = loop.replace(delay=m.delay).characteristic()
+    assert abs(q(1j * m.frequency)) < 1e-12
+    assert rightmost(loop.replace(delay=m.delay * 0.98)).stable
+    assert not rightmost(loop.replace(delay=m.delay * 1.02)).stable
+    assert delay_margin(AltitudeLoop(kp=2.0, delay=0.3, kv=1.0)).delay == 0.0
+
+
+def test_stability_map_p_loop_boundary_is_kp_td_pi_over_2():
+    kp = np.linspace(0.5, 6.0, 23)
+    td = np.linspace(0.1, 0.8, 15)
+    m = stability_map(AltitudeLoop(kp=1.0, delay=0.3), "kp", kp, "delay", td)
+    K, T = np.meshgrid(kp, td)
+    clear = np.abs(K * T - math.pi / 2) > 1e-3
+    assert np.array_equal(m.stable[clear], (K * T < math.pi / 2)[clear])
+    pv = stability_map(AltitudeLoop(kp=2.0, delay=0.37, kv=0.3), "kv", [0.3, 0.9, 1.1], "kp", [2.0])
+    assert pv.stable.tolist() == [[True, True, False]]
+
+
+def test_root_bound_holds():
+    q = AltitudeLoop(kp=2.0, delay=0.37, kv=0.3, velocity="filtered").characteristic()
+    R = root_bound(q, -2.0)
+    sp = find_roots(q, (-2.0, 3 * R, 0, 3 * R))
+    assert sp.certified and np.all(np.abs(sp.roots) <= R)
+
+
+@pytest.mark.parametrize("region, fragment", [((2, 1, 0, 1), "re_min"), ((0, 1, 3, 3), "im_min"),
+                                              ((0, 1, 0, float("nan")), "finite"), ((0, 1, 2), "four")])
+def test_bad_regions(region, fragment):
+    with pytest.raises(InvalidValueError, match=fragment):
+        find_roots(QuasiPolynomial([[1, 0], [1]], [0, 1]), region)
+
+
+def test_bad_quasi_polynomials():
+    with pytest.raises(InvalidValueError, match="zero"):
+        QuasiPolynomial([[0.0]], [0.0])
+    with pytest.raises(InvalidValueError, match="advanced"):
+        find_roots(QuasiPolynomial([[1], [1, 0]], [0, 1]), (-1, 1, -1, 1))
