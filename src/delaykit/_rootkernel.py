@@ -184,10 +184,25 @@ def grid_minima(C, A, tau, xs, ys):
     """Grid nodes (interior) where |Q| is not larger than at any of the 8 neighbours."""
     nx = xs.shape[0]
     ny = ys.shape[0]
+    nt, n1 = C.shape
+    # exp(-(x + i y) tau) = exp(-x tau) exp(-i y tau): one factor per column and one per row
+    EX = np.empty((nt, nx))
+    EY = np.empty((nt, ny), np.complex128)
+    for j in range(nt):
+        for ix in range(nx):
+            EX[j, ix] = math.exp(-xs[ix] * tau[j]) if -xs[ix] * tau[j] < 700.0 else np.inf
+        for iy in range(ny):
+            EY[j, iy] = cmath.exp(-1j * ys[iy] * tau[j])
     V = np.empty((ny, nx))
     for iy in range(ny):
         for ix in range(nx):
-            Q, dQ, nz = qeval(C, A, tau, complex(xs[ix], ys[iy]))
+            s = complex(xs[ix], ys[iy])
+            Q = 0j
+            for j in range(nt):
+                p = 0j
+                for k in range(n1):
+                    p = p * s + C[j, k]
+                Q += p * (EX[j, ix] * EY[j, iy])
             a = abs(Q)
             V[iy, ix] = a if a == a and a < np.inf else np.inf
     out = np.empty(nx * ny, np.complex128)

@@ -519,7 +519,15 @@ def find_roots(
     margin = 0.05 * scale
     search = (x0 - margin, x1 + margin, y0 - margin, y1 + margin)
     cand = _grid_candidates(ev, search, grid)
+    if ev.real and search[2] <= 0.0 <= search[3]:
+        # real roots of a real quasi-polynomial: sign changes of Q along the real axis
+        xr = np.linspace(search[0], search[1], 256)
+        qr = ev.value(xr.astype(complex)).real
+        ch = np.flatnonzero(np.isfinite(qr[:-1]) & np.isfinite(qr[1:]) & (np.sign(qr[:-1]) != np.sign(qr[1:])))
+        cand = np.concatenate([cand, 0.5 * (xr[ch] + xr[ch + 1]) + 0j])
     s0, conv, clean = _newton(ev, cand, box=search)
+    if ev.real:  # roots of a real quasi-polynomial come in conjugate pairs
+        s0, conv, clean = np.concatenate([s0, s0.conj()]), np.tile(conv, 2), np.tile(clean, 2)
     ins = conv & _inside(s0, search)
     known, mult = _absorb(q, ev, np.zeros(0, complex), np.zeros(0, dtype=int), s0[ins], clean[ins], scale)
     if certify:
