@@ -8,6 +8,7 @@ import math
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -94,7 +95,7 @@ def test_bad_input_is_one_line_and_status_2(args, fragment):
 
 
 def test_help_everywhere():
-    for cmd in ([], ["simulate"], ["report"]):
+    for cmd in ([], ["simulate"], ["report"], ["roots"], ["lambert"]):
         res = run(*cmd, "--help")
         assert res.exit_code == 0 and "Usage" in res.output
 
@@ -122,3 +123,48 @@ def test_installed_script_exits_2_without_traceback():
                           capture_output=True, text=True)
     assert proc.returncode == 2
     assert "delay must be at least 0" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_roots_json_matches_the_library(tmp_path):
+    from delaykit.roots import find_roots
+
+    png = tmp_path / "fig8.png"
+    res = run("roots", "--kp", "2", "--kv", "0.3", "--delay", "0.37", "--region", "-10", "2", "0", "100",
+              "--json", "--plot", str(png))
+    assert res.exit_code == 0, res.output
+    got = json.loads(res.stdout)
+    ref = find_roots(AltitudeLoop(kp=2, kv=0.3, delay=0.37).characteristic(), (-10, 2, 0, 100))
+    assert got["certified"] is True and got["stable"] is True
+    assert len(got["roots"]) == ref.roots.size == 7
+    assert abs(got["rightmost"][0] - (-3.195055)) < 1e-6 and abs(got["rightmost"][1] - 5.581987) < 1e-6
+    assert math.isclose(got["neutral_line"], math.log(0.3) / 0.37)
+    assert png.stat().st_size > 10_000
+
+
+def test_roots_filtered_and_unstable_warning():
+    res = run("roots", "--kp", "2", "--kv", "0.3", "--delay", "0.37", "--velocity", "filtered", "--json")
+    assert res.exit_code == 0 and json.loads(res.stdout)["neutral_line"] is None
+    res = run("roots", "--kp", "2", "--kv", "1.2", "--delay", "0.37")
+    assert res.exit_code == 0 and "UNSTABLE" in res.stdout and "cannot be stable" in res.stdout
+
+
+def test_lambert_json():
+    res = run("lambert", "--a0", "0", "--a1", "-1.31", "--delay", "0.368", "--branches", "-3:3", "--json")
+    assert res.exit_code == 0, res.output
+    got = json.loads(res.stdout)
+    assert [r["branch"] for r in got["roots"]] == list(range(-3, 4))
+    for r in got["roots"]:
+        s = complex(r["re"], r["im"])
+        assert abs(s + 1.31 * np.exp(-0.368 * s)) < 1e-12
+    assert got["rightmost"][0] == max(r["re"] for r in got["roots"])
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["roots", "--kp", "2", "--delay", "0.37", "--region", "2", "1", "0", "5"], "re_min"),
+    (["roots", "--kp", "2", "--delay", "-0.37"], "delay"),
+    (["lambert", "--a1", "-1", "--delay", "1", "--branches", "3:1"], "reversed"),
+    (["lambert", "--a1", "nan", "--delay", "1"], "a1"),
+])
+def test_roots_and_lambert_bad_input(args, fragment):
+    res = run(*args)
+    assert res.exit_code == 2 and fragment in res.output and "Traceback" not in res.output

@@ -191,6 +191,103 @@ def report(
     out.print("Wrote " + ", ".join(str(f) for f in rep.files), highlight=False)
 
 
+def _loop_from_options(kp, kv, delay, velocity, filter_wn, filter_zeta) -> AltitudeLoop:
+    return AltitudeLoop(kp=kp, delay=check_real("--delay", delay, minimum=0.0), kv=kv, velocity=velocity,
+                        filter_wn=filter_wn, filter_zeta=filter_zeta)
+
+
+@app.command()
+@_friendly
+def roots(
+    kp: float = typer.Option(..., "--kp", help="Proportional gain Kp."),
+    delay: float = typer.Option(..., "--delay", help="Delay Td, s."),
+    kv: float = typer.Option(0.0, "--kv", help="Velocity gain Kv (0 = P control)."),
+    velocity: str = typer.Option("true", "--velocity", help="true (neutral loop) | filtered (retarded loop)."),
+    filter_wn: float = typer.Option(38.0, "--filter-wn", help="Derivative filter natural frequency, rad/s."),
+    filter_zeta: float = typer.Option(1.0, "--filter-zeta", help="Derivative filter damping ratio."),
+    region: tuple[float, float, float, float] = typer.Option(
+        (-10.0, 2.0, 0.0, 100.0), "--region", help="RE_MIN RE_MAX IM_MIN IM_MAX."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Draw the spectrum (as the paper's Fig. 8) here."),
+) -> None:
+    """Every characteristic root of the linearised loop in a region, certified by the argument principle."""
+    from .roots import find_roots
+    from .stability import rightmost as rightmost_root
+
+    loop = _loop_from_options(kp, kv, delay, velocity, filter_wn, filter_zeta)
+    q = loop.characteristic()
+    sp = find_roots(q, region)
+    rm = rightmost_root(q)
+    data = sp.to_dict()
+    data["rightmost"] = None if rm.root is None else [rm.root.real, rm.root.imag]
+    data["stable"] = rm.stable
+    data["abscissa"] = rm.abscissa
+    data["rightmost_in_region"] = None if sp.rightmost is None else [sp.rightmost.real, sp.rightmost.imag]
+    if plot is not None:
+        from .plots import plot_spectrum
+
+        plot_spectrum([sp], plot, labels=[repr(loop)], title=str(q))
+    if as_json:
+        print(json.dumps(data, indent=2))
+        return
+    table = Table(title=f"{q!r} in {tuple(sp.region)}")
+    for col in ("#", "Re s", "Im s", "multiplicity"):
+        table.add_column(col, justify="right")
+    for i, (z, m) in enumerate(zip(sp.roots, sp.multiplicities), 1):
+        table.add_row(str(i), f"{z.real:.6f}", f"{z.imag:.6f}", str(m))
+    out.print(table)
+    cert = "certified" if sp.certified else f"NOT certified: {sp.reason}"
+    nl = f"; neutral line Re s = {sp.neutral_lines[0]:.6f}" if len(sp.neutral_lines) == 1 else ""
+    r = rm.root
+    out.print(f"{int(sp.multiplicities.sum())} roots, {cert} (argument principle: {sp.count}){nl}.", highlight=False)
+    out.print(f"Rightmost root {r.real:.6f} ± {abs(r.imag):.6f}j; spectral abscissa {rm.abscissa:.6f}: "
+              f"{'stable' if rm.stable else 'UNSTABLE'}." if r is not None else
+              f"Spectral abscissa {rm.abscissa:.6f}: {'stable' if rm.stable else 'UNSTABLE'}.", highlight=False)
+    if loop.kv >= 1 and loop.velocity == "true" and loop.delay > 0:
+        out.print("Warning: a neutral loop with Kv >= 1 cannot be stable (its root chains reach the right half-plane).")
+
+
+def _parse_branches(spec: str) -> list[int]:
+    try:
+        if ":" in spec:
+            a, b = (int(x) for x in spec.split(":"))
+        else:
+            return [int(x) for x in spec.split(",")]
+    except ValueError:
+        raise InvalidValueError(f"--branches {spec!r} must be K1:K2 or a comma list of integers") from None
+    if b < a:
+        raise InvalidValueError(f"--branches {spec!r}: the range is reversed (K1 must not exceed K2)")
+    return list(range(a, b + 1))
+
+
+@app.command()
+@_friendly
+def lambert(
+    a0: float = typer.Option(0.0, "--a0", help="a0 in x' = a0 x + a1 x(t - Td)."),
+    a1: float = typer.Option(..., "--a1", help="a1 (for the P loop, -Kp)."),
+    delay: float = typer.Option(..., "--delay", help="Td, s."),
+    branches: str = typer.Option("-3:3", "--branches", help="Lambert W branches: K1:K2 or a list."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+) -> None:
+    """Roots s_k = W_k(Td a1 exp(-a0 Td)) / Td + a0 of a first-order delay equation, by branch."""
+    from .lambert import lambert_roots
+
+    r = lambert_roots(a0, a1, check_real("--delay", delay, minimum=0.0), branches=_parse_branches(branches))
+    data = r.to_dict()
+    if as_json:
+        print(json.dumps(data, indent=2))
+        return
+    table = Table(title=f"s - {a0:g} - ({a1:g}) exp(-{delay:g} s) = 0")
+    for col in ("branch k", "Re s", "Im s"):
+        table.add_column(col, justify="right")
+    for row in data["roots"]:
+        table.add_row(str(row["branch"]), f"{row['re']:.8f}", f"{row['im']:.8f}")
+    out.print(table)
+    rm = data["rightmost"]
+    out.print(f"Rightmost root {rm[0]:.8f} {rm[1]:+.8f}j (branch 0; for real coefficients branch -1 is its conjugate).",
+              highlight=False)
+
+
 def main() -> None:
     """Entry point of the ``delaykit`` script."""
     app(prog_name="delaykit")

@@ -22,7 +22,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from .simulation import Response  # noqa: E402
 
-__all__ = ["plot_responses"]
+__all__ = ["plot_responses", "plot_spectrum"]
 
 
 def plot_responses(
@@ -73,6 +73,71 @@ def plot_responses(
     ax1.legend(fontsize=8, ncol=2)
     if title:
         ax1.set_title(title)
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_spectrum(
+    spectra: Sequence,
+    path: str | Path,
+    *,
+    labels: Sequence[str] | None = None,
+    title: str | None = None,
+) -> None:
+    """Roots in the complex plane, as in the paper's Fig. 8: roots, neutral lines, the stable half-plane shaded.
+
+    Parameters
+    ----------
+    spectra : sequence of Spectrum
+        Results of :func:`delaykit.roots.find_roots` (one per loop).
+    path : str or Path
+        Output file.
+    labels : sequence of str, optional
+        Legend entries.
+    title : str, optional
+        Figure title.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> from delaykit import AltitudeLoop
+    >>> from delaykit.roots import find_roots
+    >>> sp = find_roots(AltitudeLoop(kp=2, delay=0.37, kv=0.3).characteristic(), (-10, 2, 0, 100))
+    >>> path = os.path.join(tempfile.mkdtemp(), "s.png")
+    >>> plot_spectrum([sp], path)
+    >>> os.path.getsize(path) > 0
+    True
+    """
+    fig, ax = plt.subplots(figsize=(7, 6))
+    markers = "oxs^vD+*"
+    x0 = min(sp.region[0] for sp in spectra)
+    x1 = max(sp.region[1] for sp in spectra)
+    y1 = max(sp.region[3] for sp in spectra)
+    y0 = min(sp.region[2] for sp in spectra)
+    ax.axvspan(x0, 0.0, color="#e8f4e8", zorder=0, label="stable half-plane")
+    ax.axvline(0.0, color="k", lw=0.8)
+    for i, sp in enumerate(spectra):
+        lab = labels[i] if labels else None
+        pts = ax.plot(sp.roots.real, sp.roots.imag, markers[i % len(markers)], ms=5, mfc="none", label=lab)
+        color = pts[0].get_color()
+        for xline in sp.neutral_lines:
+            ax.axvline(xline, color=color, ls="--", lw=0.8)
+        rm = sp.rightmost
+        if rm is not None:
+            ax.plot([rm.real], [rm.imag], markers[i % len(markers)], ms=9, color=color)
+        for z, m in zip(sp.roots, sp.multiplicities):
+            if m > 1:
+                ax.annotate(f"×{m}", (z.real, z.imag), textcoords="offset points", xytext=(4, 4), fontsize=8)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    ax.set_xlabel("Re s")
+    ax.set_ylabel("Im s (conjugates not shown)" if y0 >= 0 else "Im s")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="best")
+    if title:
+        ax.set_title(title)
     fig.tight_layout()
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
