@@ -19,10 +19,11 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 
 from .simulation import Response  # noqa: E402
 
-__all__ = ["plot_responses", "plot_spectrum"]
+__all__ = ["plot_responses", "plot_spectrum", "plot_stability_map"]
 
 
 def plot_responses(
@@ -138,6 +139,36 @@ def plot_spectrum(
     ax.legend(fontsize=8, loc="best")
     if title:
         ax.set_title(title)
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_stability_map(smap, path: str | Path, *, title: str | None = None) -> None:
+    """The spectral abscissa over a parameter grid, with the stability boundary (abscissa = 0) drawn.
+
+    Examples
+    --------
+    >>> import tempfile, os, numpy as np
+    >>> from delaykit import AltitudeLoop
+    >>> from delaykit.stability import stability_map
+    >>> m = stability_map(AltitudeLoop(kp=1, delay=0.3), "kp", np.linspace(0.5, 6, 12), "delay", np.linspace(0.1, 0.8, 8))
+    >>> path = os.path.join(tempfile.mkdtemp(), "m.png")
+    >>> plot_stability_map(m, path)
+    >>> os.path.getsize(path) > 0
+    True
+    """
+    fig, ax = plt.subplots(figsize=(7, 5))
+    a = np.clip(smap.abscissa, -10, 10)
+    lim = max(1e-9, float(np.nanmax(np.abs(a))))
+    cs = ax.pcolormesh(smap.x, smap.y, a, cmap="RdBu_r", vmin=-lim, vmax=lim, shading="auto")
+    fig.colorbar(cs, ax=ax, label="spectral abscissa (1/s)")
+    if np.any(a < 0) and np.any(a >= 0) and min(a.shape) > 1:
+        ax.contour(smap.x, smap.y, a, levels=[0.0], colors="k", linewidths=1.5)
+    ax.set_xlabel(smap.x_name)
+    ax.set_ylabel(smap.y_name)
+    ax.set_title(title or "stability map (black line: stability boundary)")
     fig.tight_layout()
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
