@@ -19,7 +19,8 @@ from scipy.optimize import brentq, minimize_scalar
 
 class Oracle:
     def __init__(self, kp, td, kv=0.0, vmax=1.0, filtered=False, wf=38.0, zf=1.0, period=None, offset=0.0,
-                 step=1.0, t_end=15.0):
+                 step=1.0, t_end=15.0, gain=1.0, lag=0.0):
+        self.gain, self.lag = gain, lag
         assert td > 0
         self.kp, self.td, self.kv = kp, td, kv
         self.vmax = math.inf if vmax is None else vmax
@@ -36,18 +37,22 @@ class Oracle:
     # -- history -----------------------------------------------------------------------------------
     def state(self, t):
         if t < 0 or not self.segs:
-            return np.zeros(3)
+            return np.zeros(4)
         i = max(0, bisect.bisect_right(self.seg_t0, t) - 1)
         return self.segs[i](t)
 
     def v(self, t):
-        """Plant input at t: u(t - Td)."""
-        return self.u(t - self.td)
+        """Plant input at t: gain * u(t - Td)."""
+        return self.gain * self.u(t - self.td)
+
+    def speed(self, t, y):
+        """The plant's vertical speed: the plant input, or the lag state."""
+        return y[3] if self.lag > 0 else self.v(t)
 
     def p(self, t, y=None):
         if y is None:
             y = self.state(t)
-        vel = self.wf**2 * y[2] if self.filtered else self.v(t)
+        vel = self.wf**2 * y[2] if self.filtered else self.speed(t, y)
         return self.kp * (self.r - y[0]) - self.kv * vel
 
     def u(self, t):
@@ -60,10 +65,12 @@ class Oracle:
 
     # -- integration -------------------------------------------------------------------------------
     def _rhs(self, t, y):
-        dz = self.v(t)
+        vin = self.v(t)
+        dz = y[3] if self.lag > 0 else vin
+        dl = (vin - y[3]) / self.lag if self.lag > 0 else 0.0
         if self.filtered:
-            return [dz, y[2], -self.wf**2 * y[1] - 2 * self.zf * self.wf * y[2] + y[0]]
-        return [dz, 0.0, 0.0]
+            return [dz, y[2], -self.wf**2 * y[1] - 2 * self.zf * self.wf * y[2] + y[0], dl]
+        return [dz, 0.0, 0.0, dl]
 
     def _solve(self):
         T = self.t_end
@@ -85,7 +92,7 @@ class Oracle:
         for b in todo:
             add_images(b)
         t = 0.0
-        y = np.zeros(3)
+        y = np.zeros(4)
         while t < T - 1e-12:
             nxt = min([b for b in bps if b > t + 1e-12] + [T])
             if self.period and any(abs(t - s) < 1e-12 for s in self._sample_times()):
@@ -94,7 +101,7 @@ class Oracle:
             if not self.period and math.isfinite(self.vmax):
                 for sgn in (1.0, -1.0):
                     ev = (lambda tt, yy, s=sgn: self.kp * (self.r - yy[0]) - self.kv * (
-                        self.wf**2 * yy[2] if self.filtered else self.v(tt)) - s * self.vmax)
+                        self.wf**2 * yy[2] if self.filtered else self.speed(tt, yy)) - s * self.vmax)
                     events.append(ev)
             sol = solve_ivp(self._rhs, (t, nxt), y, method="DOP853", rtol=1e-12, atol=1e-14,
                             dense_output=True, events=events or None)
@@ -115,7 +122,12 @@ class Oracle:
         return self._st
 
     def _take_sample(self, t, y):
-        vel = self.wf**2 * y[2] if self.filtered else self.u(t - self.td - 1e-12)
+        if self.filtered:
+            vel = self.wf**2 * y[2]
+        elif self.lag > 0:
+            vel = y[3]
+        else:
+            vel = self.gain * self.u(t - self.td - 1e-12)
         p = self.kp * (self.r - y[0]) - self.kv * vel
         self.samples_t.append(t)
         self.samples_u.append(min(max(p, -self.vmax), self.vmax))

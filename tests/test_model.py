@@ -64,3 +64,15 @@ def test_reprs_are_one_line_and_readable():
     assert "\n" not in text and "kv=0.3" in text and "filtered velocity" in text and "0.065" in text
     assert loop.replace(kv=0.0).kv == 0.0
     assert loop.to_dict()["velocity"] == "filtered"
+
+
+def test_characteristic_with_lag_and_gain():
+    # s (T s + 1) + g (Kv s + Kp) e^{-s Td}, and with the filter s (T s + 1) D + g (Kp D + Kv wf^2 s) e^{-s Td}
+    loop = AltitudeLoop(kp=1.5, delay=0.3, kv=0.2, lag=0.1, gain=0.8)
+    q = loop.characteristic()
+    assert q.kind == "retarded"
+    s = 0.4 + 3j
+    assert abs(q(s) - (s * (0.1 * s + 1) + 0.8 * (0.2 * s + 1.5) * cmath.exp(-0.3 * s))) < 1e-12
+    qf = loop.replace(velocity="filtered").characteristic()
+    d = s * s + 76 * s + 1444
+    assert abs(qf(s) - (s * (0.1 * s + 1) * d + 0.8 * (1.5 * d + 0.2 * 1444 * s) * cmath.exp(-0.3 * s))) < 1e-9

@@ -18,7 +18,7 @@ METRICS = ("overshoot", "peak_time", "rise_time", "settling_time")
 def oracle_for(loop: AltitudeLoop, step: float, t_end: float) -> Oracle:
     return Oracle(kp=loop.kp, td=loop.delay, kv=loop.kv, vmax=loop.vmax, filtered=loop.filtered,
                   wf=loop.filter_wn, zf=loop.filter_zeta, period=loop.period, offset=loop.sample_offset,
-                  step=step, t_end=t_end)
+                  step=step, t_end=t_end, gain=loop.gain, lag=loop.lag)
 
 
 def assert_matches_oracle(loop: AltitudeLoop, step: float = 1.0, t_end: float = 12.0) -> None:
@@ -64,6 +64,9 @@ PAPER_CASES = [
     AltitudeLoop(kp=1.31, delay=0.368, period=0.065, sample_offset=0.03),
     AltitudeLoop(kp=2.0, delay=0.37, kv=0.3, period=0.065, velocity="filtered"),
     AltitudeLoop(kp=1.31, delay=0.368, vmax=None),
+    AltitudeLoop(kp=1.31, delay=0.30, lag=0.15, gain=0.8),
+    AltitudeLoop(kp=2.0, delay=0.37, kv=0.3, lag=0.1, period=0.065),
+    AltitudeLoop(kp=2.0, delay=0.37, kv=0.3, lag=0.1, velocity="filtered"),
 ]
 
 
@@ -73,8 +76,9 @@ def test_paper_loops_match_reference_solver(loop):
 
 
 loops = st.builds(
-    lambda kp, td, kv, vel, vmax, per, off: AltitudeLoop(
-        kp=kp, delay=td, kv=kv, velocity=vel, vmax=vmax, period=per, sample_offset=(off * per if per else 0.0)
+    lambda kp, td, kv, vel, vmax, per, off, gain, lag: AltitudeLoop(
+        kp=kp, delay=td, kv=kv, velocity=vel, vmax=vmax, period=per, sample_offset=(off * per if per else 0.0),
+        gain=gain, lag=lag,
     ),
     kp=st.floats(0.5, 2.5),
     td=st.floats(0.1, 0.6),
@@ -83,6 +87,8 @@ loops = st.builds(
     vmax=st.one_of(st.none(), st.floats(0.3, 2.0)),
     per=st.one_of(st.none(), st.none(), st.floats(0.02, 0.1)),
     off=st.floats(0.0, 0.99),
+    gain=st.one_of(st.just(1.0), st.floats(0.6, 1.3)),
+    lag=st.one_of(st.just(0.0), st.floats(0.02, 0.4)),
 )
 
 
@@ -254,3 +260,26 @@ def test_bad_run_arguments():
     with pytest.raises(InvalidValueError, match="broadcast"):
         simulate_many(kp=[1.0, 2.0], delay=[0.2, 0.3, 0.4])
     assert issubclass(InvalidValueError, ValueError) and issubclass(InvalidTypeError, TypeError)
+
+
+def test_no_delay_with_lag_and_gain_closed_form():
+    # z' = v, T v' = g u - v, u = Kp (r - z) unsaturated: z'' T + z' + g Kp z = g Kp r, a damped oscillator
+    kp, g, T = 2.0, 0.8, 0.3
+    resp = simulate(AltitudeLoop(kp=kp, delay=0.0, gain=g, lag=T, vmax=None), 1.0)
+    wn2, two_zw = g * kp / T, 1.0 / T
+    zeta, wn = two_zw / (2 * math.sqrt(wn2)), math.sqrt(wn2)
+    wd = wn * math.sqrt(1 - zeta**2)
+    for t in (0.3, 1.0, 2.5):
+        exact = 1 - math.exp(-zeta * wn * t) * (math.cos(wd * t) + zeta / math.sqrt(1 - zeta**2) * math.sin(wd * t))
+        assert math.isclose(float(resp.altitude(t)), exact, abs_tol=1e-12)
+
+
+def test_sampler_matches_response():
+    from delaykit.simulation import AltitudeSampler
+
+    loop = AltitudeLoop(kp=1.6, delay=0.33, lag=0.08, gain=0.9, period=0.065, sample_offset=0.01)
+    t = np.sort(np.random.default_rng(2).uniform(-1, 12, 300))
+    sampler = AltitudeSampler(t)
+    z = sampler(loop, -0.8, z0=1.5)
+    ref = simulate(loop, -0.8, z0=1.5, t_end=12.0).altitude(t)
+    assert np.max(np.abs(z - ref)) < 1e-12

@@ -32,7 +32,7 @@ _GRID = 16
 # Column layout of a parameter row.
 PARAM = {
     "kp": 0, "kv": 1, "td": 2, "vmax": 3, "filtered": 4, "wf": 5, "zf": 6,
-    "period": 7, "offset": 8, "step": 9, "t_end": 10, "band": 11,
+    "period": 7, "offset": 8, "step": 9, "t_end": 10, "band": 11, "gain": 12, "lag": 13,
 }
 NPAR = len(PARAM)
 # Column layout of a metrics row.
@@ -197,8 +197,11 @@ def _classify(P, n, vmax, tol):
 
 
 @njit(cache=True)
-def run_one(par, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, store):
+def run_one(par, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, store, et, ez):
     """Simulate one loop; fill ``out`` with its metrics and, if ``store``, ``tz0, th, tzc`` with z's pieces.
+
+    ``et`` (sorted times) and ``ez`` (same size): z is evaluated at those times as the pieces stream past
+    (held at its final value after ``t_end``, 0 before the step).
 
     The command's pieces (``tu0, thu, tuc, tdeg``) are kept apart from z's: contiguous pieces on which the
     command is the same constant (saturated, or held by a sampled controller) are merged, so that only the
@@ -217,6 +220,9 @@ def run_one(par, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, store):
     r = par[9]
     tend = par[10]
     band = par[11]
+    g = par[12]
+    lag = par[13]
+    lagged = lag > 0.0
     sampled = per > 0.0
     true_vel = not filt
     w2 = wf * wf
@@ -225,9 +231,11 @@ def run_one(par, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, store):
     ar = abs(r)
     ptol = 1e-13 * max(1.0, kp * ar)
 
-    rate = kp
-    if td == 0.0 and true_vel:
-        rate = kp / (1.0 + kv)
+    rate = kp * max(g, 1e-300)
+    if td == 0.0 and true_vel and not lagged:
+        rate = kp * g / (1.0 + kv * g)
+    if lagged:
+        rate = max(rate, 1.0 / lag)
     if filt:
         rate = max(rate, wf)
         rate = max(rate, np.sqrt(abs(kv) * w2))
@@ -237,6 +245,7 @@ def run_one(par, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, store):
     Z = np.zeros(NC + 1)
     F1 = np.zeros(NC + 1)
     F2 = np.zeros(NC + 1)
+    L = np.zeros(NC + 1)
     P = np.zeros(NC + 1)
     U = np.zeros(NC + 1)
     W = np.zeros(NC + 1)
@@ -246,7 +255,13 @@ def run_one(par, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, store):
     z = 0.0
     f1 = 0.0
     f2 = 0.0
+    lv = 0.0
     vleft = 0.0
+    ke = 0
+    ne = et.shape[0]
+    while ke < ne and et[ke] < 0.0:
+        ez[ke] = 0.0
+        ke += 1
     uhold = 0.0
     ksamp = 0
     nexts = off if sampled else np.inf
@@ -304,8 +319,10 @@ def run_one(par, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, store):
         nU = 1
         if td == 0.0 and not sampled:
             # an ordinary differential equation: z' = u(t), solved by a Taylor recursion
-            if true_vel:
-                p0 = kp * (r - z) / (1.0 + kv)
+            if lagged:
+                p0 = kp * (r - z) - kv * (lv if true_vel else w2 * f2)
+            elif true_vel:
+                p0 = kp * (r - z) / (1.0 + kv * g)
             else:
                 p0 = kp * (r - z) - kv * w2 * f2
             if p0 > vmax + ptol:
@@ -316,14 +333,18 @@ def run_one(par, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, store):
                 F1[j] = 0.0
                 F2[j] = 0.0
                 Z[j] = 0.0
+                L[j] = 0.0
             Z[0] = z
             F1[0] = f1
             F2[0] = f2
+            L[0] = lv
             for attempt in range(2):
                 for j in range(DEG):
                     rj = r if j == 0 else 0.0
-                    if true_vel:
-                        pj = kp * (rj - Z[j]) / (1.0 + kv)
+                    if lagged:
+                        pj = kp * (rj - Z[j]) - kv * (L[j] if true_vel else w2 * F2[j])
+                    elif true_vel:
+                        pj = kp * (rj - Z[j]) / (1.0 + kv * g)
                     else:
                         pj = kp * (rj - Z[j]) - kv * w2 * F2[j]
                     P[j] = pj
@@ -334,13 +355,19 @@ def run_one(par, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, store):
                     else:
                         uj = 0.0
                     V[j] = uj
-                    Z[j + 1] = H * uj / (j + 1)
+                    if lagged:
+                        L[j + 1] = H * (g * uj - L[j]) / (lag * (j + 1))
+                        Z[j + 1] = H * L[j] / (j + 1)
+                    else:
+                        Z[j + 1] = H * g * uj / (j + 1)
                     if filt:
                         F1[j + 1] = H * F2[j] / (j + 1)
                         F2[j + 1] = H * (-w2 * F1[j] - twozw * F2[j] + Z[j]) / (j + 1)
                 rj = 0.0
-                if true_vel:
-                    P[DEG] = kp * (-Z[DEG]) / (1.0 + kv)
+                if lagged:
+                    P[DEG] = kp * (-Z[DEG]) - kv * (L[DEG] if true_vel else w2 * F2[DEG])
+                elif true_vel:
+                    P[DEG] = kp * (-Z[DEG]) / (1.0 + kv * g)
                 else:
                     P[DEG] = kp * (-Z[DEG]) - kv * w2 * F2[DEG]
                 V[DEG] = P[DEG] if regime == _LINEAR else 0.0
@@ -360,14 +387,23 @@ def run_one(par, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, store):
             if td == 0.0:
                 V[0] = uhold
                 nV = 1
-            # z is the integral of the delayed command
+            # z is the integral of the plant velocity: the delayed command times the gain, through the lag
             Z[0] = z
-            for j in range(nV):
-                Z[j + 1] = H * V[j] / (j + 1)
-            nZ = nV + 1
-            if nZ > NC:
-                trunc = max(trunc, abs(Z[NC]) / ar)
+            if lagged:
+                L[0] = lv
+                for j in range(DEG):
+                    vj = g * V[j] if j < nV else 0.0
+                    L[j + 1] = H * (vj - L[j]) / (lag * (j + 1))
+                    Z[j + 1] = H * L[j] / (j + 1)
                 nZ = NC
+                trunc = max(trunc, abs(Z[DEG]) / ar)
+            else:
+                for j in range(nV):
+                    Z[j + 1] = H * g * V[j] / (j + 1)
+                nZ = nV + 1
+                if nZ > NC:
+                    trunc = max(trunc, abs(Z[NC]) / ar)
+                    nZ = NC
             for j in range(nZ, NC + 1):
                 Z[j] = 0.0
             nP = nZ
@@ -380,8 +416,15 @@ def run_one(par, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, store):
                 trunc = max(trunc, abs(kv * w2 * F2[DEG]) / max(kp * ar, 1e-300))
                 nP = NC
             if not sampled:
+                if lagged:
+                    nP = NC
                 for j in range(nP):
-                    vel = (V[j] if j < nV else 0.0) if true_vel else w2 * F2[j]
+                    if not true_vel:
+                        vel = w2 * F2[j]
+                    elif lagged:
+                        vel = L[j]
+                    else:
+                        vel = g * V[j] if j < nV else 0.0
                     P[j] = -kp * Z[j] - kv * vel
                 P[0] += kp * r
                 regime = _classify(P, nP, vmax, ptol)
@@ -412,6 +455,8 @@ def run_one(par, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, store):
                 if filt:
                     _scale(F1, NC, xc)
                     _scale(F2, NC, xc)
+                if lagged:
+                    _scale(L, NC, xc)
                 H *= xc
                 end = a + H
             if regime == _LINEAR:
@@ -477,15 +522,27 @@ def run_one(par, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, store):
                     tlast = a + xl * H
                 elif abs(W[0] - 1.0) >= band:
                     tlast = a
+        # the requested samples of z on this piece
+        while ke < ne and et[ke] <= end + eps:
+            x = (et[ke] - a) / H
+            ez[ke] = _horner(Z, nZ, min(max(x, 0.0), 1.0))
+            ke += 1
         # advance the state to the end of the piece
         z = _sum(Z, nZ)
         if filt:
             f1 = _sum(F1, NC)
             f2 = _sum(F2, NC)
-        vleft = _sum(V, nV)
+        if lagged:
+            lv = _sum(L, NC)
+            vleft = lv
+        else:
+            vleft = g * _sum(V, nV)
         a = end
         n += 1
 
+    while ke < ne:
+        ez[ke] = z
+        ke += 1
     overshoot = max(0.0, wmax - 1.0) * 100.0
     out[0] = overshoot
     out[1] = tpeak if wmax > 1.0 else np.nan
@@ -517,6 +574,8 @@ def run_batch(pars, cap, nchunks):
         tz0 = np.empty(1)
         th = np.empty(1)
         tzc = np.empty((1, NC))
+        et = np.empty(0)
+        ez = np.empty(0)
         for i in range(lo, hi):
-            run_one(pars[i], cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out[i], False)
+            run_one(pars[i], cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out[i], False, et, ez)
     return out

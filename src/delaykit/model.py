@@ -63,6 +63,12 @@ class AltitudeLoop:
         Controller period in seconds; ``None`` for a continuous controller.
     sample_offset : float
         Time of the first sample at or after the step, in ``[0, period)``.
+    gain : float
+        Effective gain of the drone's vertical speed: the plant moves at ``gain * u(t - Td)`` (1 = ideal).
+    lag : float
+        Time constant (s) of the drone's own vertical-speed loop, a first-order lag between the delayed
+        command and the actual speed (0 = none, the paper's model).  With a lag the true-velocity loop is
+        retarded, not neutral.
 
     Examples
     --------
@@ -81,6 +87,8 @@ class AltitudeLoop:
     filter_zeta: float = 1.0
     period: float | None = None
     sample_offset: float = 0.0
+    gain: float = 1.0
+    lag: float = 0.0
 
     def __post_init__(self) -> None:
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
@@ -94,6 +102,8 @@ class AltitudeLoop:
             raise InvalidValueError(f"velocity must be one of {', '.join(VELOCITY_CHOICES)}; got {self.velocity!r}")
         set_("filter_wn", check_real("filter_wn (rad/s)", self.filter_wn, minimum=0.0, strict=True))
         set_("filter_zeta", check_real("filter_zeta", self.filter_zeta, minimum=0.0, strict=True))
+        set_("gain", check_real("gain (effective speed gain)", self.gain, minimum=0.0, strict=True))
+        set_("lag", check_real("lag (s)", self.lag, minimum=0.0))
         if self.period is not None:
             set_("period", check_real("period (s)", self.period, minimum=0.0, strict=True))
             off = check_real("sample_offset (s)", self.sample_offset, minimum=0.0)
@@ -128,7 +138,8 @@ class AltitudeLoop:
 
         P and PV with true velocity: ``s + (Kv s + Kp) exp(-s Td)`` (neutral when Kv > 0).
         PV with the filter ``F(s) = wf^2 s / D(s)``, ``D = s^2 + 2 zf wf s + wf^2``:
-        ``s D(s) + (Kp D(s) + Kv wf^2 s) exp(-s Td)`` (retarded).
+        ``s D(s) + (Kp D(s) + Kv wf^2 s) exp(-s Td)`` (retarded).  A lag ``T`` multiplies the first term by
+        ``(T s + 1)`` and a gain ``g`` the delayed one.
 
         Raises
         ------
@@ -145,14 +156,16 @@ class AltitudeLoop:
                 f"a sampled controller (period {self.period:g} s) has no quasi-polynomial characteristic "
                 "function; use the continuous loop (period=None) for roots"
             )
+        import numpy as np
+
+        plant = np.polymul([self.lag, 1.0], [1.0, 0.0]) if self.lag > 0 else np.array([1.0, 0.0])
+        g = self.gain
         if not self.filtered:
-            return QuasiPolynomial([[1.0, 0.0], [self.kv, self.kp]], [0.0, self.delay])
+            return QuasiPolynomial([plant, [g * self.kv, g * self.kp]], [0.0, self.delay])
         w, zeta = self.filter_wn, self.filter_zeta
-        d = [1.0, 2 * zeta * w, w * w]
-        return QuasiPolynomial(
-            [[1.0, 2 * zeta * w, w * w, 0.0], [self.kp, self.kp * 2 * zeta * w + self.kv * w * w, self.kp * d[2]]],
-            [0.0, self.delay],
-        )
+        d = np.array([1.0, 2 * zeta * w, w * w])
+        delayed = g * np.polyadd(self.kp * d, [self.kv * w * w, 0.0])
+        return QuasiPolynomial([np.polymul(plant, d), delayed], [0.0, self.delay])
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (``vmax`` and ``period`` are ``null`` when absent)."""
@@ -168,6 +181,10 @@ class AltitudeLoop:
                 else "true velocity"
             )
         parts.append(f"vmax=±{self.vmax:g} m/s" if self.vmax is not None else "no saturation")
+        if self.gain != 1.0:
+            parts.append(f"gain={self.gain:g}")
+        if self.lag:
+            parts.append(f"lag={self.lag:g} s")
         parts.append(
             f"sampled every {self.period:g} s" + (f" from {self.sample_offset:g} s" if self.sample_offset else "")
             if self.sampled
