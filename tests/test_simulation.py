@@ -283,3 +283,12 @@ def test_sampler_matches_response():
     z = sampler(loop, -0.8, z0=1.5)
     ref = simulate(loop, -0.8, z0=1.5, t_end=12.0).altitude(t)
     assert np.max(np.abs(z - ref)) < 1e-12
+
+
+def test_piece_starting_on_the_saturation_boundary_makes_progress():
+    # Regression: near the stability limit (Kp Td = 1.5) a piece began exactly on the saturation boundary in
+    # the wrong regime, and the switch found at x = 0 made no progress (millions of empty pieces).
+    loop = AltitudeLoop(kp=1.5, delay=1.0)
+    resp = simulate(loop, -1.3, z0=2.0, t_end=12.0)
+    assert resp.starts.size < 200
+    assert_matches_oracle(loop, -1.3, t_end=12.0)

@@ -434,20 +434,29 @@ def run_one(par, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, store, et, ez):
             nU = 1
         else:
             xc = 2.0
-            if regime == _LINEAR:
-                lo, hi = _bounds(P, nP)
-                if hi >= vmax:
-                    xc = min(xc, _first_cross(P, nP, vmax, -1.0))
-                if lo <= -vmax:
-                    xc = min(xc, _first_cross(P, nP, -vmax, 1.0))
-            elif regime == _HIGH:
-                lo, hi = _bounds(P, nP)
-                if lo <= vmax:
-                    xc = _first_cross(P, nP, vmax, 1.0)
-            else:
-                lo, hi = _bounds(P, nP)
-                if hi >= -vmax:
-                    xc = _first_cross(P, nP, -vmax, -1.0)
+            for attempt in range(3):
+                xc = 2.0
+                if regime == _LINEAR:
+                    lo, hi = _bounds(P, nP)
+                    if hi >= vmax:
+                        xc = min(xc, _first_cross(P, nP, vmax, -1.0))
+                    if lo <= -vmax:
+                        xc = min(xc, _first_cross(P, nP, -vmax, 1.0))
+                elif regime == _HIGH:
+                    lo, hi = _bounds(P, nP)
+                    if lo <= vmax:
+                        xc = _first_cross(P, nP, vmax, 1.0)
+                else:
+                    lo, hi = _bounds(P, nP)
+                    if hi >= -vmax:
+                        xc = _first_cross(P, nP, -vmax, -1.0)
+                # a switch at the very start means the piece began on the boundary in the wrong regime:
+                # classify again just past the start (a cut there would make no progress in time)
+                if td > 0.0 and xc < 1.0 and xc * H <= 1e-12 * max(1.0, abs(a) + H):
+                    probe = _horner(P, nP, min(1.0, max(16.0 * xc, 1e-9)))
+                    regime = _HIGH if probe > vmax else (_LOW if probe < -vmax else _LINEAR)
+                    continue
+                break
             if xc < 1.0 - 1e-13:
                 _scale(Z, nZ, xc)
                 _scale(V, nV, xc)

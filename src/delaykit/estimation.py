@@ -1,0 +1,577 @@
+"""Estimating the loop delay from flights: the paper's two methods, a whole-trajectory fit, and pooling.
+
+* ``overshoot`` (the paper's section 5.1.1): the delay at which the exact simulation's overshoot equals the
+  measured one, by root-finding (not a grid).
+* ``lambert`` (section 5.1.2): (Mo, tp) give a damping ratio and natural frequency, hence a dominant root;
+  ``variant="paper"`` solves ``s = W(-Kp Td) / Td`` for Td by Newton's method from 0.2 s, as the paper's fsolve
+  did, which lands on a *complex* delay (0.3743 - 0.2507j for the paper's numbers; the paper printed the real
+  part); ``variant="damping"`` matches the damping ratio only, which has a real solution.
+* ``trajectory`` (beyond the paper): least squares on the whole measured response with the exact loop model
+  (saturation, controller period, the log's own sample times), optionally with the drone's effective gain and
+  speed-loop lag free; the altitude offset is always fitted (profiled out, it is linear).  Standard error
+  from the Fisher information, a profile-likelihood interval, and a model-adequacy check.
+* several flights: one delay shared by all, with per-flight nuisance parameters, and the spread between
+  flights.
+
+Every estimator returns a :class:`DelayEstimate`.
+
+Examples
+--------
+>>> est = estimate_overshoot(2.300, kp=1.31)
+>>> est
+DelayEstimate(delay=0.3686 s, method='overshoot', flights=1)
+>>> estimate_lambert(2.300, 3.055, kp=1.31, variant="paper").delay_imag
+-0.2507...
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+from scipy import stats
+from scipy.optimize import brentq, least_squares
+
+from .errors import InvalidValueError, check_real
+from .flightlog import FlightLog
+from .lambert import delay_for_damping, lambert_w
+from .metrics import SecondOrder, step_metrics
+from .model import AltitudeLoop
+from .simulation import AltitudeSampler, simulate
+
+__all__ = ["DelayEstimate", "EstimationError", "estimate_overshoot", "estimate_lambert", "estimate_trajectory",
+           "estimate_flights", "lambert_paper_iterations"]
+
+FREE_CHOICES = ("gain", "lag")
+
+
+class EstimationError(InvalidValueError):
+    """The method cannot estimate a delay from these data (the message says why)."""
+
+
+def _fmt(x: float | None, d: int = 4) -> str:
+    return "None" if x is None else f"{x:.{d}f}"
+
+
+@dataclass(frozen=True, repr=False)
+class DelayEstimate:
+    """A delay estimate.
+
+    Attributes
+    ----------
+    delay : float
+        Seconds.
+    stderr : float or None
+        Standard error (s), where the method gives one.
+    ci : tuple or None
+        95 % confidence interval (s).
+    method : str
+        ``overshoot``, ``lambert``, ``trajectory``.
+    flights : int
+        How many flights it rests on.
+    delay_imag : float or None
+        The imaginary part, for the ``lambert`` ``paper`` variant (whose delay is complex).
+    residual_rms : float or None
+        RMS of the fit residuals (m), for ``trajectory``.
+    params : dict
+        Other fitted values (gain, lag, offset, per-flight delays, ...).
+    diagnostics : dict
+        Checks of the fit and warnings (``diagnostics["warnings"]``).
+    """
+
+    delay: float
+    stderr: float | None
+    ci: tuple[float, float] | None
+    method: str
+    flights: int = 1
+    delay_imag: float | None = None
+    residual_rms: float | None = None
+    params: dict = field(default_factory=dict)
+    diagnostics: dict = field(default_factory=dict)
+
+    @property
+    def warnings(self) -> list[str]:
+        """Warnings from the model-adequacy checks (empty when none)."""
+        return list(self.diagnostics.get("warnings", []))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {"delay": self.delay, "stderr": self.stderr, "ci": list(self.ci) if self.ci else None,
+                "method": self.method, "flights": self.flights, "delay_imag": self.delay_imag,
+                "residual_rms": self.residual_rms, "params": _jsonable(self.params),
+                "diagnostics": _jsonable(self.diagnostics)}
+
+    def __repr__(self) -> str:
+        err = f" ± {self.stderr:.4f}" if self.stderr is not None else ""
+        im = f" {self.delay_imag:+.4f}j" if self.delay_imag is not None else ""
+        return f"DelayEstimate(delay={self.delay:.4f}{im} s{err}, method={self.method!r}, flights={self.flights})"
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, complex):
+        return [x.real, x.imag]
+    return x
+
+
+# ----------------------------------------------------------------------------------------------------------
+# the paper's numerical method
+
+
+def estimate_overshoot(
+    overshoot: float,
+    kp: float,
+    *,
+    peak_time: float | None = None,
+    overshoot_stderr: float | None = None,
+    kv: float = 0.0,
+    vmax: float | None = 1.0,
+    period: float | None = None,
+    step: float = 1.0,
+) -> DelayEstimate:
+    """The delay at which the exact loop's overshoot equals the measured one (paper, section 5.1.1).
+
+    Parameters
+    ----------
+    overshoot : float
+        Measured overshoot, percent (> 0).
+    kp, kv, vmax, period : float
+        The loop the flights used.
+    peak_time : float, optional
+        Measured peak time (s): compared with the model's at the estimate (a diagnostic, not fitted).
+    overshoot_stderr : float, optional
+        Standard error of the measured overshoot (percentage points); gives the delay's by the slope.
+    step : float
+        Step size (m) the flights used (the saturation makes it matter).
+
+    Examples
+    --------
+    >>> round(estimate_overshoot(2.300, kp=1.31).delay, 4)
+    0.3686
+    """
+    mo = check_real("overshoot (%)", overshoot, minimum=0.0)
+    kp = check_real("kp", kp, minimum=0.0, strict=True)
+    if mo == 0.0:
+        raise EstimationError(
+            "the measured overshoot is 0: the overshoot method needs an overshoot (for a P loop the delay is then "
+            f"only known to be below about 1/(e Kp) = {1 / (math.e * kp):.3f} s); use the trajectory method"
+        )
+    base = AltitudeLoop(kp=kp, delay=0.0, kv=kv, vmax=vmax, period=period)
+    f = lambda td: simulate(base.replace(delay=td), step).metrics.overshoot - mo  # noqa: E731
+    lo = 0.0
+    hi = 0.05 / kp
+    while f(hi) < 0:
+        lo = hi
+        hi *= 1.5
+        if hi > 20.0 / kp:
+            raise EstimationError(f"no delay gives an overshoot of {mo:g} % for this loop")
+    td = brentq(f, lo, hi, xtol=1e-12, rtol=1e-12)
+    h = 1e-5
+    slope = (f(td + h) - f(td - h)) / (2 * h)
+    se = None if overshoot_stderr is None else check_real("overshoot_stderr", overshoot_stderr, minimum=0.0) / slope
+    diag: dict[str, Any] = {"slope_percent_per_second": slope, "warnings": []}
+    model = simulate(base.replace(delay=td), step).metrics
+    diag["model_peak_time"] = model.peak_time
+    if peak_time is not None:
+        tp = check_real("peak_time", peak_time, minimum=0.0, strict=True)
+        diag["measured_peak_time"] = tp
+        if model.peak_time is not None and abs(model.peak_time - tp) > 0.1 * tp:
+            diag["warnings"].append(
+                f"at this delay the model peaks at {model.peak_time:.3f} s but the flight peaked at {tp:.3f} s: "
+                "the model does not explain the measured peak time (the drone's own speed loop adds lag; fit "
+                "the trajectory with --free lag)"
+            )
+    ci = (td - 1.96 * se, td + 1.96 * se) if se is not None else None
+    return DelayEstimate(delay=td, stderr=se, ci=ci, method="overshoot", params={"kp": kp, "overshoot": mo},
+                         diagnostics=diag)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# the paper's analytical method
+
+
+def lambert_paper_iterations(root: complex, kp: float, start: float = 0.2, maxit: int = 50) -> list[complex]:
+    """Newton's iterates for ``W_0(-Kp T) / T = root`` in complex T, from ``start`` (as the paper's fsolve).
+
+    Examples
+    --------
+    >>> it = lambert_paper_iterations(complex(-1.2347, 1.0284), 1.31)
+    >>> complex(np.round(it[-1], 4))
+    (0.3743-0.2507j)
+    """
+    s = complex(root)
+    T = complex(start)
+    out = [T]
+    for _ in range(maxit):
+        w = complex(lambert_w(-kp * T, 0))
+        F = w / T - s
+        dw = w / (-kp * T * (1 + w)) * (-kp)  # dW/dT = W'(x) dx/dT, W'(x) = W / (x (1 + W))
+        dF = dw / T - w / T**2
+        step = F / dF
+        T = T - step
+        out.append(T)
+        if abs(step) < 1e-14 * (1 + abs(T)):
+            break
+    return out
+
+
+def estimate_lambert(overshoot: float, peak_time: float, kp: float, *, variant: str = "paper") -> DelayEstimate:
+    """The paper's analytical estimate: (Mo, tp) -> damping and frequency -> dominant root -> delay.
+
+    ``variant="paper"`` reproduces the paper (Newton on the complex Lambert W relation from 0.2 s); its
+    result is complex, and ``delay`` is its real part with ``delay_imag`` the rest.  ``variant="damping"``
+    finds the real delay whose dominant root has the measured damping ratio (the frequency is then not
+    matched; the mismatch is reported).
+
+    Examples
+    --------
+    >>> round(estimate_lambert(2.300, 3.055, kp=1.31, variant="damping").delay, 4)
+    0.3598
+    """
+    so = SecondOrder.from_step(overshoot, peak_time)
+    kp = check_real("kp", kp, minimum=0.0, strict=True)
+    diag: dict[str, Any] = {"zeta": so.zeta, "omega_n": so.omega_n, "root": so.root, "warnings": []}
+    if variant == "paper":
+        it = lambert_paper_iterations(so.root, kp)
+        T = it[-1]
+        w = complex(lambert_w(-kp * T, 0)) / T if np.isfinite(T) and T != 0 else complex("nan")
+        if not (np.isfinite(T) and abs(w - so.root) <= 1e-8 * abs(so.root)):
+            raise EstimationError(
+                f"the complex Newton iteration from 0.2 s did not converge for the root {so.root:.4f} "
+                f"(last iterate {complex(T):.4g}); the paper's method has no answer here"
+            )
+        diag["iterations"] = [complex(x) for x in it]
+        diag["warnings"].append(
+            f"no real delay puts the dominant root at {so.root:.4f}; the solver converged to the complex delay "
+            f"{T.real:.4f}{T.imag:+.4f}j, whose real part is reported (as the paper did)"
+        )
+        return DelayEstimate(delay=T.real, stderr=None, ci=None, method="lambert", delay_imag=T.imag,
+                             params={"variant": "paper", "kp": kp}, diagnostics=diag)
+    if variant == "damping":
+        td = delay_for_damping(so.zeta, kp)
+        w = complex(lambert_w(-kp * td, 0)) / td
+        diag["model_root"] = complex(w.real, abs(w.imag))
+        diag["warnings"].append(
+            f"the damping ratio {so.zeta:.4f} is matched; the model's natural frequency is then {abs(w):.4f} rad/s, "
+            f"the flight's {so.omega_n:.4f} rad/s"
+        )
+        return DelayEstimate(delay=td, stderr=None, ci=None, method="lambert",
+                             params={"variant": "damping", "kp": kp}, diagnostics=diag)
+    raise InvalidValueError(f"variant must be 'paper' or 'damping', got {variant!r}")
+
+
+# ----------------------------------------------------------------------------------------------------------
+# the whole-trajectory fit
+
+
+class _Flight:
+    """One log prepared for fitting: times relative to the step, and a sampler at those times."""
+
+    def __init__(self, log: FlightLog, base: AltitudeLoop) -> None:
+        self.log = log
+        self.t = log.t - log.step_time
+        self.z = log.z
+        self.sampler = AltitudeSampler(self.t, t_end=max(float(self.t[-1]), 1e-3))
+        loop = base
+        if base.period is not None:
+            # the controller runs at the log's samples: its first sample at or after the step
+            after = self.t[self.t >= -1e-12]
+            off = float(after[0]) if after.size else 0.0
+            loop = base.replace(sample_offset=min(max(off, 0.0), base.period * (1 - 1e-9)))
+        self.base = loop
+
+    def model(self, delay: float, gain: float, lag: float) -> np.ndarray:
+        return self.sampler(self.base.replace(delay=delay, gain=gain, lag=lag), self.log.step, self.log.z0)
+
+
+def _unpack(theta: np.ndarray, free: tuple[str, ...], nf: int) -> tuple[float, list[float], list[float]]:
+    td = float(theta[0])
+    gains = [1.0] * nf
+    lags = [0.0] * nf
+    k = 1
+    if "gain" in free:
+        gains = list(theta[k:k + nf])
+        k += nf
+    if "lag" in free:
+        lags = list(theta[k:k + nf])
+    return td, gains, lags
+
+
+def _residuals(theta, flights, free, offsets_out=None):
+    td, gains, lags = _unpack(theta, free, len(flights))
+    res = []
+    for i, f in enumerate(flights):
+        m = f.model(td, gains[i], lags[i])
+        # the altimeter's offset and scale about the start altitude, profiled out (they enter linearly):
+        # z = z0 + offset + scale (m - z0); the scale also absorbs the separate rounding of the two plateaus
+        x = m - f.log.z0
+        y = f.z - f.log.z0
+        xm, ym = float(np.mean(x)), float(np.mean(y))
+        sxx = float(np.dot(x - xm, x - xm))
+        scale = float(np.dot(x - xm, y - ym)) / sxx if sxx > 0 else 1.0
+        off = ym - scale * xm
+        if offsets_out is not None:
+            offsets_out.append((off, scale))
+        res.append(y - off - scale * x)
+    return np.concatenate(res)
+
+
+def _ljung_box(r: np.ndarray, lags: int = 10) -> tuple[float, float]:
+    r = r - r.mean()
+    n = r.size
+    denom = float(np.dot(r, r))
+    if denom == 0 or n <= lags + 1:
+        return 0.0, 1.0
+    q = 0.0
+    for k in range(1, lags + 1):
+        rho = float(np.dot(r[:-k], r[k:])) / denom
+        q += rho * rho / (n - k)
+    q *= n * (n + 2)
+    return q, float(stats.chi2.sf(q, lags))
+
+
+def estimate_trajectory(
+    logs: FlightLog | Sequence[FlightLog],
+    kp: float,
+    *,
+    kv: float = 0.0,
+    vmax: float | None = 1.0,
+    period: float | None = None,
+    velocity: str = "true",
+    filter_wn: float = 38.0,
+    filter_zeta: float = 1.0,
+    free: Iterable[str] = (),
+    delay_range: tuple[float, float] = (0.0, 1.5),
+    interval: bool = True,
+) -> DelayEstimate:
+    """Least-squares fit of the exact loop to whole measured responses; one delay shared by all flights.
+
+    Parameters
+    ----------
+    logs : FlightLog or sequence of FlightLog
+        The flights (each with its own step, start altitude and sample times).
+    kp, kv, vmax, period, velocity, filter_wn, filter_zeta
+        The controller the flights used (``period``: the controller ran at the log's samples).
+    free : iterable of {"gain", "lag"}
+        Extra parameters fitted per flight: the drone's effective speed gain, and the time constant of its
+        own speed loop.  The altimeter's offset and scale are always fitted per flight (profiled out: they
+        enter linearly).
+    delay_range : (float, float)
+        Where to look for the delay (s).
+    interval : bool
+        Compute the profile-likelihood interval (costs a few more fits).
+
+    Returns
+    -------
+    DelayEstimate
+        ``stderr`` from the Fisher information (Gauss-Newton), widened by a Newey-West factor when the
+        residuals are correlated in time, plus (in quadrature) the timing resolution of rounded altitudes,
+        ``q / sqrt(12) / max|z'|``; ``ci`` the 95 % profile-likelihood interval (threshold widened by the same
+        factor, ends by the same resolution); ``diagnostics`` with the residual whiteness test and
+        measured-vs-model overshoot and peak time.
+
+    Examples
+    --------
+    >>> from delaykit.simulation import simulate
+    >>> t = np.arange(-1.0, 12.0, 0.065)
+    >>> z = simulate(AltitudeLoop(kp=1.31, delay=0.368)).altitude(t)
+    >>> log = FlightLog.from_arrays(t, np.round(z, 3), np.where(t >= 0, 1.0, 0.0), step_time=0.0)
+    >>> round(estimate_trajectory(log, kp=1.31).delay, 3)
+    0.368
+    """
+    logs = [logs] if isinstance(logs, FlightLog) else list(logs)
+    if not logs:
+        raise InvalidValueError("no flights given")
+    free = tuple(free)
+    for name in free:
+        if name not in FREE_CHOICES:
+            raise InvalidValueError(f"free parameters must be among {', '.join(FREE_CHOICES)}; got {name!r}")
+    kp = check_real("kp", kp, minimum=0.0, strict=True)
+    base = AltitudeLoop(kp=kp, delay=0.0, kv=kv, vmax=vmax, period=period, velocity=velocity,
+                        filter_wn=filter_wn, filter_zeta=filter_zeta)
+    flights = [_Flight(log, base) for log in logs]
+    nf = len(flights)
+    lo, hi = delay_range
+    # a coarse scan of the delay (nuisance at their defaults) avoids local minima
+    grid = np.linspace(max(lo, 0.0), hi, 31)
+    theta0 = [1.0] * nf * ("gain" in free) + [0.05] * nf * ("lag" in free)
+    costs = [float(np.sum(_residuals(np.array([g, *theta0]), flights, free) ** 2)) for g in grid]
+    j = int(np.argmin(costs))
+    td0 = float(grid[j])
+    x0 = np.array([td0, *theta0])
+    lb = [lo] + [0.2] * nf * ("gain" in free) + [0.0] * nf * ("lag" in free)
+    ub = [hi] + [3.0] * nf * ("gain" in free) + [2.0] * nf * ("lag" in free)
+    fit = least_squares(_residuals, x0, args=(flights, free), bounds=(lb, ub), x_scale="jac",
+                        diff_step=1e-7, xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=400)
+    theta = fit.x
+    lin: list[tuple[float, float]] = []
+    r = _residuals(theta, flights, free, lin)
+    offsets = [o for o, _ in lin]
+    scales = [c for _, c in lin]
+    n, p = r.size, theta.size + 2 * nf  # offsets and scales count as parameters
+    rss = float(np.dot(r, r))
+    sigma2 = rss / max(n - p, 1)
+    J = fit.jac
+    inflation = 1.0
+    try:
+        JtJ_inv = np.linalg.inv(J.T @ J)
+        se_white = float(math.sqrt(max(JtJ_inv[0, 0] * sigma2, 0.0)))
+        # Newey-West (Bartlett) sandwich: residuals that are correlated in time (a flat response rounded to
+        # millimetres, or a model that misses some dynamics) carry less information than white ones
+        L = int(min(max(4, round(4 * (n / 100.0) ** (2 / 9))), n // 4))
+        G = J * r[:, None]
+        S = G.T @ G
+        for k in range(1, L + 1):
+            w = 1.0 - k / (L + 1.0)
+            C = G[k:].T @ G[:-k]
+            S += w * (C + C.T)
+        cov_hac = JtJ_inv @ S @ JtJ_inv * (n / max(n - p, 1))
+        se_hac = float(math.sqrt(max(cov_hac[0, 0], 0.0)))
+        inflation = max(1.0, se_hac / se_white) if se_white > 0 else 1.0
+        se = se_white * inflation
+    except np.linalg.LinAlgError:
+        se = None
+    td, gains, lags = _unpack(theta, free, nf)
+
+    ci = None
+    if interval and se is not None and se > 0:
+        thresh = rss + stats.chi2.ppf(0.95, 1) * sigma2 * inflation**2
+
+        def profile(d: float) -> float:
+            if len(theta) == 1:
+                return float(np.sum(_residuals(np.array([d]), flights, free) ** 2)) - thresh
+            sub = least_squares(lambda th: _residuals(np.array([d, *th]), flights, free), theta[1:],
+                                bounds=(lb[1:], ub[1:]), x_scale="jac", diff_step=1e-7, max_nfev=100)
+            return float(2 * sub.cost) - thresh
+
+        ends = []
+        for sign in (-1.0, 1.0):
+            step_ = 2.0 * se
+            a, b = td, td + sign * step_
+            for _ in range(12):
+                if not (lo <= b <= hi):
+                    b = min(max(b, lo), hi)
+                    break
+                if profile(b) > 0:
+                    break
+                a, b = b, b + sign * step_
+                step_ *= 2.0
+            try:
+                ends.append(brentq(profile, min(a, b), max(a, b), xtol=1e-9) if profile(b) > 0 else b)
+            except ValueError:
+                ends.append(b)
+        ci = (min(ends), max(ends))
+
+    # rounded altitudes carry a timing resolution of their own: one rounding step takes q / |z'| seconds
+    # at the response's fastest; that uniform error (std q / sqrt(12) / max|z'|) is added in quadrature
+    zs_all = np.unique(np.concatenate([f.z for f in flights]))
+    quantum = float(np.min(np.diff(zs_all))) if zs_all.size > 1 else 0.0
+    vpeak = max(float(np.max(np.abs(np.diff(f.z)) / np.diff(f.t))) for f in flights)
+    floor = quantum / math.sqrt(12.0) / vpeak / math.sqrt(nf) if quantum > 0 and vpeak > 0 else 0.0
+    if se is not None and floor > 0:
+        se = math.sqrt(se**2 + floor**2)
+        if ci is not None:
+            ci = (td - math.hypot(td - ci[0], 1.96 * floor), td + math.hypot(ci[1] - td, 1.96 * floor))
+
+    # model adequacy
+    q, pval = _ljung_box(r)
+    warnings: list[str] = []
+    per_flight = []
+    start = 0
+    for i, f in enumerate(flights):
+        seg = r[start:start + f.z.size]
+        start += f.z.size
+        meas = step_metrics(f.log.t, f.log.z, step=f.log.step, z0=f.log.z0 + offsets[i], step_time=f.log.step_time)
+        mod = simulate(f.base.replace(delay=td, gain=gains[i], lag=lags[i]), f.log.step,
+                       t_end=float(f.t[-1])).metrics
+        item = {"file": f.log.name, "offset": offsets[i], "scale": scales[i], "gain": gains[i], "lag": lags[i],
+                "residual_rms": float(np.sqrt(np.mean(seg**2))), "measured_overshoot": meas.overshoot,
+                "model_overshoot": mod.overshoot, "measured_peak_time": meas.peak_time,
+                "model_peak_time": mod.peak_time}
+        per_flight.append(item)
+        tol_t = 0.1 * (mod.peak_time or 1.0) + 2 * float(np.median(np.diff(f.log.t)))
+        if (meas.peak_time is not None and mod.peak_time is not None and abs(meas.peak_time - mod.peak_time) > tol_t):
+            warnings.append(f"{f.log.name}: the fitted model peaks at {mod.peak_time:.3f} s, the flight at "
+                            f"{meas.peak_time:.3f} s")
+    rms = float(math.sqrt(rss / n))
+    at_quantum = quantum > 0 and rms <= 0.6 * quantum
+    if at_quantum:
+        diag_note = f"the residuals are at the altitude resolution ({quantum:g} m): their whiteness is not judged"
+    if pval < 0.01 and not at_quantum:
+        warnings.append(
+            f"the residuals are not white (Ljung-Box p = {pval:.2g}): the model does not explain the data fully"
+            + ("" if "lag" in free else "; try freeing the lag of the drone's speed loop")
+        )
+    diag = {"ljung_box_q": q, "whiteness_p": pval, "per_flight": per_flight, "warnings": warnings,
+            "nfev": int(fit.nfev), "samples": int(n), "resolution": quantum, "resolution_stderr": floor,
+            "stderr_inflation": inflation}
+    if at_quantum:
+        diag["note"] = diag_note
+    params: dict[str, Any] = {"offsets": offsets, "scales": scales}
+    if "gain" in free:
+        params["gain"] = gains
+    if "lag" in free:
+        params["lag"] = lags
+    return DelayEstimate(delay=td, stderr=se, ci=ci, method="trajectory", flights=nf,
+                         residual_rms=float(math.sqrt(rss / n)), params=params, diagnostics=diag)
+
+
+def estimate_flights(logs: Sequence[FlightLog], kp: float, **kwargs: Any) -> tuple[DelayEstimate, list[DelayEstimate]]:
+    """Each flight's delay, and the pooled delay of all of them, with the spread between flights.
+
+    The pooled fit shares the delay and keeps per-flight nuisance parameters (offset, scale, and the free
+    gain or lag).  If the flights disagree more than their standard errors allow (a chi-squared
+    heterogeneity test, p < 0.05) the delay itself varies between flights; the pooled standard error and
+    interval are then widened by ``sqrt(chi2 / dof)`` and a warning says so.
+
+    Returns
+    -------
+    (pooled, per_flight)
+
+    Examples
+    --------
+    >>> from delaykit.flightlog import synthetic_log
+    >>> rng = np.random.default_rng(0)
+    >>> logs = [synthetic_log(AltitudeLoop(kp=1.31, delay=0.37), 1.0, noise=0.003, rng=rng) for _ in range(3)]
+    >>> pooled, each = estimate_flights(logs, kp=1.31)
+    >>> pooled.flights, len(each), abs(pooled.delay - 0.37) < 0.003
+    (3, 3, True)
+    """
+    logs = list(logs)
+    if not logs:
+        raise InvalidValueError("no flights given")
+    each = [estimate_trajectory(log, kp, **kwargs) for log in logs]
+    if len(logs) == 1:
+        return each[0], each
+    pooled = estimate_trajectory(logs, kp, **kwargs)
+    d = np.array([e.delay for e in each])
+    se = np.array([e.stderr or np.nan for e in each])
+    diag = dict(pooled.diagnostics)
+    warnings = list(diag.get("warnings", []))
+    chi2 = float(np.nansum(((d - pooled.delay) / se) ** 2))
+    dof = len(d) - 1
+    p_het = float(stats.chi2.sf(chi2, dof))
+    diag.update({"spread": float(np.std(d, ddof=1)), "per_flight_delays": d.tolist(), "heterogeneity_chi2": chi2,
+                 "heterogeneity_p": p_het})
+    stderr, ci = pooled.stderr, pooled.ci
+    if p_het < 0.05 and stderr is not None:
+        k = math.sqrt(chi2 / dof)
+        stderr = stderr * k
+        if ci is not None:
+            ci = (pooled.delay - k * (pooled.delay - ci[0]), pooled.delay + k * (ci[1] - pooled.delay))
+        warnings.append(f"the flights disagree beyond their errors (heterogeneity p = {p_het:.2g}): the delay "
+                        f"varies between flights (spread {1e3 * diag['spread']:.1f} ms); the pooled error is widened "
+                        f"by {k:.2f}")
+    diag["warnings"] = warnings
+    pooled = DelayEstimate(delay=pooled.delay, stderr=stderr, ci=ci, method=pooled.method, flights=len(logs),
+                           residual_rms=pooled.residual_rms, params=pooled.params, diagnostics=diag)
+    return pooled, each

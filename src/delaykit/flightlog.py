@@ -1,0 +1,343 @@
+"""Flight logs: reading, checking, and finding the step.
+
+A flight log is a CSV file with a header and the columns ``t`` (s), ``z`` (m), ``z_ref`` (m) and optionally
+``u`` (the commanded vertical speed, m/s); other names can be mapped with ``columns=``.  Extra columns are
+kept but not used.  Sample times may be irregular and may start at any time.
+
+The step is found from ``z_ref`` (one step per log): the step time is the first sample whose reference
+differs from the initial one (the reference in force at that sample), the starting altitude is the mean of
+the samples before it, and the step size is the last reference minus the first.  Each can be given instead
+(for a continuous controller whose step fell between two samples, give the step time).
+
+Bad files get an error naming the file, the row (1-based, counting the header as row 1) and what is
+wrong.  Nothing is dropped silently: with ``skip_bad=True`` rows with text or non-finite numbers are
+skipped, and how many is recorded in ``FlightLog.skipped``.
+
+Examples
+--------
+>>> import numpy as np
+>>> t = np.arange(0, 5, 0.065)
+>>> log = FlightLog.from_arrays(t, z=np.where(t >= 1.04, 1.0, 0.5), z_ref=np.where(t >= 1.0, 1.5, 0.5))
+>>> log
+FlightLog(<arrays>: 77 samples, step +1 m at t = 1.04 s from 0.5 m)
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from .errors import InvalidValueError, check_real
+
+__all__ = ["FlightLog", "LogError", "REQUIRED", "write_log", "synthetic_log"]
+
+REQUIRED = ("t", "z", "z_ref")
+
+
+class LogError(InvalidValueError):
+    """A flight log that cannot be used, with the file and row named."""
+
+
+@dataclass(frozen=True, repr=False, eq=False)
+class FlightLog:
+    """One flight: samples, and the step found in (or given for) its reference.
+
+    Attributes
+    ----------
+    t, z, z_ref : ndarray
+        Sample times (s), altitudes (m), references (m).
+    u : ndarray or None
+        Commanded vertical speed (m/s), if logged.
+    name : str
+        File name, or ``<arrays>``.
+    step_time, z0, step : float
+        The step: when (s, in the log's time), from which altitude (m), and its size (m).
+    skipped : int
+        Rows skipped under ``skip_bad=True``.
+    extra : dict
+        Other columns, by name.
+    """
+
+    t: np.ndarray
+    z: np.ndarray
+    z_ref: np.ndarray
+    u: np.ndarray | None
+    name: str
+    step_time: float
+    z0: float
+    step: float
+    skipped: int = 0
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def after(self) -> np.ndarray:
+        """Boolean mask of the samples at or after the step."""
+        return self.t >= self.step_time
+
+    @classmethod
+    def from_arrays(
+        cls,
+        t: Any,
+        z: Any,
+        z_ref: Any | None = None,
+        u: Any | None = None,
+        *,
+        name: str = "<arrays>",
+        step_time: float | None = None,
+        z0: float | None = None,
+        step: float | None = None,
+        min_after: int = 10,
+        skipped: int = 0,
+        extra: Mapping[str, Any] | None = None,
+    ) -> "FlightLog":
+        """Build a log from arrays (or pandas Series); ``z_ref`` may be omitted if the step is given.
+
+        Parameters
+        ----------
+        t, z, z_ref, u : array_like
+            Samples.
+        step_time, z0, step : float, optional
+            Override what is found from ``z_ref``.
+        min_after : int
+            Fewest samples needed at or after the step.
+        """
+        arrs = {}
+        for key, val in (("t", t), ("z", z), ("z_ref", z_ref), ("u", u)):
+            if val is None:
+                continue
+            try:
+                a = np.asarray(val, dtype=float).ravel()
+            except (TypeError, ValueError) as exc:
+                raise LogError(f"{name}: column {key!r} is not numeric: {exc}") from None
+            arrs[key] = a
+        n = arrs["t"].size
+        for key, a in arrs.items():
+            if a.size != n:
+                raise LogError(f"{name}: column {key!r} has {a.size} values, column 't' has {n}")
+            bad = np.flatnonzero(~np.isfinite(a))
+            if bad.size:
+                raise LogError(f"{name}: row {bad[0] + 2}: {key} is {a[bad[0]]} (NaN or inf)")
+        tt = arrs["t"]
+        back = np.flatnonzero(np.diff(tt) <= 0)
+        if back.size:
+            i = back[0] + 1
+            raise LogError(f"{name}: row {i + 2}: time {tt[i]:g} does not increase (previous row has {tt[i - 1]:g})")
+        zr = arrs.get("z_ref")
+        if step_time is None:
+            if zr is None:
+                raise LogError(f"{name}: no z_ref column, so the step time must be given")
+            moved = np.flatnonzero(np.abs(zr - zr[0]) > 1e-9 * (1 + abs(zr[0])))
+            if moved.size == 0:
+                raise LogError(f"{name}: no step in z_ref (it stays at {zr[0]:g} m)")
+            i = moved[0]
+            step_time = float(tt[i])
+        step_time = check_real("step_time", step_time)
+        if step is None:
+            if zr is None:
+                raise LogError(f"{name}: no z_ref column, so the step size must be given")
+            # one step per log: from the reference's first value to its last
+            step = float(zr[-1] - zr[0])
+        step = check_real("step", step)
+        if step == 0:
+            raise LogError(f"{name}: the step size is zero")
+        pre = tt < step_time
+        if z0 is None:
+            z0 = float(np.mean(arrs["z"][pre])) if np.any(pre) else float(arrs["z"][0])
+        z0 = check_real("z0", z0)
+        n_after = int(np.count_nonzero(tt >= step_time))
+        if n_after < min_after:
+            raise LogError(f"{name}: only {n_after} samples after the step at {step_time:g} s; need at least {min_after}")
+        return cls(t=tt, z=arrs["z"], z_ref=zr if zr is not None else np.where(tt >= step_time, z0 + step, z0),
+                   u=arrs.get("u"), name=name, step_time=step_time, z0=z0, step=step, skipped=skipped,
+                   extra=dict(extra or {}))
+
+    @classmethod
+    def from_csv(
+        cls,
+        path: str | Path,
+        *,
+        columns: Mapping[str, str] | None = None,
+        skip_bad: bool = False,
+        **kwargs: Any,
+    ) -> "FlightLog":
+        """Read a CSV flight log.
+
+        Parameters
+        ----------
+        path : str or Path
+            The file.
+        columns : mapping, optional
+            Our name to the file's name, e.g. ``{"z": "altitude_m", "t": "time"}``.
+        skip_bad : bool
+            Skip (and count) rows with text or non-finite numbers instead of failing.
+        **kwargs
+            Passed to :meth:`from_arrays` (``step_time``, ``z0``, ``step``, ``min_after``).
+        """
+        path = Path(path)
+        name = str(path)
+        try:
+            fh = open(path, newline="")
+        except OSError as exc:
+            raise LogError(f"{name}: cannot be read ({exc.strerror})") from None
+        with fh:
+            reader = csv.reader(fh)
+            try:
+                header = [h.strip() for h in next(reader)]
+            except StopIteration:
+                raise LogError(f"{name}: the file is empty") from None
+            mapping = {k: k for k in (*REQUIRED, "u")}
+            mapping.update(columns or {})
+            idx: dict[str, int] = {}
+            for ours, theirs in mapping.items():
+                if theirs in header:
+                    idx[ours] = header.index(theirs)
+                elif ours in ("t", "z"):
+                    raise LogError(f"{name}: missing column {theirs!r} (header: {', '.join(header)})")
+            if "z_ref" not in idx and "step_time" not in kwargs:
+                raise LogError(f"{name}: missing column {mapping['z_ref']!r} (header: {', '.join(header)}); "
+                               "without it give the step time and size")
+            rows: dict[str, list[float]] = {k: [] for k in idx}
+            others = [h for h in header if h not in {mapping[k] for k in idx}]
+            extra: dict[str, list[str]] = {h: [] for h in others}
+            skipped = 0
+            for lineno, row in enumerate(reader, start=2):
+                if not row or all(not c.strip() for c in row):
+                    continue
+                vals = {}
+                bad = None
+                for k, j in idx.items():
+                    cell = row[j].strip() if j < len(row) else ""
+                    try:
+                        v = float(cell)
+                    except ValueError:
+                        bad = f"{k} is {cell!r}, not a number"
+                        break
+                    if not math.isfinite(v):
+                        bad = f"{k} is {cell} (NaN or inf)"
+                        break
+                    vals[k] = v
+                if bad:
+                    if skip_bad:
+                        skipped += 1
+                        continue
+                    raise LogError(f"{name}: row {lineno}: {bad}")
+                for k, v in vals.items():
+                    rows[k].append(v)
+                for h in others:
+                    j = header.index(h)
+                    extra[h].append(row[j] if j < len(row) else "")
+        if not rows["t"]:
+            raise LogError(f"{name}: no data rows")
+        arrays = {k: np.array(v) for k, v in rows.items()}
+        return cls.from_arrays(arrays["t"], arrays["z"], arrays.get("z_ref"), arrays.get("u"), name=name,
+                               skipped=skipped, extra=extra, **kwargs)
+
+    @classmethod
+    def from_dataframe(cls, df: Any, *, columns: Mapping[str, str] | None = None, **kwargs: Any) -> "FlightLog":
+        """A log from a pandas DataFrame (columns as in the CSV, or mapped with ``columns=``)."""
+        mapping = {k: k for k in (*REQUIRED, "u")}
+        mapping.update(columns or {})
+        get = lambda k: df[mapping[k]].to_numpy() if mapping[k] in df.columns else None  # noqa: E731
+        if get("t") is None or get("z") is None:
+            raise LogError(f"the DataFrame needs columns {mapping['t']!r} and {mapping['z']!r}")
+        return cls.from_arrays(get("t"), get("z"), get("z_ref"), get("u"), name=kwargs.pop("name", "<DataFrame>"),
+                               **kwargs)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Summary (not the samples)."""
+        return {"name": self.name, "samples": int(self.t.size), "step_time": self.step_time, "z0": self.z0,
+                "step": self.step, "skipped": self.skipped}
+
+    def __repr__(self) -> str:
+        sk = f", {self.skipped} rows skipped" if self.skipped else ""
+        return (f"FlightLog({self.name}: {self.t.size} samples, step {self.step:+g} m at t = {self.step_time:g} s "
+                f"from {self.z0:g} m{sk})")
+
+
+def write_log(path: str | Path, columns: Mapping[str, Any]) -> None:
+    """Write columns (equal-length arrays) as a CSV flight log, ``t`` first.
+
+    Examples
+    --------
+    >>> import tempfile, os, numpy as np
+    >>> p = os.path.join(tempfile.mkdtemp(), "f.csv")
+    >>> t = np.arange(0, 3, 0.1)
+    >>> write_log(p, {"t": t, "z": t * 0, "z_ref": (t >= 1.0) * 1.0})
+    >>> FlightLog.from_csv(p).step_time
+    1.0
+    """
+    keys = list(columns)
+    if "t" in keys:
+        keys.remove("t")
+        keys.insert(0, "t")
+    cols = [np.asarray(columns[k]) for k in keys]
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(keys)
+        for row in zip(*cols):
+            w.writerow([f"{v:.9g}" if isinstance(v, (float, np.floating)) else v for v in row])
+
+
+def synthetic_log(
+    loop: Any,
+    step: float,
+    *,
+    z0: float = 1.0,
+    dt: float = 0.065,
+    before: float = 1.0,
+    after: float = 12.0,
+    noise: float = 0.0,
+    resolution: float = 0.001,
+    phase: float = 0.0,
+    t0: float = 0.0,
+    rng: Any = None,
+    name: str = "<synthetic>",
+) -> FlightLog:
+    """A flight log made by the exact simulator: samples every ``dt``, noise, rounding, a clock offset.
+
+    For a sampled controller the log's samples are the controller's (the controller runs on each packet),
+    so the step falls on a sample and ``phase`` is ignored; for a continuous controller the samples fall at
+    ``phase + k dt`` after the step, and the step time is recorded exactly (as the flight software knows it).
+
+    Parameters
+    ----------
+    loop : AltitudeLoop
+        The true loop.
+    step, z0 : float
+        The step (m) and the altitude before it.
+    dt, before, after : float
+        Sample interval; seconds logged before and after the step.
+    noise, resolution : float
+        White measurement noise (m, standard deviation) and the altitude's rounding (m; 0 = none).
+    phase : float
+        Offset of the samples after the step, in ``[0, dt)`` (continuous controllers).
+    t0 : float
+        The log's clock at the step.
+
+    Examples
+    --------
+    >>> from delaykit import AltitudeLoop
+    >>> log = synthetic_log(AltitudeLoop(kp=1.31, delay=0.368), 1.0, noise=0.003, rng=np.random.default_rng(0))
+    >>> log.step, log.z0 > 0.99
+    (1.0, True)
+    """
+    from .simulation import simulate
+
+    rng = np.random.default_rng() if rng is None else rng
+    sampled = getattr(loop, "period", None) is not None
+    if sampled:
+        dt = loop.period
+        phase = loop.sample_offset
+    k0 = int(math.ceil(before / dt))
+    t = phase + dt * np.arange(-k0, int(math.floor((after - phase) / dt)) + 1)
+    resp = simulate(loop, step, z0=z0, t_end=after)
+    z = np.asarray(resp.altitude(t)) + noise * rng.standard_normal(t.size)
+    if resolution:
+        z = np.round(z / resolution) * resolution
+    z_ref = np.where(t >= 0, z0 + step, z0)
+    return FlightLog.from_arrays(t + t0, z, z_ref, resp.command(t), name=name, step_time=t0, z0=None, step=step)
