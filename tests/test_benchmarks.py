@@ -19,3 +19,22 @@ def test_simulation_benchmark_small(tmp_path):
     assert res["delaykit"]["error"]["overshoot"] < 1e-9
     assert max(res["delaykit"]["error"][k] for k in ("peak_time", "rise_time", "settling_time")) < 1e-5
     assert res["targets_met"] == {"delaykit": True, "jitcdde": True}
+
+
+def test_estimation_benchmark_small(tmp_path):
+    out = tmp_path / "e.json"
+    subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_estimate.py"), "--flights", "12",
+                    "--json", str(out)], check=True, capture_output=True, text=True)
+    res = json.loads(out.read_text())
+    tr = res["trajectory"]
+    assert tr["answered"] == 12 and tr["median_error"] < 2e-3
+    assert res["overshoot"]["answered"] <= 12
+
+
+def test_roots_benchmark_quick_runs(tmp_path):
+    out = tmp_path / "r.json"
+    subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_roots.py"), "--quick", "--json", str(out)],
+                   check=True, capture_output=True, text=True)
+    res = json.loads(out.read_text())
+    assert all(c["certified"] for c in res["cases"])
+    assert all(c["qpmr_found_by_delaykit"] == c["qpmr_roots"] for c in res["cases"] if "mazanti" not in c["case"])

@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any, Callable, Optional
 
+import numpy as np
 import typer
 from rich.console import Console
 from rich.table import Table
@@ -286,6 +287,105 @@ def lambert(
     rm = data["rightmost"]
     out.print(f"Rightmost root {rm[0]:.8f} {rm[1]:+.8f}j (branch 0; for real coefficients branch -1 is its conjugate).",
               highlight=False)
+
+
+@app.command()
+@_friendly
+def estimate(
+    flights: Optional[list[Path]] = typer.Argument(None, help="Flight logs (CSV: t, z, z_ref[, u])."),
+    kp: float = typer.Option(..., "--kp", help="Proportional gain the flights used."),
+    kv: float = typer.Option(0.0, "--kv", help="Velocity gain the flights used."),
+    vmax: str = typer.Option("1.0", "--vmax", help="Command saturation, m/s, or 'none'."),
+    period: Optional[str] = typer.Option(None, "--period", help="Controller period, s (it ran at the log's samples)."),
+    method: str = typer.Option("trajectory", "--method", help="trajectory | overshoot | lambert."),
+    variant: str = typer.Option("paper", "--variant", help="For lambert: paper | damping."),
+    free: str = typer.Option("", "--free", help="Extra fitted parameters for trajectory: gain,lag."),
+    step_time: Optional[float] = typer.Option(None, "--step-time", help="Step time in the logs' clock, if not at a sample."),
+    skip_bad: bool = typer.Option(False, "--skip-bad", help="Skip (and count) unreadable rows instead of failing."),
+    overshoot: Optional[float] = typer.Option(None, "--overshoot", help="Measured overshoot, % (no files needed)."),
+    peak_time: Optional[float] = typer.Option(None, "--peak-time", help="Measured peak time, s."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Overlay data, fit and residuals here (trajectory)."),
+) -> None:
+    """Estimate the loop delay from flight logs, or from a measured overshoot and peak time."""
+    from . import estimation as E
+    from .flightlog import FlightLog
+    from .metrics import step_metrics
+
+    methods = ("trajectory", "overshoot", "lambert")
+    if method not in methods:
+        raise InvalidValueError(f"--method must be one of {', '.join(methods)}; got {method!r}")
+    vm = _optional_float("--vmax", vmax)
+    per = _optional_float("--period", period)
+    free_t = tuple(x.strip() for x in free.split(",") if x.strip())
+    if not flights:
+        if overshoot is None:
+            raise InvalidValueError("give flight logs, or --overshoot (and --peak-time) for the paper's methods")
+        if method == "lambert":
+            if peak_time is None:
+                raise InvalidValueError("--method lambert needs --peak-time as well as --overshoot")
+            est = E.estimate_lambert(overshoot, peak_time, kp, variant=variant)
+        elif method == "overshoot":
+            est = E.estimate_overshoot(overshoot, kp, peak_time=peak_time, kv=kv, vmax=vm, period=per)
+        else:
+            raise InvalidValueError("the trajectory method needs flight logs")
+        if as_json:
+            print(json.dumps(est.to_dict(), indent=2))
+            return
+        out.print(repr(est), highlight=False)
+        if est.delay_imag is not None:
+            out.print(f"complex delay: {est.delay:.4f} {est.delay_imag:+.4f}j s", highlight=False)
+        for w in est.warnings:
+            out.print(f"[yellow]warning:[/] {w}", highlight=False)
+        return
+    kw = {"step_time": step_time} if step_time is not None else {}
+    logs = [FlightLog.from_csv(f, skip_bad=skip_bad, **kw) for f in flights]
+    loopkw = dict(kv=kv, vmax=vm, period=per)
+    if method == "trajectory":
+        with err.status(f"fitting {len(logs)} flight(s)…"):
+            pooled, each = E.estimate_flights(logs, kp, free=free_t, **loopkw)
+    else:
+        each = []
+        for log in logs:
+            m = step_metrics(log.t, log.z, step=log.step, z0=log.z0, step_time=log.step_time)
+            if method == "overshoot":
+                each.append(E.estimate_overshoot(m.overshoot, kp, peak_time=m.peak_time, step=abs(log.step), **loopkw))
+            else:
+                if m.peak_time is None:
+                    raise E.EstimationError(f"{log.name}: no overshoot, so no damping ratio for the Lambert method")
+                each.append(E.estimate_lambert(m.overshoot, m.peak_time, kp, variant=variant))
+        d = np.array([e.delay for e in each])
+        se = float(np.std(d, ddof=1) / np.sqrt(d.size)) if d.size > 1 else None
+        ci = (float(d.mean() - 1.96 * se), float(d.mean() + 1.96 * se)) if se else None
+        from .estimation import DelayEstimate
+
+        pooled = DelayEstimate(delay=float(d.mean()), stderr=se, ci=ci, method=method, flights=d.size,
+                               diagnostics={"note": "mean of the flights; error from their spread"})
+    rows = [{"file": log.name, "delay": e.delay, "stderr": e.stderr, "ci": list(e.ci) if e.ci else None,
+             "skipped_rows": log.skipped, "warnings": e.warnings} for log, e in zip(logs, each)]
+    result = {"flights": rows, "pooled": {"delay": pooled.delay, "stderr": pooled.stderr,
+                                          "ci": list(pooled.ci) if pooled.ci else None,
+                                          "spread": pooled.diagnostics.get("spread"),
+                                          "warnings": pooled.warnings}, "method": method}
+    if plot is not None and method == "trajectory":
+        from .plots import plot_fit
+
+        fits = [(log.t, E.fitted_altitude(log, pooled, kp, i, **loopkw)) for i, log in enumerate(logs)]
+        plot_fit(logs, fits, plot, title=f"pooled delay {pooled.delay:.4f} s")
+    if as_json:
+        print(json.dumps(result, indent=2))
+        return
+    table = Table(title=f"Delay by the {method} method (Kp = {kp:g})")
+    for col in ("flight", "delay (s)", "± stderr", "95 % interval", "skipped rows"):
+        table.add_column(col, justify="right")
+    fmt_ci = lambda c: "–" if not c else f"{c[0]:.4f} to {c[1]:.4f}"  # noqa: E731
+    for r in rows:
+        table.add_row(Path(r["file"]).name, f"{r['delay']:.4f}", _fmt(r["stderr"]), fmt_ci(r["ci"]), str(r["skipped_rows"]))
+    if len(rows) > 1:
+        table.add_row("pooled", f"{pooled.delay:.4f}", _fmt(pooled.stderr), fmt_ci(pooled.ci), "")
+    out.print(table)
+    for w in pooled.warnings + [w for r in rows for w in r["warnings"]]:
+        out.print(f"[yellow]warning:[/] {w}", highlight=False)
 
 
 def main() -> None:

@@ -42,7 +42,7 @@ from .model import AltitudeLoop
 from .simulation import AltitudeSampler, simulate
 
 __all__ = ["DelayEstimate", "EstimationError", "estimate_overshoot", "estimate_lambert", "estimate_trajectory",
-           "estimate_flights", "lambert_paper_iterations"]
+           "estimate_flights", "fitted_altitude", "lambert_paper_iterations"]
 
 FREE_CHOICES = ("gain", "lag")
 
@@ -575,3 +575,19 @@ def estimate_flights(logs: Sequence[FlightLog], kp: float, **kwargs: Any) -> tup
     pooled = DelayEstimate(delay=pooled.delay, stderr=stderr, ci=ci, method=pooled.method, flights=len(logs),
                            residual_rms=pooled.residual_rms, params=pooled.params, diagnostics=diag)
     return pooled, each
+
+
+def fitted_altitude(log: FlightLog, est: DelayEstimate, kp: float, index: int = 0, **loop: Any) -> np.ndarray:
+    """The fitted model's altitude at the log's sample times (for plots and checks).
+
+    ``index`` picks the flight's nuisance parameters in a pooled estimate; ``loop`` are the controller
+    settings given to the fit (``kv``, ``vmax``, ``period``, ...).
+    """
+    base = AltitudeLoop(kp=kp, delay=0.0, **loop)
+    f = _Flight(log, base)
+    gains = est.params.get("gain", [1.0] * est.flights)
+    lags = est.params.get("lag", [0.0] * est.flights)
+    m = f.model(est.delay, gains[index], lags[index])
+    off = est.params["offsets"][index]
+    scale = est.params["scales"][index]
+    return log.z0 + off + scale * (m - log.z0)

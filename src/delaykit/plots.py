@@ -23,7 +23,7 @@ import numpy as np  # noqa: E402
 
 from .simulation import Response  # noqa: E402
 
-__all__ = ["plot_responses", "plot_spectrum", "plot_stability_map"]
+__all__ = ["plot_responses", "plot_spectrum", "plot_stability_map", "plot_fit"]
 
 
 def plot_responses(
@@ -169,6 +169,33 @@ def plot_stability_map(smap, path: str | Path, *, title: str | None = None) -> N
     ax.set_xlabel(smap.x_name)
     ax.set_ylabel(smap.y_name)
     ax.set_title(title or "stability map (black line: stability boundary)")
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_fit(logs: Sequence, fits: Sequence, path: str | Path, *, title: str | None = None) -> None:
+    """Measured altitude, the fitted model, and the residuals, one colour per flight.
+
+    ``fits`` holds, per flight, ``(t, z_fit)`` on the log's own times (from
+    :func:`delaykit.estimation.fitted_altitude`).
+    """
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, height_ratios=[3, 1.3])
+    for log, (t, zf) in zip(logs, fits):
+        tt = log.t - log.step_time
+        pts = ax1.plot(tt, log.z, ".", ms=3, label=f"{Path(log.name).name} (data)")
+        c = pts[0].get_color()
+        ax1.plot(tt, zf, "-", lw=1.2, color=c)
+        ax2.plot(tt, 1e3 * (log.z - zf), ".", ms=3, color=c)
+    ax1.set_ylabel("altitude z (m)")
+    ax2.set_ylabel("residual (mm)")
+    ax2.set_xlabel("time after the step (s)")
+    ax2.axhline(0, color="k", lw=0.6)
+    ax1.grid(alpha=0.3)
+    ax2.grid(alpha=0.3)
+    ax1.legend(fontsize=7, ncol=2)
+    ax1.set_title(title or "data (dots) and fitted model (lines)")
     fig.tight_layout()
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
