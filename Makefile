@@ -16,11 +16,13 @@ $(VENV)/.installed: $(BIN)/python pyproject.toml
 	touch $@
 
 $(VENV)/.test-installed: $(VENV)/.installed
-	$(BIN)/pip install -q -e '.[test,bench]'
+	$(BIN)/pip install -q -e '.[test,bench,cluster]'
+	# Debian's chromium for the test that renders the report page (the test skips, saying why, without it)
+	command -v chromium >/dev/null 2>&1 || (timeout 900 sh -c 'apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium' >/dev/null 2>&1 || echo "chromium could not be installed; the page-rendering test will be skipped")
 	touch $@
 
 run: $(VENV)/.installed
-	$(BIN)/delaykit report --out $(OUT)
+	$(BIN)/delaykit reproduce --out $(OUT)
 
 test: $(VENV)/.test-installed
 	$(BIN)/python -m pytest -n 2 -q

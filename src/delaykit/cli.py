@@ -177,7 +177,7 @@ def report(
     out_dir: Path = typer.Option(Path("out"), "--out", help="Folder to write the report into."),
     as_json: bool = typer.Option(False, "--json", help="Print the results as JSON."),
 ) -> None:
-    """Regenerate the paper's Table 1 with a figure into --out (the main job of `make run`)."""
+    """Regenerate only the paper's Table 1, with a figure, into --out (see `reproduce` for everything)."""
     from .report import table1_markdown, write_report
 
     with err.status("writing the report…") as status:
@@ -190,6 +190,107 @@ def report(
     out.print(Markdown("## Table 1 (Kp = 1.31, P control, ±1 m/s)\n\n" + table1_markdown(rep.rows)))
     out.print(f"\nVerdict: {rep.verdict}.\n", highlight=False)
     out.print("Wrote " + ", ".join(str(f) for f in rep.files), highlight=False)
+
+
+@app.command()
+@_friendly
+def reproduce(
+    out_dir: Path = typer.Option(Path("out"), "--out", help="Folder for report.md, index.html and the figures."),
+    as_json: bool = typer.Option(False, "--json", help="Print the verdicts as JSON."),
+) -> None:
+    """Regenerate the paper's tables and figures, with the paper's values beside delaykit's and a verdict each."""
+    from rich.progress import Progress
+
+    from .reproduce import reproduce as run
+
+    with Progress(console=err, transient=True) as bar:
+        task = bar.add_task("reproducing the paper", total=7)
+        rep = run(out_dir, progress=lambda name, done, total: bar.update(task, completed=done, description=name))
+    if as_json:
+        print(json.dumps(rep.to_dict(), indent=2))
+        return
+    table = Table(title="The paper, regenerated")
+    table.add_column("item", justify="left")
+    table.add_column("verdict", justify="left")
+    for it in rep.items:
+        table.add_row(it.title, it.verdict)
+    out.print(table)
+    out.print(f"Wrote {out_dir / 'report.md'} and {out_dir / 'index.html'} (open it in a browser).", highlight=False)
+
+
+@app.command()
+@_friendly
+def design(
+    delay: float = typer.Option(..., "--delay", help="The loop delay to design for, s."),
+    kp: str = typer.Option("2.0", "--kp", help="Kp: a value, a comma list or START:STOP:N."),
+    kv: str = typer.Option("0:0.7:8", "--kv", help="Kv: a value, a comma list or START:STOP:N."),
+    velocity: str = typer.Option("true", "--velocity", help="true | filtered."),
+    filter_wn: float = typer.Option(38.0, "--filter-wn", help="Derivative filter natural frequency, rad/s."),
+    filter_zeta: float = typer.Option(1.0, "--filter-zeta", help="Derivative filter damping ratio."),
+    vmax: str = typer.Option("1.0", "--vmax", help="Command saturation, m/s, or 'none'."),
+    period: Optional[str] = typer.Option(None, "--period", help="Controller period, s (default: continuous)."),
+    step: float = typer.Option(1.0, "--step", help="Step size for the simulated metrics, m."),
+    criterion: str = typer.Option("abscissa", "--criterion", help="abscissa | settling | overshoot."),
+    overshoot_limit: float = typer.Option(5.0, "--overshoot-limit", help="Overshoot limit for --criterion overshoot, %."),
+    delays: Optional[str] = typer.Option(None, "--delays", help="A delay range for a robust 2-D search (START:STOP:N)."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address for large searches."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Responses (sweep) or the gain maps (with --delays)."),
+) -> None:
+    """Candidate PV gains: rightmost root, abscissa, stability and step metrics, and the best by a criterion."""
+    from rich.progress import Progress
+
+    from . import design as D
+
+    vm = _optional_float("--vmax", vmax)
+    per = _optional_float("--period", period)
+    check_real("--delay", delay, minimum=0.0)
+    common = dict(velocity=velocity, filter_wn=filter_wn, filter_zeta=filter_zeta, vmax=vm, period=per, step=step)
+    if delays is not None:
+        dl = D.parse_range(delays, "--delays")
+        with Progress(console=err, transient=True) as bar:
+            task = bar.add_task("gain search", total=None)
+            gm = D.gain_search(dl, kp, kv, criterion="abscissa" if criterion == "abscissa" else "settling",
+                               scheduler=scheduler, progress=lambda k, n: bar.update(task, completed=k, total=n), **common)
+        if plot is not None:
+            from .plots import plot_stability_map
+            from .stability import StabilityMap
+
+            plot_stability_map(StabilityMap("kp", "kv", gm.kp, gm.kv, gm.abscissa), plot,
+                               title=f"worst-case spectral abscissa over delays {min(dl):g} to {max(dl):g} s")
+        if as_json:
+            print(json.dumps(gm.to_dict(), indent=2))
+            return
+        out.print(repr(gm), highlight=False)
+        out.print(f"Best: {gm.best} ({gm.reason})." if gm.best else f"No candidate: {gm.reason}.", highlight=False)
+        return
+    with Progress(console=err, transient=True) as bar:
+        task = bar.add_task("evaluating candidates", total=None)
+        d = D.design_sweep(delay, kp, kv, criterion=criterion, overshoot_limit=overshoot_limit,
+                           progress=lambda k, n: bar.update(task, completed=k, total=n), **common)
+    if plot is not None:
+        from .plots import plot_responses
+        from .simulation import simulate as sim
+
+        plot_responses([sim(d.loop.replace(kp=r.kp, kv=r.kv), step) for r in d.rows], plot,
+                       labels=[f"Kp={r.kp:g}, Kv={r.kv:g}" for r in d.rows], t_max=8.0)
+    if as_json:
+        rows = [r.to_dict() for r in d.rows]
+        print(json.dumps({"rows": rows, "best": None if d.best is None else d.best.to_dict(),
+                          "criterion": d.criterion, "reason": d.reason}, indent=2))
+        return
+    table = Table(title=f"Candidates for Td = {delay:g} s ({velocity} velocity)")
+    for col in ("Kp", "Kv", "rightmost", "abscissa", "neutral", "stable", "Mo %", "tp s", "ts s"):
+        table.add_column(col, justify="right")
+    for r in d.rows:
+        rm = r.rightmost
+        mark = " ←" if d.best is r else ""
+        table.add_row(f"{r.kp:g}", f"{r.kv:g}{mark}", "–" if rm is None else f"{rm.real:.2f}±{abs(rm.imag):.2f}j",
+                      f"{r.abscissa:.4f}", _fmt(r.neutral_line), "yes" if r.stable else "NO", f"{r.overshoot:.3f}",
+                      _fmt(r.peak_time, 3), _fmt(r.settling_time, 3) if r.settling_time is not None else "never")
+    out.print(table)
+    out.print(f"Best by {d.criterion}: Kp = {d.best.kp:g}, Kv = {d.best.kv:g}: {d.reason}." if d.best
+              else f"No candidate meets the criterion: {d.reason}.", highlight=False)
 
 
 def _loop_from_options(kp, kv, delay, velocity, filter_wn, filter_zeta) -> AltitudeLoop:

@@ -23,7 +23,7 @@ import numpy as np  # noqa: E402
 
 from .simulation import Response  # noqa: E402
 
-__all__ = ["plot_responses", "plot_spectrum", "plot_stability_map", "plot_fit"]
+__all__ = ["plot_responses", "plot_spectrum", "plot_stability_map", "plot_fit", "plot_filter_bode"]
 
 
 def plot_responses(
@@ -199,4 +199,31 @@ def plot_fit(logs: Sequence, fits: Sequence, path: str | Path, *, title: str | N
     fig.tight_layout()
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_filter_bode(report, path: str | Path) -> None:
+    """Bode plot of the derivative filter relative to a true differentiator, with its cutoff, the PV loop's
+    crossover, and the paper's quoted 5.68 rad/s marked (``report`` from :func:`delaykit.design.filter_analysis`)."""
+    from .design import filter_frequency_response
+
+    w = np.logspace(-1, 3, 2000)
+    H = filter_frequency_response(report.wn, report.zeta, w)
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
+    a1.semilogx(w, 20 * np.log10(np.abs(H)))
+    a2.semilogx(w, np.degrees(np.angle(H)))
+    for ax in (a1, a2):
+        ax.axvline(report.lowpass_cutoff, color="C1", ls="--", lw=1, label=f"-3 dB: {report.lowpass_cutoff:.2f} rad/s")
+        ax.axvline(report.paper_cutoff, color="C3", ls=":", lw=1, label=f"paper's 'cutoff': {report.paper_cutoff:g} rad/s")
+        if report.crossover:
+            ax.axvline(report.crossover, color="C2", ls="-.", lw=1, label=f"PV loop crossover: {report.crossover:.2f} rad/s")
+        ax.grid(alpha=0.3, which="both")
+    a1.set_ylabel("gain vs. true velocity (dB)")
+    a2.set_ylabel("phase lag (deg)")
+    a2.set_xlabel("frequency (rad/s)")
+    a1.legend(fontsize=8)
+    a1.set_title(f"derivative filter wf = {report.wn:g} rad/s, zf = {report.zeta:g}")
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -1,0 +1,144 @@
+"""Controller design, gain searches (serial, process pool, Dask), the filter analysis, and the reproduction."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+from delaykit import AltitudeLoop, simulate
+from delaykit.design import design_sweep, filter_analysis, gain_search, parse_range
+from delaykit.errors import InvalidValueError
+from delaykit.stability import rightmost
+
+
+def test_design_sweep_rows_agree_with_roots_and_simulation():
+    d = design_sweep(0.37, 2.0, [0.0, 0.3, 0.7])
+    for r in d.rows:
+        loop = AltitudeLoop(kp=2.0, delay=0.37, kv=r.kv)
+        assert r.abscissa == rightmost(loop).abscissa
+        assert r.overshoot == simulate(loop, 1.0).metrics.overshoot
+    assert d.best.kv == 0.3 and "spectral abscissa" in d.reason  # the paper's choice, by the abscissa
+
+
+def test_design_criteria_and_no_candidate():
+    d = design_sweep(0.37, 2.0, "0:0.7:8", criterion="settling")
+    settled = [r for r in d.rows if r.stable and r.settling_time is not None]
+    assert d.best.settling_time == min(r.settling_time for r in settled)
+    d2 = design_sweep(0.37, 2.0, "0:0.2:3", criterion="overshoot", overshoot_limit=3.0)  # Mo 12.2, 7.5, 2.9 %
+    assert d2.best is not None and d2.best.kv == 0.2 and d2.best.overshoot <= 3.0
+    none = design_sweep(0.37, 2.0, [0.0, 0.1], criterion="overshoot", overshoot_limit=0.5)
+    assert none.best is None and "no candidate meets" in none.reason
+    unstable = design_sweep(1.0, 3.0, [0.0], criterion="abscissa")
+    assert unstable.best is None and "no candidate is stable" in unstable.reason
+    assert json.loads(json.dumps(d.to_dict()))["best"]["kv"] == d.best.kv
+
+
+@pytest.mark.parametrize("spec, fragment", [("0.5:0.2:3", "reversed"), ("0:1:0", "N must be"), ("a,b", "START:STOP:N")])
+def test_bad_ranges(spec, fragment):
+    with pytest.raises(InvalidValueError, match=fragment):
+        parse_range(spec, "kv")
+    with pytest.raises(InvalidValueError, match="criterion"):
+        design_sweep(0.37, 2.0, [0.3], criterion="fastest")
+
+
+def test_gain_search_pool_equals_serial_and_is_robust():
+    args = ([0.30, 0.37, 0.44], [1.0, 1.5, 2.0, 2.5], [0.0, 0.2, 0.4])
+    serial = gain_search(*args, workers=1)
+    pooled = gain_search(*args, workers=2)
+    assert np.array_equal(serial.abscissa, pooled.abscissa)
+    assert np.array_equal(np.nan_to_num(serial.settling), np.nan_to_num(pooled.settling))
+    # worst case over the delays: each cell's abscissa is the largest of the three single-delay ones
+    kp, kv = serial.best
+    single = [rightmost(AltitudeLoop(kp=kp, delay=d, kv=kv)).abscissa for d in args[0]]
+    j, i = list(args[1]).index(kp), list(args[2]).index(kv)
+    assert serial.abscissa[i, j] == max(single)
+
+
+def test_gain_search_on_a_local_dask_cluster_gives_the_same_results():
+    distributed = pytest.importorskip("distributed")
+    args = ([0.33, 0.41], [1.0, 2.0], [0.0, 0.3])
+    serial = gain_search(*args, workers=1)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                                  host="127.0.0.1") as cluster:
+        with distributed.Client(cluster) as client:
+            via_dask = gain_search(*args, scheduler=client)
+            by_address = gain_search(*args, scheduler=cluster.scheduler_address)
+    assert np.array_equal(serial.abscissa, via_dask.abscissa) and np.array_equal(serial.abscissa, by_address.abscissa)
+    assert serial.best == via_dask.best
+
+
+def test_filter_analysis_closed_forms():
+    f = filter_analysis(38.0, 1.0)
+    assert f.poles == (complex(-38), complex(-38))
+    # the low-pass part wf^2/(s + wf)^2 is 3 dB down where w^2 + wf^2 = sqrt(2) wf^2
+    assert math.isclose(f.lowpass_cutoff, 38 * math.sqrt(math.sqrt(2) - 1), rel_tol=1e-6)
+    # the band-pass derivative filter's edges: w wf^2 / (w^2 + wf^2) = (wf / 2) / sqrt(2)
+    lo = 38 * (math.sqrt(2) - 1)
+    assert math.isclose(f.band[0], lo, rel_tol=1e-6) and math.isclose(f.band[1], 38**2 / lo, rel_tol=1e-6)
+    assert f.verdict.startswith("not reproduced")
+
+
+def test_reproduce_writes_every_item(tmp_path):
+    from delaykit.reproduce import reproduce
+
+    rep = reproduce(tmp_path)
+    keys = [i.key for i in rep.items]
+    assert keys == ["table1", "section511", "section512", "table3", "table4", "fig5", "filter"]
+    verdicts = {i.key: i.verdict for i in rep.items}
+    assert verdicts["table1"].startswith("reproduced to within solver error")
+    assert verdicts["table4"].startswith("reproduced to within solver error by the configuration 'filter, saturation, sampled")
+    assert "4 of 5 rows reproduced" in verdicts["table3"]
+    md = (tmp_path / "report.md").read_text()
+    for fig in ("fig7_iterations.png", "fig8_spectra.png", "fig9_pv_responses.png"):
+        assert (tmp_path / fig).stat().st_size > 10_000 and fig in md
+
+
+def test_report_page_renders_in_headless_chromium(tmp_path):
+    from delaykit.reproduce import reproduce
+
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        pytest.skip("Debian's chromium is not installed (make test installs it where apt can reach its registry)")
+    rep = reproduce(tmp_path)
+    page = tmp_path / "index.html"
+    cmd = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+           "--disable-background-networking", "--disable-component-update", "--disable-sync",
+           f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=5000", "--dump-dom", page.as_uri()]
+    dom = subprocess.run(cmd, capture_output=True, text=True, timeout=120).stdout
+    body = re.search(r"<body([^>]*)>", dom)
+    assert body, dom[:500]
+    attrs = dict(re.findall(r'data-([a-z-]+)="(\d+)"', body.group(1)))
+    n_figs = sum(len(i.figures) for i in rep.items)
+    n_tables = sum(len(i.tables) for i in rep.items)
+    assert int(attrs["images"]) == n_figs and int(attrs["images-ok"]) == n_figs
+    assert int(attrs["tables"]) == n_tables
+    for item in rep.items:
+        assert f'id="{item.key}"' in dom
+
+
+def test_cli_design_and_reproduce(tmp_path):
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+
+    runner = CliRunner()
+    res = runner.invoke(app, ["design", "--delay", "0.37", "--kp", "2.0", "--kv", "0:0.7:8", "--json"])
+    assert res.exit_code == 0, res.output
+    got = json.loads(res.stdout)
+    assert len(got["rows"]) == 8 and got["best"]["kv"] == 0.3
+    assert set(got["rows"][0]) >= {"kp", "kv", "rightmost", "overshoot", "peak_time", "settling_time", "stable"}
+    res = runner.invoke(app, ["design", "--delay", "0.37", "--kp", "1:2:3", "--kv", "0,0.3", "--delays", "0.3:0.45:3",
+                              "--json", "--plot", str(tmp_path / "map.png")])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["best"] is not None and (tmp_path / "map.png").exists()
+    res = runner.invoke(app, ["reproduce", "--out", str(tmp_path / "paper"), "--json"])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "paper" / "index.html").exists()
+    res = runner.invoke(app, ["design", "--delay", "0.37", "--kv", "0.5:0.2:3"])
+    assert res.exit_code == 2 and "reversed" in res.output
