@@ -22,7 +22,8 @@ $(VENV)/.test-installed: $(VENV)/.installed
 	touch $@
 
 run: $(VENV)/.installed
-	$(BIN)/delaykit reproduce --out $(OUT)
+	$(BIN)/delaykit reproduce --out $(OUT)/paper
+	$(BIN)/delaykit demo --out $(OUT)/demo
 
 test: $(VENV)/.test-installed
 	$(BIN)/python -m pytest -n 2 -q

@@ -489,6 +489,128 @@ def estimate(
         out.print(f"[yellow]warning:[/] {w}", highlight=False)
 
 
+@app.command()
+@_friendly
+def emulate(
+    host: str = typer.Option("127.0.0.1", "--host", help="Address to bind (loopback unless told otherwise)."),
+    at_port: int = typer.Option(5556, "--at-port", help="UDP port for AT commands (0 = any free one)."),
+    navdata_port: int = typer.Option(5554, "--navdata-port", help="UDP port for navdata (0 = any free one)."),
+    video_port: int = typer.Option(5555, "--video-port", help="TCP video port (accepted, nothing sent)."),
+    control_port: int = typer.Option(5559, "--control-port", help="TCP control port (configuration text)."),
+    delay: float = typer.Option(0.30, "--delay", help="Actuator delay, s."),
+    lag: float = typer.Option(0.05, "--lag", help="Lag of the drone's own speed loop, s."),
+    link_delay: float = typer.Option(0.0, "--link-delay", help="Extra one-way link delay, s."),
+    noise: float = typer.Option(0.005, "--noise", help="Ultrasonic altitude noise (standard deviation), m."),
+    rate: float = typer.Option(15.0, "--rate", help="Navdata rate, Hz."),
+    loss: float = typer.Option(0.0, "--loss", help="Navdata packet loss, fraction."),
+    jitter: float = typer.Option(0.0, "--jitter", help="Navdata send jitter, s."),
+    seed: Optional[int] = typer.Option(None, "--seed", help="Random seed."),
+    duration: float = typer.Option(0.0, "--duration", help="Run this long, s (0 = until Ctrl-C)."),
+) -> None:
+    """Run the built-in AR.Drone 2.0 emulator (loopback by default) until Ctrl-C or --duration."""
+    import time as _time
+
+    from .emulator import DroneEmulator, EmulatorConfig
+
+    check_real("--duration", duration, minimum=0.0)
+    cfg = EmulatorConfig(host=host, at_port=at_port, navdata_port=navdata_port, video_port=video_port,
+                         control_port=control_port, delay=delay, lag=lag, link_delay=link_delay, noise=noise,
+                         rate=rate, loss=loss, jitter=jitter, seed=seed)
+    with DroneEmulator(cfg) as emu:
+        err.print(f"emulated drone on {host}: AT {emu.ports['at']}, navdata {emu.ports['navdata']}, video "
+                  f"{emu.ports['video']}, control {emu.ports['control']}; loop delay {emu.true_delay:g} s. Ctrl-C stops.",
+                  highlight=False)
+        t0 = _time.monotonic()
+        try:
+            while duration == 0 or _time.monotonic() - t0 < duration:
+                _time.sleep(0.1)
+        except KeyboardInterrupt:
+            pass
+        stats = dict(emu.stats)
+    print(json.dumps({"ports": emu.ports, "stats": stats, "true_delay": emu.true_delay}))
+
+
+def _confirm_real(host: str, yes: bool) -> Optional[Callable[[], bool]]:
+    import ipaddress
+
+    try:
+        loop = ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        loop = False
+    if loop or yes:
+        return None
+    return lambda: typer.confirm(f"Take off the drone at {host}?", default=False)
+
+
+@app.command()
+@_friendly
+def fly(
+    host: str = typer.Option("192.168.1.1", "--host", help="The drone (the emulator: 127.0.0.1)."),
+    at_port: int = typer.Option(5556, "--at-port", help="The drone's AT command port."),
+    navdata_port: int = typer.Option(5554, "--navdata-port", help="The drone's navdata port."),
+    kp: float = typer.Option(..., "--kp", help="Proportional gain."),
+    kv: float = typer.Option(0.0, "--kv", help="Velocity gain."),
+    velocity: str = typer.Option("true", "--velocity", help="true (navdata vz) | filtered (derivative filter)."),
+    vmax: float = typer.Option(1.0, "--vmax", help="Command limit, m/s (at most 2)."),
+    step: float = typer.Option(1.0, "--step", help="Reference step, m."),
+    steps: Optional[str] = typer.Option(None, "--steps", help="Several steps, e.g. 1,-1,1 (one log each)."),
+    duration: float = typer.Option(12.0, "--duration", help="Seconds flown after each step."),
+    hover: float = typer.Option(2.0, "--hover", help="Seconds of steady hover before the first step."),
+    log: Path = typer.Option(Path("flight.csv"), "--log", help="The flight log (CSV, flushed every line)."),
+    yes: bool = typer.Option(False, "--yes", help="Do not ask before taking off a real drone."),
+    as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
+) -> None:
+    """Fly step tests: navdata start-up, take-off, hover, the steps, land; log every packet."""
+    from .flight import FlightPlan, fly as run
+
+    sts = tuple(float(x) for x in steps.split(",")) if steps else (step,)
+    plan = FlightPlan(kp=kp, kv=kv, velocity=velocity, vmax=vmax, steps=sts, step_duration=duration, hover_time=hover)
+    res = run(plan, log, host=host, at_port=at_port, navdata_port=navdata_port, confirm=_confirm_real(host, yes),
+              status=lambda m: err.print(m, highlight=False))
+    if as_json:
+        print(json.dumps(res.to_dict(), indent=2))
+        return
+    out.print(f"{'Flight completed' if res.completed else 'Flight ended early: ' + res.reason}; "
+              f"{res.packets} packets, {res.rejected} rejected.", highlight=False)
+    if res.latency_median_ms is not None:
+        out.print(f"Loop latency (navdata received to command sent): median {res.latency_median_ms:.3f} ms, "
+                  f"99th percentile {res.latency_p99_ms:.3f} ms.", highlight=False)
+    out.print("Logs: " + ", ".join(str(p) for p in res.logs), highlight=False)
+
+
+@app.command()
+@_friendly
+def demo(
+    out_dir: Path = typer.Option(Path("out/demo"), "--out", help="Folder for the report, logs and figures."),
+    host: Optional[str] = typer.Option(None, "--host", help="A real drone (default: the built-in emulator)."),
+    seed: Optional[int] = typer.Option(None, "--seed", help="Seed of the emulator (its hidden delay and noise)."),
+    p_steps: int = typer.Option(5, "--p-steps", help="P-control step tests."),
+    step_duration: float = typer.Option(8.0, "--step-duration", help="Seconds after each step."),
+    yes: bool = typer.Option(False, "--yes", help="Do not ask before taking off a real drone."),
+    as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
+) -> None:
+    """The whole pipeline: fly P step tests, estimate the delay, design PV gains, fly them, and report."""
+    from .demo import run_demo
+
+    if p_steps < 1:
+        raise InvalidValueError(f"--p-steps must be at least 1, got {p_steps}")
+    with err.status("starting") as st:
+        rep = run_demo(out_dir, host=host, seed=seed, p_steps=p_steps, step_duration=step_duration,
+                       confirm=_confirm_real(host, yes) if host else None, status=lambda m: st.update(m))
+    if as_json:
+        print(json.dumps(rep.to_dict(), indent=2, default=str))
+        return
+    e = rep.estimate
+    out.print(f"Estimated delay {e.delay:.4f} s ± {e.stderr or 0:.4f} (95 % {e.ci[0]:.4f} to {e.ci[1]:.4f}) from "
+              f"{e.flights} step tests" + (f"; the emulator's truth is {rep.true_delay:.4f} s (error "
+                                          f"{1e3 * rep.error:+.1f} ms)" if rep.true_delay is not None else "") + ".",
+              highlight=False)
+    pm = np.mean([m["settling_time"] or np.nan for m in rep.p_metrics])
+    vm = np.mean([m["settling_time"] or np.nan for m in rep.pv_metrics])
+    out.print(f"PV design: Kp = 2.0, Kv = {rep.kv:g}. Mean settling time: P {pm:.2f} s, PV {vm:.2f} s.", highlight=False)
+    out.print(f"Report: {out_dir / 'demo.md'}", highlight=False)
+
+
 def main() -> None:
     """Entry point of the ``delaykit`` script."""
     app(prog_name="delaykit")

@@ -166,6 +166,8 @@ def design_sweep(
     criterion: str = "abscissa",
     overshoot_limit: float | None = None,
     progress: Callable[[int, int], None] | None = None,
+    lag: float = 0.0,
+    gain: float = 1.0,
 ) -> Design:
     """Evaluate candidate gains (every Kp with every Kv) for a delay and pick the best by a criterion.
 
@@ -189,7 +191,7 @@ def design_sweep(
     if step == 0:
         raise InvalidValueError("step must not be zero")
     base = AltitudeLoop(kp=kps[0], delay=delay, kv=kvs[0], velocity=velocity, filter_wn=filter_wn,
-                        filter_zeta=filter_zeta, vmax=vmax, period=period)
+                        filter_zeta=filter_zeta, vmax=vmax, period=period, lag=lag, gain=gain)
     rows = []
     total = len(kps) * len(kvs)
     for a in kps:

@@ -45,6 +45,7 @@ __all__ = ["DelayEstimate", "EstimationError", "estimate_overshoot", "estimate_l
            "estimate_flights", "fitted_altitude", "lambert_paper_iterations"]
 
 FREE_CHOICES = ("gain", "lag")
+LAG_FLOOR = 0.004
 
 
 class EstimationError(InvalidValueError):
@@ -363,8 +364,8 @@ def estimate_trajectory(
         The controller the flights used (``period``: the controller ran at the log's samples).
     free : iterable of {"gain", "lag"}
         Extra parameters fitted per flight: the drone's effective speed gain, and the time constant of its
-        own speed loop.  The altimeter's offset and scale are always fitted per flight (profiled out: they
-        enter linearly).
+        own speed loop (at least 4 ms: a shorter lag is indistinguishable from extra delay at navdata rates).
+        The altimeter's offset and scale are always fitted per flight (profiled out: they enter linearly).
     delay_range : (float, float)
         Where to look for the delay (s).
     interval : bool
@@ -408,7 +409,9 @@ def estimate_trajectory(
     j = int(np.argmin(costs))
     td0 = float(grid[j])
     x0 = np.array([td0, *theta0])
-    lb = [lo] + [0.2] * nf * ("gain" in free) + [0.0] * nf * ("lag" in free)
+    # a lag below a few milliseconds cannot be told from the same extra delay at navdata rates, and would need
+    # pieces as short as itself in the exact solver: 4 ms is its floor
+    lb = [lo] + [0.2] * nf * ("gain" in free) + [LAG_FLOOR] * nf * ("lag" in free)
     ub = [hi] + [3.0] * nf * ("gain" in free) + [2.0] * nf * ("lag" in free)
     fit = least_squares(_residuals, x0, args=(flights, free), bounds=(lb, ub), x_scale="jac",
                         diff_step=1e-7, xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=400)

@@ -1,0 +1,411 @@
+"""A built-in AR.Drone 2.0 emulator on loopback: the default "drone" on any machine.
+
+It speaks the real protocol (:mod:`delaykit.ardrone`): AT commands on UDP ``at_port``; navdata on UDP
+``navdata_port`` to whoever sent it bytes there (bootstrap packets until ``general:navdata_demo`` is set,
+then demo packets at ``rate`` Hz); TCP accepted on the video and control ports (the control port answers
+``AT*CTRL=<seq>,4,0`` with a configuration text).  It binds to 127.0.0.1 unless told otherwise.
+
+The vertical motion: while flying, a progressive PCMD commands the speed ``gaz * control_vz_max``; it takes
+effect ``delay`` seconds after the command arrives (the actuator delay), plus ``link_delay`` on the way in,
+and the actual speed follows it through a first-order lag ``lag``.  The altitude is integrated exactly
+between events.  The altitude in navdata is the true altitude ``link_delay`` before sending, plus Gaussian
+ultrasonic noise, in millimetres.  Take-off climbs to 0.8 m, landing descends to the ground; the state bits
+follow take-off, flying, landing, emergency and the communication watchdog (2 s without a command: hover).
+
+**The loop delay** a controller sees is ``delay + 2 * link_delay`` (:attr:`DroneEmulator.true_delay`):
+actuator plus the network both ways; on loopback the real network adds microseconds.  The controller's
+sampling (one command per navdata packet) is not a delay but a sample-and-hold, which the estimator models.
+
+Every datagram that fails to parse is counted (``stats["bad"]``) and ignored; the emulator never stops on one.
+
+Examples
+--------
+>>> with DroneEmulator(EmulatorConfig(at_port=0, navdata_port=0, video_port=0, control_port=0)) as emu:
+...     emu.ports["at"] > 0
+True
+"""
+
+from __future__ import annotations
+
+import errno
+import math
+import random
+import socket
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from .ardrone import (CtrlState, Demo, NavState, ProtocolError, REF_EMERGENCY, REF_TAKEOFF, encode_navdata,
+                      int_to_float, parse_at)
+from .errors import InvalidValueError, check_real
+
+__all__ = ["EmulatorConfig", "DroneEmulator", "PortError"]
+
+
+class PortError(InvalidValueError):
+    """A port that is out of range or already in use."""
+
+
+def _check_port(name: str, p: Any) -> int:
+    if isinstance(p, bool) or not isinstance(p, int) or not 0 <= p <= 65535:
+        raise PortError(f"{name} must be a port number from 0 to 65535 (0 = any free one), got {p!r}")
+    return p
+
+
+@dataclass(frozen=True)
+class EmulatorConfig:
+    """Settings of the emulated drone (see the module docstring)."""
+
+    host: str = "127.0.0.1"
+    at_port: int = 5556
+    navdata_port: int = 5554
+    video_port: int = 5555
+    control_port: int = 5559
+    delay: float = 0.30
+    lag: float = 0.05
+    link_delay: float = 0.0
+    noise: float = 0.005
+    rate: float = 15.0
+    loss: float = 0.0
+    jitter: float = 0.0
+    seed: int | None = None
+    takeoff_altitude: float = 0.8
+    takeoff_speed: float = 0.7
+    landing_speed: float = 0.6
+    watchdog: float = 2.0
+
+    def __post_init__(self) -> None:
+        for name in ("at_port", "navdata_port", "video_port", "control_port"):
+            _check_port(name, getattr(self, name))
+        check_real("delay (s)", self.delay, minimum=0.0, maximum=5.0)
+        check_real("lag (s)", self.lag, minimum=0.0, maximum=5.0)
+        check_real("link_delay (s)", self.link_delay, minimum=0.0, maximum=2.0)
+        check_real("noise (m)", self.noise, minimum=0.0, maximum=1.0)
+        check_real("rate (Hz)", self.rate, minimum=1.0, maximum=1000.0)
+        check_real("loss", self.loss, minimum=0.0, maximum=0.9)
+        check_real("jitter (s)", self.jitter, minimum=0.0, maximum=0.5)
+
+
+@dataclass
+class _Physics:
+    z: float = 0.0
+    v: float = 0.0
+    v_in: float = 0.0
+    mode: int = CtrlState.LANDED
+    t: float = 0.0
+    pending: deque = field(default_factory=deque)
+    history: deque = field(default_factory=lambda: deque(maxlen=4096))
+
+
+class DroneEmulator:
+    """The emulated drone; ``start()``/``stop()`` or use it as a context manager.
+
+    Attributes
+    ----------
+    ports : dict
+        The bound ports (``at``, ``navdata``, ``video``, ``control``), useful when 0 asked for free ones.
+    stats : dict
+        Counts: ``datagrams``, ``commands``, ``bad``, ``navdata_sent``, ``navdata_dropped``.
+    """
+
+    def __init__(self, config: EmulatorConfig | None = None, **overrides: Any) -> None:
+        self.config = replace(config or EmulatorConfig(), **overrides) if overrides else (config or EmulatorConfig())
+        self.rng = random.Random(self.config.seed)
+        self.stats = {"datagrams": 0, "commands": 0, "bad": 0, "navdata_sent": 0, "navdata_dropped": 0}
+        self.last_error = ""
+        self.ports: dict[str, int] = {}
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._socks: list[socket.socket] = []
+        self._phys = _Physics()
+        self._client: tuple[str, int] | None = None
+        self._demo = False
+        self._ack = False
+        self._vz_max = 0.7  # m/s, factory control_vz_max = 700 mm/s
+        self._alt_max = 3.0
+        self._last_cmd = time.monotonic()
+        self._watchdog = False
+        self._seq = 0
+        self._config_kv: dict[str, str] = {"control:control_vz_max": "700", "control:altitude_max": "3000",
+                                           "general:navdata_demo": "FALSE"}
+        self._pending_config_send = False
+
+    # ---------------------------------------------------------------------------------------------------
+    @property
+    def true_delay(self) -> float:
+        """The loop delay a controller sees: actuator delay plus the link delay both ways."""
+        return self.config.delay + 2 * self.config.link_delay
+
+    @property
+    def altitude(self) -> float:
+        """The true altitude now (m)."""
+        with self._lock:
+            self._advance(time.monotonic())
+            return self._phys.z
+
+    @property
+    def mode(self) -> int:
+        """The major control state (:class:`~delaykit.ardrone.CtrlState`)."""
+        return self._phys.mode
+
+    def _bind(self, kind: int, port: int, name: str) -> socket.socket:
+        s = socket.socket(socket.AF_INET, kind)
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind((self.config.host, port))
+        except OSError as exc:
+            s.close()
+            if exc.errno == errno.EADDRINUSE:
+                raise PortError(f"{name} port {port} on {self.config.host} is already in use") from None
+            raise PortError(f"cannot bind the {name} port {port} on {self.config.host}: {exc.strerror}") from None
+        self._socks.append(s)
+        self.ports[name] = s.getsockname()[1]
+        return s
+
+    def start(self) -> "DroneEmulator":
+        """Bind the ports and start the threads."""
+        c = self.config
+        try:
+            self._at = self._bind(socket.SOCK_DGRAM, c.at_port, "at")
+            self._nav = self._bind(socket.SOCK_DGRAM, c.navdata_port, "navdata")
+            self._video = self._bind(socket.SOCK_STREAM, c.video_port, "video")
+            self._control = self._bind(socket.SOCK_STREAM, c.control_port, "control")
+        except PortError:
+            self.stop()
+            raise
+        for s in (self._at, self._nav):
+            s.settimeout(0.05)
+        for s in (self._video, self._control):
+            s.listen(4)
+            s.settimeout(0.1)
+        self._phys.t = time.monotonic()
+        self._last_cmd = time.monotonic()
+        for target in (self._at_loop, self._wake_loop, self._nav_loop, self._tcp_loop):
+            th = threading.Thread(target=target, daemon=True, name=f"emulator-{target.__name__}")
+            th.start()
+            self._threads.append(th)
+        return self
+
+    def stop(self) -> None:
+        """Stop the threads and close the sockets."""
+        self._stop.set()
+        for th in self._threads:
+            th.join(timeout=2.0)
+        for s in self._socks:
+            try:
+                s.close()
+            except OSError:
+                pass
+        self._socks.clear()
+
+    def __enter__(self) -> "DroneEmulator":
+        return self.start()
+
+    def __exit__(self, *exc: Any) -> None:
+        self.stop()
+
+    # ---- physics --------------------------------------------------------------------------------------
+    def _integrate(self, dt: float) -> None:
+        p, c = self._phys, self.config
+        if dt <= 0:
+            return
+        if p.mode == CtrlState.TAKING_OFF:
+            p.z = min(c.takeoff_altitude, p.z + c.takeoff_speed * dt)
+            p.v = c.takeoff_speed
+            if p.z >= c.takeoff_altitude:
+                p.mode, p.v, p.v_in = CtrlState.HOVERING, 0.0, 0.0
+                p.pending.clear()
+        elif p.mode == CtrlState.LANDING:
+            p.z = max(0.0, p.z - c.landing_speed * dt)
+            p.v = -c.landing_speed
+            if p.z <= 0.0:
+                p.mode, p.v, p.v_in = CtrlState.LANDED, 0.0, 0.0
+        elif p.mode in (CtrlState.FLYING, CtrlState.HOVERING):
+            u = 0.0 if self._watchdog else p.v_in
+            if c.lag > 0:
+                e = math.exp(-dt / c.lag)
+                p.z += u * dt + (p.v - u) * c.lag * (1.0 - e)
+                p.v = u + (p.v - u) * e
+            else:
+                p.z += u * dt
+                p.v = u
+            if p.z >= self._alt_max and p.v > 0:
+                p.z, p.v = self._alt_max, 0.0
+            if p.z <= 0.0:
+                p.z, p.v = 0.0, 0.0
+        else:
+            p.v = 0.0
+        p.t += dt
+
+    def _advance(self, t: float) -> None:
+        p = self._phys
+        while p.pending and p.pending[0][0] <= t:
+            ta, v = p.pending.popleft()
+            self._integrate(ta - p.t)
+            if p.mode in (CtrlState.FLYING, CtrlState.HOVERING):
+                p.v_in = v
+                p.mode = CtrlState.FLYING if v != 0 else CtrlState.HOVERING
+        self._integrate(t - p.t)
+        p.history.append((p.t, p.z))
+
+    def _z_at(self, t: float) -> float:
+        """The true altitude at an earlier time t (for the link delay), by the recorded history."""
+        for tt, z in reversed(self._phys.history):
+            if tt <= t:
+                return z
+        return self._phys.history[0][1] if self._phys.history else self._phys.z
+
+    # ---- commands -------------------------------------------------------------------------------------
+    def _handle(self, data: bytes, addr: tuple, t: float) -> None:
+        self.stats["datagrams"] += 1
+        try:
+            cmds = parse_at(data)
+        except ProtocolError as exc:
+            self.stats["bad"] += 1
+            self.last_error = str(exc)
+            return
+        c = self.config
+        with self._lock:
+            self._advance(t)
+            self._last_cmd = t
+            for cmd in cmds:
+                self.stats["commands"] += 1
+                p = self._phys
+                if cmd.name == "REF":
+                    bits = cmd.args[0]
+                    if bits & REF_EMERGENCY and p.mode not in (CtrlState.LANDED,):
+                        p.mode, p.z, p.v, p.v_in = CtrlState.LANDED, 0.0, 0.0, 0.0
+                        p.pending.clear()
+                    elif bits & REF_TAKEOFF:
+                        if p.mode == CtrlState.LANDED:
+                            p.mode = CtrlState.TAKING_OFF
+                    elif p.mode in (CtrlState.FLYING, CtrlState.HOVERING, CtrlState.TAKING_OFF):
+                        p.mode = CtrlState.LANDING
+                        p.pending.clear()
+                elif cmd.name in ("PCMD", "PCMD_MAG"):
+                    if p.mode in (CtrlState.FLYING, CtrlState.HOVERING):
+                        flag = cmd.args[0]
+                        gaz = int_to_float(cmd.args[3] if cmd.args[3] < 2**31 else cmd.args[3] - 2**32)
+                        v = gaz * self._vz_max if flag & 1 else 0.0
+                        p.pending.append((t + c.link_delay + c.delay, v))
+                elif cmd.name == "COMWDG":
+                    self._watchdog = False
+                elif cmd.name == "CONFIG":
+                    key, value = cmd.args
+                    self._config_kv[key] = value
+                    if key == "general:navdata_demo":
+                        self._demo = value.upper() == "TRUE"
+                    elif key == "control:control_vz_max":
+                        try:
+                            self._vz_max = min(max(float(value), 200.0), 2000.0) / 1000.0
+                        except ValueError:
+                            self.stats["bad"] += 1
+                    elif key == "control:altitude_max":
+                        try:
+                            self._alt_max = min(max(float(value), 500.0), 100000.0) / 1000.0
+                        except ValueError:
+                            self.stats["bad"] += 1
+                    self._ack = True
+                elif cmd.name == "CTRL":
+                    if cmd.args[0] == 5:
+                        self._ack = False
+                    elif cmd.args[0] == 4:
+                        self._pending_config_send = True
+
+    def _at_loop(self) -> None:
+        while not self._stop.is_set():
+            try:
+                data, addr = self._at.recvfrom(4096)
+            except (socket.timeout, OSError):
+                continue
+            self._handle(data, addr, time.monotonic())
+
+    def _wake_loop(self) -> None:
+        """Datagrams to the navdata port: any of them makes the sender the navdata client."""
+        while not self._stop.is_set():
+            try:
+                data, addr = self._nav.recvfrom(4096)
+            except (socket.timeout, OSError):
+                continue
+            self._client = addr
+
+    def _state_bits(self) -> int:
+        p = self._phys
+        s = NavState.ALTITUDE_CONTROL | NavState.CONTROL | NavState.PIC_VERSION_OK
+        if p.mode in (CtrlState.FLYING, CtrlState.HOVERING, CtrlState.TAKING_OFF, CtrlState.LANDING):
+            s |= NavState.FLYING
+        s |= NavState.NAVDATA_DEMO if self._demo else NavState.NAVDATA_BOOTSTRAP
+        if self._ack:
+            s |= NavState.COMMAND_ACK
+        if self._watchdog:
+            s |= NavState.COM_WATCHDOG
+        return int(s)
+
+    def _nav_loop(self) -> None:
+        c = self.config
+        period = 1.0 / c.rate
+        t_next = time.monotonic()
+        while not self._stop.is_set():
+            t_next += period
+            if c.jitter:
+                t_send = t_next + self.rng.uniform(0.0, c.jitter)
+            else:
+                t_send = t_next
+            delay = t_send - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            now = time.monotonic()
+            with self._lock:
+                if now - self._last_cmd > c.watchdog:
+                    self._watchdog = True
+                self._advance(now)
+                z_true = self._z_at(now - c.link_delay) if c.link_delay else self._phys.z
+                v = self._phys.v
+                mode = self._phys.mode
+                state = self._state_bits()
+            self._seq += 1
+            if self._client is None:
+                continue
+            if c.loss and self.rng.random() < c.loss:
+                self.stats["navdata_dropped"] += 1
+                continue
+            if self._demo:
+                z_meas = z_true + (self.rng.gauss(0.0, c.noise) if c.noise and mode != CtrlState.LANDED else 0.0)
+                demo = Demo(ctrl_state=int(mode) << 16, battery=87, altitude_mm=int(round(1000 * max(z_meas, 0.0))),
+                            vz=float(1000 * v))
+                pkt = encode_navdata(state, self._seq, demo=demo)
+            else:
+                pkt = encode_navdata(state, self._seq)
+            try:
+                self._nav.sendto(pkt, self._client)
+                self.stats["navdata_sent"] += 1
+            except OSError:
+                pass
+
+    def _tcp_loop(self) -> None:
+        conns: list[socket.socket] = []
+        while not self._stop.is_set():
+            for srv in (self._video, self._control):
+                try:
+                    conn, _ = srv.accept()
+                    conn.settimeout(0.1)
+                    conns.append(conn)
+                    if srv is self._control:
+                        self._control_conn = conn
+                except (socket.timeout, OSError):
+                    pass
+            if self._pending_config_send and getattr(self, "_control_conn", None) is not None:
+                text = "".join(f"{k} = {v}\n" for k, v in sorted(self._config_kv.items()))
+                try:
+                    self._control_conn.sendall(text.encode())
+                except OSError:
+                    pass
+                self._pending_config_send = False
+        for conn in conns:
+            try:
+                conn.close()
+            except OSError:
+                pass
