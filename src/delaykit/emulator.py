@@ -153,7 +153,8 @@ class DroneEmulator:
 
     def _bind(self, kind: int, port: int, name: str) -> socket.socket:
         s = socket.socket(socket.AF_INET, kind)
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        if kind == socket.SOCK_STREAM:  # (on UDP it would let two emulators share a port silently)
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             s.bind((self.config.host, port))
         except OSError as exc:
@@ -248,15 +249,24 @@ class DroneEmulator:
             if p.mode in (CtrlState.FLYING, CtrlState.HOVERING):
                 p.v_in = v
                 p.mode = CtrlState.FLYING if v != 0 else CtrlState.HOVERING
+        # record the trajectory finely enough for the link delay's look-back (linear between points)
+        while t - p.t > 0.002:
+            self._integrate(0.002)
+            p.history.append((p.t, p.z))
         self._integrate(t - p.t)
         p.history.append((p.t, p.z))
 
     def _z_at(self, t: float) -> float:
-        """The true altitude at an earlier time t (for the link delay), by the recorded history."""
-        for tt, z in reversed(self._phys.history):
+        """The true altitude at an earlier time t (for the link delay): linear between recorded states."""
+        h = self._phys.history
+        prev = None
+        for tt, z in reversed(h):
             if tt <= t:
-                return z
-        return self._phys.history[0][1] if self._phys.history else self._phys.z
+                if prev is None or prev[0] == tt:
+                    return z
+                return z + (prev[1] - z) * (t - tt) / (prev[0] - tt)
+            prev = (tt, z)
+        return h[0][1] if h else self._phys.z
 
     # ---- commands -------------------------------------------------------------------------------------
     def _handle(self, data: bytes, addr: tuple, t: float) -> None:

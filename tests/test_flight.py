@@ -1,0 +1,229 @@
+"""Flying against the built-in emulator on loopback (free ports chosen at run time, so parallel runs do not
+collide): the emulator's protocol and physics, the real-time loop and its safety exits, pyardrone as an
+independent client, delay recovery through fly + estimate, and the demo pipeline.  No packet leaves 127.0.0.1."""
+
+from __future__ import annotations
+
+import json
+import socket
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from delaykit.ardrone import ATEncoder, CtrlState, NavState, decode_navdata
+from delaykit.emulator import DroneEmulator, EmulatorConfig, PortError
+from delaykit.flight import FlightPlan, LinkError, fly
+from delaykit.flightlog import FlightLog
+
+FREE = dict(at_port=0, navdata_port=0, video_port=0, control_port=0)
+
+
+def emulator(**kw) -> DroneEmulator:
+    return DroneEmulator(EmulatorConfig(**{**FREE, "seed": 1, **kw}))
+
+
+class Client:
+    """A bare loopback client for poking the emulator."""
+
+    def __init__(self, emu: DroneEmulator) -> None:
+        self.emu = emu
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(1.0)
+        self.enc = ATEncoder()
+        self.sock.sendto(b"\x01\x00\x00\x00", ("127.0.0.1", emu.ports["navdata"]))
+
+    def send(self, data: bytes) -> None:
+        self.sock.sendto(data, ("127.0.0.1", self.emu.ports["at"]))
+
+    def packet(self):
+        data, addr = self.sock.recvfrom(4096)
+        assert addr == ("127.0.0.1", self.emu.ports["navdata"])
+        return decode_navdata(data)
+
+    def until(self, pred, timeout=5.0):
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < timeout:
+            nd = self.packet()
+            if pred(nd):
+                return nd
+        raise AssertionError("condition not reached")
+
+
+def test_emulator_protocol_state_bits_and_bad_datagrams():
+    with emulator(watchdog=0.4) as emu:
+        c = Client(emu)
+        nd = c.packet()
+        assert nd.has(NavState.NAVDATA_BOOTSTRAP) and nd.demo is None and len(c.sock.recvfrom(4096)[0]) == 24
+        c.send(c.enc.config("general:navdata_demo", "TRUE"))
+        nd = c.until(lambda n: n.demo is not None)
+        assert nd.has(NavState.COMMAND_ACK) and nd.has(NavState.NAVDATA_DEMO)
+        c.send(c.enc.ctrl(5))
+        c.until(lambda n: not n.has(NavState.COMMAND_ACK))
+        c.send(c.enc.ref(takeoff=True))
+        nd = c.until(lambda n: n.demo.major == CtrlState.HOVERING)
+        assert nd.has(NavState.FLYING) and 700 <= nd.demo.altitude_mm <= 900
+        for junk in (b"AT*JUMP=9\r", b"\x00\x01", b"AT*PCMD=9,1,0,0,1075838976,0\r"):
+            c.send(junk)
+        c.send(c.enc.config("control:control_vz_max", "1000"))
+
+        def climbing(n):  # keep commanding 0.5 m/s; the watchdog bit (set during the silent take-off) needs COMWDG
+            c.send(c.enc.comwdg() + c.enc.pcmd(gaz=0.5))
+            return n.demo.altitude_mm > 1000
+        nd = c.until(climbing)
+        assert emu.stats["bad"] == 3 and nd.demo.vz > 300
+        c.until(lambda n: n.has(NavState.COM_WATCHDOG))  # no command for 0.4 s: watchdog, hover
+        c.send(c.enc.comwdg())
+        c.until(lambda n: not n.has(NavState.COM_WATCHDOG))
+        c.send(c.enc.ref())
+        c.until(lambda n: n.demo.major == CtrlState.LANDED, timeout=8.0)
+
+
+def test_emulator_tcp_ports_and_port_errors():
+    with emulator() as emu:
+        v = socket.create_connection(("127.0.0.1", emu.ports["video"]), timeout=2)
+        ctl = socket.create_connection(("127.0.0.1", emu.ports["control"]), timeout=2)
+        time.sleep(0.3)
+        Client(emu).send(ATEncoder().ctrl(4, 0))
+        ctl.settimeout(3)
+        assert b"control:control_vz_max" in ctl.recv(4096)
+        v.close()
+        ctl.close()
+        with pytest.raises(PortError, match="already in use"):
+            DroneEmulator(EmulatorConfig(**{**FREE, "at_port": emu.ports["at"]})).start()
+    with pytest.raises(PortError, match="0 to 65535"):
+        EmulatorConfig(at_port=70000)
+    assert EmulatorConfig().host == "127.0.0.1"
+
+
+def test_unreachable_drone_is_a_clear_error_and_nothing_flies(tmp_path):
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    t0 = time.monotonic()
+    with pytest.raises(LinkError, match="no navdata") as info:
+        fly(FlightPlan(kp=1.31), tmp_path / "f.csv", host="127.0.0.1", at_port=port, navdata_port=port,
+            connect_timeout=0.6)
+    assert "Nothing was flown" in str(info.value) and time.monotonic() - t0 < 3
+    assert not (tmp_path / "f.csv").exists()
+
+
+def plan(**kw):
+    return FlightPlan(**{"kp": 1.31, "steps": (1.0,), "step_duration": 4.0, "hover_time": 0.8, "gap_timeout": 2.0, **kw})
+
+
+def test_flight_log_columns_flushing_and_bounds(tmp_path):
+    with emulator(noise=0.002) as emu:
+        res = fly(plan(steps=(0.6, -0.6), step_duration=3.5), tmp_path / "f.csv", host="127.0.0.1",
+                  at_port=emu.ports["at"], navdata_port=emu.ports["navdata"])
+        assert emu.mode == CtrlState.LANDED
+    assert res.completed and len(res.logs) == 2 and res.latency_median_ms > 0 and res.latency_p99_ms >= res.latency_median_ms
+    log = FlightLog.from_csv(res.logs[0])
+    assert set(log.extra) == {"vz", "seq", "recv_time", "latency_ms"} and log.step == pytest.approx(0.6)
+    assert np.all(np.abs(log.u) <= 1.0 + 1e-12)
+    assert log.t[0] < log.step_time - 0.5  # the log starts a second before its step
+    # the altitude follows the reference: it ends within a few noise levels of it
+    assert abs(log.z[-1] - log.z_ref[-1]) < 0.02
+
+
+def test_safety_exits_land_and_say_why(tmp_path):
+    with emulator() as emu:
+        res = fly(plan(steps=(1.0,), z_max=1.3), tmp_path / "b.csv", host="127.0.0.1",
+                  at_port=emu.ports["at"], navdata_port=emu.ports["navdata"])
+        assert not res.completed and "outside the bounds" in res.reason and emu.mode == CtrlState.LANDED
+        rows = (tmp_path / "b.csv").read_text().strip().splitlines()
+        assert len(rows) > 10  # everything up to the exit was written
+
+        def interrupt(msg):
+            if msg.startswith("step"):
+                raise KeyboardInterrupt
+        res = fly(plan(), tmp_path / "c.csv", host="127.0.0.1", at_port=emu.ports["at"],
+                  navdata_port=emu.ports["navdata"], status=interrupt)
+        assert res.reason == "interrupted (Ctrl-C)"
+        deadline = time.monotonic() + 5
+        while emu.mode != CtrlState.LANDED and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert emu.mode == CtrlState.LANDED
+
+
+def test_navdata_gap_ends_the_flight(tmp_path):
+    emu = emulator().start()
+
+    def silence(msg):
+        if msg.startswith("step"):
+            threading.Timer(0.8, emu.stop).start()
+    res = fly(plan(gap_timeout=0.4), tmp_path / "g.csv", host="127.0.0.1", at_port=emu.ports["at"],
+              navdata_port=emu.ports["navdata"], status=silence)
+    assert not res.completed and "navdata gap" in res.reason
+
+
+def test_pyardrone_flies_the_emulator():
+    pyardrone = pytest.importorskip("pyardrone")
+    from pyardrone import at
+
+    class Drone(pyardrone.HelperMixin, pyardrone.ARDroneBase):  # no video (OpenCV) mixin
+        pass
+
+    with emulator(noise=0.0, lag=0.0, delay=0.1) as emu:
+        drone = Drone(host="127.0.0.1", at_port=emu.ports["at"], navdata_port=emu.ports["navdata"])
+        try:
+            drone.send(at.CONFIG("general:navdata_demo", "TRUE"))
+            drone.send(at.CONFIG("control:control_vz_max", "1000"))
+            assert drone.navdata_ready.wait(3)
+
+            def wait(pred, timeout=6.0):
+                t0 = time.monotonic()
+                while time.monotonic() - t0 < timeout:
+                    nd = drone.navdata
+                    if hasattr(nd, "demo") and pred(nd):
+                        return nd
+                    time.sleep(0.05)
+                raise AssertionError("pyardrone never saw the expected state")
+
+            drone.takeoff()
+            nd = wait(lambda n: n.demo.ctrl_state >> 16 == CtrlState.HOVERING)
+            z0 = nd.demo.altitude
+            assert drone.state.fly_mask
+            t0 = time.monotonic()
+            while time.monotonic() - t0 < 1.2:
+                drone.move(up=0.5)  # a PCMD climb at 0.5 m/s
+                time.sleep(0.05)
+            nd = wait(lambda n: n.demo.altitude > z0 + 300)
+            drone.land()
+            wait(lambda n: n.demo.ctrl_state >> 16 == CtrlState.LANDED)
+            assert emu.stats["bad"] == 0
+        finally:
+            drone.close()
+
+
+def test_fly_then_estimate_recovers_the_loop_delay(tmp_path):
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+
+    runner = CliRunner()
+    with emulator(delay=0.27, lag=0.05, link_delay=0.01, noise=0.004, seed=5) as emu:
+        res = runner.invoke(app, ["fly", "--host", "127.0.0.1", "--at-port", str(emu.ports["at"]), "--navdata-port",
+                                  str(emu.ports["navdata"]), "--kp", "1.31", "--steps", "1,-1", "--duration", "6",
+                                  "--hover", "1", "--log", str(tmp_path / "f.csv"), "--json"])
+        assert res.exit_code == 0, res.output
+        flight = json.loads(res.stdout)
+        truth = emu.true_delay  # actuator 0.27 + link 0.01 each way
+    res = runner.invoke(app, ["estimate", *flight["logs"], "--kp", "1.31", "--period", f"{flight['packet_interval']:.6f}",
+                              "--free", "lag", "--json"])
+    assert res.exit_code == 0, res.output
+    est = json.loads(res.stdout)["pooled"]
+    assert abs(est["delay"] - truth) < 0.015
+    assert est["ci"][0] - 0.01 <= truth <= est["ci"][1] + 0.01
+
+
+def test_demo_pipeline_against_a_hidden_delay(tmp_path):
+    from delaykit.demo import run_demo
+
+    rep = run_demo(tmp_path, seed=11, p_steps=2, pv_steps=1, step_duration=5.0)
+    assert rep.true_delay is not None and abs(rep.error) < 0.015
+    assert (tmp_path / "demo.md").exists() and (tmp_path / "pv_flights.png").stat().st_size > 10_000
+    assert rep.pv_metrics and rep.p_metrics and rep.kv >= 0
