@@ -59,25 +59,18 @@ def parse_delays(spec: str) -> list[float]:
     >>> len(parse_delays("table1"))
     7
     """
+    from .design import parse_range
+
     spec = spec.strip()
     if spec.lower() == "table1":
         return [k * PAPER_PERIOD for k, _, _ in TABLE1]
     try:
-        if ":" in spec:
-            parts = spec.split(":")
-            if len(parts) != 3:
-                raise ValueError
-            a, b, n = float(parts[0]), float(parts[1]), int(parts[2])
-            if n < 1:
-                raise InvalidValueError(f"delay sweep {spec!r}: N must be at least 1, got {n}")
-            if n > 1 and not b > a:
-                raise InvalidValueError(f"delay sweep {spec!r}: STOP must be greater than START")
-            return [a] if n == 1 else [a + (b - a) * i / (n - 1) for i in range(n)]
-        return [float(x) for x in spec.split(",")]
-    except ValueError:
-        raise InvalidValueError(
-            f"--delay {spec!r} is not a delay: give seconds (0.368), START:STOP:N, a comma list, or 'table1'"
-        ) from None
+        return parse_range(spec, "--delay")
+    except InvalidValueError as exc:
+        if "must be START:STOP:N" in str(exc):
+            raise InvalidValueError(f"--delay {spec!r} is not a delay: give seconds (0.368), START:STOP:N, a comma "
+                                    "list, or 'table1'") from None
+        raise
 
 
 def _optional_float(name: str, text: Optional[str]) -> Optional[float]:
