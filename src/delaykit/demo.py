@@ -131,10 +131,15 @@ def run_demo(
 def _write(out, truth, est, lag, kv, d, p, pv, pm, vm) -> tuple[Path, ...]:
     from .plots import plot_fit
 
+    from .estimation import fitted_altitude
+
     fig_p, fig_v = out / "p_flights.png", out / "pv_flights.png"
-    for logs_, fig, title in ((p.logs, fig_p, "P control, Kp = 1.31"), (pv.logs, fig_v, f"PV control, Kp = 2.0, Kv = {kv:g}")):
-        ls = [FlightLog.from_csv(f) for f in logs_]
-        plot_fit(ls, [(lg.t, lg.z_ref) for lg in ls], fig, title=f"{title} (dots: altitude; lines: reference)")
+    ls = [FlightLog.from_csv(f) for f in p.logs]
+    fits = [(lg.t, fitted_altitude(lg, est, 1.31, i, period=p.packet_interval)) for i, lg in enumerate(ls)]
+    plot_fit(ls, fits, fig_p, title=f"P control, Kp = 1.31: data (dots) and the fitted model, Td = {est.delay:.4f} s")
+    ls = [FlightLog.from_csv(f) for f in pv.logs]
+    plot_fit(ls, [(lg.t, lg.z_ref) for lg in ls], fig_v, lower_label="tracking error z - z_ref (mm)",
+             title=f"PV control, Kp = 2.0, Kv = {kv:g}: altitude (dots) and reference (lines)")
     err = "" if truth is None else f" The emulator's true delay is {truth:.4f} s: the error is {1e3 * (est.delay - truth):+.1f} ms."
 
     def table(ms):

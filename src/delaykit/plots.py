@@ -175,7 +175,8 @@ def plot_stability_map(smap, path: str | Path, *, title: str | None = None) -> N
     plt.close(fig)
 
 
-def plot_fit(logs: Sequence, fits: Sequence, path: str | Path, *, title: str | None = None) -> None:
+def plot_fit(logs: Sequence, fits: Sequence, path: str | Path, *, title: str | None = None,
+             lower_label: str = "residual (mm)") -> None:
     """Measured altitude, the fitted model, and the residuals, one colour per flight.
 
     ``fits`` holds, per flight, ``(t, z_fit)`` on the log's own times (from
@@ -189,7 +190,7 @@ def plot_fit(logs: Sequence, fits: Sequence, path: str | Path, *, title: str | N
         ax1.plot(tt, zf, "-", lw=1.2, color=c)
         ax2.plot(tt, 1e3 * (log.z - zf), ".", ms=3, color=c)
     ax1.set_ylabel("altitude z (m)")
-    ax2.set_ylabel("residual (mm)")
+    ax2.set_ylabel(lower_label)
     ax2.set_xlabel("time after the step (s)")
     ax2.axhline(0, color="k", lw=0.6)
     ax1.grid(alpha=0.3)
