@@ -52,10 +52,6 @@ class EstimationError(InvalidValueError):
     """The method cannot estimate a delay from these data (the message says why)."""
 
 
-def _fmt(x: float | None, d: int = 4) -> str:
-    return "None" if x is None else f"{x:.{d}f}"
-
-
 @dataclass(frozen=True, repr=False)
 class DelayEstimate:
     """A delay estimate.
@@ -507,8 +503,6 @@ def estimate_trajectory(
                             f"{meas.peak_time:.3f} s")
     rms = float(math.sqrt(rss / n))
     at_quantum = quantum > 0 and rms <= 0.6 * quantum
-    if at_quantum:
-        diag_note = f"the residuals are at the altitude resolution ({quantum:g} m): their whiteness is not judged"
     if pval < 0.01 and not at_quantum:
         warnings.append(
             f"the residuals are not white (Ljung-Box p = {pval:.2g}): the model does not explain the data fully"
@@ -518,7 +512,7 @@ def estimate_trajectory(
             "nfev": int(fit.nfev), "samples": int(n), "resolution": quantum, "resolution_stderr": floor,
             "stderr_inflation": inflation}
     if at_quantum:
-        diag["note"] = diag_note
+        diag["note"] = f"the residuals are at the altitude resolution ({quantum:g} m): their whiteness is not judged"
     params: dict[str, Any] = {"offsets": offsets, "scales": scales}
     if "gain" in free:
         params["gain"] = gains

@@ -41,14 +41,14 @@ from .quasipolynomial import QuasiPolynomial
 
 __all__ = ["Spectrum", "find_roots", "neutral_lines", "root_bound"]
 
-_EPS = np.finfo(float).eps
 _RELIABLE = 32.0  # |Q| must exceed this many times its rounding-error bound on a boundary
 _MAX_PHASE = 0.6
 _CAP = 4_000_000
 
 
 class _Eval:
-    """Vectorised evaluation of Q, Q' and a bound on the rounding error of Q."""
+    """A quasi-polynomial as the arrays the compiled kernels take (coefficients padded, highest degree first,
+    their moduli, the delays), and a vectorised evaluation of Q for the real-axis scan."""
 
     def __init__(self, q: QuasiPolynomial) -> None:
         deg = q.degree
@@ -58,36 +58,15 @@ class _Eval:
         for i, p in enumerate(q.polys):
             self.C[i, deg + 1 - len(p):] = p
         self.A = np.ascontiguousarray(np.abs(self.C))
-        self.dC = np.array([np.polyder(row) if deg > 0 else np.zeros(1, complex) for row in self.C])
-        if self.dC.ndim == 1:
-            self.dC = self.dC[:, None]
         self.deg = deg
         self.real = bool(np.all(self.C.imag == 0))
         self.evals = 0
-
-    def _powers(self, s: np.ndarray) -> np.ndarray:
-        return s[:, None] ** np.arange(self.deg, -1, -1)
 
     def value(self, s: np.ndarray) -> np.ndarray:
         self.evals += s.size
         with np.errstate(over="ignore", invalid="ignore"):  # far left, exp overflows: Q is inf there
             E = np.exp(-np.multiply.outer(s, self.tau))
-            return np.einsum("ij,ij->i", self._powers(s) @ self.C.T, E)
-
-    def __call__(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        self.evals += s.size
-        with np.errstate(over="ignore", invalid="ignore"):
-            return self._call(s)
-
-    def _call(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        E = np.exp(-np.multiply.outer(s, self.tau))
-        S = self._powers(s)
-        P = S @ self.C.T
-        dP = S[:, 1:] @ self.dC.T if self.deg > 0 else np.zeros_like(P)
-        Q = np.einsum("ij,ij->i", P, E)
-        dQ = np.einsum("ij,ij->i", dP - self.tau * P, E)
-        noise = (self.deg + 2) * _EPS * np.einsum("ij,ij->i", np.abs(S) @ self.A.T, np.abs(E))
-        return Q, dQ, noise
+            return np.einsum("ij,ij->i", (s[:, None] ** np.arange(self.deg, -1, -1)) @ self.C.T, E)
 
 
 def _contour(ev: _Eval, corners: list[complex], cap: int | None = None) -> _Count:

@@ -188,25 +188,39 @@ class Response:
         return f"Response({self.loop!r}, step={self.step:g} m: {self.metrics!r})"
 
 
-def _run_one(row: np.ndarray) -> tuple[int, np.ndarray, tuple[np.ndarray, ...]]:
-    cap = _CAP0
-    while True:
-        tu0 = np.empty(cap)
-        thu = np.empty(cap)
-        tuc = np.zeros((cap, K.NC))
-        tdeg = np.empty(cap, dtype=np.int64)
-        tz0 = np.empty(cap)
-        th = np.empty(cap)
-        tzc = np.empty((cap, K.NC))
-        out = np.empty(K.NOUT)
-        n = K.run_one(row, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, True, _NO_T, _NO_T)
-        if out[K.OUT["status"]] == 0:
-            return n, out, (tu0, thu, tuc, tdeg, tz0, th, tzc)
-        if cap >= _CAP_MAX:
-            raise InvalidValueError(
-                f"the response needs more than {_CAP_MAX} polynomial pieces; shorten t_end ({row[K.PARAM['t_end']]:g} s)"
-            )
-        cap *= 8
+class _Workspace:
+    """Work arrays for the kernel, grown eightfold (up to ``_CAP_MAX`` pieces) when a run needs more pieces.
+
+    ``store`` keeps z's pieces (for a :class:`Response`); ``t`` are times at which to evaluate z.
+    """
+
+    def __init__(self, store: bool, t: np.ndarray = _NO_T) -> None:
+        self.store = store
+        self.t = t
+        self.cap = _CAP0
+        self._alloc()
+
+    def _alloc(self) -> None:
+        c = self.cap
+        zc = c if self.store else 1
+        self.u = (np.empty(c), np.empty(c), np.zeros((c, K.NC)), np.empty(c, dtype=np.int64))
+        self.z = (np.empty(zc), np.empty(zc), np.empty((zc, K.NC)))
+        self.out = np.empty(K.NOUT)
+        self.ez = np.empty(self.t.size)
+
+    def run(self, row: np.ndarray) -> int:
+        """Run the kernel on one parameter row; returns the number of z pieces."""
+        while True:
+            n = K.run_one(row, self.cap, *self.u, *self.z, self.out, self.store, self.t, self.ez)
+            if self.out[K.OUT["status"]] == 0:
+                return n
+            if self.cap >= _CAP_MAX:
+                raise InvalidValueError(
+                    f"the response needs more than {_CAP_MAX} polynomial pieces; shorten t_end "
+                    f"({row[K.PARAM['t_end']]:g} s)"
+                )
+            self.cap *= 8
+            self._alloc()
 
 
 def simulate(
@@ -249,7 +263,10 @@ def simulate(
     step, t_end, band = _check_run(step, t_end, band)
     z0 = check_real("z0", z0)
     row = _row(loop, step, t_end, band)
-    n, out, (tu0, thu, tuc, tdeg, tz0, th, tzc) = _run_one(row)
+    ws = _Workspace(store=True)
+    n = ws.run(row)
+    out = ws.out
+    (tu0, thu, tuc, _), (tz0, th, tzc) = ws.u, ws.z
     nu = int(out[K.OUT["u_pieces"]])
     return Response(
         loop=loop,
@@ -284,31 +301,12 @@ class AltitudeSampler:
         if self.t.ndim != 1 or self.t.size and np.any(np.diff(self.t) < 0):
             raise InvalidValueError("sample times must be a sorted 1-D array")
         self.t_end = float(t_end if t_end is not None else (self.t[-1] if self.t.size else 1.0)) + 1e-9
-        self._cap = _CAP0
-        self._alloc()
-
-    def _alloc(self) -> None:
-        c = self._cap
-        self._u = (np.empty(c), np.empty(c), np.zeros((c, K.NC)), np.empty(c, dtype=np.int64))
-        self._z = (np.empty(1), np.empty(1), np.empty((1, K.NC)))
-        self._out = np.empty(K.NOUT)
-        self._ez = np.empty(self.t.size)
+        self._ws = _Workspace(store=False, t=self.t)
 
     def __call__(self, loop: AltitudeLoop, step: float, z0: float = 0.0) -> np.ndarray:
         """Altitude at the sample times (relative to the step at t = 0)."""
-        row = _row(loop, step, max(self.t_end, 1e-6), 0.02)
-        while True:
-            K.run_one(row, self._cap, *self._u, *self._z, self._out, False, self.t, self._ez)
-            if self._out[K.OUT["status"]] == 0:
-                return z0 + self._ez
-            if self._cap >= _CAP_MAX:
-                raise InvalidValueError("the response needs too many polynomial pieces")
-            self._cap *= 8
-            self._alloc()
-
-    def metrics_row(self) -> np.ndarray:
-        """The raw metrics of the last call (kernel layout)."""
-        return self._out.copy()
+        self._ws.run(_row(loop, step, max(self.t_end, 1e-6), 0.02))
+        return z0 + self._ws.ez
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -475,5 +473,7 @@ def _batch(pars: np.ndarray) -> np.ndarray:
     out = K.run_batch(pars, _CAP0, nchunks)
     redo = np.flatnonzero(out[:, K.OUT["status"]] != 0)
     for i in redo:
-        _, out[i], _ = _run_one(pars[i])
+        ws = _Workspace(store=False)
+        ws.run(pars[i])
+        out[i] = ws.out
     return out
