@@ -233,12 +233,7 @@ def _cell(args: tuple) -> tuple[float, float]:
     worst_a, worst_t = -math.inf, 0.0
     for d in delays:
         loop = base.replace(kp=kp, kv=kv, delay=d)
-        lin = loop.replace(period=None, sample_offset=0.0)
-        if lin.kv >= 1 and lin.velocity == "true" and lin.lag == 0 and d > 0:
-            a = math.log(lin.kv) / d
-        else:
-            a = rightmost(lin).abscissa
-        worst_a = max(worst_a, a)
+        worst_a = max(worst_a, rightmost(loop.replace(period=None, sample_offset=0.0)).abscissa)
         m = simulate(loop, step, t_end=t_end).metrics
         worst_t = max(worst_t, m.settling_time if m.settling_time is not None else math.inf)
     return worst_a, worst_t

@@ -238,11 +238,7 @@ def stability_map(
     k = 0
     for i, yv in enumerate(ys):
         for j, xv in enumerate(xs):
-            loop = base.replace(**{x_name: float(xv), y_name: float(yv)})
-            if loop.kv >= 1.0 and loop.velocity == "true" and loop.delay > 0:
-                out[i, j] = math.log(loop.kv) / loop.delay
-            else:
-                out[i, j] = rightmost(loop).abscissa
+            out[i, j] = rightmost(base.replace(**{x_name: float(xv), y_name: float(yv)})).abscissa
             k += 1
             if progress:
                 progress(k, total)
