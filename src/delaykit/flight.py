@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+from scipy.linalg import expm
 
 from .ardrone import ATEncoder, CtrlState, NavState, Navdata, ProtocolError, decode_navdata
 from .errors import DelaykitError, InvalidValueError, check_real
@@ -197,8 +198,6 @@ class _Filter:
         self._cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
     def update(self, z: float, dt: float) -> float:
-        from scipy.linalg import expm
-
         if self.x is None:
             self.x = np.array([z / self.wn2, 0.0])
             return 0.0
@@ -306,7 +305,8 @@ def fly(
         z_ref = float(np.mean(half)) if half else (nd.demo.altitude_mm / 1000.0 if nd and nd.demo else 0.8)
         # 3. the steps; the log of each starts a second before its step (the hover, for the first)
         flt = _Filter(plan.filter_wn, plan.filter_zeta) if plan.velocity == "filtered" else None
-        recent: deque = deque(f"{t - t_start:.6f},{z:.3f},{z_ref:.6f},0.000000,{vz:.6f},{sq},{t:.6f},0.0000\n"
+        # (arrival time, row) of the last second, for the next log's start
+        recent: deque = deque((t, f"{t - t_start:.6f},{z:.3f},{z_ref:.6f},0.000000,{vz:.6f},{sq},{t:.6f},0.0000\n")
                               for t, z, vz, sq in hover if t >= hover[-1][0] - 1.0) if hover else deque()
         last_wdg = 0.0
         t_prev = None
@@ -315,7 +315,7 @@ def fly(
             logs.append(path)
             fh = open(path, "w", buffering=1)
             fh.write(",".join(_COLUMNS) + "\n")
-            for row in recent:  # the second before the step
+            for _, row in recent:  # the second before the step
                 fh.write(row)
             fh.flush()
             z_ref += step
@@ -349,8 +349,8 @@ def fly(
                     row = (f"{t_recv - t_start:.6f},{z:.3f},{z_ref:.6f},{u:.6f},{nd.demo.vz / 1000.0:.6f},"
                            f"{nd.sequence},{t_recv:.6f},{lat:.4f}\n")
                     fh.write(row)
-                    recent.append(row)
-                    while recent and t_recv - float(recent[0].split(",", 7)[6]) > 1.0:
+                    recent.append((t_recv, row))
+                    while recent and t_recv - recent[0][0] > 1.0:
                         recent.popleft()
             finally:
                 fh.close()

@@ -20,7 +20,7 @@ from .paper import TABLE1_KP, Table1Row, paper_loop, table1
 from .plots import plot_responses
 from .simulation import simulate
 
-__all__ = ["Report", "write_report", "table1_verdict", "table1_markdown"]
+__all__ = ["Report", "write_report", "table1_verdict", "table1_markdown", "plot_table1_responses"]
 
 
 @dataclass(frozen=True, repr=False)
@@ -71,6 +71,14 @@ def table1_markdown(rows: list[Table1Row] | tuple[Table1Row, ...]) -> str:
     return "\n".join(lines)
 
 
+def plot_table1_responses(path: str | Path) -> None:
+    """The responses of Table 1's loop for four of its delays (K = 4, 5, 5.6, 5.6646), to ``path``."""
+    ks = (4.0, 5.0, 5.6, 5.6646)
+    plot_responses([simulate(paper_loop(k * PAPER_PERIOD)) for k in ks], path,
+                   labels=[f"K={k:g}, Td={k * PAPER_PERIOD:.4f} s" for k in ks],
+                   title=f"P control, Kp = {TABLE1_KP}, ±1 m/s, 1 m step (the loop behind Table 1)", t_max=6.0)
+
+
 def write_report(out: str | Path = "out", progress: Callable[[str], None] | None = None) -> Report:
     """Regenerate Table 1 (P control, Kp = 1.31) with a figure of the responses, into ``out``.
 
@@ -101,11 +109,8 @@ def write_report(out: str | Path = "out", progress: Callable[[str], None] | None
         "sampled every 0.065 s, saturated": simulate(paper_loop(td).replace(period=PAPER_PERIOD)).metrics.overshoot,
     }
     say("figure of the responses")
-    ks = (4.0, 5.0, 5.6, 5.6646)
-    responses = [simulate(paper_loop(k * PAPER_PERIOD)) for k in ks]
     fig = out / "responses.png"
-    plot_responses(responses, fig, labels=[f"K={k:g}, Td={k * PAPER_PERIOD:.4f} s" for k in ks],
-                   title=f"P control, Kp = {TABLE1_KP}, 1 m step (the loop behind Table 1)", t_max=6.0)
+    plot_table1_responses(fig)
     md = out / "table1.md"
     md.write_text(
         "# Table 1: overshoot against delay (P control, Kp = 1.31, ±1 m/s, 1 m step)\n\n"

@@ -31,7 +31,7 @@ from .estimation import estimate_lambert, estimate_overshoot, lambert_paper_iter
 from .metrics import SecondOrder
 from .model import PAPER_PERIOD, AltitudeLoop
 from .paper import TABLE1_KP, table1, table3
-from .report import table1_verdict
+from .report import plot_table1_responses, table1_verdict
 from .roots import find_roots
 from .simulation import simulate
 
@@ -89,14 +89,9 @@ def _c(z: complex | None, d: int = 4) -> str:
 
 
 def _table1(out: Path) -> Item:
-    from .plots import plot_responses
-
     rows = table1()
-    ks = (4.0, 5.0, 5.6, 5.6646)
     fig = out / "fig_table1_responses.png"
-    plot_responses([simulate(AltitudeLoop(kp=TABLE1_KP, delay=k * PAPER_PERIOD)) for k in ks], fig,
-                   labels=[f"K={k:g}, Td={k * PAPER_PERIOD:.4f} s" for k in ks], t_max=6.0,
-                   title="Table 1's loop: P control, Kp = 1.31, ±1 m/s, 1 m step")
+    plot_table1_responses(fig)
     body = [[f"{r.K:.4f}", f"{r.delay:.5f}", f"{r.paper_overshoot:.3f}", f"{r.overshoot:.4f}", f"{r.difference:+.4f}",
              _f(r.equivalent_delay, 5)] for r in rows]
     return Item("table1", "Table 1: overshoot against delay (P control, Kp = 1.31)", table1_verdict(rows),
