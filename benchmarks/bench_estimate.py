@@ -28,9 +28,9 @@ from rich.table import Table
 
 from delaykit import AltitudeLoop
 from delaykit.errors import DelaykitError
-from delaykit.estimation import estimate_lambert, estimate_overshoot, estimate_trajectory
-from delaykit.flightlog import synthetic_log
-from delaykit.metrics import step_metrics
+from delaykit.identify.estimation import estimate_lambert, estimate_overshoot, estimate_trajectory
+from delaykit.identify.flightlog import synthetic_log
+from delaykit.simulate.metrics import step_metrics
 
 
 def flights(n: int, seed: int = 7):

@@ -27,8 +27,8 @@ from rich.console import Console
 from rich.table import Table
 
 import delaykit as dk
-from delaykit.lambert import lambert_roots
-from delaykit.roots import find_roots
+from delaykit.spectrum.lambert import lambert_roots
+from delaykit.spectrum.roots import find_roots
 
 
 def qp_from_qpmr(coefs, delays) -> dk.QuasiPolynomial:

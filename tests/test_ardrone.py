@@ -8,8 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from delaykit.ardrone import (ATEncoder, ATError, CtrlState, Demo, NavdataError, NavState, ProtocolError,
-                              bootstrap_packet, decode_navdata, encode_navdata, float_to_int, int_to_float, parse_at)
+from delaykit.hardware.ardrone import (ATEncoder, ATError, CtrlState, Demo, NavdataError, NavState, ProtocolError,
+                                       bootstrap_packet, decode_navdata, encode_navdata, float_to_int, int_to_float,
+                                       parse_at)
 
 # the bootstrap packet of the protocol notes, captured from a real drone
 VECTOR = bytes.fromhex("88 77 66 55 10 0c 80 4f 01 00 00 00 00 00 00 00 ff ff 08 00 a6 02 00 00")

@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 
 from delaykit import AltitudeLoop, simulate
 from delaykit.cli import app, parse_delays
-from delaykit.paper import TABLE1
+from delaykit.paper.data import TABLE1
 
 runner = CliRunner()
 
@@ -126,7 +126,7 @@ def test_installed_script_exits_2_without_traceback():
 
 
 def test_roots_json_matches_the_library(tmp_path):
-    from delaykit.roots import find_roots
+    from delaykit.spectrum.roots import find_roots
 
     png = tmp_path / "fig8.png"
     res = run("roots", "--kp", "2", "--kv", "0.3", "--delay", "0.37", "--region", "-10", "2", "0", "100",

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from delaykit import AltitudeLoop, simulate
-from delaykit.design import design_sweep, filter_analysis, gain_search, parse_range
+from delaykit.design.tuning import design_sweep, filter_analysis, gain_search, parse_range
 from delaykit.errors import InvalidValueError
-from delaykit.stability import rightmost
+from delaykit.spectrum.stability import rightmost
 
 
 def test_design_sweep_rows_agree_with_roots_and_simulation():
@@ -85,7 +85,7 @@ def test_filter_analysis_closed_forms():
 
 
 def test_reproduce_writes_every_item(tmp_path):
-    from delaykit.reproduce import reproduce
+    from delaykit.paper.reproduce import reproduce
 
     rep = reproduce(tmp_path)
     keys = [i.key for i in rep.items]
@@ -100,7 +100,7 @@ def test_reproduce_writes_every_item(tmp_path):
 
 
 def test_report_page_renders_in_headless_chromium(tmp_path):
-    from delaykit.reproduce import reproduce
+    from delaykit.paper.reproduce import reproduce
 
     chromium = shutil.which("chromium") or shutil.which("chromium-browser")
     if chromium is None:

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from delaykit import AltitudeLoop, simulate
-from delaykit.estimation import (EstimationError, estimate_flights, estimate_lambert, estimate_overshoot,
-                                 estimate_trajectory, fitted_altitude)
-from delaykit.flightlog import FlightLog, LogError, synthetic_log, write_log
-from delaykit.lambert import lambert_w
+from delaykit.identify.estimation import (EstimationError, estimate_flights, estimate_lambert, estimate_overshoot,
+                                          estimate_trajectory, fitted_altitude)
+from delaykit.identify.flightlog import FlightLog, LogError, synthetic_log, write_log
+from delaykit.spectrum.lambert import lambert_w
 
 
 def test_section_511_overshoot_method():

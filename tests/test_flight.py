@@ -12,10 +12,10 @@ import time
 import numpy as np
 import pytest
 
-from delaykit.ardrone import ATEncoder, CtrlState, NavState, decode_navdata
-from delaykit.emulator import DroneEmulator, EmulatorConfig, PortError
-from delaykit.flight import FlightPlan, LinkError, fly
-from delaykit.flightlog import FlightLog
+from delaykit.hardware.ardrone import ATEncoder, CtrlState, NavState, decode_navdata
+from delaykit.hardware.emulator import DroneEmulator, EmulatorConfig, PortError
+from delaykit.hardware.flight import FlightPlan, LinkError, fly
+from delaykit.identify.flightlog import FlightLog
 
 FREE = dict(at_port=0, navdata_port=0, video_port=0, control_port=0)
 
@@ -221,7 +221,7 @@ def test_fly_then_estimate_recovers_the_loop_delay(tmp_path):
 
 
 def test_demo_pipeline_against_a_hidden_delay(tmp_path):
-    from delaykit.demo import run_demo
+    from delaykit.paper.demo import run_demo
 
     rep = run_demo(tmp_path, seed=11, p_steps=2, pv_steps=1, step_duration=5.0)
     assert rep.true_delay is not None and abs(rep.error) < 0.015

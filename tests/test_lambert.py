@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 from scipy.special import lambertw
 
 from delaykit.errors import InvalidValueError
-from delaykit.lambert import (complex_delays_for_root, delay_for_damping, dominant_root, kp_delay_for_damping,
-                              lambert_roots, lambert_w)
+from delaykit.spectrum.lambert import (complex_delays_for_root, delay_for_damping, dominant_root,
+                                       kp_delay_for_damping, lambert_roots, lambert_w)
 
 
 @given(a0=st.complex_numbers(max_magnitude=5, allow_nan=False, allow_infinity=False),

@@ -11,10 +11,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from delaykit import AltitudeLoop, InvalidValueError, QuasiPolynomial
-from delaykit.lambert import lambert_roots
-from delaykit.paper import table3
-from delaykit.roots import find_roots, neutral_lines, root_bound
-from delaykit.stability import delay_margin, rightmost, stability_map
+from delaykit.spectrum.lambert import lambert_roots
+from delaykit.paper.data import table3
+from delaykit.spectrum.roots import find_roots, neutral_lines, root_bound
+from delaykit.spectrum.stability import delay_margin, rightmost, stability_map
 
 
 def lambert_set(kp, td, region):
@@ -114,7 +114,7 @@ def test_qpmr_example_3_all_201_roots():
 
 
 def test_uncertified_when_the_boundary_cannot_be_resolved(monkeypatch):
-    import delaykit.roots as R
+    import delaykit.spectrum.roots as R
 
     monkeypatch.setattr(R, "_CAP", 50)
     sp = find_roots(AltitudeLoop(kp=2.0, delay=0.37, kv=0.3).characteristic(), (-10, 2, 0, 100))

@@ -275,7 +275,7 @@ def test_no_delay_with_lag_and_gain_closed_form():
 
 
 def test_sampler_matches_response():
-    from delaykit.simulation import AltitudeSampler
+    from delaykit.simulate.simulation import AltitudeSampler
 
     loop = AltitudeLoop(kp=1.6, delay=0.33, lag=0.08, gain=0.9, period=0.065, sample_offset=0.01)
     t = np.sort(np.random.default_rng(2).uniform(-1, 12, 300))

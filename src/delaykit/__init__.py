@@ -8,10 +8,10 @@ True
 """
 
 from .errors import DelaykitError, InvalidTypeError, InvalidValueError
-from .metrics import SecondOrder, StepMetrics, noise_level, step_metrics
-from .model import PAPER_PERIOD, AltitudeLoop
-from .quasipolynomial import QuasiPolynomial
-from .simulation import BatchMetrics, Response, simulate, simulate_many
+from .models.altitude import PAPER_PERIOD, AltitudeLoop
+from .models.quasipolynomial import QuasiPolynomial
+from .simulate.metrics import SecondOrder, StepMetrics, noise_level, step_metrics
+from .simulate.simulation import BatchMetrics, Response, simulate, simulate_many
 
 __all__ = [
     "AltitudeLoop", "BatchMetrics", "DelaykitError", "InvalidTypeError", "InvalidValueError", "PAPER_PERIOD",

@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 from scipy.optimize import brentq
 
-from .model import PAPER_PERIOD, AltitudeLoop
-from .simulation import simulate, simulate_many
+from ..models.altitude import PAPER_PERIOD, AltitudeLoop
+from ..simulate.simulation import simulate, simulate_many
 
 __all__ = ["TABLE1", "TABLE2", "TABLE3", "TABLE1_KP", "Table1Row", "Table3Row", "table1", "table3", "paper_loop"]
 
@@ -178,8 +178,8 @@ def table3() -> list[Table3Row]:
     >>> [r.agrees for r in table3()]
     [True, True, False, True, True]
     """
-    from .roots import find_roots
-    from .stability import rightmost
+    from ..spectrum.roots import find_roots
+    from ..spectrum.stability import rightmost
 
     rows = []
     for kv, printed in TABLE3:

@@ -21,7 +21,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .simulation import Response  # noqa: E402
+from ..simulate.simulation import Response  # noqa: E402
 
 __all__ = ["plot_responses", "plot_spectrum", "plot_stability_map", "plot_fit", "plot_filter_bode"]
 
@@ -92,7 +92,7 @@ def plot_spectrum(
     Parameters
     ----------
     spectra : sequence of Spectrum
-        Results of :func:`delaykit.roots.find_roots` (one per loop).
+        Results of :func:`delaykit.spectrum.roots.find_roots` (one per loop).
     path : str or Path
         Output file.
     labels : sequence of str, optional
@@ -104,7 +104,7 @@ def plot_spectrum(
     --------
     >>> import tempfile, os
     >>> from delaykit import AltitudeLoop
-    >>> from delaykit.roots import find_roots
+    >>> from delaykit.spectrum.roots import find_roots
     >>> sp = find_roots(AltitudeLoop(kp=2, delay=0.37, kv=0.3).characteristic(), (-10, 2, 0, 100))
     >>> path = os.path.join(tempfile.mkdtemp(), "s.png")
     >>> plot_spectrum([sp], path)
@@ -152,7 +152,7 @@ def plot_stability_map(smap, path: str | Path, *, title: str | None = None) -> N
     --------
     >>> import tempfile, os, numpy as np
     >>> from delaykit import AltitudeLoop
-    >>> from delaykit.stability import stability_map
+    >>> from delaykit.spectrum.stability import stability_map
     >>> m = stability_map(AltitudeLoop(kp=1, delay=0.3), "kp", np.linspace(0.5, 6, 12), "delay", np.linspace(0.1, 0.8, 8))
     >>> path = os.path.join(tempfile.mkdtemp(), "m.png")
     >>> plot_stability_map(m, path)
@@ -180,7 +180,7 @@ def plot_fit(logs: Sequence, fits: Sequence, path: str | Path, *, title: str | N
     """Measured altitude, the fitted model, and the residuals, one colour per flight.
 
     ``fits`` holds, per flight, ``(t, z_fit)`` on the log's own times (from
-    :func:`delaykit.estimation.fitted_altitude`).
+    :func:`delaykit.identify.estimation.fitted_altitude`).
     """
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, height_ratios=[3, 1.3])
     for log, (t, zf) in zip(logs, fits):
@@ -205,8 +205,9 @@ def plot_fit(logs: Sequence, fits: Sequence, path: str | Path, *, title: str | N
 
 def plot_filter_bode(report, path: str | Path) -> None:
     """Bode plot of the derivative filter relative to a true differentiator, with its cutoff, the PV loop's
-    crossover, and the paper's quoted 5.68 rad/s marked (``report`` from :func:`delaykit.design.filter_analysis`)."""
-    from .design import filter_frequency_response
+    crossover, and the paper's quoted 5.68 rad/s marked (``report`` from
+    :func:`delaykit.design.tuning.filter_analysis`)."""
+    from ..design.tuning import filter_frequency_response
 
     w = np.logspace(-1, 3, 2000)
     H = filter_frequency_response(report.wn, report.zeta, w)

@@ -1,6 +1,6 @@
 """A built-in AR.Drone 2.0 emulator on loopback: the default "drone" on any machine.
 
-It speaks the real protocol (:mod:`delaykit.ardrone`): AT commands on UDP ``at_port``; navdata on UDP
+It speaks the real protocol (:mod:`delaykit.hardware.ardrone`): AT commands on UDP ``at_port``; navdata on UDP
 ``navdata_port`` to whoever sent it bytes there (bootstrap packets until ``general:navdata_demo`` is set,
 then demo packets at ``rate`` Hz); TCP accepted on the video and control ports (the control port answers
 ``AT*CTRL=<seq>,4,0`` with a configuration text).  It binds to 127.0.0.1 unless told otherwise.
@@ -37,9 +37,9 @@ from collections import deque
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from ..errors import InvalidValueError, check_real
 from .ardrone import (CtrlState, Demo, NavState, ProtocolError, REF_EMERGENCY, REF_TAKEOFF, encode_navdata,
                       int_to_float, parse_at)
-from .errors import InvalidValueError, check_real
 
 __all__ = ["EmulatorConfig", "DroneEmulator", "PortError"]
 
@@ -148,7 +148,7 @@ class DroneEmulator:
 
     @property
     def mode(self) -> int:
-        """The major control state (:class:`~delaykit.ardrone.CtrlState`)."""
+        """The major control state (:class:`~delaykit.hardware.ardrone.CtrlState`)."""
         return self._phys.mode
 
     def _bind(self, kind: int, port: int, name: str) -> socket.socket:

@@ -31,7 +31,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from .errors import InvalidValueError, check_real
+from ..errors import InvalidValueError, check_real
 from .quasipolynomial import QuasiPolynomial
 
 __all__ = ["AltitudeLoop", "VELOCITY_CHOICES", "PAPER_PERIOD"]

@@ -33,8 +33,8 @@ from typing import Any, Callable
 import numpy as np
 from scipy.linalg import expm
 
+from ..errors import DelaykitError, InvalidValueError, check_real
 from .ardrone import ATEncoder, CtrlState, NavState, Navdata, ProtocolError, decode_navdata
-from .errors import DelaykitError, InvalidValueError, check_real
 from .emulator import _check_port
 
 __all__ = ["LinkError", "DroneLink", "FlightPlan", "FlightResult", "fly"]

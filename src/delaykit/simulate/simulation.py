@@ -1,6 +1,6 @@
 """Exact simulation of the delayed altitude loop, one loop at a time or thousands at once.
 
-The solver (:mod:`delaykit._kernel`) is the method of steps with Taylor polynomials between breakpoints:
+The solver (:mod:`delaykit.simulate._kernel`) is the method of steps with Taylor polynomials between breakpoints:
 saturation switches, their images one delay later, sample instants and the jumps of the neutral loop are
 all located to machine precision, so the responses and their metrics are exact up to rounding (the
 largest discarded Taylor coefficient is reported as ``truncation``; it is typically below 1e-16).
@@ -24,10 +24,10 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InvalidValueError, check_real
+from ..models.altitude import VELOCITY_CHOICES, AltitudeLoop
 from . import _kernel as K
-from .errors import InvalidValueError, check_real
 from .metrics import StepMetrics
-from .model import VELOCITY_CHOICES, AltitudeLoop
 
 __all__ = ["Response", "BatchMetrics", "AltitudeSampler", "simulate", "simulate_many"]
 
@@ -257,7 +257,7 @@ def simulate(
     1.6579
     """
     if not isinstance(loop, AltitudeLoop):
-        from .errors import InvalidTypeError
+        from ..errors import InvalidTypeError
 
         raise InvalidTypeError(f"loop must be an AltitudeLoop, got {type(loop).__name__}")
     step, t_end, band = _check_run(step, t_end, band)
@@ -318,7 +318,7 @@ class BatchMetrics:
     kp, delay, kv, step : ndarray
         The loops, broadcast to a common shape.
     overshoot, peak_time, rise_time, settling_time, steady_state_error : ndarray
-        As in :class:`~delaykit.metrics.StepMetrics`, in percent, seconds and metres.
+        As in :class:`~delaykit.simulate.metrics.StepMetrics`, in percent, seconds and metres.
     truncation : float
         The largest discarded Taylor coefficient over all loops (relative to the step).
     """
@@ -358,7 +358,7 @@ def _check_array(name: str, value: Any, minimum: float | None, strict: bool = Fa
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
-        from .errors import InvalidTypeError
+        from ..errors import InvalidTypeError
 
         raise InvalidTypeError(f"{name} must be numbers, got {value!r}") from exc
     bad = ~np.isfinite(arr) if not allow_inf else (np.isnan(arr) | (arr == -np.inf))
@@ -397,7 +397,7 @@ def simulate_many(
     kp, delay, kv, step, vmax, sample_offset : array_like
         Broadcast against each other; ``vmax`` may be ``inf`` or ``None`` for no saturation.
     velocity, filter_wn, filter_zeta, period, t_end, band, gain, lag
-        As in :class:`~delaykit.model.AltitudeLoop` and :func:`simulate`, shared by all loops.
+        As in :class:`~delaykit.models.altitude.AltitudeLoop` and :func:`simulate`, shared by all loops.
 
     Returns
     -------

@@ -27,7 +27,7 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.special import lambertw
 
-from .errors import InvalidValueError, check_real
+from ..errors import InvalidValueError, check_real
 
 __all__ = ["LambertRoots", "lambert_w", "lambert_roots", "dominant_root", "kp_delay_for_damping",
            "delay_for_damping", "complex_delays_for_root"]

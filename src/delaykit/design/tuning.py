@@ -24,10 +24,10 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from .errors import InvalidValueError, check_real
-from .model import PAPER_PERIOD, AltitudeLoop
-from .simulation import simulate
-from .stability import rightmost
+from ..errors import InvalidValueError, check_real
+from ..models.altitude import PAPER_PERIOD, AltitudeLoop
+from ..simulate.simulation import simulate
+from ..spectrum.stability import rightmost
 
 __all__ = ["DesignRow", "Design", "GainMap", "FilterReport", "design_sweep", "gain_search", "filter_analysis",
            "CRITERIA", "parse_range"]

@@ -19,9 +19,9 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from .errors import DelaykitError, InvalidValueError, check_real
-from .model import PAPER_PERIOD, AltitudeLoop
-from .paper import TABLE1, table1_overshoot
+from ..errors import DelaykitError, InvalidValueError, check_real
+from ..models.altitude import PAPER_PERIOD, AltitudeLoop
+from ..paper.data import TABLE1, table1_overshoot
 
 __all__ = ["app", "main", "parse_delays"]
 
@@ -59,7 +59,7 @@ def parse_delays(spec: str) -> list[float]:
     >>> len(parse_delays("table1"))
     7
     """
-    from .design import parse_range
+    from ..design.tuning import parse_range
 
     spec = spec.strip()
     if spec.lower() == "table1":
@@ -112,7 +112,7 @@ def simulate(
     With a sweep of delays it prints one row per delay; for the delays of the paper's Table 1
     (--delay table1, with --kp 1.31) the paper's overshoot is shown beside delaykit's.
     """
-    from .simulation import simulate as sim
+    from ..simulate.simulation import simulate as sim
 
     delays = parse_delays(delay)
     base = AltitudeLoop(kp=kp, delay=delays[0], kv=kv, vmax=_optional_float("--vmax", vmax), velocity=velocity,
@@ -138,7 +138,7 @@ def simulate(
                     vals = [f"{s[k][i]:.9g}" for k in ("t", "z", "z_ref", "u")]
                     w.writerow(([f"{r.loop.delay:.9g}"] if len(responses) > 1 else []) + vals)
     if plot is not None:
-        from .plots import plot_responses
+        from ..plotting.figures import plot_responses
 
         plot_responses(responses, plot, title=repr(base.replace(delay=delays[0])) if len(delays) == 1 else None)
     if as_json:
@@ -171,7 +171,7 @@ def report(
     as_json: bool = typer.Option(False, "--json", help="Print the results as JSON."),
 ) -> None:
     """Regenerate only the paper's Table 1, with a figure, into --out (see `reproduce` for everything)."""
-    from .report import table1_markdown, write_report
+    from ..paper.report import table1_markdown, write_report
 
     with err.status("writing the report…") as status:
         rep = write_report(out_dir, progress=lambda m: status.update(m))
@@ -194,7 +194,7 @@ def reproduce(
     """Regenerate the paper's tables and figures, with the paper's values beside delaykit's and a verdict each."""
     from rich.progress import Progress
 
-    from .reproduce import reproduce as run
+    from ..paper.reproduce import reproduce as run
 
     with Progress(console=err, transient=True) as bar:
         task = bar.add_task("reproducing the paper", total=7)
@@ -233,7 +233,7 @@ def design(
     """Candidate PV gains: rightmost root, abscissa, stability and step metrics, and the best by a criterion."""
     from rich.progress import Progress
 
-    from . import design as D
+    from ..design import tuning as D
 
     vm = _optional_float("--vmax", vmax)
     per = _optional_float("--period", period)
@@ -246,8 +246,8 @@ def design(
             gm = D.gain_search(dl, kp, kv, criterion="abscissa" if criterion == "abscissa" else "settling",
                                scheduler=scheduler, progress=lambda k, n: bar.update(task, completed=k, total=n), **common)
         if plot is not None:
-            from .plots import plot_stability_map
-            from .stability import StabilityMap
+            from ..plotting.figures import plot_stability_map
+            from ..spectrum.stability import StabilityMap
 
             plot_stability_map(StabilityMap("kp", "kv", gm.kp, gm.kv, gm.abscissa), plot,
                                title=f"worst-case spectral abscissa over delays {min(dl):g} to {max(dl):g} s")
@@ -262,8 +262,8 @@ def design(
         d = D.design_sweep(delay, kp, kv, criterion=criterion, overshoot_limit=overshoot_limit,
                            progress=lambda k, n: bar.update(task, completed=k, total=n), **common)
     if plot is not None:
-        from .plots import plot_responses
-        from .simulation import simulate as sim
+        from ..plotting.figures import plot_responses
+        from ..simulate.simulation import simulate as sim
 
         plot_responses([sim(d.loop.replace(kp=r.kp, kv=r.kv), step) for r in d.rows], plot,
                        labels=[f"Kp={r.kp:g}, Kv={r.kv:g}" for r in d.rows], t_max=8.0)
@@ -306,8 +306,8 @@ def roots(
     plot: Optional[Path] = typer.Option(None, "--plot", help="Draw the spectrum (as the paper's Fig. 8) here."),
 ) -> None:
     """Every characteristic root of the linearised loop in a region, certified by the argument principle."""
-    from .roots import find_roots
-    from .stability import rightmost as rightmost_root
+    from ..spectrum.roots import find_roots
+    from ..spectrum.stability import rightmost as rightmost_root
 
     loop = _loop_from_options(kp, kv, delay, velocity, filter_wn, filter_zeta)
     q = loop.characteristic()
@@ -319,7 +319,7 @@ def roots(
     data["abscissa"] = rm.abscissa
     data["rightmost_in_region"] = None if sp.rightmost is None else [sp.rightmost.real, sp.rightmost.imag]
     if plot is not None:
-        from .plots import plot_spectrum
+        from ..plotting.figures import plot_spectrum
 
         plot_spectrum([sp], plot, labels=[repr(loop)], title=str(q))
     if as_json:
@@ -365,7 +365,7 @@ def lambert(
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
 ) -> None:
     """Roots s_k = W_k(Td a1 exp(-a0 Td)) / Td + a0 of a first-order delay equation, by branch."""
-    from .lambert import lambert_roots
+    from ..spectrum.lambert import lambert_roots
 
     r = lambert_roots(a0, a1, check_real("--delay", delay, minimum=0.0), branches=_parse_branches(branches))
     data = r.to_dict()
@@ -402,9 +402,9 @@ def estimate(
     plot: Optional[Path] = typer.Option(None, "--plot", help="Overlay data, fit and residuals here (trajectory)."),
 ) -> None:
     """Estimate the loop delay from flight logs, or from a measured overshoot and peak time."""
-    from . import estimation as E
-    from .flightlog import FlightLog
-    from .metrics import step_metrics
+    from ..identify import estimation as E
+    from ..identify.flightlog import FlightLog
+    from ..simulate.metrics import step_metrics
 
     methods = ("trajectory", "overshoot", "lambert")
     if method not in methods:
@@ -451,7 +451,7 @@ def estimate(
         d = np.array([e.delay for e in each])
         se = float(np.std(d, ddof=1) / np.sqrt(d.size)) if d.size > 1 else None
         ci = (float(d.mean() - 1.96 * se), float(d.mean() + 1.96 * se)) if se else None
-        from .estimation import DelayEstimate
+        from ..identify.estimation import DelayEstimate
 
         pooled = DelayEstimate(delay=float(d.mean()), stderr=se, ci=ci, method=method, flights=d.size,
                                diagnostics={"note": "mean of the flights; error from their spread"})
@@ -462,7 +462,7 @@ def estimate(
                                           "spread": pooled.diagnostics.get("spread"),
                                           "warnings": pooled.warnings}, "method": method}
     if plot is not None and method == "trajectory":
-        from .plots import plot_fit
+        from ..plotting.figures import plot_fit
 
         fits = [(log.t, E.fitted_altitude(log, pooled, kp, i, **loopkw)) for i, log in enumerate(logs)]
         plot_fit(logs, fits, plot, title=f"pooled delay {pooled.delay:.4f} s")
@@ -503,7 +503,7 @@ def emulate(
     """Run the built-in AR.Drone 2.0 emulator (loopback by default) until Ctrl-C or --duration."""
     import time as _time
 
-    from .emulator import DroneEmulator, EmulatorConfig
+    from ..hardware.emulator import DroneEmulator, EmulatorConfig
 
     check_real("--duration", duration, minimum=0.0)
     cfg = EmulatorConfig(host=host, at_port=at_port, navdata_port=navdata_port, video_port=video_port,
@@ -554,7 +554,7 @@ def fly(
     as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
 ) -> None:
     """Fly step tests: navdata start-up, take-off, hover, the steps, land; log every packet."""
-    from .flight import FlightPlan, fly as run
+    from ..hardware.flight import FlightPlan, fly as run
 
     sts = tuple(float(x) for x in steps.split(",")) if steps else (step,)
     plan = FlightPlan(kp=kp, kv=kv, velocity=velocity, vmax=vmax, steps=sts, step_duration=duration, hover_time=hover)
@@ -583,7 +583,7 @@ def demo(
     as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
 ) -> None:
     """The whole pipeline: fly P step tests, estimate the delay, design PV gains, fly them, and report."""
-    from .demo import run_demo
+    from ..paper.demo import run_demo
 
     if p_steps < 1:
         raise InvalidValueError(f"--p-steps must be at least 1, got {p_steps}")

@@ -15,7 +15,7 @@ Between breakpoints the solution is analytic, so the polynomials are exact up to
 metrics are computed on the polynomials themselves (crossings and extrema are polynomial roots), while the
 pieces stream past, so a batch run stores nothing but the metrics.
 
-This module is private: :mod:`delaykit.simulation` is its interface.
+This module is private: :mod:`delaykit.simulate.simulation` is its interface.
 """
 
 from __future__ import annotations

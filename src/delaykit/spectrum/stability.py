@@ -19,10 +19,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..models.altitude import AltitudeLoop
+from ..models.quasipolynomial import QuasiPolynomial
 from .lambert import lambert_roots
-from .model import AltitudeLoop
-from .quasipolynomial import QuasiPolynomial
 from .roots import Spectrum, find_roots, neutral_lines, root_bound
 
 __all__ = ["Rightmost", "DelayMargin", "StabilityMap", "rightmost", "delay_margin", "stability_map"]

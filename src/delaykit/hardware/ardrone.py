@@ -30,7 +30,7 @@ import struct
 from dataclasses import dataclass, field
 from typing import Iterable
 
-from .errors import InvalidValueError
+from ..errors import InvalidValueError
 
 __all__ = [
     "ProtocolError", "ATError", "NavdataError", "ATCommand", "ATEncoder", "parse_at", "float_to_int", "int_to_float",

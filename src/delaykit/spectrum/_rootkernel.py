@@ -1,4 +1,4 @@
-"""Compiled inner loops of the root finder (:mod:`delaykit.roots` is the interface).
+"""Compiled inner loops of the root finder (:mod:`delaykit.spectrum.roots` is the interface).
 
 A quasi-polynomial is held as arrays: ``C[j, :]`` the coefficients of term j (highest degree first, padded),
 ``A = |C|``, and ``tau[j]`` its delay.  ``qeval`` returns Q, Q' and a bound on the rounding error of Q.

@@ -26,14 +26,14 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .design import filter_analysis
-from .estimation import estimate_lambert, estimate_overshoot, lambert_paper_iterations
-from .metrics import SecondOrder
-from .model import PAPER_PERIOD, AltitudeLoop
-from .paper import TABLE1_KP, table1, table3
+from ..design.tuning import filter_analysis
+from ..identify.estimation import estimate_lambert, estimate_overshoot, lambert_paper_iterations
+from ..models.altitude import PAPER_PERIOD, AltitudeLoop
+from ..simulate.metrics import SecondOrder
+from ..simulate.simulation import simulate
+from ..spectrum.roots import find_roots
+from .data import TABLE1_KP, table1, table3
 from .report import plot_table1_responses, table1_verdict
-from .roots import find_roots
-from .simulation import simulate
 
 __all__ = ["Item", "Reproduction", "reproduce", "TABLE4"]
 
@@ -155,7 +155,7 @@ def _section512(out: Path) -> Item:
 
 
 def _table3(out: Path) -> Item:
-    from .plots import plot_spectrum
+    from ..plotting.figures import plot_spectrum
 
     rows = table3()
     spectra = [find_roots(AltitudeLoop(kp=2.0, delay=0.37, kv=r.kv).characteristic(), (-10, 2, 0, 100)) for r in rows]
@@ -174,7 +174,7 @@ def _table3(out: Path) -> Item:
 
 
 def _table4(out: Path) -> Item:
-    from .plots import plot_responses
+    from ..plotting.figures import plot_responses
 
     variants = {
         "filter, saturation, sampled 0.065 s": dict(velocity="filtered", period=PAPER_PERIOD),
@@ -220,7 +220,7 @@ def _table4(out: Path) -> Item:
 
 
 def _fig5(out: Path) -> Item:
-    from .plots import plot_responses
+    from ..plotting.figures import plot_responses
 
     kps = (1.0, 1.31, 1.6, 2.0)
     td = estimate_overshoot(2.300, TABLE1_KP).delay
@@ -237,7 +237,7 @@ def _fig5(out: Path) -> Item:
 
 
 def _filter(out: Path) -> Item:
-    from .plots import plot_filter_bode
+    from ..plotting.figures import plot_filter_bode
 
     f = filter_analysis()
     fig = out / "fig_filter_bode.png"

@@ -15,10 +15,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from .model import PAPER_PERIOD
-from .paper import TABLE1_KP, Table1Row, paper_loop, table1
-from .plots import plot_responses
-from .simulation import simulate
+from ..models.altitude import PAPER_PERIOD
+from ..plotting.figures import plot_responses
+from ..simulate.simulation import simulate
+from .data import TABLE1_KP, Table1Row, paper_loop, table1
 
 __all__ = ["Report", "write_report", "table1_verdict", "table1_markdown", "plot_table1_responses"]
 

@@ -20,12 +20,12 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .design import design_sweep
-from .emulator import DroneEmulator, EmulatorConfig
-from .estimation import DelayEstimate, estimate_flights
-from .flight import FlightPlan, FlightResult, fly
-from .flightlog import FlightLog
-from .metrics import step_metrics
+from ..design.tuning import design_sweep
+from ..hardware.emulator import DroneEmulator, EmulatorConfig
+from ..hardware.flight import FlightPlan, FlightResult, fly
+from ..identify.estimation import DelayEstimate, estimate_flights
+from ..identify.flightlog import FlightLog
+from ..simulate.metrics import step_metrics
 
 __all__ = ["DemoReport", "run_demo"]
 
@@ -129,9 +129,9 @@ def run_demo(
 
 
 def _write(out, truth, est, lag, kv, d, p, pv, pm, vm) -> tuple[Path, ...]:
-    from .plots import plot_fit
+    from ..plotting.figures import plot_fit
 
-    from .estimation import fitted_altitude
+    from ..identify.estimation import fitted_altitude
 
     fig_p, fig_v = out / "p_flights.png", out / "pv_flights.png"
     ls = [FlightLog.from_csv(f) for f in p.logs]

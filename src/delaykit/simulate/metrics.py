@@ -10,7 +10,7 @@ normalised so that it starts at 0 and its final value is 1):
   outside the band at the end of the record ("never settles" within it);
 * steady-state error: the reference minus the final altitude (metres).
 
-For simulated responses (:mod:`delaykit.simulation`) these are computed exactly on the piecewise-polynomial
+For simulated responses (:mod:`delaykit.simulate.simulation`) these are computed exactly on the piecewise-polynomial
 solution.  For sampled responses, :func:`step_metrics` interpolates crossings linearly between samples
 and refines the peak with a quadratic least-squares fit around the highest sample; noisy samples are
 handled by that local fit (``peak_window`` samples) and by an optional Savitzky-Golay smoother
@@ -33,7 +33,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from .errors import InvalidValueError, check_real
+from ..errors import InvalidValueError, check_real
 
 __all__ = ["StepMetrics", "SecondOrder", "step_metrics", "noise_level"]
 

@@ -34,12 +34,12 @@ import numpy as np
 from scipy import stats
 from scipy.optimize import brentq, least_squares
 
-from .errors import InvalidValueError, check_real
+from ..errors import InvalidValueError, check_real
+from ..models.altitude import AltitudeLoop
+from ..simulate.metrics import SecondOrder, step_metrics
+from ..simulate.simulation import AltitudeSampler, simulate
+from ..spectrum.lambert import delay_for_damping, lambert_w
 from .flightlog import FlightLog
-from .lambert import delay_for_damping, lambert_w
-from .metrics import SecondOrder, step_metrics
-from .model import AltitudeLoop
-from .simulation import AltitudeSampler, simulate
 
 __all__ = ["DelayEstimate", "EstimationError", "estimate_overshoot", "estimate_lambert", "estimate_trajectory",
            "estimate_flights", "fitted_altitude", "lambert_paper_iterations"]
@@ -378,7 +378,7 @@ def estimate_trajectory(
 
     Examples
     --------
-    >>> from delaykit.simulation import simulate
+    >>> from delaykit.simulate.simulation import simulate
     >>> t = np.arange(-1.0, 12.0, 0.065)
     >>> z = simulate(AltitudeLoop(kp=1.31, delay=0.368)).altitude(t)
     >>> log = FlightLog.from_arrays(t, np.round(z, 3), np.where(t >= 0, 1.0, 0.0), step_time=0.0)
@@ -536,7 +536,7 @@ def estimate_flights(logs: Sequence[FlightLog], kp: float, **kwargs: Any) -> tup
 
     Examples
     --------
-    >>> from delaykit.flightlog import synthetic_log
+    >>> from delaykit.identify.flightlog import synthetic_log
     >>> rng = np.random.default_rng(0)
     >>> logs = [synthetic_log(AltitudeLoop(kp=1.31, delay=0.37), 1.0, noise=0.003, rng=rng) for _ in range(3)]
     >>> pooled, each = estimate_flights(logs, kp=1.31)

@@ -2,7 +2,7 @@
 
 ``Q(s) = sum_j p_j(s) exp(-s tau_j)``.  Polynomial coefficients are given highest degree first (the NumPy
 ``polyval`` and MATLAB convention).  The altitude loop builds its own with
-:meth:`delaykit.model.AltitudeLoop.characteristic`.
+:meth:`delaykit.models.altitude.AltitudeLoop.characteristic`.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from .errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real
 
 __all__ = ["QuasiPolynomial"]
 

@@ -32,7 +32,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .errors import InvalidValueError, check_real
+from ..errors import InvalidValueError, check_real
 
 __all__ = ["FlightLog", "LogError", "REQUIRED", "write_log", "synthetic_log"]
 
@@ -326,7 +326,7 @@ def synthetic_log(
     >>> log.step, log.z0 > 0.99
     (1.0, True)
     """
-    from .simulation import simulate
+    from ..simulate.simulation import simulate
 
     rng = np.random.default_rng() if rng is None else rng
     sampled = getattr(loop, "period", None) is not None

@@ -35,9 +35,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..models.quasipolynomial import QuasiPolynomial
 from . import _rootkernel as RK
-from .errors import InvalidTypeError, InvalidValueError, check_real
-from .quasipolynomial import QuasiPolynomial
 
 __all__ = ["Spectrum", "find_roots", "neutral_lines", "root_bound"]
 
@@ -447,7 +447,7 @@ def find_roots(
     Parameters
     ----------
     q : QuasiPolynomial
-        Retarded or neutral (``q.kind``); an :class:`~delaykit.model.AltitudeLoop` is accepted too.
+        Retarded or neutral (``q.kind``); an :class:`~delaykit.models.altitude.AltitudeLoop` is accepted too.
     region : sequence of 4 floats
         The rectangle.
     ds : float, optional
@@ -470,7 +470,7 @@ def find_roots(
     >>> sp.roots.size, int(sp.multiplicities[0]), round(float(sp.roots[0].real), 6)
     (1, 6, -6.025)
     """
-    from .model import AltitudeLoop
+    from ..models.altitude import AltitudeLoop
 
     if isinstance(q, AltitudeLoop):
         q = q.characteristic()

@@ -1,0 +1,20 @@
+"""Hardware: fly a designed loop on an AR.Drone 2.0, or on an emulator that speaks its protocol.
+
+:mod:`.ardrone` encodes and decodes the drone's AT commands and navdata, :mod:`.emulator` is a drone on UDP
+(simulated altitude dynamics with a delay) for testing without one, and :mod:`.flight` is the real-time loop that
+flies a plan and logs what it saw. It sits above design and identification: its logs feed :mod:`delaykit.identify`.
+"""
+
+from .ardrone import (ARITY, DEMO_SIZE, HEADER, REF_BASE, REF_EMERGENCY, REF_TAKEOFF, ATCommand, ATEncoder, ATError,
+                      CtrlState, Demo, Navdata, NavdataError, NavState, ProtocolError, bootstrap_packet,
+                      decode_navdata, encode_navdata, float_to_int, int_to_float, parse_at)
+from .emulator import DroneEmulator, EmulatorConfig, PortError
+from .flight import DroneLink, FlightPlan, FlightResult, LinkError, fly
+
+__all__ = [
+    "ProtocolError", "ATError", "NavdataError", "ATCommand", "ATEncoder", "parse_at", "float_to_int", "int_to_float",
+    "NavState", "CtrlState", "Demo", "Navdata", "encode_navdata", "decode_navdata", "bootstrap_packet", "HEADER",
+    "REF_BASE", "REF_TAKEOFF", "REF_EMERGENCY", "DEMO_SIZE", "ARITY",
+    "EmulatorConfig", "DroneEmulator", "PortError",
+    "LinkError", "DroneLink", "FlightPlan", "FlightResult", "fly",
+]

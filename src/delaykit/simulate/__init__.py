@@ -1,0 +1,18 @@
+"""Simulate: a model's step response in the time domain, exactly, and the metrics read off it.
+
+:mod:`.simulation` integrates an :class:`~delaykit.models.AltitudeLoop` by the method of steps (the compiled
+kernel is the private :mod:`._kernel`), one loop or a batch of them, and :mod:`.metrics` measures a step response
+(overshoot, peak, rise and settling times, a fitted second-order model, noise level). This layer reads models only;
+it is a peer of :mod:`delaykit.spectrum` and neither imports the other.
+
+Note that ``delaykit.simulate`` as an attribute of the package root is the :func:`simulate` function (kept for
+compatibility); import this layer's modules by their full names, ``from delaykit.simulate.simulation import ...``.
+"""
+
+from .metrics import SecondOrder, StepMetrics, noise_level, step_metrics
+from .simulation import AltitudeSampler, BatchMetrics, Response, simulate, simulate_many
+
+__all__ = [
+    "StepMetrics", "SecondOrder", "step_metrics", "noise_level",
+    "Response", "BatchMetrics", "AltitudeSampler", "simulate", "simulate_many",
+]

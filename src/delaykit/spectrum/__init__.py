@@ -1,0 +1,19 @@
+"""Spectrum: a model in the frequency domain, its characteristic roots and what they say about stability.
+
+:mod:`.lambert` gives the roots of first-order loops in closed form with Lambert W, :mod:`.roots` finds every root
+of a retarded or neutral quasi-polynomial in a rectangle (the compiled inner loops are the private
+:mod:`._rootkernel`), and :mod:`.stability` turns roots into the rightmost root, delay margins and stability maps.
+This layer reads models only; it is a peer of :mod:`delaykit.simulate` and neither imports the other.
+"""
+
+from .lambert import (LambertRoots, complex_delays_for_root, delay_for_damping, dominant_root, kp_delay_for_damping,
+                      lambert_roots, lambert_w)
+from .roots import Spectrum, find_roots, neutral_lines, root_bound
+from .stability import DelayMargin, Rightmost, StabilityMap, delay_margin, rightmost, stability_map
+
+__all__ = [
+    "LambertRoots", "lambert_w", "lambert_roots", "dominant_root", "kp_delay_for_damping", "delay_for_damping",
+    "complex_delays_for_root",
+    "Spectrum", "find_roots", "neutral_lines", "root_bound",
+    "Rightmost", "DelayMargin", "StabilityMap", "rightmost", "delay_margin", "stability_map",
+]
