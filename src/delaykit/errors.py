@@ -32,6 +32,7 @@ def check_real(
     maximum: float | None = None,
     strict: bool = False,
     allow_inf: bool = False,
+    allow_neg_inf: bool = False,
 ) -> float:
     """Return ``value`` as a float, or raise a delaykit error that names it.
 
@@ -47,6 +48,8 @@ def check_real(
         Make the lower bound exclusive (``value > minimum``).
     allow_inf : bool
         Accept ``+inf``.
+    allow_neg_inf : bool
+        Accept ``-inf``.
 
     Returns
     -------
@@ -63,7 +66,7 @@ def check_real(
         x = float(value)
     except (TypeError, ValueError) as exc:
         raise InvalidTypeError(f"{name} must be a real number, got {value!r}") from exc
-    if math.isnan(x) or (math.isinf(x) and not (allow_inf and x > 0)):
+    if math.isnan(x) or (math.isinf(x) and not ((allow_inf and x > 0) or (allow_neg_inf and x < 0))):
         raise InvalidValueError(f"{name} must be finite, got {value!r}")
     if minimum is not None:
         if strict and not x > minimum:

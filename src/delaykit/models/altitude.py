@@ -29,10 +29,13 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from ..errors import InvalidValueError, check_real
 from .quasipolynomial import QuasiPolynomial
+
+if TYPE_CHECKING:
+    from .loop import Loop
 
 __all__ = ["AltitudeLoop", "VELOCITY_CHOICES", "PAPER_PERIOD"]
 
@@ -166,6 +169,31 @@ class AltitudeLoop:
         d = np.array([1.0, 2 * zeta * w, w * w])
         delayed = g * np.polyadd(self.kp * d, [self.kv * w * w, 0.0])
         return QuasiPolynomial([np.polymul(plant, d), delayed], [0.0, self.delay])
+
+    def to_loop(self) -> "Loop":
+        """This loop as the general :class:`~delaykit.models.loop.Loop` (the paper's loops are its presets).
+
+        The plant is ``gain / s`` (``gain / (s (lag s + 1))`` with a lag), the controller P or PV, the
+        command limited to ``[-vmax, vmax]``.
+
+        Examples
+        --------
+        >>> AltitudeLoop(kp=2.0, delay=0.37, kv=0.3).to_loop()
+        Loop(paper: plant 1/s, pv: kp=2, kv=0.3, true velocity, delay=0.37 s, u in [-1, 1], continuous)
+        """
+        from .controllers import Controller
+        from .loop import Loop
+        from .plants import integrator, integrator_lag
+
+        plant = integrator_lag(self.gain, self.lag) if self.lag > 0 else integrator(self.gain)
+        if self.kv > 0:
+            ctrl = Controller.pv(self.kp, self.kv, velocity=self.velocity, filter_wn=self.filter_wn,
+                                 filter_zeta=self.filter_zeta)
+        else:
+            ctrl = Controller.p(self.kp)
+        v = math.inf if self.vmax is None else self.vmax
+        return Loop(plant, ctrl, delay=self.delay, umin=-v, umax=v, period=self.period,
+                    sample_offset=self.sample_offset, name="paper")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (``vmax`` and ``period`` are ``null`` when absent)."""

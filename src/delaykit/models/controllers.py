@@ -1,0 +1,387 @@
+"""Controllers of a delayed loop: P, PV, PI, PD, PID and any proper transfer function on the error.
+
+Every controller computes its output ``v`` from the reference ``r``, the measured output ``ym`` and, for
+the paper's PV law with the true velocity, the measured velocity ``vm``:
+
+=========  ===========================================================================================
+``p``      ``v = Kp e``, with ``e = r - ym``
+``pv``     ``v = Kp e - Kv vm`` (true velocity), or ``Kp e - Kv F(s) ym`` through the paper's derivative
+           filter ``F(s) = wf^2 s / (s^2 + 2 zf wf s + wf^2)`` (``velocity="filtered"``)
+``pi``     ``v = Kp e + Ki xi``, ``xi' = e``
+``pd``     ``v = Kp e - Kd s/(Tf s + 1) ym``: the derivative acts on the measurement through a
+           first-order filter, so a reference step gives no derivative kick
+``pid``    ``v = Kp e + Ki xi - Kd s/(Tf s + 1) ym``
+``tf``     ``v = C(s) e`` for any proper transfer function ``C``
+=========  ===========================================================================================
+
+The integral runs on the error with no anti-windup by default.  Two options, both acting while the
+command is saturated (``u = clip(v, umin, umax) != v``):
+
+* ``antiwindup="clamp"`` (conditional integration): the integrator stops while the command is saturated
+  and the error would drive it further into saturation;
+* ``antiwindup="backcalc"`` (back-calculation, Astrom & Hagglund): ``xi' = e + (u - v) / (Ki Tt)``, with
+  the tracking time ``Tt`` (default ``sqrt(Ti Td)`` for PID and ``Ti`` for PI, with ``Ti = Kp / Ki``
+  and ``Td = Kd / Kp``; ``1 / Ki`` when ``Kp = 0``).
+
+Examples
+--------
+>>> Controller.pid(kp=2.0, ki=0.5, kd=0.1, derivative_filter=0.02)
+Controller(pid: kp=2, ki=0.5, kd=0.1, Tf=0.02 s)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from ..errors import InvalidTypeError, InvalidValueError, check_real
+from .transfer import TransferFunction
+
+__all__ = ["Controller", "Realisation", "CONTROLLER_KINDS", "ANTIWINDUP_CHOICES", "VELOCITY_CHOICES"]
+
+CONTROLLER_KINDS = ("p", "pv", "pi", "pd", "pid", "tf")
+ANTIWINDUP_CHOICES = ("none", "clamp", "backcalc")
+VELOCITY_CHOICES = ("true", "filtered")
+
+
+@dataclass(frozen=True)
+class Realisation:
+    """A controller as state-space matrices, the form the simulator runs.
+
+    ``xc' = Ac xc + Bcr r + Bcy ym + Bcv vm + Baw (u - v)`` and
+    ``v = Cc xc + dvr r + dvy ym + dvv vm``; ``integ`` is the index of the integrator state (-1: none).
+    """
+
+    Ac: np.ndarray
+    Bcr: np.ndarray
+    Bcy: np.ndarray
+    Bcv: np.ndarray
+    Baw: np.ndarray
+    Cc: np.ndarray
+    dvr: float
+    dvy: float
+    dvv: float
+    integ: int
+
+    @property
+    def order(self) -> int:
+        """Number of controller states."""
+        return int(self.Ac.shape[0])
+
+
+@dataclass(frozen=True, repr=False)
+class Controller:
+    """A controller of a delayed loop (see the module docstring for the laws).
+
+    Build one with the named constructors :meth:`p`, :meth:`pv`, :meth:`pi`, :meth:`pd`, :meth:`pid`,
+    :meth:`transfer`, or from a kind and keywords with :meth:`make`.
+
+    Parameters
+    ----------
+    kind : {"p", "pv", "pi", "pd", "pid", "tf"}
+    kp, ki, kd, kv : float
+        Proportional, integral (1/s), derivative (s) and velocity gains.
+    derivative_filter : float
+        Time constant ``Tf`` (s) of the derivative's filter ``s / (Tf s + 1)``; positive for pd and pid.
+    velocity : {"true", "filtered"}
+        The velocity of the PV law: the true one, or the paper's filtered derivative.
+    filter_wn, filter_zeta : float
+        Natural frequency (rad/s) and damping of the paper's derivative filter.
+    transfer_function : TransferFunction or None
+        The controller of kind ``tf`` (on the error).
+    antiwindup : {"none", "clamp", "backcalc"}
+    tracking_time : float or None
+        Back-calculation tracking time ``Tt`` (s); ``None`` for the default rule.
+
+    Examples
+    --------
+    >>> Controller.pv(kp=2.0, kv=0.3)
+    Controller(pv: kp=2, kv=0.3, true velocity)
+    >>> Controller.pi(kp=1.0, ki=0.2, antiwindup="clamp").realisation().order
+    1
+    """
+
+    kind: Literal["p", "pv", "pi", "pd", "pid", "tf"] = "p"
+    kp: float = 0.0
+    ki: float = 0.0
+    kd: float = 0.0
+    kv: float = 0.0
+    derivative_filter: float = 0.0
+    velocity: Literal["true", "filtered"] = "true"
+    filter_wn: float = 38.0
+    filter_zeta: float = 1.0
+    transfer_function: TransferFunction | None = field(default=None)
+    antiwindup: Literal["none", "clamp", "backcalc"] = "none"
+    tracking_time: float | None = None
+
+    def __post_init__(self) -> None:
+        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
+        if not isinstance(self.kind, str) or self.kind.lower() not in CONTROLLER_KINDS:
+            raise InvalidValueError(f"controller must be one of {', '.join(CONTROLLER_KINDS)}; got {self.kind!r}")
+        set_("kind", self.kind.lower())
+        for name in ("kp", "ki", "kd", "kv"):
+            set_(name, check_real(f"{name} ({_GAIN_NAMES[name]})", getattr(self, name)))
+        for name in ("ki", "kd", "kv"):
+            if getattr(self, name) != 0.0 and name not in _USES[self.kind]:
+                raise InvalidValueError(f"a {self.kind} controller has no {name}; got {name}={getattr(self, name):g}")
+        if self.kind in ("pd", "pid"):
+            set_("derivative_filter", check_real("derivative_filter (Tf, s)", self.derivative_filter,
+                                                 minimum=0.0, strict=True))
+        else:
+            set_("derivative_filter", check_real("derivative_filter (Tf, s)", self.derivative_filter, minimum=0.0))
+        if self.velocity not in VELOCITY_CHOICES:
+            raise InvalidValueError(f"velocity must be one of {', '.join(VELOCITY_CHOICES)}; got {self.velocity!r}")
+        set_("filter_wn", check_real("filter_wn (rad/s)", self.filter_wn, minimum=0.0, strict=True))
+        set_("filter_zeta", check_real("filter_zeta", self.filter_zeta, minimum=0.0, strict=True))
+        if self.kind == "tf":
+            if self.transfer_function is None:
+                raise InvalidValueError("a tf controller needs its transfer function (transfer_function=...)")
+            set_("transfer_function", TransferFunction.coerce(self.transfer_function, name="controller"))
+        elif self.transfer_function is not None:
+            raise InvalidValueError(f"transfer_function is only for the tf controller, not {self.kind}")
+        if self.antiwindup not in ANTIWINDUP_CHOICES:
+            raise InvalidValueError(
+                f"antiwindup must be one of {', '.join(ANTIWINDUP_CHOICES)}; got {self.antiwindup!r}")
+        if self.antiwindup != "none" and not self.has_integrator:
+            raise InvalidValueError(f"anti-windup needs an integrator; a {self.kind} controller has none")
+        if self.antiwindup == "backcalc" and self.ki == 0.0:
+            raise InvalidValueError("back-calculation anti-windup needs ki != 0")
+        if self.tracking_time is not None:
+            set_("tracking_time", check_real("tracking_time (Tt, s)", self.tracking_time, minimum=0.0, strict=True))
+
+    # -- constructors -----------------------------------------------------------------------------------
+    @classmethod
+    def p(cls, kp: float) -> "Controller":
+        """Proportional control ``v = Kp e``.
+
+        Examples
+        --------
+        >>> Controller.p(1.31).kp
+        1.31
+        """
+        return cls("p", kp=kp)
+
+    @classmethod
+    def pv(cls, kp: float, kv: float, *, velocity: str = "true", filter_wn: float = 38.0,
+           filter_zeta: float = 1.0) -> "Controller":
+        """The paper's PV law ``v = Kp e - Kv velocity``.
+
+        Examples
+        --------
+        >>> Controller.pv(2.0, 0.3, velocity="filtered").velocity
+        'filtered'
+        """
+        return cls("pv", kp=kp, kv=kv, velocity=velocity, filter_wn=filter_wn, filter_zeta=filter_zeta)
+
+    @classmethod
+    def pi(cls, kp: float, ki: float, *, antiwindup: str = "none", tracking_time: float | None = None) -> "Controller":
+        """PI control ``v = Kp e + Ki \\int e``.
+
+        Examples
+        --------
+        >>> Controller.pi(0.95, 0.1).ki
+        0.1
+        """
+        return cls("pi", kp=kp, ki=ki, antiwindup=antiwindup, tracking_time=tracking_time)
+
+    @classmethod
+    def pd(cls, kp: float, kd: float, derivative_filter: float) -> "Controller":
+        """PD control with the derivative on the measurement, filtered by ``1 / (Tf s + 1)``.
+
+        Examples
+        --------
+        >>> Controller.pd(2.0, 0.1, 0.02).kind
+        'pd'
+        """
+        return cls("pd", kp=kp, kd=kd, derivative_filter=derivative_filter)
+
+    @classmethod
+    def pid(cls, kp: float, ki: float, kd: float, derivative_filter: float, *, antiwindup: str = "none",
+            tracking_time: float | None = None) -> "Controller":
+        """PID control, the derivative on the measurement through ``s / (Tf s + 1)``.
+
+        Examples
+        --------
+        >>> Controller.pid(2.0, 0.5, 0.1, 0.02).realisation().order
+        2
+        """
+        return cls("pid", kp=kp, ki=ki, kd=kd, derivative_filter=derivative_filter, antiwindup=antiwindup,
+                   tracking_time=tracking_time)
+
+    @classmethod
+    def transfer(cls, tf: Any) -> "Controller":
+        """Any proper controller ``v = C(s) e`` (a string such as ``"(s+2)/(0.1*s+1)"``, coefficients, ...).
+
+        Examples
+        --------
+        >>> Controller.transfer("2*(s+1)/(0.1*s+1)").realisation().order
+        1
+        """
+        return cls("tf", transfer_function=TransferFunction.coerce(tf, name="controller"))
+
+    @classmethod
+    def make(cls, kind: str, **params: Any) -> "Controller":
+        """A controller from its kind and keywords, ignoring keywords the kind does not use when they are
+        zero or ``None`` (so one option group can build any controller).
+
+        Examples
+        --------
+        >>> Controller.make("pi", kp=1.0, ki=0.5, kd=0.0, kv=0.0)
+        Controller(pi: kp=1, ki=0.5)
+        """
+        if not isinstance(kind, str):
+            return cls.transfer(kind)
+        k = kind.lower()
+        if k not in CONTROLLER_KINDS:
+            try:
+                return cls.transfer(kind)
+            except InvalidValueError:
+                raise InvalidValueError(
+                    f"controller must be one of {', '.join(CONTROLLER_KINDS)} or a transfer function; got {kind!r}"
+                ) from None
+        keep = {name: v for name, v in params.items() if v is not None and not (name in _GAIN_NAMES and name not in _USES[k] and v == 0)}
+        return cls(k, **keep)
+
+    # -- properties -------------------------------------------------------------------------------------
+    @property
+    def has_integrator(self) -> bool:
+        """True for pi and pid."""
+        return self.kind in ("pi", "pid")
+
+    @property
+    def filtered(self) -> bool:
+        """True for the PV law through the derivative filter (with Kv > 0)."""
+        return self.kind == "pv" and self.velocity == "filtered" and self.kv > 0.0
+
+    @property
+    def uses_velocity(self) -> bool:
+        """True when the law reads the true velocity of the output (PV, true velocity, Kv != 0)."""
+        return self.kind == "pv" and not self.filtered and self.kv != 0.0
+
+    def default_tracking_time(self) -> float:
+        """The back-calculation tracking time: ``tracking_time`` or the default rule."""
+        if self.tracking_time is not None:
+            return self.tracking_time
+        if self.kp > 0 and self.ki > 0:
+            ti = self.kp / self.ki
+            if self.kind == "pid" and self.kd > 0:
+                return math.sqrt(ti * self.kd / self.kp)
+            return ti
+        return 1.0 / abs(self.ki) if self.ki else 1.0
+
+    def replace(self, **changes: Any) -> "Controller":
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    # -- the law as matrices -----------------------------------------------------------------------------
+    def realisation(self) -> Realisation:
+        """The controller as state-space matrices (see :class:`Realisation`).
+
+        Examples
+        --------
+        >>> r = Controller.pi(1.0, 0.5).realisation()
+        >>> (r.dvr, r.dvy, r.Cc.tolist())
+        (1.0, -1.0, [0.5])
+        """
+        kp, ki, kd, kv = self.kp, self.ki, self.kd, self.kv
+        z = np.zeros
+        if self.kind == "p" or (self.kind == "pv" and not self.filtered):
+            return Realisation(z((0, 0)), z(0), z(0), z(0), z(0), z(0), kp, -kp, -kv if self.kind == "pv" else 0.0, -1)
+        if self.kind == "pv":
+            w, zt = self.filter_wn, self.filter_zeta
+            return Realisation(np.array([[0.0, 1.0], [-w * w, -2 * zt * w]]), z(2), np.array([0.0, 1.0]), z(2), z(2),
+                               np.array([0.0, -kv * w * w]), kp, -kp, 0.0, -1)
+        if self.kind == "tf":
+            A, B, C, D = self.transfer_function.state_space()
+            n = A.shape[0]
+            return Realisation(np.atleast_2d(A).reshape(n, n), np.asarray(B, float).reshape(n),
+                               -np.asarray(B, float).reshape(n), z(n), z(n), np.asarray(C, float).reshape(n),
+                               float(D), -float(D), 0.0, -1)
+        aw = 0.0
+        if self.antiwindup == "backcalc":
+            aw = 1.0 / (ki * self.default_tracking_time())
+        if self.kind == "pi":
+            return Realisation(z((1, 1)), np.array([1.0]), np.array([-1.0]), z(1), np.array([aw]), np.array([ki]),
+                               kp, -kp, 0.0, 0)
+        tf = self.derivative_filter
+        if self.kind == "pd":
+            return Realisation(np.array([[-1.0 / tf]]), z(1), np.array([1.0 / tf]), z(1), z(1), np.array([kd / tf]),
+                               kp, -kp - kd / tf, 0.0, -1)
+        return Realisation(np.array([[0.0, 0.0], [0.0, -1.0 / tf]]), np.array([1.0, 0.0]), np.array([-1.0, 1.0 / tf]),
+                           z(2), np.array([aw, 0.0]), np.array([ki, kd / tf]), kp, -kp - kd / tf, 0.0, 0)
+
+    def feedback_polynomials(self) -> tuple[np.ndarray, np.ndarray]:
+        """Numerator and denominator of the feedback part ``Cy(s)`` of the law ``v = ... - Cy(s) ym``
+        (the loop's characteristic equation is ``Dp Dc + Np Nc exp(-s T) = 0``).
+
+        Examples
+        --------
+        >>> [c.tolist() for c in Controller.pv(2.0, 0.3).feedback_polynomials()]
+        [[0.3, 2.0], [1.0]]
+        """
+        kp, ki, kd, kv = self.kp, self.ki, self.kd, self.kv
+        if self.kind == "p":
+            return np.array([kp]), np.array([1.0])
+        if self.kind == "pv" and not self.filtered:
+            return np.array([kv, kp]), np.array([1.0])
+        if self.kind == "pv":
+            w, zt = self.filter_wn, self.filter_zeta
+            d = np.array([1.0, 2 * zt * w, w * w])
+            return np.polyadd(kp * d, [kv * w * w, 0.0]), d
+        if self.kind == "tf":
+            return self.transfer_function.num.copy(), self.transfer_function.den.copy()
+        tf = self.derivative_filter
+        if self.kind == "pi":
+            return np.array([kp, ki]), np.array([1.0, 0.0])
+        if self.kind == "pd":  # kp + kd s/(tf s + 1)
+            return np.array([kp * tf + kd, kp]), np.array([tf, 1.0])
+        # kp + ki/s + kd s/(tf s + 1) over s (tf s + 1)
+        return np.array([kp * tf + kd, kp + ki * tf, ki]), np.array([tf, 1.0, 0.0])
+
+    # -- output -----------------------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form: the kind and the parameters it uses."""
+        d: dict[str, Any] = {"kind": self.kind}
+        for name in ("kp", "ki", "kd", "kv"):
+            if name == "kp" or name in _USES[self.kind]:
+                d[name] = getattr(self, name)
+        if self.kind in ("pd", "pid"):
+            d["derivative_filter"] = self.derivative_filter
+        if self.kind == "pv":
+            d["velocity"] = self.velocity
+            if self.velocity == "filtered":
+                d["filter_wn"] = self.filter_wn
+                d["filter_zeta"] = self.filter_zeta
+        if self.kind == "tf":
+            d.pop("kp")
+            d["transfer_function"] = self.transfer_function.to_dict()
+        if self.has_integrator:
+            d["antiwindup"] = self.antiwindup
+            if self.antiwindup == "backcalc":
+                d["tracking_time"] = self.default_tracking_time()
+        return d
+
+    def __repr__(self) -> str:
+        if self.kind == "tf":
+            return f"Controller(tf: {self.transfer_function.to_string(times=' ')})"
+        parts = [f"kp={self.kp:g}"]
+        for name in ("ki", "kd", "kv"):
+            if name in _USES[self.kind]:
+                parts.append(f"{name}={getattr(self, name):g}")
+        if self.kind in ("pd", "pid"):
+            parts.append(f"Tf={self.derivative_filter:g} s")
+        if self.kind == "pv":
+            parts.append(f"filtered velocity (wn={self.filter_wn:g} rad/s, zeta={self.filter_zeta:g})"
+                         if self.velocity == "filtered" else "true velocity")
+        if self.antiwindup != "none":
+            parts.append(f"anti-windup {self.antiwindup}")
+        return f"Controller({self.kind}: {', '.join(parts)})"
+
+
+_GAIN_NAMES = {"kp": "proportional gain", "ki": "integral gain, 1/s", "kd": "derivative gain, s",
+               "kv": "velocity gain"}
+_USES = {"p": (), "pv": ("kv",), "pi": ("ki",), "pd": ("kd",), "pid": ("ki", "kd"), "tf": ()}

@@ -1,0 +1,276 @@
+"""The loop: a plant, a controller, delays, an actuator's limits and an optional sampling period.
+
+::
+
+    r --> controller --v--> sat[umin, umax] --u--> delay Ti --(+ d)--> plant --y--+
+          ^                                                                      |
+          +--------------------------- delay To <--------------------------------+
+
+* the **plant** is any proper rational transfer function (:class:`~delaykit.models.transfer.TransferFunction`),
+  written as text (``"1/(s*(0.05*s+1))"``), coefficients, a state-space quadruple, a python-control object,
+  or made by one of the families in :mod:`delaykit.models.plants`;
+* the **input delay** ``delay`` (``Ti``) acts on the command, the **output delay** ``output_delay`` (``To``) on
+  the measurement.  They are equivalent (the output is the same, shifted by ``To``) when nothing enters
+  the loop between them: with a load disturbance at the plant input, or a measured output read before
+  the output delay, they differ (see the README);
+* the **controller** is a :class:`~delaykit.models.controllers.Controller`;
+* the **actuator** clips the command to ``[umin, umax]`` (either may be infinite; ``umin <= 0 <= umax``
+  so that rest is an equilibrium);
+* **sampling**: with ``period`` set, the command is sampled at ``sample_offset + k period`` and held
+  (zero-order hold); the controller's own states run in continuous time.
+
+All signals are deviations from the operating point at which the loop rests before t = 0.
+
+Examples
+--------
+>>> loop = Loop("1/(s*(0.05*s+1))", Controller.pd(2.0, 0.1, 0.02), delay=0.3, umin=-1, umax=3)
+>>> loop
+Loop(plant 20/(s^2 + 20 s), pd: kp=2, kd=0.1, Tf=0.02 s, delay=0.3 s, u in [-1, 3], continuous)
+>>> loop.characteristic().kind
+'retarded'
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InvalidTypeError, InvalidValueError, check_real
+from .controllers import Controller
+from .quasipolynomial import QuasiPolynomial
+from .transfer import TransferFunction
+
+__all__ = ["Loop", "LOOP_KEYS", "loop_from_dict", "load_loop"]
+
+
+@dataclass(frozen=True, repr=False, eq=False)
+class Loop:
+    """A delayed feedback loop (see the module docstring).
+
+    Parameters
+    ----------
+    plant : TransferFunction, str, tuple or python-control object
+        The plant from the (delayed) command to the output.
+    controller : Controller
+        The control law.
+    delay : float
+        Input delay ``Ti`` (s), on the command.
+    output_delay : float
+        Output delay ``To`` (s), on the measurement.
+    umin, umax : float
+        The actuator's limits (``-inf`` and ``inf`` for none).
+    period : float or None
+        Controller period (s); ``None`` for a continuous controller.
+    sample_offset : float
+        Time of the first sample at or after t = 0, in ``[0, period)``.
+    name : str
+        A label for presets (shown by ``repr`` when set).
+
+    Examples
+    --------
+    >>> Loop("0.62/(150*s+1)", Controller.pi(2.0, 0.02), delay=12.0, umin=-50, umax=50).plant.dc_gain()
+    0.62
+    """
+
+    plant: Any
+    controller: Controller = field(default_factory=lambda: Controller.p(1.0))
+    delay: float = 0.0
+    output_delay: float = 0.0
+    umin: float = -math.inf
+    umax: float = math.inf
+    period: float | None = None
+    sample_offset: float = 0.0
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
+        set_("plant", TransferFunction.coerce(self.plant, name="plant"))
+        if not isinstance(self.controller, Controller):
+            raise InvalidTypeError(f"controller must be a Controller, got {type(self.controller).__name__}")
+        set_("delay", check_real("delay (input delay, s)", self.delay, minimum=0.0))
+        set_("output_delay", check_real("output_delay (s)", self.output_delay, minimum=0.0))
+        lo = check_real("umin (lower command limit)", self.umin, maximum=0.0, allow_neg_inf=True)
+        hi = check_real("umax (upper command limit)", self.umax, minimum=0.0, allow_inf=True)
+        if not lo < hi:
+            raise InvalidValueError(f"umin must be below umax; got umin={lo:g}, umax={hi:g}")
+        set_("umin", lo)
+        set_("umax", hi)
+        if self.period is not None:
+            set_("period", check_real("period (s)", self.period, minimum=0.0, strict=True))
+            off = check_real("sample_offset (s)", self.sample_offset, minimum=0.0)
+            if off >= self.period:
+                raise InvalidValueError(f"sample_offset must be less than the period {self.period:g} s, got {off:g}")
+            set_("sample_offset", off)
+        else:
+            set_("sample_offset", check_real("sample_offset (s)", self.sample_offset, minimum=0.0, maximum=0.0))
+        if self.controller.uses_velocity and not self.plant.is_strictly_proper:
+            raise InvalidValueError(
+                "the PV law with the true velocity needs a strictly proper plant (its output's derivative "
+                f"must exist); the plant {self.plant.to_string(times=' ')} has a direct feedthrough")
+        if not isinstance(self.name, str):
+            raise InvalidTypeError(f"name must be text, got {type(self.name).__name__}")
+
+    # -- properties -------------------------------------------------------------------------------------
+    @property
+    def total_delay(self) -> float:
+        """The delay around the loop, ``Ti + To`` (s)."""
+        return self.delay + self.output_delay
+
+    @property
+    def sampled(self) -> bool:
+        """True for a sampled (zero-order hold) controller."""
+        return self.period is not None
+
+    @property
+    def saturated(self) -> bool:
+        """True when the command has a finite limit."""
+        return math.isfinite(self.umin) or math.isfinite(self.umax)
+
+    def replace(self, **changes: Any) -> "Loop":
+        """A copy with some fields changed (validated again); controller fields may be given directly.
+
+        Examples
+        --------
+        >>> Loop("1/s", Controller.p(1.0), delay=0.3).replace(kp=2.0, delay=0.4).controller.kp
+        2.0
+        """
+        ctrl = {k: changes.pop(k) for k in list(changes) if k in _CONTROLLER_FIELDS}
+        if "vmax" in changes:
+            v = changes.pop("vmax")
+            v = math.inf if v is None else check_real("vmax (command limit)", v, minimum=0.0, strict=True, allow_inf=True)
+            changes.update(umin=-v, umax=v)
+        if ctrl:
+            changes["controller"] = self.controller.replace(**ctrl)
+        try:
+            return dataclasses.replace(self, **changes)
+        except TypeError as exc:
+            raise InvalidValueError(f"a loop has no field among {sorted(changes)}: {exc}") from None
+
+    # -- analysis ---------------------------------------------------------------------------------------
+    def characteristic(self) -> QuasiPolynomial:
+        """The characteristic quasi-polynomial ``Dp(s) Dc(s) + Np(s) Nc(s) exp(-s (Ti + To))`` of the
+        linear loop (saturation ignored), with ``Np/Dp`` the plant and ``Nc/Dc`` the controller's
+        feedback part.
+
+        Raises
+        ------
+        InvalidValueError
+            For a sampled controller, whose characteristic function is not a quasi-polynomial.
+
+        Examples
+        --------
+        >>> Loop("1/s", Controller.pv(2.0, 0.3), delay=0.37).characteristic()
+        QuasiPolynomial(s + (0.3·s + 2)·exp(-0.37 s))
+        """
+        if self.sampled:
+            raise InvalidValueError(
+                f"a sampled controller (period {self.period:g} s) has no quasi-polynomial characteristic "
+                "function; use the continuous loop (period=None) for roots")
+        nc, dc = self.controller.feedback_polynomials()
+        p = self.plant
+        return QuasiPolynomial([np.polymul(p.den, dc), np.polymul(p.num, nc)], [0.0, self.total_delay])
+
+    # -- input and output -------------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (infinite limits and no period are ``null``)."""
+        return {
+            "plant": self.plant.to_string(digits=17),
+            "controller": self.controller.to_dict(),
+            "delay": self.delay,
+            "output_delay": self.output_delay,
+            "umin": self.umin if math.isfinite(self.umin) else None,
+            "umax": self.umax if math.isfinite(self.umax) else None,
+            "period": self.period,
+            "sample_offset": self.sample_offset,
+            **({"name": self.name} if self.name else {}),
+        }
+
+    def __repr__(self) -> str:
+        parts = [f"plant {self.plant.to_string(times=' ')}", repr(self.controller)[len("Controller("):-1],
+                 f"delay={self.delay:.4g} s"]
+        if self.output_delay:
+            parts.append(f"output delay={self.output_delay:.4g} s")
+        if self.saturated:
+            parts.append(f"u in [{self.umin:g}, {self.umax:g}]")
+        else:
+            parts.append("no saturation")
+        parts.append(
+            f"sampled every {self.period:g} s" + (f" from {self.sample_offset:g} s" if self.sample_offset else "")
+            if self.sampled else "continuous")
+        label = f"{self.name}: " if self.name else ""
+        return f"Loop({label}{', '.join(parts)})"
+
+
+_CONTROLLER_FIELDS = ("kp", "ki", "kd", "kv", "derivative_filter", "velocity", "filter_wn", "filter_zeta",
+                      "antiwindup", "tracking_time")
+LOOP_KEYS = ("plant", "controller", "delay", "output_delay", "umin", "umax", "vmax", "period", "sample_offset",
+             "name") + _CONTROLLER_FIELDS
+
+
+def loop_from_dict(d: dict[str, Any], *, source: str = "loop") -> Loop:
+    """A loop from a flat mapping (a loop file's contents): ``plant``, ``controller`` (a kind or a
+    transfer function), the gains, the delays, the limits (``umin``/``umax`` or ``vmax``) and sampling.
+
+    Examples
+    --------
+    >>> loop_from_dict({"plant": "1/s", "controller": "pv", "kp": 2.0, "kv": 0.3, "delay": 0.37, "vmax": 1})
+    Loop(plant 1/s, pv: kp=2, kv=0.3, true velocity, delay=0.37 s, u in [-1, 1], continuous)
+    """
+    if not isinstance(d, dict):
+        raise InvalidTypeError(f"{source}: a loop must be a table of keys, got {type(d).__name__}")
+    unknown = sorted(set(d) - set(LOOP_KEYS))
+    if unknown:
+        raise InvalidValueError(f"{source}: unknown key(s) {', '.join(map(repr, unknown))}; "
+                                f"expected some of {', '.join(LOOP_KEYS)}")
+    if "plant" not in d:
+        raise InvalidValueError(f"{source}: the loop needs a plant (for example plant = \"1/s\")")
+    g = dict(d)
+    if "vmax" in g:
+        if "umin" in g or "umax" in g:
+            raise InvalidValueError(f"{source}: give vmax or umin/umax, not both")
+        v = check_real("vmax (command limit)", g.pop("vmax"), minimum=0.0, strict=True, allow_inf=True)
+        g["umin"], g["umax"] = -v, v
+    ctrl_kw = {k: g.pop(k) for k in _CONTROLLER_FIELDS if k in g}
+    kind = g.pop("controller", "p")
+    plant, delay = g.pop("plant"), None
+    if isinstance(plant, str):
+        try:
+            plant, delay = TransferFunction.parse_with_delay(plant)
+        except InvalidValueError as exc:
+            raise InvalidValueError(f"{source}: plant: {exc}") from None
+    if delay:
+        g["delay"] = check_real("delay", g.get("delay", 0.0), minimum=0.0) + delay
+    return Loop(plant=plant, controller=Controller.make(kind, **ctrl_kw), **g)
+
+
+def load_loop(path: str | Path) -> Loop:
+    """Read a loop from a TOML file (keys as in :func:`loop_from_dict`).
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> with tempfile.NamedTemporaryFile("w", suffix=".toml", delete=False) as f:
+    ...     _ = f.write('plant = "1/s"\\ncontroller = "p"\\nkp = 1.31\\ndelay = 0.368\\nvmax = 1.0\\n')
+    >>> load_loop(f.name).controller.kp
+    1.31
+    >>> os.unlink(f.name)
+    """
+    import tomllib
+
+    p = Path(path)
+    try:
+        text = p.read_bytes().decode("utf-8-sig")
+    except OSError as exc:
+        raise InvalidValueError(f"cannot read the loop file {str(p)!r}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise InvalidValueError(f"the loop file {str(p)!r} is not UTF-8 text") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InvalidValueError(f"the loop file {str(p)!r} is not valid TOML: {exc}") from None
+    return loop_from_dict(data, source=str(p))
