@@ -187,7 +187,8 @@ def test_batch_equals_single_runs():
     kv = np.where(rng.random(40) < 0.5, 0.0, rng.uniform(0.05, 0.7, 40))
     step = rng.choice([-1.0, 1.0], 40) * rng.uniform(0.3, 2.5, 40)
     for vel in ("true", "filtered"):
-        batch = simulate_many(kp, td, kv, step, velocity=vel, t_end=10.0)
+        batch = simulate_many(AltitudeLoop(kp=1.0, delay=0.3, velocity=vel), kp=kp, delay=td, kv=kv, step=step,
+                              t_end=10.0)
         for i in range(40):
             single = simulate(AltitudeLoop(kp=kp[i], delay=td[i], kv=kv[i], velocity=vel), step[i], t_end=10.0)
             for k in METRICS:
@@ -198,11 +199,11 @@ def test_batch_equals_single_runs():
 
 def test_batch_table1_against_single_and_broadcasting():
     td = np.array([4.0, 5.0, 5.6, 5.664, 5.6645, 5.6646, 5.666]) * 0.065
-    m = simulate_many(kp=1.31, delay=td)
+    m = simulate_many(AltitudeLoop(kp=1.31, delay=0.3), delay=td)
     assert m.overshoot.shape == td.shape and len(m) == 7
     for i, d in enumerate(td):
         assert m.overshoot[i] == simulate(AltitudeLoop(kp=1.31, delay=d)).metrics.overshoot
-    grid = simulate_many(kp=np.array([[1.0], [1.31]]), delay=np.array([0.2, 0.3, 0.4]))
+    grid = simulate_many(AltitudeLoop(kp=1.0, delay=0.3), kp=np.array([[1.0], [1.31]]), delay=np.array([0.2, 0.3, 0.4]))
     assert grid.overshoot.shape == (2, 3)
 
 
@@ -256,9 +257,9 @@ def test_bad_run_arguments():
     with pytest.raises(InvalidTypeError, match="loop"):
         simulate({"kp": 1.0}, 1.0)
     with pytest.raises(InvalidValueError, match=r"delay\[1\]"):
-        simulate_many(kp=1.0, delay=[0.2, -0.1])
+        simulate_many(loop, kp=1.0, delay=[0.2, -0.1])
     with pytest.raises(InvalidValueError, match="broadcast"):
-        simulate_many(kp=[1.0, 2.0], delay=[0.2, 0.3, 0.4])
+        simulate_many(loop, kp=[1.0, 2.0], delay=[0.2, 0.3, 0.4])
     assert issubclass(InvalidValueError, ValueError) and issubclass(InvalidTypeError, TypeError)
 
 
@@ -275,11 +276,11 @@ def test_no_delay_with_lag_and_gain_closed_form():
 
 
 def test_sampler_matches_response():
-    from delaykit.simulate.simulation import AltitudeSampler
+    from delaykit.simulate.simulation import Sampler
 
     loop = AltitudeLoop(kp=1.6, delay=0.33, lag=0.08, gain=0.9, period=0.065, sample_offset=0.01)
     t = np.sort(np.random.default_rng(2).uniform(-1, 12, 300))
-    sampler = AltitudeSampler(t)
+    sampler = Sampler(t)
     z = sampler(loop, -0.8, z0=1.5)
     ref = simulate(loop, -0.8, z0=1.5, t_end=12.0).altitude(t)
     assert np.max(np.abs(z - ref)) < 1e-12

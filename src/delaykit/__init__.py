@@ -1,5 +1,8 @@
 """delaykit: feedback loops with a time delay, after Armah & Yi's quadrotor altitude loop.
 
+The package's names are imported on first use, so that ``import delaykit`` (and the command line) start
+fast: numba, scipy and matplotlib load only when something needs them.
+
 Examples
 --------
 >>> import delaykit
@@ -7,15 +10,62 @@ Examples
 True
 """
 
+from __future__ import annotations
+
+import importlib
+import sys
+import types
+from typing import Any
+
 from .errors import DelaykitError, InvalidTypeError, InvalidValueError
-from .models.altitude import PAPER_PERIOD, AltitudeLoop
-from .models.quasipolynomial import QuasiPolynomial
-from .simulate.metrics import SecondOrder, StepMetrics, noise_level, step_metrics
-from .simulate.simulation import BatchMetrics, Response, simulate, simulate_many
 
 __all__ = [
-    "AltitudeLoop", "BatchMetrics", "DelaykitError", "InvalidTypeError", "InvalidValueError", "PAPER_PERIOD",
+    "AltitudeLoop", "Loop", "Controller", "TransferFunction", "Step", "Ramp", "Samples", "LoadStep", "load_loop",
+    "BatchMetrics", "DelaykitError", "InvalidTypeError", "InvalidValueError", "PAPER_PERIOD",
     "QuasiPolynomial", "Response", "SecondOrder", "StepMetrics", "noise_level", "simulate", "simulate_many",
     "step_metrics",
 ]
 __version__ = "0.1.0"
+
+_LAZY = {
+    "PAPER_PERIOD": ".models.altitude", "AltitudeLoop": ".models.altitude", "Controller": ".models.controllers",
+    "Loop": ".models.loop", "load_loop": ".models.loop", "QuasiPolynomial": ".models.quasipolynomial",
+    "Step": ".models.signals", "Ramp": ".models.signals", "Samples": ".models.signals", "LoadStep": ".models.signals",
+    "TransferFunction": ".models.transfer", "SecondOrder": ".simulate.metrics", "StepMetrics": ".simulate.metrics",
+    "noise_level": ".simulate.metrics", "step_metrics": ".simulate.metrics", "BatchMetrics": ".simulate.simulation",
+    "Response": ".simulate.simulation", "simulate_many": ".simulate.simulation",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'delaykit' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
+
+class _Package(types.ModuleType):
+    """The package's module type: ``delaykit.simulate`` is the function, though a subpackage shares its name.
+
+    Importing the subpackage :mod:`delaykit.simulate` makes Python bind it as the package's attribute
+    ``simulate``; this property keeps that name the function (the subpackage stays importable by its
+    full name, ``from delaykit.simulate.simulation import ...``).
+    """
+
+    @property
+    def simulate(self) -> Any:
+        from .simulate.simulation import simulate
+
+        return simulate
+
+    @simulate.setter
+    def simulate(self, value: Any) -> None:
+        pass  # the import system binding the subpackage: the name stays the function
+
+
+sys.modules[__name__].__class__ = _Package

@@ -37,7 +37,7 @@ from scipy.optimize import brentq, least_squares
 from ..errors import InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop
 from ..simulate.metrics import SecondOrder, step_metrics
-from ..simulate.simulation import AltitudeSampler, simulate
+from ..simulate.simulation import Sampler, simulate
 from ..spectrum.lambert import delay_for_damping, lambert_w
 from .flightlog import FlightLog
 
@@ -277,7 +277,7 @@ class _Flight:
         self.log = log
         self.t = log.t - log.step_time
         self.z = log.z
-        self.sampler = AltitudeSampler(self.t, t_end=max(float(self.t[-1]), 1e-3))
+        self.sampler = Sampler(self.t, t_end=max(float(self.t[-1]), 1e-3))
         loop = base
         if base.period is not None:
             # the controller runs at the log's samples: its first sample at or after the step

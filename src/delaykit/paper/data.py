@@ -113,7 +113,7 @@ def table1(period: float = PAPER_PERIOD) -> list[Table1Row]:
     [0.0, 0.398, 2.038]
     """
     k = np.array([row[0] for row in TABLE1])
-    m = simulate_many(kp=TABLE1_KP, delay=k * period)
+    m = simulate_many(paper_loop(float(k[0] * period)), delay=k * period)
     rows = []
     for (kk, _, mo_paper), td, mo in zip(TABLE1, k * period, m.overshoot):
         rows.append(Table1Row(K=kk, delay=float(td), paper_overshoot=mo_paper, overshoot=float(mo),

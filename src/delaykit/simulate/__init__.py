@@ -1,6 +1,6 @@
 """Simulate: a model's step response in the time domain, exactly, and the metrics read off it.
 
-:mod:`.simulation` integrates an :class:`~delaykit.models.AltitudeLoop` by the method of steps (the compiled
+:mod:`.simulation` integrates any :class:`~delaykit.models.Loop` (or the paper's :class:`~delaykit.models.AltitudeLoop`) by the method of steps (the compiled
 kernel is the private :mod:`._kernel`), one loop or a batch of them, and :mod:`.metrics` measures a step response
 (overshoot, peak, rise and settling times, a fitted second-order model, noise level). This layer reads models only;
 it is a peer of :mod:`delaykit.spectrum` and neither imports the other.
@@ -10,9 +10,9 @@ compatibility); import this layer's modules by their full names, ``from delaykit
 """
 
 from .metrics import SecondOrder, StepMetrics, noise_level, step_metrics
-from .simulation import AltitudeSampler, BatchMetrics, Response, simulate, simulate_many
+from .simulation import SWEEPABLE, BatchMetrics, Response, Sampler, as_loop, simulate, simulate_many
 
 __all__ = [
     "StepMetrics", "SecondOrder", "step_metrics", "noise_level",
-    "Response", "BatchMetrics", "AltitudeSampler", "simulate", "simulate_many",
+    "Response", "BatchMetrics", "Sampler", "simulate", "simulate_many", "as_loop", "SWEEPABLE",
 ]

@@ -1,21 +1,32 @@
-"""Compiled core of the simulator: the method of steps with truncated Taylor polynomials.
+"""Compiled core of the simulator: the method of steps with truncated Taylor polynomials, for any loop.
 
-The loop is simulated piece by piece.  On each piece every signal is a polynomial in a local variable
-``x`` in ``[0, 1]``; the piece ends at the next *breakpoint*:
+The loop (see :mod:`delaykit.models.loop` for the user-facing description) is one linear system with a
+state vector ``X`` (the plant's states, then the controller's), driven by polynomial signals:
 
-* the image ``b + Td`` of an earlier breakpoint ``b`` (so that the delayed command ``u(t - Td)`` is a single
-  polynomial on the piece: this is where the neutral loop's jumps sit, and where the kinks of a saturation
-  switch reappear);
-* a saturation switch of the command (a root of ``p(x) = +-vmax``, refined to machine precision);
-* a sample instant of a sampled controller;
-* a length cap ``1 / rate`` that keeps the Taylor coefficients decaying like ``rate**j / j!``.
+* the plant input ``w(t) = u(t - Ti) + d``, the command one input delay ago plus a load disturbance;
+* the measured output ``ym(t) = y(t - To)`` and velocity ``vm(t) = y'(t - To)``, one output delay ago;
+* the reference ``r(t)``, piecewise linear;
+* the back-calculation term ``sat(v) - v`` of an integrator's anti-windup.
 
-Between breakpoints the solution is analytic, so the polynomials are exact up to the truncation at degree
-``DEG`` (24); the largest discarded coefficient is reported, and in practice it is below 1e-16.  Step
-metrics are computed on the polynomials themselves (crossings and extrema are polynomial roots), while the
-pieces stream past, so a batch run stores nothing but the metrics.
+Every signal is a polynomial in a local variable ``x`` in ``[0, 1]`` on each piece, and the states follow
+from the Taylor recursion ``X[j+1] = H (M X[j] + inputs[j]) / (j + 1)``.  A piece ends at the next
+*breakpoint*:
 
-This module is private: :mod:`delaykit.simulate.simulation` is its interface.
+* the image one input delay later of a point where the command ``u`` is not analytic, and one output delay
+  later of a point where the output ``y`` is not analytic (these are where a neutral loop's jumps sit, and
+  where the kinks of a saturation switch reappear).  Points where a piece was only cut for length are not
+  imaged: the signal is analytic there, and the earlier piece's polynomial is its Taylor series, accurate
+  over the next piece too;
+* a saturation switch of the command (a root of ``v(x) = umax`` or ``umin``, refined to machine precision),
+  and, with clamping anti-windup, a sign change of the error while saturated;
+* a sample instant of a sampled controller, a knot of the reference, the load disturbance's start;
+* a length cap ``hmax`` (the reciprocal of the loop's fastest rate) that keeps the Taylor coefficients
+  decaying like ``1 / j!``.
+
+Step metrics are computed on the polynomials themselves while the pieces stream past.
+
+The parameter row layout (``HEAD`` and the ``OFF_*`` offsets) is defined once here and filled by
+:mod:`delaykit.simulate.simulation`.  This module is private.
 """
 
 from __future__ import annotations
@@ -23,29 +34,67 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["DEG", "NC", "PARAM", "OUT", "run_one", "run_batch"]
+__all__ = ["DEG", "NC", "MAXN", "HEAD", "NPAR", "OUT", "NOUT", "AW", "run_one", "run_batch"]
 
 DEG = 24
 NC = DEG + 1
+MAXN = 16
 _GRID = 16
 
-# Column layout of a parameter row.
-PARAM = {
-    "kp": 0, "kv": 1, "td": 2, "vmax": 3, "filtered": 4, "wf": 5, "zf": 6,
-    "period": 7, "offset": 8, "step": 9, "t_end": 10, "band": 11, "gain": 12, "lag": 13,
+# Scalars at the start of a parameter row.
+(_N, _TI, _TO, _UMIN, _UMAX, _PERIOD, _OFFSET, _T_END, _BAND, _NORM, _DIST, _T_DIST, _DY, _DYD, _DVR, _DVY, _DVV, _INTEG, _AW, _HMAX, _SCALE, _STEP, _SLOPE) = range(23)
+HEAD = {
+    "n": _N,
+    "ti": _TI,
+    "to": _TO,
+    "umin": _UMIN,
+    "umax": _UMAX,
+    "period": _PERIOD,
+    "offset": _OFFSET,
+    "t_end": _T_END,
+    "band": _BAND,
+    "norm": _NORM,
+    "dist": _DIST,
+    "t_dist": _T_DIST,
+    "dy": _DY,
+    "dyd": _DYD,
+    "dvr": _DVR,
+    "dvy": _DVY,
+    "dvv": _DVV,
+    "integ": _INTEG,
+    "aw": _AW,
+    "hmax": _HMAX,
+    "scale": _SCALE,
+    "step": _STEP,
+    "slope": _SLOPE,
 }
-NPAR = len(PARAM)
+NHEAD = 24
+# Matrices and vectors after it: M (MAXN x MAXN, row-major), then eight vectors of length MAXN.
+OFF_M = NHEAD
+OFF_BW = OFF_M + MAXN * MAXN      # plant input w
+OFF_BR = OFF_BW + MAXN            # reference r
+OFF_BYM = OFF_BR + MAXN           # measured output ym
+OFF_BVM = OFF_BYM + MAXN          # measured velocity vm
+OFF_BAW = OFF_BVM + MAXN          # back-calculation term sat(v) - v
+OFF_CY = OFF_BAW + MAXN           # y = CY X + dy w
+OFF_CYD = OFF_CY + MAXN           # y' = CYD X + dyd w
+OFF_CV = OFF_CYD + MAXN           # v = CV X + dvr r + dvy ym + dvv vm
+NPAR = OFF_CV + MAXN
+AW = {"none": 0, "clamp": 1, "backcalc": 2}
+
 # Column layout of a metrics row.
 OUT = {
     "overshoot": 0, "peak_time": 1, "peak": 2, "t10": 3, "t90": 4, "rise_time": 5,
     "settling_time": 6, "final_error": 7, "truncation": 8, "pieces": 9, "status": 10,
-    "u_pieces": 11,
+    "u_pieces": 11, "y_pieces": 12,
 }
 NOUT = len(OUT)
+STATUS_OK, STATUS_CAPACITY = 0.0, 1.0
 
-_LINEAR, _HIGH, _LOW = 0, 1, 2
+_LIN, _HIGH, _LOW = 0, 1, 2
 
 
+# -- polynomials on [0, 1] ---------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
 def _horner(c, n, x):
     s = 0.0
@@ -87,7 +136,7 @@ def _bounds(c, n):
 
 @njit(cache=True)
 def _refine(c, n, target, lo, hi, slo):
-    """Root of c(x) - target in [lo, hi], where the sign just right of lo is ``slo``."""
+    """Root of c(x) - target in [lo, hi], where the sign just right of lo is ``slo`` (safeguarded Newton)."""
     x = 0.5 * (lo + hi)
     for _ in range(200):
         f, df = _horner_d(c, n, x)
@@ -128,15 +177,6 @@ def _first_cross(c, n, target, s0):
 
 
 @njit(cache=True)
-def _crossing_time(W, n, level, a, H):
-    """Time of the first upward crossing of ``level`` on the piece, NaN if it stays below."""
-    if W[0] >= level:
-        return a
-    x = _first_cross(W, n, level, -1.0)
-    return a + x * H if x <= 1.0 else np.nan
-
-
-@njit(cache=True)
 def _all_cross(c, n, target, xs):
     """All sign changes of c(x) - target in (0, 1), refined; returns their count (stored in xs)."""
     if n <= 1:
@@ -159,9 +199,11 @@ def _all_cross(c, n, target, xs):
 
 @njit(cache=True)
 def _shift_scale(src, n, alpha, beta, dst):
-    """dst(y) = src(alpha + beta*y): Taylor shift by alpha, then scale by beta."""
+    """dst(y) = src(alpha + beta*y): Taylor shift by alpha, then scale by beta (zeros above degree n-1)."""
     for j in range(n):
         dst[j] = src[j]
+    for j in range(n, NC):
+        dst[j] = 0.0
     if alpha != 0.0:
         for i in range(n - 1):
             for j in range(n - 2, i - 1, -1):
@@ -182,395 +224,558 @@ def _scale(c, n, s):
 
 
 @njit(cache=True)
-def _classify(P, n, vmax, tol):
-    p0 = P[0]
-    if p0 > vmax + tol:
-        return _HIGH
-    if p0 < -vmax - tol:
-        return _LOW
-    slope = P[1] if n > 1 else 0.0
-    if p0 >= vmax - tol and slope > 0.0:
-        return _HIGH
-    if p0 <= -vmax + tol and slope < 0.0:
-        return _LOW
-    return _LINEAR
+def _degree(c, n):
+    """Number of coefficients up to the last non-zero one (at least 1)."""
+    while n > 1 and c[n - 1] == 0.0:
+        n -= 1
+    return n
 
 
 @njit(cache=True)
-def run_one(par, cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out, store, et, ez):
-    """Simulate one loop; fill ``out`` with its metrics and, if ``store``, ``tz0, th, tzc`` with z's pieces.
+def _classify(V, n, umin, umax, tol):
+    """Regime of the command at the start of a piece: linear, or saturated high or low."""
+    v0 = V[0]
+    if v0 > umax + tol:
+        return _HIGH
+    if v0 < umin - tol:
+        return _LOW
+    slope = 0.0
+    for j in range(1, n):  # the first non-zero derivative decides at the boundary
+        if V[j] != 0.0:
+            slope = V[j]
+            break
+    if v0 >= umax - tol and slope > 0.0:
+        return _HIGH
+    if v0 <= umin + tol and slope < 0.0:
+        return _LOW
+    return _LIN
 
-    ``et`` (sorted times) and ``ez`` (same size): z is evaluated at those times as the pieces stream past
-    (held at its final value after ``t_end``, 0 before the step).
 
-    The command's pieces (``tu0, thu, tuc, tdeg``) are kept apart from z's: contiguous pieces on which the
-    command is the same constant (saturated, or held by a sampled controller) are merged, so that only the
-    real breakpoints of the command have images one delay later.  Returns the number of z pieces;
-    ``out[status]`` is 1 when ``cap`` pieces were not enough.
+@njit(cache=True)
+def _delayed(t0, th, tc, tdeg, q, s, H, dst):
+    """The stored piece ``q`` of a history, as a polynomial over [s, s + H] (extrapolated past its end
+    where the signal is analytic there); returns the number of coefficients."""
+    alpha = (s - t0[q]) / th[q]
+    if alpha < 1e-13:
+        alpha = 0.0
+    beta = H / th[q]
+    if alpha == 0.0 and abs(beta - 1.0) < 1e-13:
+        beta = 1.0
+    n = tdeg[q]
+    _shift_scale(tc[q], n, alpha, beta, dst)
+    return n
+
+
+@njit(cache=True)
+def _ref_poly(rt, r0, rs, k, a, H, R):
+    """The reference on [a, a + H] within its segment ``k`` (value r0[k] + rs[k] (t - rt[k]))."""
+    R[0] = r0[k] + rs[k] * (a - rt[k])
+    R[1] = rs[k] * H
+    return 2 if rs[k] != 0.0 else 1
+
+
+# The step metrics' running state (a row of ``ms``): highest w so far and when, the first times w reaches
+# 0.1 and 0.9, the last time w was outside the settling band, and w at the end of the latest piece.
+_WMAX, _TPEAK, _T10, _T90, _TLAST, _WEND = range(6)
+_NMS = 6
+
+
+@njit(cache=True)
+def _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs):
+    """Update the step metrics with the piece ``Y`` on ``[a, a + H]`` (exact: extrema and crossings are roots)."""
+    end = a + H
+    for j in range(nY):
+        Wn[j] = Y[j] / norm
+    lo, hi = _bounds(Wn, nY)
+    if hi > ms[_WMAX]:
+        for j in range(nY - 1):
+            dW[j] = (j + 1) * Wn[j + 1]
+        k = _all_cross(dW, nY - 1, 0.0, xs)
+        for i in range(k + 1):
+            x = xs[i] if i < k else 1.0
+            wv = _horner(Wn, nY, x)
+            if wv > ms[_WMAX]:
+                ms[_WMAX] = wv
+                ms[_TPEAK] = a + x * H
+        if Wn[0] > ms[_WMAX]:
+            ms[_WMAX] = Wn[0]
+            ms[_TPEAK] = a
+    for idx, level in ((_T10, 0.1), (_T90, 0.9)):
+        if np.isnan(ms[idx]) and hi >= level:
+            t = a if Wn[0] >= level else a + _first_cross(Wn, nY, level, -1.0) * H
+            ms[idx] = t if t <= end else np.nan
+    wend = _sum(Wn, nY)
+    ms[_WEND] = wend
+    if hi - 1.0 >= band or lo - 1.0 <= -band:
+        if abs(wend - 1.0) >= band:
+            ms[_TLAST] = end
+        else:
+            xl = -1.0
+            k = _all_cross(Wn, nY, 1.0 + band, xs)
+            if k > 0:
+                xl = max(xl, xs[k - 1])
+            k = _all_cross(Wn, nY, 1.0 - band, xs)
+            if k > 0:
+                xl = max(xl, xs[k - 1])
+            if xl >= 0.0:
+                ms[_TLAST] = a + xl * H
+            elif abs(Wn[0] - 1.0) >= band:
+                ms[_TLAST] = a
+
+
+@njit(cache=True)
+def _first_switch(V, nv, E, ne, regime, frozen, umin, umax, aw):
+    """Where on the piece (x in (0, 1]) the command ``V`` first leaves its regime or, with clamping
+    anti-windup while saturated, the error ``E`` changes sign; 2.0 if nowhere."""
+    xc = 2.0
+    lo, hi = _bounds(V, nv)
+    if regime == _LIN:
+        if hi >= umax:
+            xc = min(xc, _first_cross(V, nv, umax, -1.0))
+        if lo <= umin:
+            xc = min(xc, _first_cross(V, nv, umin, 1.0))
+    elif regime == _HIGH:
+        if lo <= umax:
+            xc = _first_cross(V, nv, umax, 1.0)
+    elif hi >= umin:
+        xc = _first_cross(V, nv, umin, -1.0)
+    if aw == 1 and regime != _LIN:
+        s0 = 1.0 if frozen == (regime == _HIGH) else -1.0
+        xc = min(xc, _first_cross(E, ne, 0.0, s0))
+    return xc
+
+
+# -- one piece -------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _recursion(par, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dist, X, R, nR,
+               Wd, nW, Ym, Vm, use_meas, Y, Yd, V, Wp, E):
+    """Taylor coefficients of every signal on one piece of length ``H`` with the regime fixed.
+
+    ``X[:, 0]`` holds the states at the start; fills ``X[:, 1:]``, the output ``Y``, its derivative ``Yd``,
+    the controller output ``V``, the plant input ``Wp`` and the error ``E``.
     """
-    kp = par[0]
-    kv = par[1]
-    td = par[2]
-    vmax = par[3]
-    filt = par[4] > 0.5
-    wf = par[5]
-    zf = par[6]
-    per = par[7]
-    off = par[8]
-    r = par[9]
-    tend = par[10]
-    band = par[11]
-    g = par[12]
-    lag = par[13]
-    lagged = lag > 0.0
+    umin = par[_UMIN]
+    umax = par[_UMAX]
+    dy = par[_DY]
+    dyd = par[_DYD]
+    dvr = par[_DVR]
+    dvy = par[_DVY]
+    dvv = par[_DVV]
+    integ = int(par[_INTEG])
+    aw = int(par[_AW])
+    kd = dvy * dy + dvv * dyd  # direct feedthrough around a loop with no delay at all
+    lim = umax if regime == _HIGH else umin
+    # the forcing is a polynomial of degree < nf: once the states' coefficients vanish past it, all do
+    nf = max(nR, nW if ti_pos else 1, 1)
+    if use_meas:
+        nf = max(nf, _degree(Ym, NC), _degree(Vm, NC))
+    nt = NC
+    for j in range(NC):
+        if j >= nf and j > 0:
+            zero = True
+            for i in range(N):
+                if X[i, j] != 0.0:
+                    zero = False
+                    break
+            if zero:
+                nt = j
+                break
+        rj = R[j] if j < nR else 0.0
+        dj = dist if j == 0 else 0.0
+        # the parts of y, y' and v that do not depend on this piece's plant input
+        cy = 0.0
+        cyd = 0.0
+        cv = 0.0
+        for i in range(N):
+            xi = X[i, j]
+            cy += par[OFF_CY + i] * xi
+            cyd += par[OFF_CYD + i] * xi
+            cv += par[OFF_CV + i] * xi
+        if sampled:
+            wj = (Wd[j] if (ti_pos and j < nW) else (uhold if j == 0 else 0.0)) + dj
+            vj = 0.0  # filled below
+        elif ti_pos:
+            wj = (Wd[j] if j < nW else 0.0) + dj
+            vj = 0.0
+        elif algebraic:
+            base = cv + dvr * rj + dvy * cy + dvv * cyd
+            if regime == _LIN:
+                vj = (base + kd * dj) / (1.0 - kd)
+                wj = vj + dj
+            else:
+                wj = (lim if j == 0 else 0.0) + dj
+                vj = base + kd * wj
+        else:
+            # no input delay, a delayed measurement: v is known before w
+            vj = cv + dvr * rj + dvy * Ym[j] + dvv * Vm[j]
+            wj = (vj if regime == _LIN else (lim if j == 0 else 0.0)) + dj
+        yj = cy + dy * wj
+        ydj = cyd + dyd * wj
+        if use_meas:
+            ymj = Ym[j]
+            vmj = Vm[j]
+        else:
+            ymj = yj
+            vmj = ydj
+        if sampled or ti_pos:
+            vj = cv + dvr * rj + dvy * ymj + dvv * vmj
+        Y[j] = yj
+        Yd[j] = ydj
+        V[j] = vj
+        Wp[j] = wj
+        E[j] = rj - ymj
+        if j == DEG:
+            break
+        awj = 0.0
+        if aw == 2 and regime != _LIN:
+            awj = (lim if j == 0 else 0.0) - vj
+        f = H / (j + 1)
+        for i in range(N):
+            acc = par[OFF_BW + i] * wj + par[OFF_BR + i] * rj + par[OFF_BYM + i] * ymj + par[OFF_BVM + i] * vmj
+            acc += par[OFF_BAW + i] * awj
+            row = OFF_M + i * MAXN
+            for k in range(N):
+                acc += par[row + k] * X[k, j]
+            X[i, j + 1] = f * acc
+        if frozen and integ >= 0:
+            X[integ, j + 1] = 0.0
+    for j in range(nt, NC):
+        Y[j] = 0.0
+        Yd[j] = 0.0
+        V[j] = 0.0
+        Wp[j] = 0.0
+        E[j] = 0.0
+        for i in range(N):
+            X[i, j] = 0.0
+    for i in range(N):
+        X[i, NC] = 0.0
+    return nt
+
+
+@njit(cache=True)
+def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, out, keep_y, et, ez):
+    """Simulate one loop; fill ``out`` with its metrics.
+
+    The command's history (``tu0, thu, tuc, tdeg, ugen``: start, length, coefficients, number of
+    coefficients, "not analytic at the start") always, and the output's (``ty0, tyh, tyc, tyd, ygen``: y
+    and y') when ``keep_y``.  Contiguous pieces on which the command is the same constant are merged.
+    ``rt, r0, rs``: the reference's knots, values there and slopes.  ``et`` (sorted times) and ``ez``
+    (same size): y is evaluated at those times as the pieces stream past (held at its final value after
+    ``t_end``, 0 before the step).  Returns the number of pieces; ``out[status]`` is 1 when ``cap``
+    pieces were not enough.
+    """
+    N = int(par[_N])
+    ti = par[_TI]
+    to = par[_TO]
+    umin = par[_UMIN]
+    umax = par[_UMAX]
+    per = par[_PERIOD]
+    off = par[_OFFSET]
+    tend = par[_T_END]
+    band = par[_BAND]
+    norm = par[_NORM]
+    dist = par[_DIST]
+    tdist = par[_T_DIST]
+    dvr = par[_DVR]
+    dvy = par[_DVY]
+    dvv = par[_DVV]
+    aw = int(par[_AW])
+    hmax = par[_HMAX]
+    scale = par[_SCALE]
     sampled = per > 0.0
-    true_vel = not filt
-    w2 = wf * wf
-    twozw = 2.0 * zf * wf
+    cont = not sampled
+    ti_pos = ti > 0.0
+    to_pos = to > 0.0
+    algebraic = cont and not ti_pos and not to_pos
+    regime_matters = (cont and not ti_pos) or aw != 0
+    switches = cont or aw != 0
+    keep_y = keep_y or to_pos
+    has_dist = dist != 0.0
     eps = 1e-12 * max(1.0, tend)
-    ar = abs(r)
-    ptol = 1e-13 * max(1.0, kp * ar)
+    ptol = 1e-13 * max(1.0, scale)
+    metrics = norm != 0.0
+    nref = rt.shape[0]
 
-    rate = kp * max(g, 1e-300)
-    if td == 0.0 and true_vel and not lagged:
-        rate = kp * g / (1.0 + kv * g)
-    if lagged:
-        rate = max(rate, 1.0 / lag)
-    if filt:
-        rate = max(rate, wf)
-        rate = max(rate, np.sqrt(abs(kv) * w2))
-    hmax = 1.0 / max(rate, 1e-9)
-
-    V = np.zeros(NC + 1)
-    Z = np.zeros(NC + 1)
-    F1 = np.zeros(NC + 1)
-    F2 = np.zeros(NC + 1)
-    L = np.zeros(NC + 1)
-    P = np.zeros(NC + 1)
-    U = np.zeros(NC + 1)
-    W = np.zeros(NC + 1)
-    dW = np.zeros(NC + 1)
+    X = np.zeros((MAXN, NC + 1))
+    R = np.zeros(NC)
+    Wd = np.zeros(NC)
+    Ym = np.zeros(NC)
+    Vm = np.zeros(NC)
+    Y = np.zeros(NC)
+    Yd = np.zeros(NC)
+    V = np.zeros(NC)
+    Wp = np.zeros(NC)
+    E = np.zeros(NC)
+    Wn = np.zeros(NC)
+    dW = np.zeros(NC)
     xs = np.zeros(_GRID + 2)
+    x0 = np.zeros(MAXN)
 
-    z = 0.0
-    f1 = 0.0
-    f2 = 0.0
-    lv = 0.0
-    vleft = 0.0
-    ke = 0
     ne = et.shape[0]
+    ke = 0
     while ke < ne and et[ke] < 0.0:
         ez[ke] = 0.0
         ke += 1
     uhold = 0.0
     ksamp = 0
     nexts = off if sampled else np.inf
+    ym_left = 0.0
+    vm_left = 0.0
     a = 0.0
     n = 0
     nu = 0
-    q = 0
+    ny = 0
+    qu = 0
+    qgu = 1
+    qy = 0
+    qgy = 1
+    kr = 0
     trunc = 0.0
-    wmax = -np.inf
-    tpeak = np.nan
-    t10 = np.nan
-    t90 = np.nan
-    tlast = 0.0
-    status = 0.0
-    wend = 0.0
+    ms = np.empty(_NMS)  # the step metrics as the pieces stream past
+    ms[_WMAX] = -np.inf
+    ms[_TPEAK] = np.nan
+    ms[_T10] = np.nan
+    ms[_T90] = np.nan
+    ms[_TLAST] = 0.0
+    ms[_WEND] = 0.0
+    status = STATUS_OK
+    regime = _LIN
+    genu = True  # the command and the output are not analytic at t = 0
+    geny = True
+    y_end = 0.0
 
     while a < tend - eps:
         if n >= cap:
-            status = 1.0
+            status = STATUS_CAPACITY
             break
-        # a sample instant: the controller reads z and the velocity signal, and holds its command
+        while kr + 1 < nref and rt[kr + 1] <= a + eps:
+            kr += 1
+        # a sample instant: the controller reads its inputs (left limits) and holds its command
         while sampled and nexts <= a + eps:
-            vel = vleft if true_vel else w2 * f2
-            p0 = kp * (r - z) - kv * vel
-            uhold = min(max(p0, -vmax), vmax)
+            v = dvr * (r0[kr] + rs[kr] * (a - rt[kr])) + dvy * ym_left + dvv * vm_left
+            for i in range(N):
+                v += par[OFF_CV + i] * x0[i]
+            uhold = min(max(v, umin), umax)
             ksamp += 1
             nexts = off + ksamp * per
+        # where the piece must end, and why
         end = min(tend, a + hmax)
+        t_img_u = np.inf
+        t_img_y = np.inf
         if sampled:
             end = min(end, nexts)
-        # the delayed command on this piece
-        nV = 1
-        V[0] = 0.0
-        past = False
-        s = a - td
-        if td > 0.0:
-            if s < -eps:
-                end = min(end, td)
+        t_knot = rt[kr + 1] if kr + 1 < nref else np.inf
+        end = min(end, t_knot)
+        dist_on = has_dist and a >= tdist - eps
+        if has_dist and not dist_on:
+            end = min(end, tdist)
+        su = a - ti
+        if ti_pos:
+            if su < -eps:
+                t_img_u = ti
             else:
-                past = True
-                while q < nu - 1 and tu0[q] + thu[q] <= s + eps:
-                    q += 1
-                end = min(end, tu0[q] + thu[q] + td)
+                while qu < nu - 1 and tu0[qu + 1] <= su + eps:
+                    qu += 1
+                if qgu <= qu:
+                    qgu = qu + 1
+                while qgu < nu and ugen[qgu] == 0:
+                    qgu += 1
+                t_img_u = (tu0[qgu] if qgu < nu else a) + ti
+            end = min(end, t_img_u)
+        sy = a - to
+        if to_pos:
+            if sy < -eps:
+                t_img_y = to
+            else:
+                while qy < ny - 1 and ty0[qy + 1] <= sy + eps:
+                    qy += 1
+                if qgy <= qy:
+                    qgy = qy + 1
+                while qgy < ny and ygen[qgy] == 0:
+                    qgy += 1
+                t_img_y = (ty0[qgy] if qgy < ny else a) + to
+            end = min(end, t_img_y)
         H = end - a
-        if past:
-            alpha = (s - tu0[q]) / thu[q]
-            if alpha < 1e-13:
-                alpha = 0.0
-            beta = H / thu[q]
-            if alpha == 0.0 and abs(beta - 1.0) < 1e-13:
-                beta = 1.0
-            nV = tdeg[q]
-            _shift_scale(tuc[q], nV, alpha, beta, V)
-        regime = _LINEAR
-        nU = 1
-        if td == 0.0 and not sampled:
-            # an ordinary differential equation: z' = u(t), solved by a Taylor recursion
-            if lagged:
-                p0 = kp * (r - z) - kv * (lv if true_vel else w2 * f2)
-            elif true_vel:
-                p0 = kp * (r - z) / (1.0 + kv * g)
+        # the delayed signals and the reference on this piece
+        nW = 1
+        Wd[0] = 0.0
+        if ti_pos and su >= -eps:
+            nW = _delayed(tu0, thu, tuc, tdeg, qu, max(su, tu0[qu]), H, Wd)
+        if to_pos:
+            if sy >= -eps:
+                alpha = (max(sy, ty0[qy]) - ty0[qy]) / tyh[qy]
+                if alpha < 1e-13:
+                    alpha = 0.0
+                beta = H / tyh[qy]
+                if alpha == 0.0 and abs(beta - 1.0) < 1e-13:
+                    beta = 1.0
+                _shift_scale(tyc[qy], NC, alpha, beta, Ym)
+                _shift_scale(tyd[qy], NC, alpha, beta, Vm)
             else:
-                p0 = kp * (r - z) - kv * w2 * f2
-            if p0 > vmax + ptol:
-                regime = _HIGH
-            elif p0 < -vmax - ptol:
-                regime = _LOW
-            for j in range(NC + 1):
-                F1[j] = 0.0
-                F2[j] = 0.0
-                Z[j] = 0.0
-                L[j] = 0.0
-            Z[0] = z
-            F1[0] = f1
-            F2[0] = f2
-            L[0] = lv
-            for attempt in range(2):
-                for j in range(DEG):
-                    rj = r if j == 0 else 0.0
-                    if lagged:
-                        pj = kp * (rj - Z[j]) - kv * (L[j] if true_vel else w2 * F2[j])
-                    elif true_vel:
-                        pj = kp * (rj - Z[j]) / (1.0 + kv * g)
-                    else:
-                        pj = kp * (rj - Z[j]) - kv * w2 * F2[j]
-                    P[j] = pj
-                    if regime == _LINEAR:
-                        uj = pj
-                    elif j == 0:
-                        uj = vmax if regime == _HIGH else -vmax
-                    else:
-                        uj = 0.0
-                    V[j] = uj
-                    if lagged:
-                        L[j + 1] = H * (g * uj - L[j]) / (lag * (j + 1))
-                        Z[j + 1] = H * L[j] / (j + 1)
-                    else:
-                        Z[j + 1] = H * g * uj / (j + 1)
-                    if filt:
-                        F1[j + 1] = H * F2[j] / (j + 1)
-                        F2[j + 1] = H * (-w2 * F1[j] - twozw * F2[j] + Z[j]) / (j + 1)
-                rj = 0.0
-                if lagged:
-                    P[DEG] = kp * (-Z[DEG]) - kv * (L[DEG] if true_vel else w2 * F2[DEG])
-                elif true_vel:
-                    P[DEG] = kp * (-Z[DEG]) / (1.0 + kv * g)
-                else:
-                    P[DEG] = kp * (-Z[DEG]) - kv * w2 * F2[DEG]
-                V[DEG] = P[DEG] if regime == _LINEAR else 0.0
-                if attempt == 0 and regime == _LINEAR and abs(abs(p0) - vmax) <= ptol:
-                    if p0 > 0.0 and P[1] > 0.0:
-                        regime = _HIGH
-                        continue
-                    if p0 < 0.0 and P[1] < 0.0:
-                        regime = _LOW
-                        continue
-                break
-            nV = NC
-            nZ = NC
-            nP = NC
-            trunc = max(trunc, abs(Z[DEG]) / ar)
-        else:
-            if td == 0.0:
-                V[0] = uhold
-                nV = 1
-            # z is the integral of the plant velocity: the delayed command times the gain, through the lag
-            Z[0] = z
-            if lagged:
-                L[0] = lv
-                for j in range(DEG):
-                    vj = g * V[j] if j < nV else 0.0
-                    L[j + 1] = H * (vj - L[j]) / (lag * (j + 1))
-                    Z[j + 1] = H * L[j] / (j + 1)
-                nZ = NC
-                trunc = max(trunc, abs(Z[DEG]) / ar)
-            else:
-                for j in range(nV):
-                    Z[j + 1] = H * g * V[j] / (j + 1)
-                nZ = nV + 1
-                if nZ > NC:
-                    trunc = max(trunc, abs(Z[NC]) / ar)
-                    nZ = NC
-            for j in range(nZ, NC + 1):
-                Z[j] = 0.0
-            nP = nZ
-            if filt:
-                F1[0] = f1
-                F2[0] = f2
-                for j in range(DEG):
-                    F1[j + 1] = H * F2[j] / (j + 1)
-                    F2[j + 1] = H * (-w2 * F1[j] - twozw * F2[j] + Z[j]) / (j + 1)
-                trunc = max(trunc, abs(kv * w2 * F2[DEG]) / max(kp * ar, 1e-300))
-                nP = NC
-            if not sampled:
-                if lagged:
-                    nP = NC
-                for j in range(nP):
-                    if not true_vel:
-                        vel = w2 * F2[j]
-                    elif lagged:
-                        vel = L[j]
-                    else:
-                        vel = g * V[j] if j < nV else 0.0
-                    P[j] = -kp * Z[j] - kv * vel
-                P[0] += kp * r
-                regime = _classify(P, nP, vmax, ptol)
-        # the command on this piece, and a cut at the first saturation switch
-        if sampled:
-            U[0] = uhold
-            nU = 1
-        else:
-            xc = 2.0
-            for attempt in range(3):
-                xc = 2.0
-                if regime == _LINEAR:
-                    lo, hi = _bounds(P, nP)
-                    if hi >= vmax:
-                        xc = min(xc, _first_cross(P, nP, vmax, -1.0))
-                    if lo <= -vmax:
-                        xc = min(xc, _first_cross(P, nP, -vmax, 1.0))
-                elif regime == _HIGH:
-                    lo, hi = _bounds(P, nP)
-                    if lo <= vmax:
-                        xc = _first_cross(P, nP, vmax, 1.0)
-                else:
-                    lo, hi = _bounds(P, nP)
-                    if hi >= -vmax:
-                        xc = _first_cross(P, nP, -vmax, -1.0)
-                # a switch at the very start means the piece began on the boundary in the wrong regime:
-                # classify again just past the start (a cut there would make no progress in time)
-                if td > 0.0 and xc < 1.0 and xc * H <= 1e-12 * max(1.0, abs(a) + H):
-                    probe = _horner(P, nP, min(1.0, max(16.0 * xc, 1e-9)))
-                    regime = _HIGH if probe > vmax else (_LOW if probe < -vmax else _LINEAR)
+                for j in range(NC):
+                    Ym[j] = 0.0
+                    Vm[j] = 0.0
+        nR = _ref_poly(rt, r0, rs, kr, a, H, R)
+        dcur = dist if dist_on else 0.0
+        for i in range(N):
+            X[i, 0] = x0[i]
+        # the regime (linear or saturated) and, with clamping, whether the integrator is frozen
+        frozen = False
+        xc = 2.0
+        prev_regime = regime
+        for attempt in range(4):
+            nt = _recursion(par, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dcur, X, R, nR,
+                            Wd, nW, Ym, Vm, to_pos, Y, Yd, V, Wp, E)
+            nv = _degree(V, nt)
+            new = _classify(V, nv, umin, umax, ptol)
+            newf = False
+            if aw == 1 and new != _LIN:
+                sgn = 0.0
+                for j in range(NC):
+                    if abs(E[j]) > (ptol if j == 0 else 0.0):
+                        sgn = E[j]
+                        break
+                newf = (new == _HIGH and sgn > 0.0) or (new == _LOW and sgn < 0.0)
+            if attempt < 2 and (new != regime or newf != frozen):
+                changed = regime_matters or newf != frozen
+                regime = new
+                frozen = newf
+                if changed:
                     continue
-                break
-            if xc < 1.0 - 1e-13:
-                _scale(Z, nZ, xc)
-                _scale(V, nV, xc)
-                _scale(P, nP, xc)
-                if filt:
-                    _scale(F1, NC, xc)
-                    _scale(F2, NC, xc)
-                if lagged:
-                    _scale(L, NC, xc)
-                H *= xc
-                end = a + H
-            if regime == _LINEAR:
-                nU = nP
-                for j in range(nU):
-                    U[j] = P[j]
-                # drop coefficients that are below rounding
-                while nU > 1 and abs(U[nU - 1]) < 1e-19 * (vmax if vmax < np.inf else kp * ar + 1.0):
-                    nU -= 1
-            else:
-                U[0] = vmax if regime == _HIGH else -vmax
-                nU = 1
-        # store the piece
-        if nu > 0 and nU == 1 and tdeg[nu - 1] == 1 and tuc[nu - 1, 0] == U[0]:
+            # the first switch on the piece: the command leaves its regime, or the error changes sign
+            xc = _first_switch(V, nv, E, _degree(E, nt), regime, frozen, umin, umax, aw) if switches else 2.0
+            # a switch at the very start: the piece began on the boundary in the wrong regime
+            if attempt < 3 and xc < 1.0 and xc * H <= 1e-12 * max(1.0, abs(a) + H):
+                probe = _horner(V, nv, min(1.0, max(16.0 * xc, 1e-9)))
+                regime = _HIGH if probe > umax else (_LOW if probe < umin else _LIN)
+                if aw == 1 and regime != _LIN:
+                    ep = _horner(E, nt, min(1.0, max(16.0 * xc, 1e-9)))
+                    frozen = (regime == _HIGH and ep > 0.0) or (regime == _LOW and ep < 0.0)
+                else:
+                    frozen = False
+                continue
+            break
+        cut = xc < 1.0 - 1e-13
+        if cut:
+            for i in range(N):
+                b = 1.0
+                for j in range(nt):
+                    X[i, j] *= b
+                    b *= xc
+            _scale(Y, nt, xc)
+            _scale(Yd, nt, xc)
+            _scale(V, nt, xc)
+            _scale(Wp, nt, xc)
+            if to_pos:
+                _scale(Ym, NC, xc)
+                _scale(Vm, NC, xc)
+            H *= xc
+            end = a + H
+        if cont and regime != prev_regime:
+            genu = True
+        # store the command's piece (constant pieces of equal value merged)
+        nU = 1
+        if sampled:
+            uval = uhold
+        elif regime == _LIN:
+            nU = nv
+            uval = V[0]
+            # drop coefficients below rounding
+            ref = max(abs(umax) if umax < np.inf else 0.0, abs(umin) if umin > -np.inf else 0.0, scale, 1.0)
+            while nU > 1 and abs(V[nU - 1]) < 1e-19 * ref:
+                nU -= 1
+        else:
+            uval = umax if regime == _HIGH else umin
+        if nu > 0 and nU == 1 and tdeg[nu - 1] == 1 and tuc[nu - 1, 0] == uval:
             thu[nu - 1] = end - tu0[nu - 1]
         else:
             tu0[nu] = a
             thu[nu] = H
             tdeg[nu] = nU
-            for j in range(nU):
-                tuc[nu, j] = U[j]
-            nu += 1
-        if store:
-            tz0[n] = a
-            th[n] = H
-            for j in range(NC):
-                tzc[n, j] = Z[j] if j < nZ else 0.0
-        # metrics on the normalised response w = z / r
-        for j in range(nZ):
-            W[j] = Z[j] / r
-        lo, hi = _bounds(W, nZ)
-        if hi > wmax:
-            for j in range(nZ - 1):
-                dW[j] = (j + 1) * W[j + 1]
-            k = _all_cross(dW, nZ - 1, 0.0, xs)
-            for i in range(k + 1):
-                x = xs[i] if i < k else 1.0
-                wv = _horner(W, nZ, x)
-                if wv > wmax:
-                    wmax = wv
-                    tpeak = a + x * H
-            w0 = W[0]
-            if w0 > wmax:
-                wmax = w0
-                tpeak = a
-        if np.isnan(t10) and hi >= 0.1:
-            t10 = _crossing_time(W, nZ, 0.1, a, H)
-        if np.isnan(t90) and hi >= 0.9:
-            t90 = _crossing_time(W, nZ, 0.9, a, H)
-        wend = _sum(W, nZ)
-        if hi - 1.0 >= band or lo - 1.0 <= -band:
-            if abs(wend - 1.0) >= band:
-                tlast = end
+            ugen[nu] = 1 if genu else 0
+            if nU == 1:
+                tuc[nu, 0] = uval
             else:
-                xl = -1.0
-                k = _all_cross(W, nZ, 1.0 + band, xs)
-                if k > 0:
-                    xl = max(xl, xs[k - 1])
-                k = _all_cross(W, nZ, 1.0 - band, xs)
-                if k > 0:
-                    xl = max(xl, xs[k - 1])
-                if xl >= 0.0:
-                    tlast = a + xl * H
-                elif abs(W[0] - 1.0) >= band:
-                    tlast = a
-        # the requested samples of z on this piece
+                for j in range(nU):
+                    tuc[nu, j] = V[j]
+            nu += 1
+        nY = _degree(Y, nt)
+        if keep_y:
+            ty0[ny] = a
+            tyh[ny] = H
+            ygen[ny] = 1 if geny else 0
+            for j in range(NC):
+                tyc[ny, j] = Y[j]
+                tyd[ny, j] = Yd[j]
+            ny += 1
+        trunc = max(trunc, abs(Y[DEG]) / max(abs(norm), scale, 1e-300))
+        if metrics:
+            _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs)
+        # the requested samples of y on this piece
         while ke < ne and et[ke] <= end + eps:
             x = (et[ke] - a) / H
-            ez[ke] = _horner(Z, nZ, min(max(x, 0.0), 1.0))
+            ez[ke] = _horner(Y, nY, min(max(x, 0.0), 1.0))
             ke += 1
-        # advance the state to the end of the piece
-        z = _sum(Z, nZ)
-        if filt:
-            f1 = _sum(F1, NC)
-            f2 = _sum(F2, NC)
-        if lagged:
-            lv = _sum(L, NC)
-            vleft = lv
+        # advance: the states, the left limits the next sample reads, and why the next piece starts
+        for i in range(N):
+            x0[i] = _sum(X[i], nt)
+        y_end = _sum(Y, nY)
+        if to_pos:
+            ym_left = _sum(Ym, NC)
+            vm_left = _sum(Vm, NC)
         else:
-            vleft = g * _sum(V, nV)
+            ym_left = y_end
+            vm_left = _sum(Yd, nt)
+        genu = False
+        geny = False
+        if cut:
+            genu = cont
+            geny = cont and not ti_pos
+        else:
+            if end >= t_img_u - eps:
+                geny = True
+            if end >= t_img_y - eps:
+                genu = cont
+            if sampled and end >= nexts - eps:
+                genu = True
+            if cont and end >= t_knot - eps:
+                genu = True
+            if has_dist and not dist_on and end >= tdist - eps:
+                geny = True
+            if not ti_pos and genu:
+                geny = True
+            if not to_pos and geny and cont:
+                genu = True
         a = end
         n += 1
 
     while ke < ne:
-        ez[ke] = z
+        ez[ke] = y_end
         ke += 1
-    overshoot = max(0.0, wmax - 1.0) * 100.0
-    out[0] = overshoot
-    out[1] = tpeak if wmax > 1.0 else np.nan
-    out[2] = wmax
-    out[3] = t10
-    out[4] = t90
-    out[5] = t90 - t10
-    out[6] = tlast if abs(wend - 1.0) < band else np.nan
-    out[7] = r * (1.0 - wend)
+    if metrics:
+        wmax, wend = ms[_WMAX], ms[_WEND]
+        out[0] = max(0.0, wmax - 1.0) * 100.0
+        out[1] = ms[_TPEAK] if wmax > 1.0 else np.nan
+        out[2] = wmax
+        out[3] = ms[_T10]
+        out[4] = ms[_T90]
+        out[5] = ms[_T90] - ms[_T10]
+        out[6] = ms[_TLAST] if abs(wend - 1.0) < band else np.nan
+        out[7] = norm * (1.0 - wend)
+    else:
+        for i in range(8):
+            out[i] = np.nan
     out[8] = trunc
     out[9] = n
     out[10] = status
     out[11] = nu
+    out[12] = ny
     return n
 
 
 @njit(cache=True, parallel=True)
 def run_batch(pars, cap, nchunks):
-    """Metrics of many loops (one parameter row each), split over ``nchunks`` threads."""
+    """Metrics of many loops (one parameter row each, a step or ramp reference), over ``nchunks`` threads."""
     m = pars.shape[0]
     out = np.empty((m, NOUT))
     for c in prange(nchunks):
@@ -578,13 +783,22 @@ def run_batch(pars, cap, nchunks):
         hi = (c + 1) * m // nchunks
         tu0 = np.empty(cap)
         thu = np.empty(cap)
-        tuc = np.empty((cap, NC))
+        tuc = np.zeros((cap, NC))
         tdeg = np.empty(cap, dtype=np.int64)
-        tz0 = np.empty(1)
-        th = np.empty(1)
-        tzc = np.empty((1, NC))
+        ugen = np.empty(cap, dtype=np.int8)
+        ty0 = np.empty(cap)
+        tyh = np.empty(cap)
+        tyc = np.empty((cap, NC))
+        tyd = np.empty((cap, NC))
+        ygen = np.empty(cap, dtype=np.int8)
+        rt = np.zeros(1)
+        r0 = np.zeros(1)
+        rs = np.zeros(1)
         et = np.empty(0)
         ez = np.empty(0)
         for i in range(lo, hi):
-            run_one(pars[i], cap, tu0, thu, tuc, tdeg, tz0, th, tzc, out[i], False, et, ez)
+            r0[0] = pars[i, _STEP]
+            rs[0] = pars[i, _SLOPE]
+            run_one(pars[i], rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen,
+                    out[i], False, et, ez)
     return out

@@ -1,9 +1,10 @@
-"""Exact simulation of the delayed altitude loop, one loop at a time or thousands at once.
+"""Exact simulation of any delayed loop, one loop at a time or thousands at once.
 
-The solver (:mod:`delaykit.simulate._kernel`) is the method of steps with Taylor polynomials between breakpoints:
-saturation switches, their images one delay later, sample instants and the jumps of the neutral loop are
-all located to machine precision, so the responses and their metrics are exact up to rounding (the
-largest discarded Taylor coefficient is reported as ``truncation``; it is typically below 1e-16).
+The solver (:mod:`delaykit.simulate._kernel`) is the method of steps with Taylor polynomials between
+breakpoints: saturation switches, their images one delay later, sample instants, reference knots and the
+jumps of neutral loops are all located to machine precision, so the responses and their metrics are exact
+up to rounding.  The largest discarded Taylor coefficient is reported as ``truncation`` (typically below
+1e-16); a loop too stiff to simulate in the allowed number of pieces raises an error saying so.
 There is no step size to choose and nothing to converge.
 
 Examples
@@ -24,59 +25,198 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidValueError, check_real
-from ..models.altitude import VELOCITY_CHOICES, AltitudeLoop
+from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..models.altitude import AltitudeLoop
+from ..models.loop import Loop
+from ..models.signals import LoadStep, Ramp, Samples, Step, as_reference
 from . import _kernel as K
 from .metrics import StepMetrics
 
-__all__ = ["Response", "BatchMetrics", "AltitudeSampler", "simulate", "simulate_many"]
+__all__ = ["Response", "BatchMetrics", "Sampler", "simulate", "simulate_many", "as_loop", "SWEEPABLE"]
 
 _CAP0 = 4096
 _CAP_MAX = 1 << 22
 _NO_T = np.empty(0)
+SWEEPABLE = ("kp", "ki", "kd", "kv", "delay", "output_delay", "umin", "umax", "vmax", "step", "sample_offset")
+"""The parameters :func:`simulate_many` sweeps (arrays broadcast together)."""
 
 
-def _row(loop: AltitudeLoop, step: float, t_end: float, band: float) -> np.ndarray:
-    p = np.empty(K.NPAR)
-    p[K.PARAM["kp"]] = loop.kp
-    p[K.PARAM["kv"]] = loop.kv
-    p[K.PARAM["td"]] = loop.delay
-    p[K.PARAM["vmax"]] = np.inf if loop.vmax is None else loop.vmax
-    p[K.PARAM["filtered"]] = 1.0 if loop.filtered else 0.0
-    p[K.PARAM["wf"]] = loop.filter_wn
-    p[K.PARAM["zf"]] = loop.filter_zeta
-    p[K.PARAM["period"]] = loop.period or 0.0
-    p[K.PARAM["offset"]] = loop.sample_offset
-    p[K.PARAM["step"]] = step
-    p[K.PARAM["t_end"]] = t_end
-    p[K.PARAM["band"]] = band
-    p[K.PARAM["gain"]] = loop.gain
-    p[K.PARAM["lag"]] = loop.lag
+def as_loop(loop: Any) -> Loop:
+    """The general :class:`~delaykit.models.loop.Loop` of a loop object (an ``AltitudeLoop`` is a preset).
+
+    Examples
+    --------
+    >>> as_loop(AltitudeLoop(kp=1.31, delay=0.368)).plant.to_string()
+    '1/s'
+    """
+    if isinstance(loop, Loop):
+        return loop
+    if isinstance(loop, AltitudeLoop):
+        return loop.to_loop()
+    raise InvalidTypeError(f"loop must be a Loop or an AltitudeLoop, got {type(loop).__name__}")
+
+
+# -- parameter rows ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Layout:
+    """A loop as the kernel's matrices (everything of a parameter row but the run's settings)."""
+
+    npl: int
+    M: np.ndarray
+    bw: np.ndarray
+    br: np.ndarray
+    bym: np.ndarray
+    bvm: np.ndarray
+    baw: np.ndarray
+    cy: np.ndarray
+    cyd: np.ndarray
+    cv: np.ndarray
+    dy: float
+    dyd: float
+    integ: int
+
+
+def _layout(loop: Loop) -> _Layout:
+    A, B, C, D = loop.plant.state_space()
+    A = np.atleast_2d(np.asarray(A, float))
+    npl = A.shape[0]
+    B = np.asarray(B, float).reshape(npl)
+    C = np.asarray(C, float).reshape(npl)
+    rz = loop.controller.realisation()
+    nc = rz.order
+    n = npl + nc
+    if n > K.MAXN:
+        raise InvalidValueError(
+            f"the loop has {n} states (plant {npl}, controller {nc}); the simulator takes at most {K.MAXN}")
+    if n == 0:  # a static plant: give the kernel one inert state
+        A, B, C, npl, n = np.zeros((1, 1)), np.zeros(1), np.zeros(1), 1, 1 + nc
+    M = np.zeros((n, n))
+    M[:npl, :npl] = A
+    if nc:
+        M[npl:, npl:] = rz.Ac
+    zp, zc = np.zeros(npl), np.zeros(nc)
+    return _Layout(
+        npl=npl, M=M, bw=np.r_[B, zc], br=np.r_[zp, rz.Bcr], bym=np.r_[zp, rz.Bcy], bvm=np.r_[zp, rz.Bcv],
+        baw=np.r_[zp, rz.Baw], cy=np.r_[C, zc], cyd=np.r_[C @ A, zc], cv=np.r_[zp, rz.Cc], dy=float(D),
+        dyd=float(C @ B), integ=npl + rz.integ if rz.integ >= 0 else -1,
+    )
+
+
+def _put(row: np.ndarray, off: int, vec: np.ndarray) -> None:
+    row[off:off + vec.size] = vec
+
+
+def _rate(lay: _Layout, dvr: float, dvy: float, dvv: float, cv: np.ndarray, delay_free: bool) -> float:
+    """The loop's fastest rate, whose reciprocal caps a piece's length (Taylor terms decay like 1/j!)."""
+    rate = float(np.max(np.abs(np.linalg.eigvals(lay.M)))) if lay.M.size else 0.0
+    rate = max(rate, abs(dvy * lay.dyd))
+    if delay_free:
+        kd = dvy * lay.dy + dvv * lay.dyd
+        if abs(1.0 - kd) < 1e-12:
+            raise InvalidValueError("the loop without delay is ill-posed: the controller's direct feedthrough "
+                                    "cancels the plant's (1 + C(inf) P(inf) = 0)")
+        krow = cv + dvy * lay.cy + dvv * lay.cyd
+        acl = lay.M + np.outer(lay.bw + lay.bym * lay.dy + lay.bvm * lay.dyd, krow) / (1.0 - kd)
+        acl += np.outer(lay.bym, lay.cy) + np.outer(lay.bvm, lay.cyd)
+        rate = max(rate, float(np.max(np.abs(np.linalg.eigvals(acl)))))
+    return rate
+
+
+def _row(loop: Loop, lay: _Layout, *, step: float, slope: float, norm: float, t_end: float, band: float,
+         dist: LoadStep | None) -> np.ndarray:
+    c = loop.controller
+    rz = c.realisation()
+    p = np.zeros(K.NPAR)
+    n = lay.M.shape[0]
+    p[K.HEAD["n"]] = n
+    p[K.HEAD["ti"]] = loop.delay
+    p[K.HEAD["to"]] = loop.output_delay
+    p[K.HEAD["umin"]] = loop.umin
+    p[K.HEAD["umax"]] = loop.umax
+    p[K.HEAD["period"]] = loop.period or 0.0
+    p[K.HEAD["offset"]] = loop.sample_offset
+    p[K.HEAD["t_end"]] = t_end
+    p[K.HEAD["band"]] = band
+    p[K.HEAD["norm"]] = norm
+    p[K.HEAD["dist"]] = dist.size if dist is not None else 0.0
+    p[K.HEAD["t_dist"]] = dist.time if dist is not None else math.inf
+    p[K.HEAD["dy"]] = lay.dy
+    p[K.HEAD["dyd"]] = lay.dyd
+    p[K.HEAD["dvr"]] = rz.dvr
+    p[K.HEAD["dvy"]] = rz.dvy
+    p[K.HEAD["dvv"]] = rz.dvv
+    p[K.HEAD["integ"]] = lay.integ
+    p[K.HEAD["aw"]] = K.AW[c.antiwindup]
+    delay_free = loop.total_delay == 0.0 and not loop.sampled
+    p[K.HEAD["hmax"]] = 1.0 / max(_rate(lay, rz.dvr, rz.dvy, rz.dvv, lay.cv, delay_free), 1e-9)
+    p[K.HEAD["scale"]] = max(1.0, abs(rz.dvr * step), abs(norm))
+    p[K.HEAD["step"]] = step
+    p[K.HEAD["slope"]] = slope
+    M = np.zeros((K.MAXN, K.MAXN))
+    M[:n, :n] = lay.M
+    _put(p, K.OFF_M, M.ravel())
+    for off, vec in ((K.OFF_BW, lay.bw), (K.OFF_BR, lay.br), (K.OFF_BYM, lay.bym), (K.OFF_BVM, lay.bvm),
+                     (K.OFF_BAW, lay.baw), (K.OFF_CY, lay.cy), (K.OFF_CYD, lay.cyd), (K.OFF_CV, lay.cv)):
+        _put(p, off, vec)
     return p
 
 
-def _check_run(step: float, t_end: float, band: float) -> tuple[float, float, float]:
-    step = check_real("step", step)
-    if step == 0.0:
-        raise InvalidValueError("step must not be zero (metrics are relative to the step size)")
+class _Workspace:
+    """Work arrays for the kernel, grown eightfold (up to ``_CAP_MAX`` pieces) when a run needs more.
+
+    ``store`` keeps the output's pieces (for a :class:`Response`); ``t`` are times at which to evaluate y.
+    """
+
+    def __init__(self, store: bool, t: np.ndarray = _NO_T) -> None:
+        self.store = store
+        self.t = t
+        self.cap = _CAP0
+        self._alloc()
+
+    def _alloc(self) -> None:
+        c = self.cap
+        self.u = (np.empty(c), np.empty(c), np.zeros((c, K.NC)), np.empty(c, dtype=np.int64), np.empty(c, dtype=np.int8))
+        self.y = (np.empty(c), np.empty(c), np.empty((c, K.NC)), np.empty((c, K.NC)), np.empty(c, dtype=np.int8))
+        self.out = np.empty(K.NOUT)
+        self.ez = np.empty(self.t.size)
+
+    def run(self, row: np.ndarray, knots: tuple[np.ndarray, np.ndarray, np.ndarray]) -> int:
+        """Run the kernel on one parameter row; returns the number of pieces."""
+        while True:
+            n = K.run_one(row, *knots, self.cap, *self.u, *self.y, self.out, self.store, self.t, self.ez)
+            if self.out[K.OUT["status"]] == K.STATUS_OK:
+                return n
+            if self.cap >= _CAP_MAX:
+                hmax = row[K.HEAD["hmax"]]
+                raise InvalidValueError(
+                    f"the response needs more than {_CAP_MAX} polynomial pieces (the loop's fastest rate is "
+                    f"{1 / hmax:.3g} 1/s over t_end = {row[K.HEAD['t_end']]:g} s): the loop is too stiff or "
+                    "too long to simulate exactly; shorten t_end or remove the fast dynamics")
+            self.cap *= 8
+            self._alloc()
+
+
+def _check_run(t_end: float, band: float) -> tuple[float, float]:
     t_end = check_real("t_end (s)", t_end, minimum=0.0, strict=True)
     band = check_real("band", band, minimum=0.0, strict=True, maximum=1.0)
-    return step, t_end, band
+    return t_end, band
 
 
 def _nan_to_none(x: float) -> float | None:
     return None if math.isnan(x) else float(x)
 
 
-def _metrics_from_row(out: np.ndarray, step: float, z0: float, band: float) -> StepMetrics:
+def _metrics_from_row(out: np.ndarray, norm: float, z0: float, band: float) -> StepMetrics | None:
     o = K.OUT
+    if norm == 0.0:
+        return None
     return StepMetrics(
         overshoot=float(out[o["overshoot"]]),
         peak_time=_nan_to_none(out[o["peak_time"]]),
         rise_time=_nan_to_none(out[o["rise_time"]]),
         settling_time=_nan_to_none(out[o["settling_time"]]),
         steady_state_error=float(out[o["final_error"]]),
-        peak=float(z0 + out[o["peak"]] * step),
+        peak=float(z0 + out[o["peak"]] * norm),
         band=band,
     )
 
@@ -95,28 +235,36 @@ def _horner(coef: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, repr=False, eq=False)
 class Response:
-    """The exact response of one loop to one step, as piecewise polynomials.
+    """The exact response of one loop, as piecewise polynomials.
 
-    Evaluate it anywhere with :meth:`altitude`, :meth:`velocity` and :meth:`command`, or on a grid with
-    :meth:`sample`.  ``metrics`` holds the exact step metrics.
+    Evaluate it anywhere with :meth:`output` (alias :meth:`altitude`), :meth:`velocity` and
+    :meth:`command`, or on a grid with :meth:`sample`.  ``metrics`` holds the exact step metrics, relative
+    to the reference's final value (``None`` for a ramp, or when the reference ends where it started).
     """
 
-    loop: AltitudeLoop
-    step: float
+    loop: Any
+    reference: Step | Ramp | Samples
+    disturbance: LoadStep | None
     z0: float
     t_end: float
-    metrics: StepMetrics
+    metrics: StepMetrics | None
     truncation: float
     starts: np.ndarray = field(repr=False)
     lengths: np.ndarray = field(repr=False)
     coeffs: np.ndarray = field(repr=False)
+    dcoeffs: np.ndarray = field(repr=False)
     u_starts: np.ndarray = field(repr=False)
     u_lengths: np.ndarray = field(repr=False)
     u_coeffs: np.ndarray = field(repr=False)
 
     @property
+    def step(self) -> float:
+        """The reference's final value relative to its start (the step size, for a step)."""
+        return self.reference.final_value(self.t_end)
+
+    @property
     def breakpoints(self) -> np.ndarray:
-        """Start times of the polynomial pieces of z (saturation switches, delay images, samples)."""
+        """Start times of the polynomial pieces of y (switches, delay images, samples, length caps)."""
         return self.starts.copy()
 
     def _locate(self, t: Any, starts: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -127,8 +275,8 @@ class Response:
         x = np.clip((t - starts[idx]) / lengths[idx], 0.0, 1.0)
         return t, idx, x
 
-    def altitude(self, t: Any) -> Any:
-        """Altitude z(t) in metres (z0 before the step; held at its last value after ``t_end``).
+    def output(self, t: Any) -> Any:
+        """The output z0 + y(t) (z0 before t = 0; held at its last value after ``t_end``).
 
         A float for a scalar ``t``, an array for an array.
         """
@@ -136,16 +284,16 @@ class Response:
         z = self.z0 + _horner(self.coeffs[idx], x)
         return _out(np.where(t < 0, self.z0, z))
 
+    altitude = output
+
     def velocity(self, t: Any) -> Any:
-        """Vertical speed z'(t) = u(t - Td), m/s (right-continuous at the neutral loop's jumps)."""
+        """The output's derivative y'(t) (right-continuous at a neutral loop's jumps; 0 outside the run)."""
         t, idx, x = self._locate(t, self.starts, self.lengths)
-        c = self.coeffs[idx]
-        d = c[..., 1:] * np.arange(1, c.shape[-1])
-        v = _horner(d, x) / self.lengths[idx]
+        v = _horner(self.dcoeffs[idx], x)
         return _out(np.where((t < 0) | (t > self.t_end), 0.0, v))
 
     def command(self, t: Any) -> Any:
-        """The commanded vertical speed u(t) (before the delay), m/s; 0 before the step."""
+        """The command u(t) (before the input delay); 0 before t = 0."""
         t, idx, x = self._locate(t, self.u_starts, self.u_lengths)
         u = _horner(self.u_coeffs[idx], x)
         return _out(np.where(t < 0, 0.0, u))
@@ -165,86 +313,65 @@ class Response:
             t = np.arange(0.0, self.t_end + 0.5 * dt, dt)
             t = t[t <= self.t_end + 1e-12]
         t = np.asarray(t, dtype=float)
-        return {
-            "t": t,
-            "z": self.altitude(t),
-            "z_ref": np.where(t >= 0, self.z0 + self.step, self.z0),
-            "u": self.command(t),
-        }
+        return {"t": t, "z": self.output(t), "z_ref": self.z0 + self.reference.value(t), "u": self.command(t)}
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready summary: the loop, the step and the metrics."""
+        """JSON-ready summary: the loop, the inputs and the metrics."""
+        m = self.metrics.to_dict() if self.metrics is not None else {}
         return {
             "loop": self.loop.to_dict(),
             "step": self.step,
+            "reference": self.reference.to_dict(),
+            "disturbance": self.disturbance.to_dict() if self.disturbance is not None else None,
             "z0": self.z0,
             "t_end": self.t_end,
-            **self.metrics.to_dict(),
+            **m,
             "pieces": int(self.starts.size),
             "truncation": self.truncation,
         }
 
     def __repr__(self) -> str:
-        return f"Response({self.loop!r}, step={self.step:g} m: {self.metrics!r})"
+        ref = (f"step={self.step:g}" if isinstance(self.reference, Step) else type(self.reference).__name__.lower())
+        return f"Response({self.loop!r}, {ref}: {self.metrics!r})"
 
 
-class _Workspace:
-    """Work arrays for the kernel, grown eightfold (up to ``_CAP_MAX`` pieces) when a run needs more pieces.
-
-    ``store`` keeps z's pieces (for a :class:`Response`); ``t`` are times at which to evaluate z.
-    """
-
-    def __init__(self, store: bool, t: np.ndarray = _NO_T) -> None:
-        self.store = store
-        self.t = t
-        self.cap = _CAP0
-        self._alloc()
-
-    def _alloc(self) -> None:
-        c = self.cap
-        zc = c if self.store else 1
-        self.u = (np.empty(c), np.empty(c), np.zeros((c, K.NC)), np.empty(c, dtype=np.int64))
-        self.z = (np.empty(zc), np.empty(zc), np.empty((zc, K.NC)))
-        self.out = np.empty(K.NOUT)
-        self.ez = np.empty(self.t.size)
-
-    def run(self, row: np.ndarray) -> int:
-        """Run the kernel on one parameter row; returns the number of z pieces."""
-        while True:
-            n = K.run_one(row, self.cap, *self.u, *self.z, self.out, self.store, self.t, self.ez)
-            if self.out[K.OUT["status"]] == 0:
-                return n
-            if self.cap >= _CAP_MAX:
-                raise InvalidValueError(
-                    f"the response needs more than {_CAP_MAX} polynomial pieces; shorten t_end "
-                    f"({row[K.PARAM['t_end']]:g} s)"
-                )
-            self.cap *= 8
-            self._alloc()
+def _inputs(reference: Any, step: Any, disturbance: LoadStep | None) -> tuple[Step | Ramp | Samples, LoadStep | None]:
+    ref = as_reference(step if reference is None else reference)
+    if disturbance is not None and not isinstance(disturbance, LoadStep):
+        raise InvalidTypeError(f"disturbance must be a LoadStep, got {type(disturbance).__name__}")
+    if isinstance(ref, Step) and ref.size == 0.0 and disturbance is None:
+        raise InvalidValueError("step must not be zero (metrics are relative to the step size)")
+    return ref, disturbance
 
 
 def simulate(
-    loop: AltitudeLoop,
+    loop: Any,
     step: float = 1.0,
     *,
     z0: float = 0.0,
     t_end: float = 15.0,
     band: float = 0.02,
+    reference: Step | Ramp | Samples | None = None,
+    disturbance: LoadStep | None = None,
 ) -> Response:
-    """Simulate the loop's response to a reference step of ``step`` metres at t = 0 from altitude ``z0``.
+    """Simulate a loop's response to a reference step (or ramp, or samples) and a load disturbance.
 
     Parameters
     ----------
-    loop : AltitudeLoop
+    loop : Loop or AltitudeLoop
         The loop.
     step : float
-        Step size in metres (either sign, not zero).
+        Step size (either sign; zero only with a disturbance), at t = 0 from the level ``z0``.
     z0 : float
-        Altitude before the step, metres.
+        The output's level before t = 0 (the response is ``z0 + y``).
     t_end : float
-        End of the simulation, seconds after the step.
+        End of the simulation (s).
     band : float
         Settling band as a fraction of the step.
+    reference : Step, Ramp or Samples, optional
+        Another reference instead of the step.
+    disturbance : LoadStep, optional
+        A step load disturbance at the plant's input.
 
     Returns
     -------
@@ -255,43 +382,40 @@ def simulate(
     >>> r = simulate(AltitudeLoop(kp=2.0, delay=0.37, kv=0.3, velocity="filtered"), step=-0.5, z0=1.5)
     >>> round(r.metrics.overshoot, 4)
     1.6579
+    >>> from delaykit.models import Controller, Loop
+    >>> pid = Loop("1/((s+1)*(0.5*s+1))", Controller.pid(1.5, 0.8, 0.2, 0.05), delay=0.2, umin=-2, umax=2)
+    >>> round(simulate(pid).metrics.settling_time, 3)
+    5.696
     """
-    if not isinstance(loop, AltitudeLoop):
-        from ..errors import InvalidTypeError
-
-        raise InvalidTypeError(f"loop must be an AltitudeLoop, got {type(loop).__name__}")
-    step, t_end, band = _check_run(step, t_end, band)
+    gen = as_loop(loop)
+    t_end, band = _check_run(t_end, band)
     z0 = check_real("z0", z0)
-    row = _row(loop, step, t_end, band)
+    ref, dist = _inputs(reference, step, disturbance)
+    lay = _layout(gen)
+    norm = 0.0 if isinstance(ref, Ramp) else ref.final_value(t_end)
+    knots = ref.knots()
+    row = _row(gen, lay, step=float(knots[1][0]), slope=0.0, norm=norm, t_end=t_end, band=band, dist=dist)
     ws = _Workspace(store=True)
-    n = ws.run(row)
+    n = ws.run(row, knots)
     out = ws.out
-    (tu0, thu, tuc, _), (tz0, th, tzc) = ws.u, ws.z
+    (tu0, thu, tuc, _, _), (ty0, tyh, tyc, tyd, _) = ws.u, ws.y
     nu = int(out[K.OUT["u_pieces"]])
     return Response(
-        loop=loop,
-        step=step,
-        z0=z0,
-        t_end=t_end,
-        metrics=_metrics_from_row(out, step, z0, band),
-        truncation=float(out[K.OUT["truncation"]]),
-        starts=tz0[:n].copy(),
-        lengths=th[:n].copy(),
-        coeffs=tzc[:n].copy(),
-        u_starts=tu0[:nu].copy(),
-        u_lengths=thu[:nu].copy(),
-        u_coeffs=tuc[:nu].copy(),
+        loop=loop, reference=ref, disturbance=dist, z0=z0, t_end=t_end,
+        metrics=_metrics_from_row(out, norm, z0, band), truncation=float(out[K.OUT["truncation"]]),
+        starts=ty0[:n].copy(), lengths=tyh[:n].copy(), coeffs=tyc[:n].copy(), dcoeffs=tyd[:n].copy(),
+        u_starts=tu0[:nu].copy(), u_lengths=thu[:nu].copy(), u_coeffs=tuc[:nu].copy(),
     )
 
 
-class AltitudeSampler:
+class Sampler:
     """Evaluates a loop's exact step response at given times, fast and repeatedly (for fitting).
 
     Holds the work arrays, so that thousands of calls (one per trial parameter set) allocate nothing.
 
     Examples
     --------
-    >>> s = AltitudeSampler(t=np.array([0.5, 1.0, 2.0]))
+    >>> s = Sampler(t=np.array([0.5, 1.0, 2.0]))
     >>> np.round(s(AltitudeLoop(kp=1.31, delay=0.368), step=1.0), 4).tolist()
     [0.132, 0.6315, 1.022]
     """
@@ -303,9 +427,12 @@ class AltitudeSampler:
         self.t_end = float(t_end if t_end is not None else (self.t[-1] if self.t.size else 1.0)) + 1e-9
         self._ws = _Workspace(store=False, t=self.t)
 
-    def __call__(self, loop: AltitudeLoop, step: float, z0: float = 0.0) -> np.ndarray:
-        """Altitude at the sample times (relative to the step at t = 0)."""
-        self._ws.run(_row(loop, step, max(self.t_end, 1e-6), 0.02))
+    def __call__(self, loop: Any, step: float, z0: float = 0.0) -> np.ndarray:
+        """The output at the sample times (relative to the step at t = 0)."""
+        gen = as_loop(loop)
+        row = _row(gen, _layout(gen), step=step, slope=0.0, norm=step, t_end=max(self.t_end, 1e-6), band=0.02,
+                   dist=None)
+        self._ws.run(row, (np.zeros(1), np.array([step]), np.zeros(1)))
         return z0 + self._ws.ez
 
 
@@ -315,18 +442,15 @@ class BatchMetrics:
 
     Attributes
     ----------
-    kp, delay, kv, step : ndarray
-        The loops, broadcast to a common shape.
+    params : dict of str to ndarray
+        The swept parameters, broadcast to a common shape.
     overshoot, peak_time, rise_time, settling_time, steady_state_error : ndarray
-        As in :class:`~delaykit.simulate.metrics.StepMetrics`, in percent, seconds and metres.
+        As in :class:`~delaykit.simulate.metrics.StepMetrics`, in percent, seconds and output units.
     truncation : float
         The largest discarded Taylor coefficient over all loops (relative to the step).
     """
 
-    kp: np.ndarray
-    delay: np.ndarray
-    kv: np.ndarray
-    step: np.ndarray
+    params: dict[str, np.ndarray]
     overshoot: np.ndarray
     peak_time: np.ndarray
     rise_time: np.ndarray
@@ -334,13 +458,21 @@ class BatchMetrics:
     steady_state_error: np.ndarray
     truncation: float
 
+    def __getattr__(self, name: str) -> np.ndarray:
+        params = self.__dict__.get("params", {})
+        if name in params:
+            return params[name]
+        raise AttributeError(name)
+
     def __len__(self) -> int:
         return int(self.overshoot.size)
 
     def row(self, i: int) -> dict[str, Any]:
-        """One loop's inputs and metrics as a JSON-ready dict."""
-        keys = ("kp", "delay", "kv", "step", "overshoot", "peak_time", "rise_time", "settling_time", "steady_state_error")
-        return {k: _nan_to_none(float(getattr(self, k).flat[i])) for k in keys}
+        """One loop's swept parameters and metrics as a JSON-ready dict."""
+        keys = ("overshoot", "peak_time", "rise_time", "settling_time", "steady_state_error")
+        d = {k: _nan_to_none(float(v.flat[i])) for k, v in self.params.items()}
+        d.update({k: _nan_to_none(float(getattr(self, k).flat[i])) for k in keys})
+        return d
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form: a list of rows."""
@@ -354,50 +486,41 @@ class BatchMetrics:
         )
 
 
-def _check_array(name: str, value: Any, minimum: float | None, strict: bool = False, allow_inf: bool = False) -> np.ndarray:
+def _check_array(name: str, value: Any, minimum: float | None = None, strict: bool = False,
+                 maximum: float | None = None, allow_inf: bool = False) -> np.ndarray:
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
-        from ..errors import InvalidTypeError
-
         raise InvalidTypeError(f"{name} must be numbers, got {value!r}") from exc
-    bad = ~np.isfinite(arr) if not allow_inf else (np.isnan(arr) | (arr == -np.inf))
+    bad = np.isnan(arr) if allow_inf else ~np.isfinite(arr)
     if minimum is not None:
         bad |= (arr <= minimum) if strict else (arr < minimum)
+    if maximum is not None:
+        bad |= arr > maximum
     if np.any(bad):
         i = np.flatnonzero(bad.ravel())[0]
-        rel = ">" if strict else ">="
-        lim = f" and {rel} {minimum:g}" if minimum is not None else ""
+        lim = ""
+        if minimum is not None:
+            lim += f" and {'>' if strict else '>='} {minimum:g}"
+        if maximum is not None:
+            lim += f" and <= {maximum:g}"
         where = f"{name}[{i}]" if arr.ndim else name
-        raise InvalidValueError(f"{where} must be finite{lim}, got {arr.ravel()[i]:g}")
+        raise InvalidValueError(f"{where} must be {'a number' if allow_inf else 'finite'}{lim}, got {arr.ravel()[i]:g}")
     return arr
 
 
-def simulate_many(
-    kp: Any,
-    delay: Any,
-    kv: Any = 0.0,
-    step: Any = 1.0,
-    *,
-    vmax: Any = 1.0,
-    velocity: str = "true",
-    filter_wn: float = 38.0,
-    filter_zeta: float = 1.0,
-    period: float | None = None,
-    sample_offset: Any = 0.0,
-    t_end: float = 15.0,
-    band: float = 0.02,
-    gain: float = 1.0,
-    lag: float = 0.0,
-) -> BatchMetrics:
-    """Exact step metrics of many loops at once (arrays broadcast together), on all cores.
+def simulate_many(loop: Any, *, t_end: float = 15.0, band: float = 0.02, **sweep: Any) -> BatchMetrics:
+    """Exact step metrics of many variants of one loop at once (arrays broadcast together), on all cores.
 
     Parameters
     ----------
-    kp, delay, kv, step, vmax, sample_offset : array_like
-        Broadcast against each other; ``vmax`` may be ``inf`` or ``None`` for no saturation.
-    velocity, filter_wn, filter_zeta, period, t_end, band, gain, lag
-        As in :class:`~delaykit.models.altitude.AltitudeLoop` and :func:`simulate`, shared by all loops.
+    loop : Loop or AltitudeLoop
+        The loop whose parameters are swept (its values are used for the parameters not swept).
+    t_end, band : float
+        As in :func:`simulate`, shared by all loops.
+    **sweep : array_like
+        Any of ``kp, ki, kd, kv`` (the controller's gains, as the controller uses them), ``delay,
+        output_delay, umin, umax`` (or ``vmax`` for both), ``step`` (default 1) and ``sample_offset``.
 
     Returns
     -------
@@ -408,59 +531,139 @@ def simulate_many(
     Table 1 of the paper in one call:
 
     >>> import numpy as np
-    >>> m = simulate_many(kp=1.31, delay=np.array([4.0, 5.0, 5.6]) * 0.065)
+    >>> m = simulate_many(AltitudeLoop(kp=1.31, delay=0.3), delay=np.array([4.0, 5.0, 5.6]) * 0.065)
     >>> np.round(m.overshoot, 3).tolist()
     [0.0, 0.398, 2.038]
     """
-    kp_a = _check_array("kp", kp, 0.0)
-    td_a = _check_array("delay", delay, 0.0)
-    kv_a = _check_array("kv", kv, 0.0)
-    st_a = _check_array("step", step, None)
-    if np.any(st_a == 0):
+    if isinstance(loop, AltitudeLoop) and "kv" in sweep and loop.kv == 0.0:
+        loop = loop.replace(kv=1.0)  # the PV structure, swept from Kv = 0 (where it is the P loop)
+    gen = as_loop(loop)
+    t_end, band = _check_run(t_end, band)
+    unknown = sorted(set(sweep) - set(SWEEPABLE))
+    if unknown:
+        raise InvalidValueError(f"simulate_many cannot sweep {', '.join(unknown)}; it sweeps {', '.join(SWEEPABLE)}")
+    c = gen.controller
+    for g in ("ki", "kd", "kv"):
+        if g in sweep and g not in {"pv": ("kv",), "pi": ("ki",), "pd": ("kd",), "pid": ("ki", "kd")}.get(c.kind, ()):
+            raise InvalidValueError(f"a {c.kind} controller has no {g} to sweep")
+    if c.kind == "tf" and "kp" in sweep:
+        raise InvalidValueError("a tf controller has no kp to sweep")
+    if "vmax" in sweep and ("umin" in sweep or "umax" in sweep):
+        raise InvalidValueError("sweep vmax or umin/umax, not both")
+    arrays: dict[str, np.ndarray] = {}
+    for name, v in sweep.items():
+        if name in ("kp", "ki", "kd", "kv", "step"):
+            arrays[name] = _check_array(name, v)
+        elif name in ("delay", "output_delay", "sample_offset"):
+            arrays[name] = _check_array(name, v, minimum=0.0)
+        elif name == "vmax":
+            arrays[name] = _check_array(name, np.inf if v is None else v, minimum=0.0, strict=True, allow_inf=True)
+        elif name == "umin":
+            arrays[name] = _check_array(name, v, maximum=0.0, allow_inf=True)
+        else:
+            arrays[name] = _check_array(name, v, minimum=0.0, allow_inf=True)
+    if "step" not in arrays:
+        arrays["step"] = np.asarray(1.0)
+    if np.any(arrays["step"] == 0):
         raise InvalidValueError("step must not be zero (metrics are relative to the step size)")
-    vm_a = _check_array("vmax", np.inf if vmax is None else vmax, 0.0, strict=True, allow_inf=True)
-    off_a = _check_array("sample_offset", sample_offset, 0.0)
-    if velocity not in VELOCITY_CHOICES:
-        raise InvalidValueError(f"velocity must be one of {', '.join(VELOCITY_CHOICES)}; got {velocity!r}")
-    proto = AltitudeLoop(kp=1.0, delay=0.0, kv=1.0, velocity=velocity, filter_wn=filter_wn,
-                         filter_zeta=filter_zeta, period=period, gain=gain, lag=lag)
-    _, t_end, band = _check_run(1.0, t_end, band)
     try:
-        shapes = np.broadcast(kp_a, td_a, kv_a, st_a, vm_a, off_a)
+        shape = np.broadcast_shapes(*(a.shape for a in arrays.values()))
     except ValueError as exc:
-        raise InvalidValueError(f"kp, delay, kv, step, vmax and sample_offset do not broadcast together: {exc}") from exc
-    kp_b, td_b, kv_b, st_b, vm_b, off_b = (np.broadcast_to(a, shapes.shape).ravel() for a in (kp_a, td_a, kv_a, st_a, vm_a, off_a))
-    if period is not None and np.any(off_b >= period):
-        i = int(np.flatnonzero(off_b >= period)[0])
-        raise InvalidValueError(f"sample_offset[{i}] must be less than the period {period:g} s, got {off_b[i]:g}")
-    m = kp_b.size
-    pars = np.empty((m, K.NPAR))
-    P = K.PARAM
-    pars[:, P["kp"]] = kp_b
-    pars[:, P["kv"]] = kv_b
-    pars[:, P["td"]] = td_b
-    pars[:, P["vmax"]] = vm_b
-    pars[:, P["filtered"]] = 1.0 if proto.velocity == "filtered" else 0.0
-    pars[:, P["filtered"]] *= kv_b > 0
-    pars[:, P["wf"]] = proto.filter_wn
-    pars[:, P["zf"]] = proto.filter_zeta
-    pars[:, P["period"]] = proto.period or 0.0
-    pars[:, P["offset"]] = off_b
-    pars[:, P["step"]] = st_b
-    pars[:, P["t_end"]] = t_end
-    pars[:, P["band"]] = band
-    pars[:, P["gain"]] = proto.gain
-    pars[:, P["lag"]] = proto.lag
+        raise InvalidValueError(f"{', '.join(arrays)} do not broadcast together: {exc}") from None
+    flat = {k: np.broadcast_to(a, shape).ravel() for k, a in arrays.items()}
+    m = int(np.prod(shape))
+    if c.filtered and "kv" in flat and np.any(flat["kv"] == 0):
+        # a filtered PV law with Kv = 0 is the P law: those loops get the P structure (no filter states)
+        zero = flat["kv"] == 0
+        pars = np.empty((m, K.NPAR))
+        for mask, base in ((zero, gen.replace(kv=0.0)), (~zero, gen)):
+            if np.any(mask):
+                sub = {k: v[mask] for k, v in flat.items() if not (k == "kv" and base.controller.kind == "p")}
+                pars[mask] = _sweep_rows(base, int(mask.sum()), sub, t_end, band)
+    else:
+        pars = _sweep_rows(gen, m, flat, t_end, band)
     out = _batch(pars)
     o = K.OUT
-    shape = shapes.shape
     col = lambda name: out[:, o[name]].reshape(shape)  # noqa: E731
+    params = {k: np.broadcast_to(a, shape).copy() for k, a in arrays.items()}
     return BatchMetrics(
-        kp=kp_b.reshape(shape), delay=td_b.reshape(shape), kv=kv_b.reshape(shape), step=st_b.reshape(shape),
-        overshoot=col("overshoot"), peak_time=col("peak_time"), rise_time=col("rise_time"),
+        params=params, overshoot=col("overshoot"), peak_time=col("peak_time"), rise_time=col("rise_time"),
         settling_time=col("settling_time"), steady_state_error=col("final_error"),
         truncation=float(np.max(out[:, o["truncation"]])) if m else 0.0,
     )
+
+
+def _sweep_rows(gen: Loop, m: int, flat: dict[str, np.ndarray], t_end: float, band: float) -> np.ndarray:
+    """Parameter rows of ``m`` variants of a loop: its row, with the swept columns written over."""
+    lay = _layout(gen)
+    row0 = _row(gen, lay, step=1.0, slope=0.0, norm=1.0, t_end=t_end, band=band, dist=None)
+    pars = np.repeat(row0[None, :], m, axis=0)
+    H = K.HEAD
+    if any(name in flat for name in ("kp", "ki", "kd", "kv")):
+        g = {name: flat.get(name, np.full(m, getattr(gen.controller, name))) for name in ("kp", "ki", "kd", "kv")}
+        _gain_columns(gen, lay, pars, g)
+    for name, col in (("delay", "ti"), ("output_delay", "to"), ("umin", "umin"), ("umax", "umax"),
+                      ("sample_offset", "offset")):
+        if name in flat:
+            pars[:, H[col]] = flat[name]
+    if "vmax" in flat:
+        pars[:, H["umin"]] = -flat["vmax"]
+        pars[:, H["umax"]] = flat["vmax"]
+    if np.any(pars[:, H["umin"]] >= pars[:, H["umax"]]):
+        i = int(np.flatnonzero(pars[:, H["umin"]] >= pars[:, H["umax"]])[0])
+        raise InvalidValueError(f"umin must be below umax; loop {i} has umin={pars[i, H['umin']]:g}, "
+                                f"umax={pars[i, H['umax']]:g}")
+    per = gen.period
+    off = pars[:, H["offset"]]
+    if per is None and np.any(off != 0):
+        raise InvalidValueError("sample_offset needs a sampled loop (period set)")
+    if per is not None and np.any(off >= per):
+        i = int(np.flatnonzero(off >= per)[0])
+        raise InvalidValueError(f"sample_offset[{i}] must be less than the period {per:g} s, got {off[i]:g}")
+    st = flat["step"]
+    pars[:, H["step"]] = st
+    pars[:, H["norm"]] = st
+    pars[:, H["scale"]] = np.maximum(1.0, np.maximum(np.abs(pars[:, H["dvr"]] * st), np.abs(st)))
+    if not gen.sampled:
+        for i in np.flatnonzero((pars[:, H["ti"]] + pars[:, H["to"]]) == 0):
+            cv = pars[i, K.OFF_CV:K.OFF_CV + lay.M.shape[0]]
+            rate = _rate(lay, pars[i, H["dvr"]], pars[i, H["dvy"]], pars[i, H["dvv"]], cv, True)
+            pars[i, H["hmax"]] = 1.0 / max(rate, 1e-9)
+    return pars
+
+
+def _gain_columns(loop: Loop, lay: _Layout, pars: np.ndarray, g: dict[str, np.ndarray]) -> None:
+    """Write the controller's gain-dependent entries of many rows (the structure is the loop's)."""
+    c = loop.controller
+    H = K.HEAD
+    kp, ki, kd, kv = g["kp"], g["ki"], g["kd"], g["kv"]
+    npl = lay.npl
+    pars[:, H["dvr"]] = kp
+    if c.kind == "p" or (c.kind == "pv" and c.velocity == "true"):
+        pars[:, H["dvy"]] = -kp
+        pars[:, H["dvv"]] = -kv if c.kind == "pv" else 0.0
+    elif c.kind == "pv":
+        w = c.filter_wn
+        pars[:, H["dvy"]] = -kp
+        pars[:, K.OFF_CV + npl + 1] = -kv * w * w
+    elif c.kind == "pi":
+        pars[:, H["dvy"]] = -kp
+        pars[:, K.OFF_CV + npl] = ki
+    else:
+        tf = c.derivative_filter
+        pars[:, H["dvy"]] = -kp - kd / tf
+        if c.kind == "pd":
+            pars[:, K.OFF_CV + npl] = kd / tf
+        else:
+            pars[:, K.OFF_CV + npl] = ki
+            pars[:, K.OFF_CV + npl + 1] = kd / tf
+    if c.antiwindup == "backcalc":
+        if np.any(ki == 0):
+            raise InvalidValueError("back-calculation anti-windup needs ki != 0 in every swept loop")
+        tt = np.array([c.replace(kp=a, ki=b, kd=d).default_tracking_time() for a, b, d in zip(kp, ki, kd)])
+        pars[:, K.OFF_BAW + npl] = 1.0 / (ki * tt)
+    rate0 = float(np.max(np.abs(np.linalg.eigvals(lay.M)))) if lay.M.size else 0.0
+    pars[:, H["hmax"]] = 1.0 / np.maximum(np.maximum(rate0, np.abs(pars[:, H["dvy"]] * lay.dyd)), 1e-9)
 
 
 def _batch(pars: np.ndarray) -> np.ndarray:
@@ -471,9 +674,9 @@ def _batch(pars: np.ndarray) -> np.ndarray:
         return np.empty((0, K.NOUT))
     nchunks = max(1, min(m, 8 * numba.get_num_threads()))
     out = K.run_batch(pars, _CAP0, nchunks)
-    redo = np.flatnonzero(out[:, K.OUT["status"]] != 0)
+    redo = np.flatnonzero(out[:, K.OUT["status"]] != K.STATUS_OK)
     for i in redo:
         ws = _Workspace(store=False)
-        ws.run(pars[i])
+        ws.run(pars[i], (np.zeros(1), np.array([pars[i, K.HEAD["step"]]]), np.zeros(1)))
         out[i] = ws.out
     return out
