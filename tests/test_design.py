@@ -18,7 +18,7 @@ from delaykit.spectrum.stability import rightmost
 
 
 def test_design_sweep_rows_agree_with_roots_and_simulation():
-    d = design_sweep(0.37, 2.0, [0.0, 0.3, 0.7])
+    d = design_sweep(AltitudeLoop(kp=1.0, delay=0.37), 2.0, [0.0, 0.3, 0.7])
     for r in d.rows:
         loop = AltitudeLoop(kp=2.0, delay=0.37, kv=r.kv)
         assert r.abscissa == rightmost(loop).abscissa
@@ -27,14 +27,14 @@ def test_design_sweep_rows_agree_with_roots_and_simulation():
 
 
 def test_design_criteria_and_no_candidate():
-    d = design_sweep(0.37, 2.0, "0:0.7:8", criterion="settling")
+    d = design_sweep(AltitudeLoop(kp=1.0, delay=0.37), 2.0, "0:0.7:8", criterion="settling")
     settled = [r for r in d.rows if r.stable and r.settling_time is not None]
     assert d.best.settling_time == min(r.settling_time for r in settled)
-    d2 = design_sweep(0.37, 2.0, "0:0.2:3", criterion="overshoot", overshoot_limit=3.0)  # Mo 12.2, 7.5, 2.9 %
+    d2 = design_sweep(AltitudeLoop(kp=1.0, delay=0.37), 2.0, "0:0.2:3", criterion="overshoot", overshoot_limit=3.0)  # Mo 12.2, 7.5, 2.9 %
     assert d2.best is not None and d2.best.kv == 0.2 and d2.best.overshoot <= 3.0
-    none = design_sweep(0.37, 2.0, [0.0, 0.1], criterion="overshoot", overshoot_limit=0.5)
+    none = design_sweep(AltitudeLoop(kp=1.0, delay=0.37), 2.0, [0.0, 0.1], criterion="overshoot", overshoot_limit=0.5)
     assert none.best is None and "no candidate meets" in none.reason
-    unstable = design_sweep(1.0, 3.0, [0.0], criterion="abscissa")
+    unstable = design_sweep(AltitudeLoop(kp=1.0, delay=1.0), 3.0, [0.0], criterion="abscissa")
     assert unstable.best is None and "no candidate is stable" in unstable.reason
     assert json.loads(json.dumps(d.to_dict()))["best"]["kv"] == d.best.kv
 
@@ -44,25 +44,25 @@ def test_bad_ranges(spec, fragment):
     with pytest.raises(InvalidValueError, match=fragment):
         parse_range(spec, "kv")
     with pytest.raises(InvalidValueError, match="criterion"):
-        design_sweep(0.37, 2.0, [0.3], criterion="fastest")
+        design_sweep(AltitudeLoop(kp=1.0, delay=0.37), 2.0, [0.3], criterion="fastest")
 
 
 def test_gain_search_pool_equals_serial_and_is_robust():
-    args = ([0.30, 0.37, 0.44], [1.0, 1.5, 2.0, 2.5], [0.0, 0.2, 0.4])
+    args = (AltitudeLoop(kp=1.0, delay=0.3), [0.30, 0.37, 0.44], [1.0, 1.5, 2.0, 2.5], [0.0, 0.2, 0.4])
     serial = gain_search(*args, workers=1)
     pooled = gain_search(*args, workers=2)
     assert np.array_equal(serial.abscissa, pooled.abscissa)
     assert np.array_equal(np.nan_to_num(serial.settling), np.nan_to_num(pooled.settling))
     # worst case over the delays: each cell's abscissa is the largest of the three single-delay ones
     kp, kv = serial.best
-    single = [rightmost(AltitudeLoop(kp=kp, delay=d, kv=kv)).abscissa for d in args[0]]
-    j, i = list(args[1]).index(kp), list(args[2]).index(kv)
+    single = [rightmost(AltitudeLoop(kp=kp, delay=d, kv=kv)).abscissa for d in args[1]]
+    j, i = list(args[2]).index(kp), list(args[3]).index(kv)
     assert serial.abscissa[i, j] == max(single)
 
 
 def test_gain_search_on_a_local_dask_cluster_gives_the_same_results():
     distributed = pytest.importorskip("distributed")
-    args = ([0.33, 0.41], [1.0, 2.0], [0.0, 0.3])
+    args = (AltitudeLoop(kp=1.0, delay=0.3), [0.33, 0.41], [1.0, 2.0], [0.0, 0.3])
     serial = gain_search(*args, workers=1)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
                                   host="127.0.0.1") as cluster:
@@ -71,6 +71,32 @@ def test_gain_search_on_a_local_dask_cluster_gives_the_same_results():
             by_address = gain_search(*args, scheduler=cluster.scheduler_address)
     assert np.array_equal(serial.abscissa, via_dask.abscissa) and np.array_equal(serial.abscissa, by_address.abscissa)
     assert serial.best == via_dask.best
+
+
+def test_gain_search_keeps_the_loops_lag_and_gain():
+    """The searched loop's plant (speed gain and lag) is used, not the paper's ideal integrator: each cell is the
+    worst case over the delays of the loop with those gains, checked against rightmost() directly."""
+    base = AltitudeLoop(kp=1.0, delay=0.3, gain=0.7, lag=0.12)
+    g = gain_search(base, [0.3, 0.4], [1.5, 2.5], [0.0, 0.3], workers=1)
+    ideal = gain_search(AltitudeLoop(kp=1.0, delay=0.3), [0.3, 0.4], [1.5, 2.5], [0.0, 0.3], workers=1)
+    for i, kv in enumerate([0.0, 0.3]):
+        for j, kp in enumerate([1.5, 2.5]):
+            want = max(rightmost(base.replace(kp=kp, kv=kv, delay=d)).abscissa for d in (0.3, 0.4))
+            assert g.abscissa[i, j] == want
+    assert not np.array_equal(g.abscissa, ideal.abscissa)
+
+
+def test_design_sweep_on_a_general_loop():
+    """A general P loop becomes PV when Kv is swept; rows agree with the same loops built by hand."""
+    from delaykit import Controller, Loop
+
+    loop = Loop("1/(s*(0.1*s+1))", Controller.p(1.0), delay=0.3, umin=-1, umax=3)
+    d = design_sweep(loop, [1.0, 1.5], [0.0, 0.2], step=-1.0, t_end=12.0)
+    for r in d.rows:
+        ctrl = Controller.pv(r.kp, r.kv) if r.kv else Controller.p(r.kp)
+        by_hand = loop.replace(controller=ctrl)
+        assert r.abscissa == rightmost(by_hand).abscissa
+        assert r.overshoot == simulate(by_hand, -1.0, t_end=12.0).metrics.overshoot
 
 
 def test_filter_analysis_closed_forms():

@@ -14,14 +14,12 @@ import sys
 from pathlib import Path
 from typing import Any, Callable, Optional
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.table import Table
 
 from ..errors import DelaykitError, InvalidValueError, check_real
-from ..models.altitude import PAPER_PERIOD, AltitudeLoop
-from ..paper.data import TABLE1, table1_overshoot
+from .loopopts import with_loop
 
 __all__ = ["app", "main", "parse_delays"]
 
@@ -63,6 +61,9 @@ def parse_delays(spec: str) -> list[float]:
 
     spec = spec.strip()
     if spec.lower() == "table1":
+        from ..models.altitude import PAPER_PERIOD
+        from ..paper.data import TABLE1
+
         return [k * PAPER_PERIOD for k, _, _ in TABLE1]
     try:
         return parse_range(spec, "--delay")
@@ -88,40 +89,50 @@ def _fmt(x: Optional[float], digits: int = 4) -> str:
 
 @app.command()
 @_friendly
+@with_loop
 def simulate(
-    kp: float = typer.Option(..., "--kp", help="Proportional gain Kp (1/s)."),
-    delay: str = typer.Option(..., "--delay", help="Delay Td in s; or START:STOP:N, a comma list, or 'table1'."),
-    kv: float = typer.Option(0.0, "--kv", help="Velocity gain Kv (0 = P control)."),
-    step: float = typer.Option(1.0, "--step", help="Reference step, m (either sign)."),
-    z0: float = typer.Option(0.0, "--z0", help="Altitude before the step, m."),
-    vmax: str = typer.Option("1.0", "--vmax", help="Command saturation, m/s, or 'none'."),
-    velocity: str = typer.Option("true", "--velocity", help="Velocity for the Kv term: true | filtered."),
-    filter_wn: float = typer.Option(38.0, "--filter-wn", help="Derivative filter natural frequency, rad/s."),
-    filter_zeta: float = typer.Option(1.0, "--filter-zeta", help="Derivative filter damping ratio."),
-    period: Optional[str] = typer.Option(None, "--period", help="Controller period, s (default: continuous)."),
-    sample_offset: float = typer.Option(0.0, "--sample-offset", help="First sample time after the step, s."),
+    step: float = typer.Option(1.0, "--step", help="Reference step (either sign), from the level --z0."),
+    z0: float = typer.Option(0.0, "--z0", help="Output level before the step (altitude, m)."),
+    ramp: Optional[float] = typer.Option(None, "--ramp", help="A ramp reference of this slope (per s) instead of the step."),
+    reference_csv: Optional[Path] = typer.Option(None, "--reference", help="A reference given as samples: CSV with columns t, r."),
+    hold: str = typer.Option("linear", "--hold", help="Between --reference samples: linear | hold."),
+    disturbance: Optional[float] = typer.Option(None, "--disturbance", help="A step load disturbance at the plant input, of this size."),
+    disturbance_time: float = typer.Option(0.0, "--disturbance-time", help="When the load disturbance starts, s."),
     t_end: float = typer.Option(15.0, "--t-end", help="Simulated time after the step, s."),
     band: float = typer.Option(0.02, "--band", help="Settling band, fraction of the step."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Write a figure of the response(s) here."),
     csv_path: Optional[Path] = typer.Option(None, "--csv", help="Write t, z, z_ref, u samples here."),
     dt: float = typer.Option(0.01, "--dt", help="Sample interval of --csv, s."),
+    loop: Any = None,
+    delays: Any = None,
 ) -> None:
-    """Simulate the altitude loop's step response exactly and print its metrics.
+    """Simulate a delayed loop exactly and print its step metrics.
 
-    With a sweep of delays it prints one row per delay; for the delays of the paper's Table 1
-    (--delay table1, with --kp 1.31) the paper's overshoot is shown beside delaykit's.
+    Any loop: --plant (a transfer function in s), --controller (p, pv, pi, pd, pid or a transfer function),
+    the delays, the limits and the sampling, or --loop FILE.toml.  Without --plant it is the paper's loop
+    (the integrator 1/s, limits +-1).  With a sweep of delays it prints one row per delay; for the delays of
+    the paper's Table 1 (--delay table1 --kp 1.31) the paper's overshoot is shown beside delaykit's.
     """
+    from ..models.altitude import AltitudeLoop
+    from ..models.signals import LoadStep, Ramp, Step
+    from ..paper.data import paper_loop, table1_overshoot
     from ..simulate.simulation import simulate as sim
 
-    delays = parse_delays(delay)
-    base = AltitudeLoop(kp=kp, delay=delays[0], kv=kv, vmax=_optional_float("--vmax", vmax), velocity=velocity,
-                        filter_wn=filter_wn, filter_zeta=filter_zeta, period=_optional_float("--period", period),
-                        sample_offset=sample_offset)
     check_real("--dt", dt, minimum=0.0, strict=True)
+    ref: Any = Step(step)
+    if ramp is not None and reference_csv is not None:
+        raise InvalidValueError("give --ramp or --reference, not both")
+    if ramp is not None:
+        ref = Ramp(slope=ramp, size=0.0)
+    elif reference_csv is not None:
+        ref = _read_reference(reference_csv, hold)
+    dist = LoadStep(disturbance, disturbance_time) if disturbance is not None else None
     with err.status("simulating (the first run compiles the solver, a few seconds)…"):
-        responses = [sim(base.replace(delay=d), step, z0=z0, t_end=t_end, band=band) for d in delays]
-    paper_cfg = kp == 1.31 and kv == 0 and base.vmax == 1.0 and not base.sampled and step == 1.0
+        responses = [sim(loop.replace(delay=d), step, z0=z0, t_end=t_end, band=band, reference=ref,
+                         disturbance=dist) for d in delays]
+    paper_cfg = isinstance(loop, AltitudeLoop) and isinstance(ref, Step) and step == 1.0 and dist is None \
+        and loop == paper_loop(loop.delay)
     rows = []
     for r in responses:
         row = {"delay": r.loop.delay, **r.to_dict()}
@@ -140,11 +151,11 @@ def simulate(
     if plot is not None:
         from ..plotting.figures import plot_responses
 
-        plot_responses(responses, plot, title=repr(base.replace(delay=delays[0])) if len(delays) == 1 else None)
+        plot_responses(responses, plot, title=repr(loop) if len(delays) == 1 else None)
     if as_json:
         print(json.dumps(rows[0] if len(rows) == 1 else rows, indent=2))
         return
-    title = repr(base) if len(delays) == 1 else repr(base).replace(f"delay={base.delay:.4g} s, ", "")
+    title = repr(loop) if len(delays) == 1 else repr(loop).replace(f"delay={loop.delay:.4g} s, ", "")
     table = Table(title=title)
     table.add_column("Td s", justify="right")
     table.add_column("Mo %", justify="right")
@@ -154,6 +165,10 @@ def simulate(
     for col in ("peak s", "rise s", "settle s"):
         table.add_column(col, justify="right")
     for r in rows:
+        if "overshoot" not in r:
+            table.add_row(f"{r['delay']:.5f}", "–", *(["–", "–"] if any("paper_overshoot" in x for x in rows) else []),
+                          "–", "–", "–")
+            continue
         cells = [f"{r['delay']:.5f}", _fmt(r["overshoot"])]
         if any("paper_overshoot" in x for x in rows):
             p = r.get("paper_overshoot")
@@ -162,6 +177,27 @@ def simulate(
                   _fmt(r["settling_time"]) if r["settled"] else "never"]
         table.add_row(*cells)
     out.print(table)
+
+
+def _read_reference(path: Path, hold: str) -> Any:
+    """A reference from a CSV file with columns t and r (a header row naming them)."""
+    from ..models.signals import Samples
+
+    try:
+        text = Path(path).read_bytes().decode("utf-8-sig")
+    except OSError as exc:
+        raise InvalidValueError(f"cannot read the reference file {str(path)!r}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise InvalidValueError(f"the reference file {str(path)!r} is not UTF-8 text") from None
+    rows = list(csv.reader(text.splitlines()))
+    if not rows or [c.strip() for c in rows[0][:2]] != ["t", "r"]:
+        raise InvalidValueError(f"the reference file {str(path)!r} must start with a header row 't,r'")
+    try:
+        t = [float(r[0]) for r in rows[1:] if r]
+        v = [float(r[1]) for r in rows[1:] if r]
+    except (ValueError, IndexError):
+        raise InvalidValueError(f"the reference file {str(path)!r} has a row that is not two numbers") from None
+    return Samples(t, v, hold=hold)
 
 
 @app.command()
@@ -213,38 +249,47 @@ def reproduce(
 
 @app.command()
 @_friendly
+@with_loop(omit=("kp", "kv"))
 def design(
-    delay: float = typer.Option(..., "--delay", help="The loop delay to design for, s."),
     kp: str = typer.Option("2.0", "--kp", help="Kp: a value, a comma list or START:STOP:N."),
     kv: str = typer.Option("0:0.7:8", "--kv", help="Kv: a value, a comma list or START:STOP:N."),
-    velocity: str = typer.Option("true", "--velocity", help="true | filtered."),
-    filter_wn: float = typer.Option(38.0, "--filter-wn", help="Derivative filter natural frequency, rad/s."),
-    filter_zeta: float = typer.Option(1.0, "--filter-zeta", help="Derivative filter damping ratio."),
-    vmax: str = typer.Option("1.0", "--vmax", help="Command saturation, m/s, or 'none'."),
-    period: Optional[str] = typer.Option(None, "--period", help="Controller period, s (default: continuous)."),
-    step: float = typer.Option(1.0, "--step", help="Step size for the simulated metrics, m."),
-    criterion: str = typer.Option("abscissa", "--criterion", help="abscissa | settling | overshoot."),
+    step: float = typer.Option(1.0, "--step", help="Step size for the simulated metrics."),
+    criterion: str = typer.Option("abscissa", "--criterion", help="abscissa | settling | overshoot (overshoot: not with --delays)."),
     overshoot_limit: float = typer.Option(5.0, "--overshoot-limit", help="Overshoot limit for --criterion overshoot, %."),
-    delays: Optional[str] = typer.Option(None, "--delays", help="A delay range for a robust 2-D search (START:STOP:N)."),
+    delays_range: Optional[str] = typer.Option(None, "--delays", help="A delay range for a robust 2-D search (START:STOP:N)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address for large searches."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Responses (sweep) or the gain maps (with --delays)."),
+    loop_options: Any = None,
 ) -> None:
-    """Candidate PV gains: rightmost root, abscissa, stability and step metrics, and the best by a criterion."""
+    """Candidate P/PV gains for a loop: rightmost root, abscissa, stability and step metrics, and the best.
+
+    The loop (plant, delay, limits, velocity filter, period) comes from the loop options or --loop; --kp and
+    --kv are the candidates.
+    """
     from rich.progress import Progress
 
     from ..design import tuning as D
+    from .loopopts import build_loop
 
-    vm = _optional_float("--vmax", vmax)
-    per = _optional_float("--period", period)
-    check_real("--delay", delay, minimum=0.0)
-    common = dict(velocity=velocity, filter_wn=filter_wn, filter_zeta=filter_zeta, vmax=vm, period=per, step=step)
-    if delays is not None:
-        dl = D.parse_range(delays, "--delays")
+    kps = D.parse_range(kp, "--kp")
+    kvs = D.parse_range(kv, "--kv")
+    opts = dict(loop_options)
+    if opts.get("delay") is None and delays_range is not None and opts.get("loop_file") is None:
+        opts["delay"] = str(D.parse_range(delays_range, "--delays")[0])
+    if opts.get("loop_file") is None:
+        opts["kp"] = kps[0]
+        opts["kv"] = kvs[0] or None
+    base, _ = build_loop(opts, parse_delays)
+    if delays_range is not None:
+        if criterion not in ("abscissa", "settling"):
+            raise InvalidValueError(f"--criterion {criterion} is not available with --delays (the robust search "
+                                    "ranks by the worst case over the delays): use settling or abscissa")
+        dl = D.parse_range(delays_range, "--delays")
         with Progress(console=err, transient=True) as bar:
             task = bar.add_task("gain search", total=None)
-            gm = D.gain_search(dl, kp, kv, criterion="abscissa" if criterion == "abscissa" else "settling",
-                               scheduler=scheduler, progress=lambda k, n: bar.update(task, completed=k, total=n), **common)
+            gm = D.gain_search(base, dl, kps, kvs, criterion=criterion, step=step, scheduler=scheduler,
+                               progress=lambda k, n: bar.update(task, completed=k, total=n))
         if plot is not None:
             from ..plotting.figures import plot_stability_map
             from ..spectrum.stability import StabilityMap
@@ -259,20 +304,20 @@ def design(
         return
     with Progress(console=err, transient=True) as bar:
         task = bar.add_task("evaluating candidates", total=None)
-        d = D.design_sweep(delay, kp, kv, criterion=criterion, overshoot_limit=overshoot_limit,
-                           progress=lambda k, n: bar.update(task, completed=k, total=n), **common)
+        d = D.design_sweep(base, kps, kvs, step=step, criterion=criterion, overshoot_limit=overshoot_limit,
+                           progress=lambda k, n: bar.update(task, completed=k, total=n))
     if plot is not None:
         from ..plotting.figures import plot_responses
         from ..simulate.simulation import simulate as sim
 
-        plot_responses([sim(d.loop.replace(kp=r.kp, kv=r.kv), step) for r in d.rows], plot,
+        plot_responses([sim(D._with_gains(base, r.kp, r.kv), step) for r in d.rows], plot,
                        labels=[f"Kp={r.kp:g}, Kv={r.kv:g}" for r in d.rows], t_max=8.0)
     if as_json:
         rows = [r.to_dict() for r in d.rows]
         print(json.dumps({"rows": rows, "best": None if d.best is None else d.best.to_dict(),
                           "criterion": d.criterion, "reason": d.reason}, indent=2))
         return
-    table = Table(title=f"Candidates for Td = {delay:g} s ({velocity} velocity)")
+    table = Table(title=f"Candidates for {base!r}")
     for col in ("Kp", "Kv", "rightmost", "abscissa", "neutral", "stable", "Mo %", "tp s", "ts s"):
         table.add_column(col, justify="right")
     for r in d.rows:
@@ -286,30 +331,26 @@ def design(
               else f"No candidate meets the criterion: {d.reason}.", highlight=False)
 
 
-def _loop_from_options(kp, kv, delay, velocity, filter_wn, filter_zeta) -> AltitudeLoop:
-    return AltitudeLoop(kp=kp, delay=check_real("--delay", delay, minimum=0.0), kv=kv, velocity=velocity,
-                        filter_wn=filter_wn, filter_zeta=filter_zeta)
-
-
 @app.command()
 @_friendly
+@with_loop
 def roots(
-    kp: float = typer.Option(..., "--kp", help="Proportional gain Kp."),
-    delay: float = typer.Option(..., "--delay", help="Delay Td, s."),
-    kv: float = typer.Option(0.0, "--kv", help="Velocity gain Kv (0 = P control)."),
-    velocity: str = typer.Option("true", "--velocity", help="true (neutral loop) | filtered (retarded loop)."),
-    filter_wn: float = typer.Option(38.0, "--filter-wn", help="Derivative filter natural frequency, rad/s."),
-    filter_zeta: float = typer.Option(1.0, "--filter-zeta", help="Derivative filter damping ratio."),
     region: tuple[float, float, float, float] = typer.Option(
         (-10.0, 2.0, 0.0, 100.0), "--region", help="RE_MIN RE_MAX IM_MIN IM_MAX."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Draw the spectrum (as the paper's Fig. 8) here."),
+    loop: Any = None,
+    delays: Any = None,
 ) -> None:
-    """Every characteristic root of the linearised loop in a region, certified by the argument principle."""
+    """Every characteristic root of the linearised loop in a region, certified by the argument principle.
+
+    Any continuous loop (the loop options or --loop); saturation is ignored (the linearised loop).
+    """
     from ..spectrum.roots import find_roots
     from ..spectrum.stability import rightmost as rightmost_root
 
-    loop = _loop_from_options(kp, kv, delay, velocity, filter_wn, filter_zeta)
+    if len(delays) > 1:
+        raise InvalidValueError("roots takes one --delay, not a sweep")
     q = loop.characteristic()
     sp = find_roots(q, region)
     rm = rightmost_root(q)
@@ -338,8 +379,9 @@ def roots(
     out.print(f"Rightmost root {r.real:.6f} ± {abs(r.imag):.6f}j; spectral abscissa {rm.abscissa:.6f}: "
               f"{'stable' if rm.stable else 'UNSTABLE'}." if r is not None else
               f"Spectral abscissa {rm.abscissa:.6f}: {'stable' if rm.stable else 'UNSTABLE'}.", highlight=False)
-    if loop.kv >= 1 and loop.velocity == "true" and loop.delay > 0:
-        out.print("Warning: a neutral loop with Kv >= 1 cannot be stable (its root chains reach the right half-plane).")
+    if q.kind == "neutral" and not rm.stable and sp.neutral_lines and max(sp.neutral_lines) >= 0:
+        out.print("Warning: this neutral loop's root chains reach the right half-plane (for the paper's loop, "
+                  "Kv >= 1): it cannot be stable whatever its other gains.")
 
 
 def _parse_branches(spec: str) -> list[int]:
@@ -448,6 +490,8 @@ def estimate(
                 if m.peak_time is None:
                     raise E.EstimationError(f"{log.name}: no overshoot, so no damping ratio for the Lambert method")
                 each.append(E.estimate_lambert(m.overshoot, m.peak_time, kp, variant=variant))
+        import numpy as np
+
         d = np.array([e.delay for e in each])
         se = float(np.std(d, ddof=1) / np.sqrt(d.size)) if d.size > 1 else None
         ci = (float(d.mean() - 1.96 * se), float(d.mean() + 1.96 * se)) if se else None
@@ -500,7 +544,10 @@ def emulate(
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed."),
     duration: float = typer.Option(0.0, "--duration", help="Run this long, s (0 = until Ctrl-C)."),
 ) -> None:
-    """Run the built-in AR.Drone 2.0 emulator (loopback by default) until Ctrl-C or --duration."""
+    """Run the built-in AR.Drone 2.0 emulator (loopback by default) until Ctrl-C, SIGTERM or --duration; then
+    print its summary (ports, counts, rejections) as JSON."""
+    import signal
+    import threading
     import time as _time
 
     from ..hardware.emulator import DroneEmulator, EmulatorConfig
@@ -509,18 +556,25 @@ def emulate(
     cfg = EmulatorConfig(host=host, at_port=at_port, navdata_port=navdata_port, video_port=video_port,
                          control_port=control_port, delay=delay, lag=lag, link_delay=link_delay, noise=noise,
                          rate=rate, loss=loss, jitter=jitter, seed=seed)
-    with DroneEmulator(cfg) as emu:
-        err.print(f"emulated drone on {host}: AT {emu.ports['at']}, navdata {emu.ports['navdata']}, video "
-                  f"{emu.ports['video']}, control {emu.ports['control']}; loop delay {emu.true_delay:g} s. Ctrl-C stops.",
-                  highlight=False)
-        t0 = _time.monotonic()
-        try:
-            while duration == 0 or _time.monotonic() - t0 < duration:
-                _time.sleep(0.1)
-        except KeyboardInterrupt:
-            pass
-        stats = dict(emu.stats)
-    print(json.dumps({"ports": emu.ports, "stats": stats, "true_delay": emu.true_delay}))
+    terminated = threading.Event()  # SIGTERM ends the run like Ctrl-C: the same summary, exit status 0
+    main_thread = threading.current_thread() is threading.main_thread()  # (signal handlers only go there)
+    old_term = signal.signal(signal.SIGTERM, lambda *_: terminated.set()) if main_thread else None
+    try:
+        with DroneEmulator(cfg) as emu:
+            err.print(f"emulated drone on {host}: AT {emu.ports['at']}, navdata {emu.ports['navdata']}, video "
+                      f"{emu.ports['video']}, control {emu.ports['control']}; loop delay {emu.true_delay:g} s. "
+                      "Ctrl-C stops.", highlight=False)
+            t0 = _time.monotonic()
+            try:
+                while not terminated.is_set() and (duration == 0 or _time.monotonic() - t0 < duration):
+                    terminated.wait(0.1)
+            except KeyboardInterrupt:
+                pass
+        summary = emu.summary()  # after stop(): the threads are done, so the counts are final
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, old_term)
+    print(json.dumps(summary))
 
 
 def _confirm_real(host: str, yes: bool) -> Optional[Callable[[], bool]]:
@@ -553,7 +607,10 @@ def fly(
     yes: bool = typer.Option(False, "--yes", help="Do not ask before taking off a real drone."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
 ) -> None:
-    """Fly step tests: navdata start-up, take-off, hover, the steps, land; log every packet."""
+    """Fly step tests: navdata start-up, take-off, hover, the steps, land; log every packet.
+
+    Exits with status 1 (saying why) if the flight did not complete: a navdata gap, an altitude out of
+    bounds, Ctrl-C, or a declined take-off."""
     from ..hardware.flight import FlightPlan, fly as run
 
     sts = tuple(float(x) for x in steps.split(",")) if steps else (step,)
@@ -562,6 +619,9 @@ def fly(
               status=lambda m: err.print(m, highlight=False))
     if as_json:
         print(json.dumps(res.to_dict(), indent=2))
+        if not res.completed:  # a flight that ended early (or never took off) is a failure: status 1
+            err.print(f"flight did not complete: {res.reason}", highlight=False)
+            raise typer.Exit(1)
         return
     out.print(f"{'Flight completed' if res.completed else 'Flight ended early: ' + res.reason}; "
               f"{res.packets} packets, {res.rejected} rejected.", highlight=False)
@@ -569,6 +629,8 @@ def fly(
         out.print(f"Loop latency (navdata received to command sent): median {res.latency_median_ms:.3f} ms, "
                   f"99th percentile {res.latency_p99_ms:.3f} ms.", highlight=False)
     out.print("Logs: " + ", ".join(str(p) for p in res.logs), highlight=False)
+    if not res.completed:  # the reason is printed above
+        raise typer.Exit(1)
 
 
 @app.command()
@@ -598,6 +660,8 @@ def demo(
               f"{e.flights} step tests" + (f"; the emulator's truth is {rep.true_delay:.4f} s (error "
                                           f"{1e3 * rep.error:+.1f} ms)" if rep.true_delay is not None else "") + ".",
               highlight=False)
+    import numpy as np
+
     pm = np.mean([m["settling_time"] or np.nan for m in rep.p_metrics])
     vm = np.mean([m["settling_time"] or np.nan for m in rep.pv_metrics])
     out.print(f"PV design: Kp = 2.0, Kv = {rep.kv:g}. Mean settling time: P {pm:.2f} s, PV {vm:.2f} s.", highlight=False)

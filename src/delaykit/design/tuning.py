@@ -1,4 +1,4 @@
-"""Controller design for the delayed altitude loop: PV gains from roots and exact simulations.
+"""Controller design for a delayed loop: P and PV gains from roots and exact simulations.
 
 * :func:`design_sweep`: candidates along one gain (the paper's Kv sweep at Kp = 2.0), each with its rightmost
   root, spectral abscissa, neutral line, stability and simulated step metrics, and the best by a criterion.
@@ -10,7 +10,8 @@
 
 Examples
 --------
->>> d = design_sweep(delay=0.37, kp=2.0, kv=[0.0, 0.1, 0.3, 0.5, 0.7])
+>>> from delaykit import AltitudeLoop
+>>> d = design_sweep(AltitudeLoop(kp=2.0, delay=0.37), kp=2.0, kv=[0.0, 0.1, 0.3, 0.5, 0.7])
 >>> d.best.kv, d.criterion
 (0.3, 'abscissa')
 """
@@ -24,8 +25,10 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ..errors import InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import PAPER_PERIOD, AltitudeLoop
+from ..models.controllers import Controller
+from ..models.loop import Loop
 from ..simulate.simulation import simulate
 from ..spectrum.stability import rightmost
 
@@ -105,7 +108,7 @@ class Design:
     criterion: str
     best: DesignRow | None
     reason: str
-    loop: AltitudeLoop
+    loop: Any
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form: rows plus ``best`` and the reason."""
@@ -117,12 +120,18 @@ class Design:
         return f"Design({len(self.rows)} candidates, criterion={self.criterion!r}, best {b})"
 
 
-def _evaluate(loop: AltitudeLoop, step: float, t_end: float) -> DesignRow:
+def _gains(loop: Any) -> tuple[float, float]:
+    c = loop.controller if isinstance(loop, Loop) else loop
+    return c.kp, c.kv
+
+
+def _evaluate(loop: Any, step: float, t_end: float) -> DesignRow:
     lin = loop.replace(period=None, sample_offset=0.0)
     rm = rightmost(lin)
     m = simulate(loop, step, t_end=t_end).metrics
     nl = rm.neutral_lines[0] if len(rm.neutral_lines) == 1 else None
-    return DesignRow(kp=loop.kp, kv=loop.kv, rightmost=rm.root, abscissa=rm.abscissa, neutral_line=nl,
+    kp, kv = _gains(loop)
+    return DesignRow(kp=kp, kv=kv, rightmost=rm.root, abscissa=rm.abscissa, neutral_line=nl,
                      stable=rm.stable, overshoot=m.overshoot, peak_time=m.peak_time, rise_time=m.rise_time,
                      settling_time=m.settling_time)
 
@@ -151,56 +160,70 @@ def _pick(rows: Sequence[DesignRow], criterion: str, overshoot_limit: float | No
     raise InvalidValueError(f"criterion must be one of {', '.join(CRITERIA)}; got {criterion!r}")
 
 
+def _with_gains(loop: Any, kp: float, kv: float) -> Any:
+    """The loop with the PV gains set (a general loop under P control becomes PV when Kv is swept)."""
+    if isinstance(loop, Loop):
+        c = loop.controller
+        if c.kind == "p" and kv != 0.0:
+            return loop.replace(controller=Controller.pv(kp, kv))
+        if c.kind == "pv" and kv == 0.0:
+            return loop.replace(controller=Controller.p(kp))
+        if c.kind not in ("p", "pv"):
+            raise InvalidValueError(f"the gain design sweeps the P and PV laws; the loop's controller is {c.kind}")
+        return loop.replace(kp=kp, kv=kv) if c.kind == "pv" else loop.replace(kp=kp)
+    return loop.replace(kp=kp, kv=kv)
+
+
 def design_sweep(
-    delay: float,
+    loop: Any,
     kp: float | Sequence[float] | str,
     kv: float | Sequence[float] | str,
     *,
-    velocity: str = "true",
-    filter_wn: float = 38.0,
-    filter_zeta: float = 1.0,
-    vmax: float | None = 1.0,
-    period: float | None = None,
     step: float = 1.0,
     t_end: float = 15.0,
     criterion: str = "abscissa",
     overshoot_limit: float | None = None,
     progress: Callable[[int, int], None] | None = None,
-    lag: float = 0.0,
-    gain: float = 1.0,
 ) -> Design:
-    """Evaluate candidate gains (every Kp with every Kv) for a delay and pick the best by a criterion.
+    """Evaluate candidate gains (every Kp with every Kv) for a loop and pick the best by a criterion.
 
     Criteria: ``abscissa`` (most negative spectral abscissa of the linearised loop), ``settling`` (shortest
     simulated settling time), ``overshoot`` (shortest settling time with overshoot at most
     ``overshoot_limit`` percent).  Roots come from the continuous linearised loop; the step metrics from the
-    exact simulation of the loop as given (saturation, sampling).
+    exact simulation of the loop as given (its plant, delays, saturation, sampling).
+
+    Parameters
+    ----------
+    loop : AltitudeLoop or Loop
+        The loop to tune: everything but the gains (delay, plant, limits, velocity filter, period).
+    kp, kv : float, sequence or str
+        Candidate gains: a value, a list, or ``START:STOP:N``.
 
     Examples
     --------
-    >>> d = design_sweep(0.37, 2.0, "0:0.7:8", criterion="overshoot", overshoot_limit=1.0)
+    >>> d = design_sweep(AltitudeLoop(kp=2.0, delay=0.37), 2.0, "0:0.7:8", criterion="overshoot",
+    ...                  overshoot_limit=1.0)
     >>> d.best is not None and d.best.overshoot <= 1.0
     True
     """
     if criterion not in CRITERIA:
         raise InvalidValueError(f"criterion must be one of {', '.join(CRITERIA)}; got {criterion!r}")
-    delay = check_real("delay", delay, minimum=0.0)
     kps = parse_range(kp if not isinstance(kp, (int, float)) else [kp], "kp")
     kvs = parse_range(kv if not isinstance(kv, (int, float)) else [kv], "kv")
     step = check_real("step", step)
     if step == 0:
         raise InvalidValueError("step must not be zero")
-    base = AltitudeLoop(kp=kps[0], delay=delay, kv=kvs[0], velocity=velocity, filter_wn=filter_wn,
-                        filter_zeta=filter_zeta, vmax=vmax, period=period, lag=lag, gain=gain)
+    if not isinstance(loop, (AltitudeLoop, Loop)):
+        raise InvalidTypeError(f"loop must be an AltitudeLoop or a Loop, got {type(loop).__name__}")
     rows = []
     total = len(kps) * len(kvs)
     for a in kps:
         for b in kvs:
-            rows.append(_evaluate(base.replace(kp=a, kv=b), step, t_end))
+            rows.append(_evaluate(_with_gains(loop, a, b), step, t_end))
             if progress:
                 progress(len(rows), total)
     best, reason = _pick(rows, criterion, overshoot_limit)
-    return Design(rows=tuple(rows), criterion=criterion, best=best, reason=reason, loop=base)
+    return Design(rows=tuple(rows), criterion=criterion, best=best, reason=reason, loop=loop)
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -232,7 +255,7 @@ def _cell(args: tuple) -> tuple[float, float]:
     base, kp, kv, delays, step, t_end = args
     worst_a, worst_t = -math.inf, 0.0
     for d in delays:
-        loop = base.replace(kp=kp, kv=kv, delay=d)
+        loop = _with_gains(base, kp, kv).replace(delay=d)
         worst_a = max(worst_a, rightmost(loop.replace(period=None, sample_offset=0.0)).abscissa)
         m = simulate(loop, step, t_end=t_end).metrics
         worst_t = max(worst_t, m.settling_time if m.settling_time is not None else math.inf)
@@ -240,15 +263,11 @@ def _cell(args: tuple) -> tuple[float, float]:
 
 
 def gain_search(
-    delay: float | Sequence[float],
+    loop: Any,
+    delays: float | Sequence[float] | str,
     kp: Sequence[float] | str,
     kv: Sequence[float] | str,
     *,
-    velocity: str = "true",
-    filter_wn: float = 38.0,
-    filter_zeta: float = 1.0,
-    vmax: float | None = 1.0,
-    period: float | None = None,
     step: float = 1.0,
     t_end: float = 15.0,
     criterion: str = "settling",
@@ -261,22 +280,23 @@ def gain_search(
     ``criterion`` picks the best cell among the robustly stable ones: ``settling`` (shortest worst-case
     settling) or ``abscissa`` (most negative worst-case abscissa).  The cells are independent: they run on
     ``workers`` processes (default: all cores), or on a Dask cluster when ``scheduler`` is an address (or a
-    ``distributed.Client``); the results are the same either way.
+    ``distributed.Client``); the results are the same either way.  Everything but the gains and the
+    delay (plant, lag, speed gain, limits, velocity filter, period) is the loop's.
 
     Examples
     --------
-    >>> g = gain_search([0.33, 0.41], kp=[1.0, 2.0], kv=[0.0, 0.3], workers=1)
+    >>> g = gain_search(AltitudeLoop(kp=1.0, delay=0.37), [0.33, 0.41], kp=[1.0, 2.0], kv=[0.0, 0.3], workers=1)
     >>> g.abscissa.shape, g.best is not None
     ((2, 2), True)
     """
-    delays = np.atleast_1d(np.asarray(parse_range(delay if not isinstance(delay, (int, float)) else [delay], "delay")))
+    if not isinstance(loop, (AltitudeLoop, Loop)):
+        raise InvalidTypeError(f"loop must be an AltitudeLoop or a Loop, got {type(loop).__name__}")
+    delays = np.atleast_1d(np.asarray(parse_range(delays if not isinstance(delays, (int, float)) else [delays], "delays")))
     kps = np.asarray(parse_range(kp, "kp"))
     kvs = np.asarray(parse_range(kv, "kv"))
     if criterion not in ("settling", "abscissa"):
         raise InvalidValueError(f"criterion must be 'settling' or 'abscissa' for a gain search; got {criterion!r}")
-    base = AltitudeLoop(kp=float(kps[0]), delay=float(delays[0]), kv=float(kvs[0]), velocity=velocity,
-                        filter_wn=filter_wn, filter_zeta=filter_zeta, vmax=vmax, period=period)
-    cells = [(base, float(a), float(b), tuple(float(d) for d in delays), step, t_end) for b in kvs for a in kps]
+    cells = [(loop, float(a), float(b), tuple(float(d) for d in delays), step, t_end) for b in kvs for a in kps]
     results: list[tuple[float, float]] = [None] * len(cells)  # type: ignore[list-item]
     if scheduler is not None:
         results = _run_dask(cells, scheduler, progress)

@@ -21,6 +21,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..design.tuning import design_sweep
+from ..models.altitude import AltitudeLoop
 from ..hardware.emulator import DroneEmulator, EmulatorConfig
 from ..hardware.flight import FlightPlan, FlightResult, fly
 from ..identify.estimation import DelayEstimate, estimate_flights
@@ -113,7 +114,8 @@ def run_demo(
         est, _ = estimate_flights(logs, kp=1.31, period=period, free=("lag",))
         lag = float(np.mean(est.params["lag"])) if "lag" in est.params else None
         say(f"designing PV gains for Td = {est.delay:.4f} s")
-        d = design_sweep(est.delay, 2.0, "0:0.7:8", period=period, lag=lag or 0.0, criterion="settling")
+        d = design_sweep(AltitudeLoop(kp=2.0, delay=est.delay, period=period, lag=lag or 0.0), 2.0, "0:0.7:8",
+                         criterion="settling")
         kv = d.best.kv if d.best else 0.3
         say(f"PV flight: Kp = 2.0, Kv = {kv:g}")
         pv = fly(FlightPlan(kp=2.0, kv=kv, steps=tuple((P_STEPS * 2)[:pv_steps]), step_duration=step_duration,

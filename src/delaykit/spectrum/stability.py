@@ -21,6 +21,7 @@ import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop
+from ..models.loop import Loop
 from ..models.quasipolynomial import QuasiPolynomial
 from .lambert import lambert_roots
 from .roots import Spectrum, find_roots, neutral_lines, root_bound
@@ -61,12 +62,12 @@ class Rightmost:
                 + ("" if self.certified else ", not certified") + ")")
 
 
-def _as_qp(q: QuasiPolynomial | AltitudeLoop) -> QuasiPolynomial:
-    if isinstance(q, AltitudeLoop):
+def _as_qp(q: QuasiPolynomial | AltitudeLoop | Loop) -> QuasiPolynomial:
+    if isinstance(q, (AltitudeLoop, Loop)):
         return q.characteristic()
     if isinstance(q, QuasiPolynomial):
         return q
-    raise InvalidTypeError(f"expected a QuasiPolynomial or an AltitudeLoop, got {type(q).__name__}")
+    raise InvalidTypeError(f"expected a QuasiPolynomial, a Loop or an AltitudeLoop, got {type(q).__name__}")
 
 
 def rightmost(q: QuasiPolynomial | AltitudeLoop, *, re_min: float | None = None) -> Rightmost:
@@ -204,8 +205,19 @@ class StabilityMap:
                 f"{int(self.stable.sum())} stable points)")
 
 
+def _integrator_p_gain(loop: Any) -> float | None:
+    """The plant gain k of a P loop on k/s with no output delay (so ``s + k Kp exp(-s Td)``), else None."""
+    if isinstance(loop, AltitudeLoop):
+        return loop.gain if loop.kv == 0 and loop.lag == 0 else None
+    if isinstance(loop, Loop) and loop.controller.kind == "p" and loop.output_delay == 0:
+        p = loop.plant
+        if p.order == 1 and p.integrators == 1 and p.num.size == 1:
+            return float(p.num[0])
+    return None
+
+
 def stability_map(
-    base: AltitudeLoop,
+    base: AltitudeLoop | Loop,
     x_name: str,
     x: Any,
     y_name: str,
@@ -227,12 +239,13 @@ def stability_map(
     if xs.size == 0 or ys.size == 0:
         raise InvalidValueError("the grid is empty: give at least one value for each parameter")
     out = np.empty((ys.size, xs.size))
-    p_loop = base.kv == 0 and {x_name, y_name} <= {"kp", "delay"}
-    if p_loop:
+    # a P loop on k/s (the paper's, with its speed gain): the Lambert W root, vectorised
+    g = _integrator_p_gain(base)
+    if g is not None and {x_name, y_name} <= {"kp", "delay"}:
         X, Y = np.meshgrid(xs, ys)
         kp = X if x_name == "kp" else Y
         td = X if x_name == "delay" else Y
-        r = lambert_roots(0.0, -kp, td, branches=[0]).roots[0]
+        r = lambert_roots(0.0, -g * kp, td, branches=[0]).roots[0]
         return StabilityMap(x_name, y_name, xs, ys, r.real)
     total = xs.size * ys.size
     k = 0
