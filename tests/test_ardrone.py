@@ -8,9 +8,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from delaykit.hardware.ardrone import (ATEncoder, ATError, CtrlState, Demo, NavdataError, NavState, ProtocolError,
-                                       bootstrap_packet, decode_navdata, encode_navdata, float_to_int, int_to_float,
-                                       parse_at)
+from delaykit.errors import InvalidValueError
+from delaykit.hardware.ardrone import (ARITY, ATCommand, ATEncoder, ATError, CtrlState, Demo, NavdataError, NavState,
+                                       ProtocolError, bootstrap_packet, decode_navdata, encode_navdata, float_to_int,
+                                       int_to_float, parse_at)
 
 # the bootstrap packet of the protocol notes, captured from a real drone
 VECTOR = bytes.fromhex("88 77 66 55 10 0c 80 4f 01 00 00 00 00 00 00 00 ff ff 08 00 a6 02 00 00")
@@ -28,6 +29,38 @@ def test_float_encoding_vectors():
     # the protocol notes' examples (struct pack '<f', unpack '<i')
     assert [float_to_int(x) for x in (1.0, 0.5, -0.25, -0.8)] == [1065353216, 1056964608, -1098907648, -1085485875]
     assert int_to_float(-1085485875) == struct.unpack("<f", struct.pack("<f", -0.8))[0]
+
+
+def _bits(x: float, fmt: str) -> int:
+    """The reference: the IEEE-754 single's bits of x read as a signed ('<i') or unsigned ('<I') integer."""
+    return struct.unpack(fmt, struct.pack("<f", x))[0]
+
+
+def test_floats_accepts_the_signed_and_unsigned_forms_of_the_same_bits():
+    # the values named in the bug report; by struct (see _bits) they are the bits of -0.25, not -0.5
+    assert (_bits(-0.25, "<I"), _bits(-0.25, "<i")) == (3196059648, -1098907648)
+    assert ATCommand("PCMD", 1, (1, 0, 0, 3196059648, 0)).floats(3, 4) == [-0.25]
+    assert ATCommand("PCMD", 1, (1, 0, 0, -1098907648, 0)).floats(3, 4) == [-0.25]
+    # -0.5 itself, both forms (3204448256 and -1090519040)
+    half = ATCommand("PCMD", 1, (1, _bits(-0.5, "<I"), _bits(-0.5, "<i"), 0, 0))
+    assert half.floats(1, 3) == [-0.5, -0.5] and int_to_float(_bits(-0.5, "<I")) == -0.5
+    # the parser accepts the unsigned form, and floats() reads what it accepted
+    cmd, = parse_at(b"AT*PCMD=1,1,0,0,3196059648,0\r")
+    assert cmd.floats(1, 5) == [0.0, 0.0, -0.25, 0.0]
+
+
+@pytest.mark.parametrize("arg, fragment", [
+    (2**32, "from -2\\*\\*31 to 2\\*\\*32 - 1, got 4294967296"),
+    (-(2**31) - 1, "from -2\\*\\*31 to 2\\*\\*32 - 1, got -2147483649"),
+    ("k", "argument 1 must be a 32-bit integer, got 'k' \\(str\\)"),
+    (True, "got the bool True"),
+])
+def test_floats_rejects_what_does_not_fit_32_bits_with_the_modules_error(arg, fragment):
+    with pytest.raises(ATError, match=fragment) as info:
+        ATCommand("CONFIG", 1, (arg, "v")).floats(0, 1)
+    assert isinstance(info.value, InvalidValueError)
+    with pytest.raises(ATError, match="32-bit integer"):
+        int_to_float(arg)
 
 
 def test_at_commands_encode_as_the_sdk_and_parse_back():
@@ -54,6 +87,10 @@ def test_at_commands_encode_as_the_sdk_and_parse_back():
     (b"\xff\xfe", "not ASCII"),
     (b"A" * 1100 + b"\r", "exceeds 1024"),
     (b"GET / HTTP/1.0\r", "not of the form"),
+    (b"AT*PCMD=1,1,0,0,4294967296,0\r", "does not fit 32 bits"),  # 2**32
+    (b'AT*REF=1,"x"\r', "argument 1 of REF must be an integer"),
+    (b'AT*PCMD=1,"1",0,0,0,0\r', "argument 1 of PCMD must be an integer"),
+    (b"AT*CONFIG=1,5,6\r", "argument 1 of CONFIG must be a quoted string"),
 ])
 def test_malformed_at_is_rejected_specifically(datagram, fragment):
     with pytest.raises(ATError, match=fragment):
@@ -88,14 +125,51 @@ def test_pyardrone_parses_delaykit_navdata():
     assert nd.demo.altitude == 987 and nd.demo.vz == 12.0 and nd.metadata.sequence_number == 5
 
 
+def _read_everything(cmds):
+    """Use every parsed command as a receiver would: all its arguments read as floats."""
+    for c in cmds:
+        for k in range(len(c.args)):
+            try:
+                c.floats(k, k + 1)
+            except ATError:
+                assert not isinstance(c.args[k], int) or not -(2**31) <= c.args[k] < 2**32
+
+
 @settings(max_examples=400)
 @given(st.binary(max_size=600))
 def test_fuzz_decoders_never_crash(data):
     for decode in (decode_navdata, parse_at):
         try:
-            decode(data)
+            result = decode(data)
         except ProtocolError:
-            pass
+            continue
+        if decode is parse_at:
+            _read_everything(result)
+
+
+# integers around every edge of the 32-bit forms: signed, unsigned (above 2**31), and just outside both
+INT_ARG = st.one_of(st.integers(-(2**31), 2**31 - 1), st.integers(2**31, 2**32 - 1),
+                    st.integers(-(2**33), 2**33), st.sampled_from([-(2**31) - 1, -(2**31), 2**31 - 1, 2**31,
+                                                                   2**32 - 1, 2**32]))
+AT_ARG = st.one_of(INT_ARG, INT_ARG.map(str), st.text(alphabet="abc:_,", max_size=6).map(lambda t: f'"{t}"'))
+
+
+@settings(max_examples=400)
+@given(st.lists(st.tuples(st.sampled_from(sorted(ARITY) + ["JUMP"]), st.integers(-2, 2**31),
+                          st.lists(AT_ARG, max_size=8)), min_size=1, max_size=6))
+def test_fuzz_at_with_random_signed_and_unsigned_arguments(commands):
+    # AT-shaped datagrams whose arguments are random integers in and out of the 32-bit forms (and strings);
+    # nothing but the module's own error escapes, from parsing or from reading the arguments as floats
+    datagram = b"".join(f"AT*{name}={','.join([str(seq), *map(str, args)])}\r".encode()
+                        for name, seq, args in commands)
+    try:
+        cmds = parse_at(datagram)
+    except ProtocolError:
+        return
+    _read_everything(cmds)
+    for c in cmds:
+        if c.name == "PCMD":  # the reference: the low 32 bits read as an IEEE-754 single by struct
+            assert c.floats(1, 5) == [struct.unpack("<f", struct.pack("<I", a & 0xFFFFFFFF))[0] for a in c.args[1:5]]
 
 
 @settings(max_examples=300)

@@ -227,3 +227,89 @@ def test_demo_pipeline_against_a_hidden_delay(tmp_path):
     assert rep.true_delay is not None and abs(rep.error) < 0.015
     assert (tmp_path / "demo.md").exists() and (tmp_path / "pv_flights.png").stat().st_size > 10_000
     assert rep.pv_metrics and rep.p_metrics and rep.kv >= 0
+
+
+def test_fly_command_exits_1_and_says_why_when_the_navdata_stops(tmp_path):
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+
+    emu = emulator().start()
+    log = tmp_path / "f.csv"
+
+    def stop_navdata_once_the_step_starts():  # fly() opens the step's log when the step begins
+        deadline = time.monotonic() + 30
+        while not log.exists() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        emu.stop()
+
+    watcher = threading.Thread(target=stop_navdata_once_the_step_starts, daemon=True)
+    watcher.start()
+    try:
+        res = CliRunner().invoke(app, ["fly", "--host", "127.0.0.1", "--at-port", str(emu.ports["at"]),
+                                       "--navdata-port", str(emu.ports["navdata"]), "--kp", "1.31", "--duration",
+                                       "4", "--hover", "0.5", "--log", str(log)])
+    finally:
+        watcher.join(timeout=35)
+        emu.stop()
+    # FlightPlan's default gap_timeout is 0.5 s, so fly() reports "navdata gap longer than 0.5 s"
+    assert res.exit_code == 1, res.output
+    assert "Flight ended early: navdata gap longer than 0.5 s" in res.output
+    assert res.exception is None or isinstance(res.exception, SystemExit)  # typer.Exit(1), not a crash
+
+
+@pytest.mark.parametrize("sig", ["SIGTERM", "SIGINT"])
+def test_emulate_command_prints_its_summary_on_sigterm_as_on_ctrl_c(tmp_path, sig):
+    import os
+    import re
+    import signal
+    import subprocess
+    import sys
+
+    import delaykit
+
+    src = os.path.dirname(os.path.dirname(delaykit.__file__))  # run this copy of delaykit
+    env = {**os.environ, "PYTHONPATH": src + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    out_path, err_path = tmp_path / "out.txt", tmp_path / "err.txt"
+    with open(out_path, "w") as out, open(err_path, "w") as err:
+        proc = subprocess.Popen([sys.executable, "-m", "delaykit.cli", "emulate", "--host", "127.0.0.1",
+                                 "--at-port", "0", "--navdata-port", "0", "--video-port", "0", "--control-port", "0"],
+                                stdout=out, stderr=err, env=env)
+    try:
+        # the start-up line names the ports it bound (rich may wrap it, hence \s+)
+        deadline = time.monotonic() + 60
+        m = None
+        while m is None and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.1)
+            m = re.search(r"AT\s+(\d+),\s+navdata\s+(\d+)", err_path.read_text())
+        assert m, err_path.read_text()
+        at_port, nav_port = int(m.group(1)), int(m.group(2))
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        sock.bind(("127.0.0.1", 0))
+        sock.settimeout(1.0)
+        try:
+            sock.sendto(b"\x01\x00\x00\x00", ("127.0.0.1", nav_port))  # become its navdata client
+            sock.sendto(b"AT*JUMP=1\r", ("127.0.0.1", at_port))  # one datagram it rejects
+            sock.sendto(ATEncoder().config("general:navdata_demo", "TRUE"), ("127.0.0.1", at_port))  # one it obeys
+            t0 = time.monotonic()
+            while True:  # a demo packet: both datagrams have been handled (one socket, one thread, in order)
+                assert time.monotonic() - t0 < 10, "the emulator never switched to demo navdata"
+                nd = decode_navdata(sock.recvfrom(4096)[0])
+                if nd.has(NavState.NAVDATA_DEMO):
+                    break
+        finally:
+            sock.close()
+        proc.send_signal(getattr(signal, sig))
+        rc = proc.wait(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert rc == 0, err_path.read_text()
+    assert "Traceback" not in err_path.read_text()
+    summary = json.loads(out_path.read_text())
+    # what the test sent: 2 datagrams, 1 rejected (unknown command JUMP), 1 command obeyed
+    assert summary["ports"]["at"] == at_port and summary["ports"]["navdata"] == nav_port
+    assert {k: summary["stats"][k] for k in ("datagrams", "commands", "bad")} == {"datagrams": 2, "commands": 1,
+                                                                                   "bad": 1}
+    assert "unknown command 'JUMP'" in summary["last_error"] and summary["stats"]["navdata_sent"] > 0

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import enum
 import math
+import operator
 import struct
 from dataclasses import dataclass, field
 from typing import Iterable
@@ -46,9 +47,12 @@ DEMO_TAG = 0
 CKS_TAG = 0xFFFF
 DEMO_SIZE = 148
 MAX_AT = 1024
+INT32_MIN, UINT32_END = -(2**31), 2**32  # an AT integer argument is in [INT32_MIN, UINT32_END)
 ARITY = {"REF": 1, "PCMD": 5, "PCMD_MAG": 7, "FTRIM": 0, "CONFIG": 2, "CONFIG_IDS": 3, "CTRL": 2, "COMWDG": 0,
          "CALIB": 1}
 _FLOAT_ARGS = {"PCMD": (1, 2, 3, 4), "PCMD_MAG": (1, 2, 3, 4, 5, 6)}
+_INT_ARGS = {"REF": (0,), "PCMD": (0,), "PCMD_MAG": (0,), "CTRL": (0, 1), "CALIB": (0,)}  # flags, modes, bits
+_STR_ARGS = {"CONFIG": (0, 1), "CONFIG_IDS": (0, 1, 2)}  # quoted keys, values, ids
 
 
 class ProtocolError(InvalidValueError):
@@ -74,9 +78,31 @@ def float_to_int(x: float) -> int:
     return struct.unpack("<i", struct.pack("<f", x))[0]
 
 
+def _int32(value: object, what: str = "AT argument") -> int:
+    """``value`` as a signed 32-bit integer: the signed form (from -2**31) and the unsigned form (up to
+    2**32 - 1) of the same bits are both accepted, as senders write either; anything else is an :class:`ATError`."""
+    if isinstance(value, bool):
+        raise ATError(f"{what} must be a 32-bit integer, got the bool {value!r}")
+    try:
+        i = operator.index(value)
+    except TypeError:
+        raise ATError(f"{what} must be a 32-bit integer, got {value!r} ({type(value).__name__})") from None
+    if not INT32_MIN <= i < UINT32_END:
+        raise ATError(f"{what} must be a 32-bit integer, from -2**31 to 2**32 - 1, got {i}")
+    return i - UINT32_END if i >= 2**31 else i
+
+
 def int_to_float(i: int) -> float:
-    """The inverse of :func:`float_to_int`."""
-    return struct.unpack("<f", struct.pack("<i", i))[0]
+    """The inverse of :func:`float_to_int`; ``i`` may be the signed or the unsigned 32-bit form of the bits.
+
+    Raises :class:`ATError` if ``i`` is not an integer in ``[-2**31, 2**32)``.
+
+    Examples
+    --------
+    >>> int_to_float(-1098907648), int_to_float(3196059648)
+    (-0.25, -0.25)
+    """
+    return struct.unpack("<f", struct.pack("<i", _int32(i)))[0]
 
 
 @dataclass(frozen=True)
@@ -88,8 +114,12 @@ class ATCommand:
     args: tuple
 
     def floats(self, start: int = 0, stop: int | None = None) -> list[float]:
-        """Integer arguments ``args[start:stop]`` read as floats."""
-        return [int_to_float(a) for a in self.args[start:stop]]
+        """Integer arguments ``args[start:stop]`` read as floats (signed or unsigned 32-bit forms alike).
+
+        Raises :class:`ATError` if one of them is a string or does not fit 32 bits."""
+        first = range(len(self.args))[start:stop]
+        return [struct.unpack("<f", struct.pack("<i", _int32(a, f"AT*{self.name} argument {k + 1}")))[0]
+                for k, a in zip(first, self.args[start:stop])]
 
 
 class ATEncoder:
@@ -182,8 +212,8 @@ def _parse_args(name: str, raw: str, where: str) -> tuple:
                 val = int(tok)
             except ValueError:
                 raise ATError(f"{where}: argument {tok!r} is not an integer") from None
-            if not -(2**31) <= val < 2**32:
-                raise ATError(f"{where}: argument {val} does not fit 32 bits")
+            if not INT32_MIN <= val < UINT32_END:
+                raise ATError(f"{where}: argument {val} does not fit 32 bits (expected -2**31 to 2**32 - 1)")
             args.append(val)
             i = len(raw) if j < 0 else j
         if i < len(raw):
@@ -200,7 +230,8 @@ def parse_at(datagram: bytes) -> list[ATCommand]:
 
     Checks: at most 1024 bytes, ASCII, each command ``AT*NAME=<seq>[,args]`` ended by ``\\r`` (a lone ``\\n``
     is accepted too, as the SDK guide writes it), a known name with its number of arguments, integer
-    arguments that fit 32 bits, and PCMD floats within [-1, 1].
+    arguments that fit 32 bits (signed or unsigned), integers where the command needs them (flags, modes,
+    floats' bits), quoted strings where it needs them (CONFIG), and PCMD floats within [-1, 1].
     """
     if len(datagram) > MAX_AT:
         raise ATError(f"AT datagram of {len(datagram)} bytes exceeds {MAX_AT}")
@@ -231,10 +262,16 @@ def parse_at(datagram: bytes) -> list[ATCommand]:
             raise ATError(f"{where}: trailing comma")
         if len(args) != ARITY[name]:
             raise ATError(f"{where}: {name} takes {ARITY[name]} arguments, got {len(args)}")
+        for i in _INT_ARGS.get(name, ()):
+            if not isinstance(args[i], int):
+                raise ATError(f"{where}: argument {i + 1} of {name} must be an integer, got the string {args[i]!r}")
+        for i in _STR_ARGS.get(name, ()):
+            if not isinstance(args[i], str):
+                raise ATError(f"{where}: argument {i + 1} of {name} must be a quoted string, got {args[i]!r}")
         for i in _FLOAT_ARGS.get(name, ()):
             if not isinstance(args[i], int):
                 raise ATError(f"{where}: argument {i + 1} must be a float sent as an integer")
-            v = int_to_float(args[i] if args[i] < 2**31 else args[i] - 2**32)
+            v = int_to_float(args[i])
             if name == "PCMD" and not (math.isfinite(v) and -1.0 <= v <= 1.0):
                 raise ATError(f"{where}: {('roll', 'pitch', 'gaz', 'yaw')[i - 1]} = {v} is outside [-1, 1]")
         out.append(ATCommand(name, seq, args))

@@ -18,6 +18,12 @@ sampling (one command per navdata packet) is not a delay but a sample-and-hold, 
 
 Every datagram that fails to parse is counted (``stats["bad"]``) and ignored; the emulator never stops on one.
 
+**Threads and shared state.**  Four threads (AT commands, navdata wake-ups, navdata sending, TCP) share the
+emulator's state; one lock, ``_lock``, guards all of it: the physics, the counters, the configuration, the
+navdata client, and the control connection (``_control_conn``, None until a client connects).  Sockets are
+used outside the lock.  :attr:`DroneEmulator.stats` and :meth:`DroneEmulator.summary` are snapshots taken
+under the lock, safe to read while it runs.
+
 Examples
 --------
 >>> with DroneEmulator(EmulatorConfig(at_port=0, navdata_port=0, video_port=0, control_port=0)) as emu:
@@ -38,8 +44,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from ..errors import InvalidValueError, check_real
-from .ardrone import (CtrlState, Demo, NavState, ProtocolError, REF_EMERGENCY, REF_TAKEOFF, encode_navdata,
-                      int_to_float, parse_at)
+from .ardrone import CtrlState, Demo, NavState, ProtocolError, REF_EMERGENCY, REF_TAKEOFF, encode_navdata, parse_at
 
 __all__ = ["EmulatorConfig", "DroneEmulator", "PortError"]
 
@@ -107,16 +112,18 @@ class DroneEmulator:
     ports : dict
         The bound ports (``at``, ``navdata``, ``video``, ``control``), useful when 0 asked for free ones.
     stats : dict
-        Counts: ``datagrams``, ``commands``, ``bad``, ``navdata_sent``, ``navdata_dropped``.
+        Counts (a snapshot): ``datagrams``, ``commands``, ``bad`` (rejected), ``navdata_sent``, ``navdata_dropped``.
     """
 
     def __init__(self, config: EmulatorConfig | None = None, **overrides: Any) -> None:
         self.config = replace(config or EmulatorConfig(), **overrides) if overrides else (config or EmulatorConfig())
         self.rng = random.Random(self.config.seed)
-        self.stats = {"datagrams": 0, "commands": 0, "bad": 0, "navdata_sent": 0, "navdata_dropped": 0}
-        self.last_error = ""
         self.ports: dict[str, int] = {}
+        # everything below that the threads share is guarded by this one lock (see the module docstring)
         self._lock = threading.Lock()
+        self._stats = {"datagrams": 0, "commands": 0, "bad": 0, "navdata_sent": 0, "navdata_dropped": 0}
+        self._last_error = ""
+        self._control_conn: socket.socket | None = None
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self._socks: list[socket.socket] = []
@@ -135,6 +142,24 @@ class DroneEmulator:
 
     # ---------------------------------------------------------------------------------------------------
     @property
+    def stats(self) -> dict[str, int]:
+        """A snapshot of the counts (see the class docstring)."""
+        with self._lock:
+            return dict(self._stats)
+
+    @property
+    def last_error(self) -> str:
+        """Why the last rejected datagram was rejected ("" if none was)."""
+        with self._lock:
+            return self._last_error
+
+    def summary(self) -> dict[str, Any]:
+        """What it counted and rejected: ports, counts, the last rejection, and the loop delay (JSON-ready)."""
+        with self._lock:
+            return {"ports": dict(self.ports), "stats": dict(self._stats), "last_error": self._last_error,
+                    "true_delay": self.true_delay}
+
+    @property
     def true_delay(self) -> float:
         """The loop delay a controller sees: actuator delay plus the link delay both ways."""
         return self.config.delay + 2 * self.config.link_delay
@@ -149,7 +174,8 @@ class DroneEmulator:
     @property
     def mode(self) -> int:
         """The major control state (:class:`~delaykit.hardware.ardrone.CtrlState`)."""
-        return self._phys.mode
+        with self._lock:
+            return self._phys.mode
 
     def _bind(self, kind: int, port: int, name: str) -> socket.socket:
         s = socket.socket(socket.AF_INET, kind)
@@ -270,19 +296,21 @@ class DroneEmulator:
 
     # ---- commands -------------------------------------------------------------------------------------
     def _handle(self, data: bytes, addr: tuple, t: float) -> None:
-        self.stats["datagrams"] += 1
         try:
             cmds = parse_at(data)
         except ProtocolError as exc:
-            self.stats["bad"] += 1
-            self.last_error = str(exc)
+            with self._lock:
+                self._stats["datagrams"] += 1
+                self._stats["bad"] += 1
+                self._last_error = str(exc)
             return
         c = self.config
         with self._lock:
+            self._stats["datagrams"] += 1
             self._advance(t)
             self._last_cmd = t
             for cmd in cmds:
-                self.stats["commands"] += 1
+                self._stats["commands"] += 1
                 p = self._phys
                 if cmd.name == "REF":
                     bits = cmd.args[0]
@@ -298,7 +326,7 @@ class DroneEmulator:
                 elif cmd.name in ("PCMD", "PCMD_MAG"):
                     if p.mode in (CtrlState.FLYING, CtrlState.HOVERING):
                         flag = cmd.args[0]
-                        gaz = int_to_float(cmd.args[3] if cmd.args[3] < 2**31 else cmd.args[3] - 2**32)
+                        gaz = cmd.floats(3, 4)[0]
                         v = gaz * self._vz_max if flag & 1 else 0.0
                         p.pending.append((t + c.link_delay + c.delay, v))
                 elif cmd.name == "COMWDG":
@@ -308,16 +336,21 @@ class DroneEmulator:
                     self._config_kv[key] = value
                     if key == "general:navdata_demo":
                         self._demo = value.upper() == "TRUE"
-                    elif key == "control:control_vz_max":
+                    elif key in ("control:control_vz_max", "control:altitude_max"):
+                        lo, hi = (200.0, 2000.0) if key == "control:control_vz_max" else (500.0, 100000.0)
                         try:
-                            self._vz_max = min(max(float(value), 200.0), 2000.0) / 1000.0
+                            x = float(value)
                         except ValueError:
-                            self.stats["bad"] += 1
-                    elif key == "control:altitude_max":
-                        try:
-                            self._alt_max = min(max(float(value), 500.0), 100000.0) / 1000.0
-                        except ValueError:
-                            self.stats["bad"] += 1
+                            x = math.nan
+                        if math.isfinite(x):
+                            x = min(max(x, lo), hi) / 1000.0
+                            if key == "control:control_vz_max":
+                                self._vz_max = x
+                            else:
+                                self._alt_max = x
+                        else:
+                            self._stats["bad"] += 1
+                            self._last_error = f"{key} must be a finite number of millimetres, got {value!r}"
                     self._ack = True
                 elif cmd.name == "CTRL":
                     if cmd.args[0] == 5:
@@ -340,7 +373,8 @@ class DroneEmulator:
                 data, addr = self._nav.recvfrom(4096)
             except (socket.timeout, OSError):
                 continue
-            self._client = addr
+            with self._lock:
+                self._client = addr
 
     def _state_bits(self) -> int:
         p = self._phys
@@ -376,13 +410,15 @@ class DroneEmulator:
                 v = self._phys.v
                 mode = self._phys.mode
                 state = self._state_bits()
+                client, demo_on = self._client, self._demo
             self._seq += 1
-            if self._client is None:
+            if client is None:
                 continue
             if c.loss and self.rng.random() < c.loss:
-                self.stats["navdata_dropped"] += 1
+                with self._lock:
+                    self._stats["navdata_dropped"] += 1
                 continue
-            if self._demo:
+            if demo_on:
                 z_meas = z_true + (self.rng.gauss(0.0, c.noise) if c.noise and mode != CtrlState.LANDED else 0.0)
                 demo = Demo(ctrl_state=int(mode) << 16, battery=87, altitude_mm=int(round(1000 * max(z_meas, 0.0))),
                             vz=float(1000 * v))
@@ -390,10 +426,11 @@ class DroneEmulator:
             else:
                 pkt = encode_navdata(state, self._seq)
             try:
-                self._nav.sendto(pkt, self._client)
-                self.stats["navdata_sent"] += 1
+                self._nav.sendto(pkt, client)
             except OSError:
-                pass
+                continue
+            with self._lock:
+                self._stats["navdata_sent"] += 1
 
     def _tcp_loop(self) -> None:
         conns: list[socket.socket] = []
@@ -404,16 +441,22 @@ class DroneEmulator:
                     conn.settimeout(0.1)
                     conns.append(conn)
                     if srv is self._control:
-                        self._control_conn = conn
+                        with self._lock:
+                            self._control_conn = conn
                 except (socket.timeout, OSError):
                     pass
-            if self._pending_config_send and getattr(self, "_control_conn", None) is not None:
-                text = "".join(f"{k} = {v}\n" for k, v in sorted(self._config_kv.items()))
+            with self._lock:
+                target = self._control_conn if self._pending_config_send else None
+                if target is not None:
+                    text = "".join(f"{k} = {v}\n" for k, v in sorted(self._config_kv.items()))
+                    self._pending_config_send = False
+            if target is not None:
                 try:
-                    self._control_conn.sendall(text.encode())
+                    target.sendall(text.encode())
                 except OSError:
                     pass
-                self._pending_config_send = False
+        with self._lock:
+            self._control_conn = None
         for conn in conns:
             try:
                 conn.close()

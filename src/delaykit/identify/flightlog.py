@@ -9,9 +9,14 @@ differs from the initial one (the reference in force at that sample), the starti
 the samples before it, and the step size is the last reference minus the first.  Each can be given instead
 (for a continuous controller whose step fell between two samples, give the step time).
 
+The file is UTF-8 text (a byte-order mark, as spreadsheets write, is allowed) with any line ends (``\n``,
+``\r\n``, ``\r``), separated by commas; a header separated by semicolons or tabs is refused with an error
+saying so (the separator is not guessed).  Values are checked up front: all finite, times increasing and
+within ``±MAX_TIME`` (1e10 s), altitudes, references and commands within ``±MAX_ALTITUDE`` (1e6 m).
+
 Bad files get an error naming the file, the row (1-based, counting the header as row 1) and what is
-wrong.  Nothing is dropped silently: with ``skip_bad=True`` rows with text or non-finite numbers are
-skipped, and how many is recorded in ``FlightLog.skipped``.
+wrong.  Nothing is dropped silently: with ``skip_bad=True`` rows with text, non-finite or out-of-range
+numbers are skipped, and how many is recorded in ``FlightLog.skipped``.
 
 Examples
 --------
@@ -25,6 +30,7 @@ FlightLog(<arrays>: 77 samples, step +1 m at t = 1.04 s from 0.5 m)
 from __future__ import annotations
 
 import csv
+import io
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,9 +40,22 @@ import numpy as np
 
 from ..errors import InvalidValueError, check_real
 
-__all__ = ["FlightLog", "LogError", "REQUIRED", "write_log", "synthetic_log"]
+__all__ = ["FlightLog", "LogError", "REQUIRED", "MAX_ALTITUDE", "MAX_TIME", "write_log", "synthetic_log"]
 
 REQUIRED = ("t", "z", "z_ref")
+MAX_ALTITUDE = 1e6  # m: the largest |z|, |z_ref| (and |u|, m/s) accepted; beyond it is garbage, not a flight
+MAX_TIME = 1e10  # s: the largest |t| accepted (a Unix time stamp fits; 1e300 does not)
+_BOUNDS = {"t": (MAX_TIME, "s"), "z": (MAX_ALTITUDE, "m"), "z_ref": (MAX_ALTITUDE, "m"), "u": (MAX_ALTITUDE, "m/s")}
+
+
+def _out_of_range(key: str, v: float) -> str | None:
+    """Why the value ``v`` of column ``key`` is unusable, or None."""
+    if not math.isfinite(v):
+        return f"{key} is {v} (NaN or inf)"
+    bound, unit = _BOUNDS.get(key, (math.inf, ""))
+    if abs(v) > bound:
+        return f"{key} is {v:g} {unit}, outside [-{bound:g}, {bound:g}] {unit}"
+    return None
 
 
 class LogError(InvalidValueError):
@@ -94,17 +113,22 @@ class FlightLog:
         min_after: int = 10,
         skipped: int = 0,
         extra: Mapping[str, Any] | None = None,
+        rows: Any | None = None,
     ) -> "FlightLog":
         """Build a log from arrays (or pandas Series); ``z_ref`` may be omitted if the step is given.
 
         Parameters
         ----------
         t, z, z_ref, u : array_like
-            Samples.
+            Samples: finite, ``t`` increasing and within ±:data:`MAX_TIME`, the others within
+            ±:data:`MAX_ALTITUDE`.
         step_time, z0, step : float, optional
             Override what is found from ``z_ref``.
         min_after : int
             Fewest samples needed at or after the step.
+        rows : array_like of int, optional
+            The file row of each sample, for error messages (default: sample ``i`` is row ``i + 2``, after a
+            header).
         """
         arrs = {}
         for key, val in (("t", t), ("z", z), ("z_ref", z_ref), ("u", u)):
@@ -112,21 +136,29 @@ class FlightLog:
                 continue
             try:
                 a = np.asarray(val, dtype=float).ravel()
-            except (TypeError, ValueError) as exc:
+            except (TypeError, ValueError, OverflowError) as exc:
                 raise LogError(f"{name}: column {key!r} is not numeric: {exc}") from None
             arrs[key] = a
         n = arrs["t"].size
+        if n == 0:
+            raise LogError(f"{name}: no samples")
+        row_of = np.arange(n) + 2 if rows is None else np.asarray(rows, dtype=int).ravel()
+        if row_of.size != n:
+            raise LogError(f"{name}: {row_of.size} row numbers for {n} samples")
         for key, a in arrs.items():
             if a.size != n:
                 raise LogError(f"{name}: column {key!r} has {a.size} values, column 't' has {n}")
-            bad = np.flatnonzero(~np.isfinite(a))
+            bound = _BOUNDS[key][0]
+            with np.errstate(invalid="ignore"):
+                bad = np.flatnonzero(~(np.abs(a) <= bound))  # NaN, inf, or too large
             if bad.size:
-                raise LogError(f"{name}: row {bad[0] + 2}: {key} is {a[bad[0]]} (NaN or inf)")
+                raise LogError(f"{name}: row {row_of[bad[0]]}: {_out_of_range(key, float(a[bad[0]]))}")
         tt = arrs["t"]
         back = np.flatnonzero(np.diff(tt) <= 0)
         if back.size:
             i = back[0] + 1
-            raise LogError(f"{name}: row {i + 2}: time {tt[i]:g} does not increase (previous row has {tt[i - 1]:g})")
+            raise LogError(f"{name}: row {row_of[i]}: time {tt[i]:g} does not increase (previous row has "
+                           f"{tt[i - 1]:g})")
         zr = arrs.get("z_ref")
         if step_time is None:
             if zr is None:
@@ -167,6 +199,11 @@ class FlightLog:
     ) -> "FlightLog":
         """Read a CSV flight log.
 
+        The file must be UTF-8 text (a byte-order mark and ``\r\n`` line ends, as spreadsheets save, are fine)
+        separated by commas: a semicolon- or tab-separated header is refused with an error saying the
+        separator must be a comma (it is not guessed, so a decimal comma is never misread).  Every value is
+        checked (finite, within the bounds of the module docstring) and errors name the file, row and column.
+
         Parameters
         ----------
         path : str or Path
@@ -181,15 +218,28 @@ class FlightLog:
         path = Path(path)
         name = str(path)
         try:
-            fh = open(path, newline="")
+            data = path.read_bytes()
         except OSError as exc:
-            raise LogError(f"{name}: cannot be read ({exc.strerror})") from None
-        with fh:
-            reader = csv.reader(fh)
+            raise LogError(f"{name}: cannot be read ({exc.strerror or exc})") from None
+        try:
+            text = data.decode("utf-8-sig")  # (drops the byte-order mark a spreadsheet writes)
+        except UnicodeDecodeError as exc:
+            raise LogError(f"{name} is not a UTF-8 text CSV (byte {exc.start} is {data[exc.start]:#04x}); "
+                           "save it as CSV UTF-8") from None
+        if "\x00" in text:
+            raise LogError(f"{name} is not a UTF-8 text CSV (it holds NUL bytes at byte {data.index(0)}): a "
+                           "binary file?")
+        reader = csv.reader(io.StringIO(text, newline=""))  # (newline="": the reader takes \n, \r\n and \r)
+        try:
             try:
                 header = [h.strip() for h in next(reader)]
             except StopIteration:
                 raise LogError(f"{name}: the file is empty") from None
+            if len(header) == 1:
+                for sep, what in ((";", "semicolons"), ("\t", "tabs")):
+                    if sep in header[0]:
+                        raise LogError(f"{name}: the header {header[0][:60]!r} is separated by {what}; the "
+                                       "separator must be a comma (save as CSV with commas)")
             mapping = {k: k for k in (*REQUIRED, "u")}
             mapping.update(columns or {})
             idx: dict[str, int] = {}
@@ -205,7 +255,13 @@ class FlightLog:
             others = [h for h in header if h not in {mapping[k] for k in idx}]
             extra: dict[str, list[str]] = {h: [] for h in others}
             skipped = 0
-            for lineno, row in enumerate(reader, start=2):
+            linenos: list[int] = []
+            while True:
+                lineno = reader.line_num + 1  # the file row (line) this record starts on
+                try:
+                    row = next(reader)
+                except StopIteration:
+                    break
                 if not row or all(not c.strip() for c in row):
                     continue
                 vals = {}
@@ -215,10 +271,10 @@ class FlightLog:
                     try:
                         v = float(cell)
                     except ValueError:
-                        bad = f"{k} is {cell!r}, not a number"
+                        bad = f"{k} is {cell[:40]!r}, not a number"
                         break
-                    if not math.isfinite(v):
-                        bad = f"{k} is {cell} (NaN or inf)"
+                    bad = _out_of_range(k, v)
+                    if bad:
                         break
                     vals[k] = v
                 if bad:
@@ -228,14 +284,17 @@ class FlightLog:
                     raise LogError(f"{name}: row {lineno}: {bad}")
                 for k, v in vals.items():
                     rows[k].append(v)
+                linenos.append(lineno)
                 for h in others:
                     j = header.index(h)
                     extra[h].append(row[j] if j < len(row) else "")
+        except csv.Error as exc:  # e.g. a field longer than the csv module's limit
+            raise LogError(f"{name}: row {reader.line_num}: not a readable CSV ({exc})") from None
         if not rows["t"]:
             raise LogError(f"{name}: no data rows")
         arrays = {k: np.array(v) for k, v in rows.items()}
         return cls.from_arrays(arrays["t"], arrays["z"], arrays.get("z_ref"), arrays.get("u"), name=name,
-                               skipped=skipped, extra=extra, **kwargs)
+                               skipped=skipped, extra=extra, rows=linenos, **kwargs)
 
     @classmethod
     def from_dataframe(cls, df: Any, *, columns: Mapping[str, str] | None = None, **kwargs: Any) -> "FlightLog":
