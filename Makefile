@@ -30,6 +30,7 @@ test: $(VENV)/.test-installed
 
 bench: $(VENV)/.test-installed
 	$(BIN)/python benchmarks/bench_simulate.py
+	$(BIN)/python benchmarks/bench_general.py
 	$(BIN)/python benchmarks/bench_roots.py
 	$(BIN)/python benchmarks/bench_estimate.py
 

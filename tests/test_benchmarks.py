@@ -21,6 +21,18 @@ def test_simulation_benchmark_small(tmp_path):
     assert res["targets_met"] == {"delaykit": True, "jitcdde": True}
 
 
+def test_general_loop_benchmark_small(tmp_path):
+    """The PID loop benchmark: delaykit (continuous and sampled) and jitcdde reach the accuracy target against
+    the independent oracle (tests/oracle_loop.py) on a small case."""
+    out = tmp_path / "g.json"
+    subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_general.py"), "--loops", "60",
+                    "--reference", "2", "--jit-loops", "60", "--no-cold", "--json", str(out)],
+                   check=True, capture_output=True, text=True)
+    res = json.loads(out.read_text())
+    assert res["targets_met"] == {"delaykit_continuous": True, "delaykit_sampled": True, "jitcdde": True}
+    assert res["delaykit"]["continuous"]["error"]["overshoot"] < 1e-6
+
+
 def test_estimation_benchmark_small(tmp_path):
     out = tmp_path / "e.json"
     subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_estimate.py"), "--flights", "12",

@@ -347,7 +347,7 @@ def _first_switch(V, nv, E, ne, regime, frozen, umin, umax, aw):
 
 # -- one piece -------------------------------------------------------------------------------------------
 @njit(cache=True)
-def _recursion(par, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dist, X, R, nR,
+def _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dist, X, R, nR,
                Wd, nW, Ym, Vm, use_meas, Y, Yd, V, Wp, E):
     """Taylor coefficients of every signal on one piece of length ``H`` with the regime fixed.
 
@@ -388,9 +388,9 @@ def _recursion(par, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dis
         cv = 0.0
         for i in range(N):
             xi = X[i, j]
-            cy += par[OFF_CY + i] * xi
-            cyd += par[OFF_CYD + i] * xi
-            cv += par[OFF_CV + i] * xi
+            cy += VE[5, i] * xi
+            cyd += VE[6, i] * xi
+            cv += VE[7, i] * xi
         if sampled:
             wj = (Wd[j] if (ti_pos and j < nW) else (uhold if j == 0 else 0.0)) + dj
             vj = 0.0  # filled below
@@ -431,11 +431,9 @@ def _recursion(par, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dis
             awj = (lim if j == 0 else 0.0) - vj
         f = H / (j + 1)
         for i in range(N):
-            acc = par[OFF_BW + i] * wj + par[OFF_BR + i] * rj + par[OFF_BYM + i] * ymj + par[OFF_BVM + i] * vmj
-            acc += par[OFF_BAW + i] * awj
-            row = OFF_M + i * MAXN
+            acc = VE[0, i] * wj + VE[1, i] * rj + VE[2, i] * ymj + VE[3, i] * vmj + VE[4, i] * awj
             for k in range(N):
-                acc += par[row + k] * X[k, j]
+                acc += Mloc[i, k] * X[k, j]
             X[i, j + 1] = f * acc
         if frozen and integ >= 0:
             X[integ, j + 1] = 0.0
@@ -510,6 +508,20 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     dW = np.zeros(NC)
     xs = np.zeros(_GRID + 2)
     x0 = np.zeros(MAXN)
+    # the loop's matrices, read once: M, then the input and output vectors (w, r, ym, vm, aw; y, y', v)
+    Mloc = np.empty((N, N))
+    VE = np.empty((8, N))
+    for i in range(N):
+        for k in range(N):
+            Mloc[i, k] = par[OFF_M + i * MAXN + k]
+        VE[0, i] = par[OFF_BW + i]
+        VE[1, i] = par[OFF_BR + i]
+        VE[2, i] = par[OFF_BYM + i]
+        VE[3, i] = par[OFF_BVM + i]
+        VE[4, i] = par[OFF_BAW + i]
+        VE[5, i] = par[OFF_CY + i]
+        VE[6, i] = par[OFF_CYD + i]
+        VE[7, i] = par[OFF_CV + i]
 
     ne = et.shape[0]
     ke = 0
@@ -554,7 +566,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
         while sampled and nexts <= a + eps:
             v = dvr * (r0[kr] + rs[kr] * (a - rt[kr])) + dvy * ym_left + dvv * vm_left
             for i in range(N):
-                v += par[OFF_CV + i] * x0[i]
+                v += VE[7, i] * x0[i]
             uhold = min(max(v, umin), umax)
             ksamp += 1
             nexts = off + ksamp * per
@@ -624,7 +636,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
         xc = 2.0
         prev_regime = regime
         for attempt in range(4):
-            nt = _recursion(par, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dcur, X, R, nR,
+            nt = _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dcur, X, R, nR,
                             Wd, nW, Ym, Vm, to_pos, Y, Yd, V, Wp, E)
             nv = _degree(V, nt)
             new = _classify(V, nv, umin, umax, ptol)
