@@ -120,6 +120,12 @@ def test_reproduce_writes_every_item(tmp_path):
     assert verdicts["table1"].startswith("reproduced to within solver error")
     assert verdicts["table4"].startswith("reproduced to within solver error by the configuration 'filter, saturation, sampled")
     assert "4 of 5 rows reproduced" in verdicts["table3"]
+    statuses = {i.key: i.status for i in rep.items}
+    assert statuses == {"table1": "reproduced", "section511": "reproduced", "section512": "reproduced",
+                        "table3": "not reproduced", "table4": "reproduced", "fig5": "reproduced",
+                        "filter": "not reproduced"}
+    assert all(i.verdict.startswith(i.status) for i in rep.items)
+    assert json.loads((tmp_path / "report.json").read_text())["items"][0]["status"] == "reproduced"
     md = (tmp_path / "report.md").read_text()
     for fig in ("fig7_iterations.png", "fig8_spectra.png", "fig9_pv_responses.png"):
         assert (tmp_path / fig).stat().st_size > 10_000 and fig in md
