@@ -168,3 +168,52 @@ def test_lambert_json():
 def test_roots_and_lambert_bad_input(args, fragment):
     res = run(*args)
     assert res.exit_code == 2 and fragment in res.output and "Traceback" not in res.output
+
+
+# ---- the demo: an estimate without an interval, and a flight that gives nothing --------------------------------
+
+
+def _no_interval_estimate():
+    from delaykit.identify.estimation import DelayEstimate, EstimateParams
+
+    return DelayEstimate(delay=0.3712, stderr=None, ci=None, method="trajectory", flights=1,
+                         params=EstimateParams(offsets=(0.0,), scales=(1.0,), lag=(0.05,)))
+
+
+def test_demo_command_with_no_interval(tmp_path, monkeypatch):
+    from types import SimpleNamespace
+
+    import delaykit.paper.demo as demo
+
+    est = _no_interval_estimate()
+    rep = SimpleNamespace(estimate=est, true_delay=0.37, error=est.delay - 0.37, kv=0.3,
+                          p_metrics=[{"settling_time": 4.0}], pv_metrics=[{"settling_time": 2.5}],
+                          to_dict=lambda: {"estimate": est.to_dict()})
+    monkeypatch.setattr(demo, "run_demo", lambda *a, **k: rep)
+    res = run("demo", "--out", str(tmp_path))
+    assert res.exit_code == 0, res.output
+    assert "no interval" in res.stdout and "0.3712" in res.stdout
+    res = run("demo", "--out", str(tmp_path), "--json")
+    assert res.exit_code == 0 and json.loads(res.stdout)["estimate"]["ci"] is None
+
+
+def test_demo_report_with_no_interval(tmp_path, monkeypatch):
+    from types import SimpleNamespace
+
+    import delaykit.paper.demo as demo
+    import delaykit.plotting.figures as figures
+    from delaykit.identify.flightlog import synthetic_log, write_log
+
+    monkeypatch.setattr(figures, "plot_fit", lambda *a, **k: None)
+    log = synthetic_log(AltitudeLoop(kp=1.31, delay=0.37), 1.0, after=5.0)
+    path = tmp_path / "p_flight_1.csv"
+    write_log(path, {"t": log.t, "z": log.z, "z_ref": log.z_ref})
+    flight = SimpleNamespace(logs=(path,), packet_interval=None, latency_median_ms=0.1, latency_p99_ms=0.2,
+                             to_dict=lambda: {})
+    metrics = demo._metrics((path,))
+    files = demo._write(tmp_path, None, _no_interval_estimate(), 0.05, 0.3, SimpleNamespace(reason="fastest"),
+                        flight, flight, metrics, metrics)
+    md = (tmp_path / "demo.md").read_text()
+    assert "(no interval)" in md and "0.3712" in md
+    assert json.loads((tmp_path / "demo.json").read_text())["estimate"]["ci"] is None
+    assert files[0] == tmp_path / "demo.md"

@@ -33,11 +33,11 @@ def test_section_511_overshoot_method():
 def test_section_512_lambert_method_both_variants():
     paper = estimate_lambert(2.300, 3.055, kp=1.31, variant="paper")
     assert round(paper.delay, 3) == 0.374 and abs(paper.delay_imag + 0.2507) < 2e-4
-    it = paper.diagnostics["iterations"]
+    it = paper.diagnostics.iterations
     assert it[0] == 0.2 and len(it) > 3
     T = it[-1]
     s = complex(lambert_w(-1.31 * T, 0)) / T
-    assert abs(s - paper.diagnostics["root"]) < 1e-10  # the complex delay really solves the relation
+    assert abs(s - paper.diagnostics.root) < 1e-10  # the complex delay really solves the relation
     damping = estimate_lambert(2.300, 3.055, kp=1.31, variant="damping")
     assert abs(damping.delay - 0.360) < 1e-3 and damping.delay_imag is None
     with pytest.raises(ValueError, match="variant"):
@@ -88,8 +88,8 @@ def test_free_lag_and_gain_recover_a_slower_drone():
     assert plain.warnings  # the model without the lag does not explain the data
     full = estimate_trajectory(logs, kp=1.31, period=0.065, free=("gain", "lag"))
     assert abs(full.delay - 0.30) < 0.01
-    assert np.allclose(full.params["lag"], 0.2, atol=0.03) and np.allclose(full.params["gain"], 0.9, atol=0.03)
-    assert full.diagnostics["whiteness_p"] > 0.01
+    assert np.allclose(full.params.lag, 0.2, atol=0.03) and np.allclose(full.params.gain, 0.9, atol=0.03)
+    assert full.diagnostics.whiteness_p > 0.01
     z = fitted_altitude(logs[0], full, 1.31, 0, period=0.065)
     assert np.sqrt(np.mean((logs[0].z - z) ** 2)) < 0.006
 
@@ -100,11 +100,11 @@ def test_pooling_and_heterogeneity():
     pooled, each = estimate_flights(same, kp=1.31)
     assert pooled.flights == 4 and len(each) == 4
     assert abs(pooled.delay - 0.37) < 2e-3 and pooled.stderr < min(e.stderr for e in each)
-    assert pooled.diagnostics["heterogeneity_p"] > 0.05 and not any("disagree" in w for w in pooled.warnings)
+    assert pooled.diagnostics.heterogeneity_p > 0.05 and not any("disagree" in w for w in pooled.warnings)
     varied = [synthetic_log(AltitudeLoop(kp=1.31, delay=d), 1.0, noise=0.003, rng=rng) for d in (0.33, 0.37, 0.41)]
     pooled2, _ = estimate_flights(varied, kp=1.31)
     assert any("disagree" in w for w in pooled2.warnings)
-    assert 0.03 < pooled2.diagnostics["spread"] < 0.05
+    assert 0.03 < pooled2.diagnostics.spread < 0.05
 
 
 def test_estimate_repr_and_dict():
@@ -198,3 +198,93 @@ def test_cli_estimate_files_and_numbers(tmp_path):
     assert res.exit_code == 2 and "--method" in res.output
     res = runner.invoke(app, ["estimate", str(tmp_path / "missing.csv"), "--kp", "1.31"])
     assert res.exit_code == 2 and "cannot be read" in res.output
+
+
+# ---- typed params and diagnostics; an estimate without an interval --------------------------------------------
+
+
+def test_params_and_diagnostics_are_typed_records_with_the_former_json():
+    from dataclasses import FrozenInstanceError
+
+    from delaykit.identify.estimation import DelayEstimate, Diagnostics, EstimateParams, FlightFit
+
+    est = estimate_overshoot(2.300, kp=1.31)
+    assert isinstance(est.params, EstimateParams) and isinstance(est.diagnostics, Diagnostics)
+    assert est.params.kp == 1.31 and est.params.overshoot == 2.3 and est.params.lag is None
+    assert est.diagnostics.slope_percent_per_second > 0 and est.diagnostics.measured_peak_time is None
+    with pytest.raises(FrozenInstanceError):
+        est.params.kp = 2.0  # type: ignore[misc]
+    # the JSON has the keys the dicts had: set fields only (the overshoot method always reports the model's peak)
+    d = est.to_dict()
+    assert set(d["params"]) == {"kp", "overshoot"}
+    assert set(d["diagnostics"]) == {"slope_percent_per_second", "warnings", "model_peak_time"}
+    assert Diagnostics(slope_percent_per_second=1.0).to_dict() == {
+        "warnings": [], "slope_percent_per_second": 1.0, "model_peak_time": None}
+    with_tp = estimate_overshoot(2.300, kp=1.31, peak_time=3.055).to_dict()["diagnostics"]
+    assert set(with_tp) == {"slope_percent_per_second", "warnings", "model_peak_time", "measured_peak_time"}
+    paper = estimate_lambert(2.300, 3.055, kp=1.31, variant="paper").to_dict()
+    assert paper["params"] == {"variant": "paper", "kp": 1.31}
+    assert set(paper["diagnostics"]) == {"zeta", "omega_n", "root", "warnings", "iterations"}
+    assert len(paper["diagnostics"]["root"]) == 2 and paper["diagnostics"]["iterations"][0] == [0.2, 0.0]
+    damping = estimate_lambert(2.300, 3.055, kp=1.31, variant="damping").to_dict()
+    assert set(damping["diagnostics"]) == {"zeta", "omega_n", "root", "warnings", "model_root"}
+
+    rng = np.random.default_rng(5)
+    logs = [synthetic_log(AltitudeLoop(kp=1.31, delay=0.37), 1.0, noise=0.003, rng=rng, after=6.0) for _ in range(2)]
+    pooled, each = estimate_flights(logs, kp=1.31, free=("lag",), interval=False)
+    assert isinstance(pooled.diagnostics.per_flight[0], FlightFit) and len(pooled.params.lag) == 2
+    assert pooled.params.gain is None and len(pooled.diagnostics.per_flight_delays) == 2
+    d = json.loads(json.dumps(pooled.to_dict()))
+    assert set(d["params"]) == {"offsets", "scales", "lag"}
+    assert set(d["diagnostics"]) >= {"ljung_box_q", "whiteness_p", "per_flight", "warnings", "nfev", "samples",
+                                     "resolution", "resolution_stderr", "stderr_inflation", "spread",
+                                     "per_flight_delays", "heterogeneity_chi2", "heterogeneity_p"}
+    assert set(d["diagnostics"]) - {"note"} == {"ljung_box_q", "whiteness_p", "per_flight", "warnings", "nfev",
+                                                 "samples", "resolution", "resolution_stderr", "stderr_inflation",
+                                                 "spread", "per_flight_delays", "heterogeneity_chi2",
+                                                 "heterogeneity_p"}
+    assert set(d["diagnostics"]["per_flight"][0]) == {"file", "offset", "scale", "gain", "lag", "residual_rms",
+                                                      "measured_overshoot", "model_overshoot", "measured_peak_time",
+                                                      "model_peak_time"}
+    assert set(each[0].to_dict()["diagnostics"]) - {"note"} == {
+        "ljung_box_q", "whiteness_p", "per_flight", "warnings", "nfev", "samples", "resolution",
+        "resolution_stderr", "stderr_inflation"}
+    # a mapping in the former form is converted; an unknown key is an error that names it
+    est2 = DelayEstimate(delay=0.3, stderr=None, ci=None, method="overshoot", params={"kp": 1.0},
+                         diagnostics={"warnings": ["w"], "spread": 0.01})
+    assert est2.params == EstimateParams(kp=1.0) and est2.warnings == ["w"] and est2.diagnostics.spread == 0.01
+    with pytest.raises(ValueError, match="'gains'"):
+        DelayEstimate(delay=0.3, stderr=None, ci=None, method="x", params={"gains": [1.0]})
+    # fitting altitudes needs a trajectory fit's offsets and scales
+    with pytest.raises(ValueError, match="not a trajectory fit"):
+        fitted_altitude(logs[0], est, 1.31)
+
+
+def test_cli_estimate_with_no_interval_says_so(tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+
+    import delaykit.identify.estimation as E
+    from delaykit.cli import app
+
+    p = tmp_path / "flight.csv"
+    log = synthetic_log(AltitudeLoop(kp=1.31, delay=0.37), 1.0, after=5.0)
+    write_log(p, {"t": log.t, "z": log.z, "z_ref": log.z_ref})
+    no_ci = E.DelayEstimate(delay=0.37, stderr=None, ci=None, method="trajectory",
+                            params=E.EstimateParams(offsets=(0.0,), scales=(1.0,)))
+    monkeypatch.setattr(E, "estimate_flights", lambda logs, kp, **kw: (no_ci, [no_ci] * len(logs)))
+    runner = CliRunner()
+    for args in ([str(p), str(p)], [str(p)]):
+        res = runner.invoke(app, ["estimate", *args, "--kp", "1.31", "--json"])
+        assert res.exit_code == 0, res.output
+        got = json.loads(res.stdout)
+        assert got["pooled"]["ci"] is None and all(f["ci"] is None for f in got["flights"])
+        res = runner.invoke(app, ["estimate", *args, "--kp", "1.31"])
+        assert res.exit_code == 0, res.output
+        assert "no interval" in res.stdout and "Traceback" not in res.output
+    # the overshoot method on one flight has no spread, hence no interval, without any stub
+    monkeypatch.undo()
+    res = runner.invoke(app, ["estimate", str(p), "--kp", "1.31", "--method", "overshoot", "--json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["pooled"]["ci"] is None
+    res = runner.invoke(app, ["estimate", "--overshoot", "2.3", "--kp", "1.31", "--method", "overshoot"])
+    assert res.exit_code == 0 and "no interval" in res.stdout

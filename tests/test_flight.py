@@ -98,6 +98,30 @@ def test_emulator_tcp_ports_and_port_errors():
     assert EmulatorConfig().host == "127.0.0.1"
 
 
+def test_a_port_in_use_is_an_os_error_and_one_line_from_the_command_line():
+    from typer.testing import CliRunner
+
+    from delaykit import DelaykitError, InvalidValueError
+    from delaykit.cli import app
+
+    with emulator() as emu:
+        busy = emu.ports["at"]
+        with pytest.raises(PortError) as info:
+            DroneEmulator(EmulatorConfig(**{**FREE, "at_port": busy})).start()
+        # an environment problem, not a bad value
+        assert isinstance(info.value, OSError) and isinstance(info.value, DelaykitError)
+        assert not isinstance(info.value, (ValueError, InvalidValueError))
+        res = CliRunner().invoke(app, ["emulate", "--at-port", str(busy), "--navdata-port", "0", "--video-port", "0",
+                                       "--control-port", "0", "--duration", "0.1"])
+    assert res.exit_code == 2, res.output
+    assert "already in use" in res.output and "Traceback" not in res.output
+    assert len(res.output.strip().splitlines()) == 1
+    # an out-of-range port number is still a PortError, and a bad value too
+    with pytest.raises(InvalidValueError, match="0 to 65535") as info:
+        EmulatorConfig(at_port=-1)
+    assert isinstance(info.value, PortError)
+
+
 def test_unreachable_drone_is_a_clear_error_and_nothing_flies(tmp_path):
     s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     s.bind(("127.0.0.1", 0))

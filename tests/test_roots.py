@@ -185,3 +185,103 @@ def test_bad_quasi_polynomials():
         QuasiPolynomial([[0.0]], [0.0])
     with pytest.raises(InvalidValueError, match="advanced"):
         find_roots(QuasiPolynomial([[1], [1, 0]], [0, 1]), (-1, 1, -1, 1))
+
+
+# ---- statuses: the retry and the result say why by a RootStatus, never by reading the message ----------------
+
+
+def _recording_count(monkeypatch):
+    """Replace the contour count by one that records every box it is asked about."""
+    import delaykit.spectrum.roots as R
+
+    boxes = []
+    inner = R._count
+
+    def count(ev, box):
+        boxes.append(box)
+        return inner(ev, box)
+
+    monkeypatch.setattr(R, "_count", count)
+    return boxes
+
+
+def test_sample_budget_failure_is_not_retried(monkeypatch):
+    import delaykit.spectrum.roots as R
+    from delaykit.spectrum.roots import RootStatus
+
+    q = QuasiPolynomial([np.poly([-1, -2, 3j, -3j])], [0.0])
+    monkeypatch.setattr(R, "_CAP", 50)
+    boxes = _recording_count(monkeypatch)
+    region = (-3.5, 0.5, -0.5, 5.5)  # no root on or near its edges: only the budget stops the count
+    grown, c = R._nudged_count(R._Eval(q), region)
+    assert c.status is RootStatus.SAMPLE_BUDGET and not c.ok
+    assert "samples" in c.reason and "boundary" in c.reason  # the sentence that used to trigger the retries
+    assert boxes == [region] and grown == region  # counted once: larger boxes cannot cure a sample budget
+    # through find_roots: the region (or a box around it) is counted once, and the status says why
+    boxes.clear()
+    sp = find_roots(q, region)
+    assert not sp.certified and sp.status is RootStatus.SAMPLE_BUDGET and sp.count is None
+    around = [b for b in boxes if b[0] <= region[0] and b[1] >= region[1] and b[2] <= region[2] and b[3] >= region[3]]
+    assert len(around) == 1
+    assert sp.to_dict()["status"] == "sample_budget" and sp.to_dict()["reason"] == sp.reason
+
+
+def test_root_on_the_boundary_is_retried_and_certified(monkeypatch):
+    import delaykit.spectrum.roots as R
+    from delaykit.spectrum.roots import RootStatus
+
+    q = QuasiPolynomial([np.poly([-1, -2])], [0.0])
+    boxes = _recording_count(monkeypatch)
+    region = (-1.0, 0.0, -1.0, 1.0)  # the root -1 sits on the left edge
+    assert R._count(R._Eval(q), region).status is RootStatus.ROOT_ON_BOUNDARY
+    boxes.clear()
+    grown, c = R._nudged_count(R._Eval(q), region)
+    assert c.status is RootStatus.CERTIFIED and c.n == 1
+    assert len(boxes) >= 2 and boxes[0] == region and grown != region  # retried on a slightly larger box
+    assert grown[0] < region[0] and grown[1] > region[1]
+    sp = find_roots(q, region)
+    assert sp.certified and sp.status is RootStatus.CERTIFIED and sp.reason == ""
+    assert sp.roots.size == 1 and abs(sp.roots[0] + 1) < 1e-12
+
+
+def test_status_is_on_every_result():
+    from delaykit.spectrum.roots import RootStatus, Spectrum
+
+    q = AltitudeLoop(kp=2.0, delay=0.37, kv=0.3).characteristic()
+    sp = find_roots(q, (-10, 2, 0, 100))
+    assert sp.status is RootStatus.CERTIFIED and sp.to_dict()["status"] == "certified"
+    sp = find_roots(q, (-10, 2, 0, 100), certify=False)
+    assert not sp.certified and sp.status is RootStatus.NOT_REQUESTED and sp.reason
+    p_loop = QuasiPolynomial([[1, 0], [2.0]], [0, 0.5])
+    sp = find_roots(p_loop, (-12, 3, -60, 60), ds=20.0, max_depth=0)  # a coarse grid leaves roots to subdivision
+    assert not sp.certified and sp.status is RootStatus.DEPTH_LIMIT and "depth" in sp.reason and sp.count == 10
+    assert find_roots(p_loop, (-12, 3, -60, 60), ds=20.0).status is RootStatus.CERTIFIED
+    # a Spectrum built by hand without a status gets one that agrees with `certified`, and may not contradict it
+    z = np.zeros(0, complex)
+    assert Spectrum(z, np.zeros(0, int), (0, 1, 0, 1), 0, True, "", "retarded", ()).status is RootStatus.CERTIFIED
+    assert Spectrum(z, np.zeros(0, int), (0, 1, 0, 1), None, False, "?", "retarded", ()).status is \
+        RootStatus.COUNT_MISMATCH
+    with pytest.raises(InvalidValueError, match="contradicts"):
+        Spectrum(z, np.zeros(0, int), (0, 1, 0, 1), 0, True, "", "retarded", (), status=RootStatus.SAMPLE_BUDGET)
+    assert {s.value for s in RootStatus} >= {"certified", "root_on_boundary", "sample_budget"}
+    import delaykit
+
+    assert delaykit.RootStatus is RootStatus
+
+
+def test_no_control_flow_reads_message_text():
+    """Errors and statuses are told apart by type; no `"..." in str(exc)` or `"..." in c.reason` remains."""
+    import re
+    from pathlib import Path
+
+    import delaykit
+
+    src = Path(delaykit.__file__).parent
+    pattern = re.compile(
+        r"""(['"][^'"]*['"]\s+(not\s+)?in\s+(str|repr)\()"""  # "text" in str(exc)
+        r"""|(['"][^'"]*['"]\s+(not\s+)?in\s+[\w.]*\b(exc|err|error|e|msg|message|reason|args)\b(?!\())"""
+        r"""|(\bin\s+str\((exc|err|error|e)\))"""
+    )
+    hits = [f"{p.relative_to(src)}:{i}: {line.strip()}" for p in sorted(src.rglob("*.py"))
+            for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1) if pattern.search(line)]
+    assert not hits, "control flow reads message text:\n" + "\n".join(hits)

@@ -17,13 +17,17 @@ import sys
 import types
 from typing import Any
 
-from .errors import DelaykitError, InvalidTypeError, InvalidValueError
+from .errors import (DelaykitError, FlightError, InvalidTypeError, InvalidValueError, PortError, PortNumberError,
+                     RangeSpecError)
 
 __all__ = [
     "AltitudeLoop", "Loop", "Controller", "TransferFunction", "Step", "Ramp", "Samples", "LoadStep", "load_loop",
-    "BatchMetrics", "DelaykitError", "InvalidTypeError", "InvalidValueError", "PAPER_PERIOD",
+    "BatchMetrics", "PAPER_PERIOD",
     "QuasiPolynomial", "Response", "SecondOrder", "StepMetrics", "noise_level", "simulate", "simulate_many",
-    "step_metrics",
+    "step_metrics", "RootStatus",
+    # every exception class of the package (all derive from DelaykitError)
+    "DelaykitError", "InvalidTypeError", "InvalidValueError", "RangeSpecError", "PortError", "PortNumberError",
+    "FlightError", "ProtocolError", "ATError", "NavdataError", "LinkError", "EstimationError", "LogError",
 ]
 __version__ = "0.1.0"
 
@@ -33,7 +37,10 @@ _LAZY = {
     "Step": ".models.signals", "Ramp": ".models.signals", "Samples": ".models.signals", "LoadStep": ".models.signals",
     "TransferFunction": ".models.transfer", "SecondOrder": ".simulate.metrics", "StepMetrics": ".simulate.metrics",
     "noise_level": ".simulate.metrics", "step_metrics": ".simulate.metrics", "BatchMetrics": ".simulate.simulation",
-    "Response": ".simulate.simulation", "simulate_many": ".simulate.simulation",
+    "Response": ".simulate.simulation", "simulate_many": ".simulate.simulation", "RootStatus": ".spectrum.roots",
+    # exception classes defined beside the code that raises them (also re-exported by delaykit.errors)
+    "ProtocolError": ".hardware.ardrone", "ATError": ".hardware.ardrone", "NavdataError": ".hardware.ardrone",
+    "LinkError": ".hardware.flight", "EstimationError": ".identify.estimation", "LogError": ".identify.flightlog",
 }
 
 

@@ -1,7 +1,29 @@
-"""The exceptions delaykit raises for bad input.
+"""The exceptions delaykit raises.
 
 Every check in the library raises one of these, with a message that names the bad value and what was
-expected; the command line prints the message (no traceback) and exits with status 2.
+expected; the command line prints the message (no traceback) and exits with status 2.  Code tells errors apart
+by their type, never by their message (the message is for people).
+
+Every exception class of the package derives from :class:`DelaykitError` and is exported from ``delaykit``.
+The ones of general use are defined here; those that belong to one layer are defined next to the code that raises
+them (this module is the lowest layer and imports nothing of the package) and are loaded on first use by
+``delaykit``: ``ProtocolError``, ``ATError`` and ``NavdataError`` (:mod:`delaykit.hardware.ardrone`),
+``LinkError`` (:mod:`delaykit.hardware.flight`), ``EstimationError`` (:mod:`delaykit.identify.estimation`) and
+``LogError`` (:mod:`delaykit.identify.flightlog`).
+
+Hierarchy::
+
+    DelaykitError
+    ├── InvalidValueError (also ValueError): a bad value
+    │   ├── RangeSpecError: text that is not a range (START:STOP:N, a comma list or a number)
+    │   ├── ProtocolError: a malformed datagram (ATError, NavdataError)
+    │   ├── EstimationError: the data cannot give a delay by this method
+    │   ├── LogError: an unreadable flight log
+    │   └── PortNumberError (also PortError): a port number out of range
+    ├── InvalidTypeError (also TypeError): a value of the wrong type
+    ├── PortError (also OSError): a port that cannot be bound (already in use, ...)
+    ├── LinkError (also RuntimeError): the drone does not answer
+    └── FlightError (also RuntimeError): a flight produced nothing to work with
 """
 
 from __future__ import annotations
@@ -9,7 +31,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-__all__ = ["DelaykitError", "InvalidValueError", "InvalidTypeError", "check_real"]
+__all__ = ["DelaykitError", "InvalidValueError", "InvalidTypeError", "RangeSpecError", "PortError",
+           "PortNumberError", "FlightError", "check_real"]
 
 
 class DelaykitError(Exception):
@@ -22,6 +45,29 @@ class InvalidValueError(DelaykitError, ValueError):
 
 class InvalidTypeError(DelaykitError, TypeError):
     """A value has the wrong type (for example text where a number was expected)."""
+
+
+class RangeSpecError(InvalidValueError):
+    """Text that is not a range of values at all: not ``START:STOP:N``, a comma list or a number.
+
+    (A well-formed range with bad values, such as ``N = 0`` or a reversed range, is a plain
+    :class:`InvalidValueError`.)
+    """
+
+
+class PortError(DelaykitError, OSError):
+    """A network port that cannot be used: already in use, or the system refused to bind it.
+
+    An environment problem rather than a bad value, so an :class:`OSError` (not a :class:`ValueError`).
+    """
+
+
+class PortNumberError(PortError, InvalidValueError):
+    """A port number out of range (0 to 65535): a bad value, and a :class:`PortError`."""
+
+
+class FlightError(DelaykitError, RuntimeError):
+    """A flight produced nothing to work with (no logs), so the pipeline cannot go on."""
 
 
 def check_real(

@@ -18,7 +18,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from ..errors import DelaykitError, InvalidValueError, check_real
+from ..errors import DelaykitError, InvalidValueError, RangeSpecError, check_real
 from .loopopts import with_loop
 
 __all__ = ["app", "main", "parse_delays"]
@@ -67,11 +67,9 @@ def parse_delays(spec: str) -> list[float]:
         return [k * PAPER_PERIOD for k, _, _ in TABLE1]
     try:
         return parse_range(spec, "--delay")
-    except InvalidValueError as exc:
-        if "must be START:STOP:N" in str(exc):
-            raise InvalidValueError(f"--delay {spec!r} is not a delay: give seconds (0.368), START:STOP:N, a comma "
-                                    "list, or 'table1'") from None
-        raise
+    except RangeSpecError:
+        raise RangeSpecError(f"--delay {spec!r} is not a delay: give seconds (0.368), START:STOP:N, a comma "
+                             "list, or 'table1'") from None
 
 
 def _optional_float(name: str, text: Optional[str]) -> Optional[float]:
@@ -85,6 +83,16 @@ def _optional_float(name: str, text: Optional[str]) -> Optional[float]:
 
 def _fmt(x: Optional[float], digits: int = 4) -> str:
     return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}f}"
+
+
+def _fmt_ci(ci: Any, digits: int = 4) -> str:
+    """A confidence interval as text: ``a to b``, or ``no interval`` when the method gave none (``None``)."""
+    return "no interval" if ci is None else f"{ci[0]:.{digits}f} to {ci[1]:.{digits}f}"
+
+
+def _ci_list(ci: Any) -> Optional[list[float]]:
+    """A confidence interval for JSON: ``[a, b]``, or ``None`` (null) when there is none."""
+    return None if ci is None else [float(ci[0]), float(ci[1])]
 
 
 @app.command()
@@ -469,6 +477,7 @@ def estimate(
             print(json.dumps(est.to_dict(), indent=2))
             return
         out.print(repr(est), highlight=False)
+        out.print("no interval" if est.ci is None else f"95 % interval: {_fmt_ci(est.ci)}", highlight=False)
         if est.delay_imag is not None:
             out.print(f"complex delay: {est.delay:.4f} {est.delay_imag:+.4f}j s", highlight=False)
         for w in est.warnings:
@@ -495,15 +504,12 @@ def estimate(
         d = np.array([e.delay for e in each])
         se = float(np.std(d, ddof=1) / np.sqrt(d.size)) if d.size > 1 else None
         ci = (float(d.mean() - 1.96 * se), float(d.mean() + 1.96 * se)) if se else None
-        from ..identify.estimation import DelayEstimate
-
-        pooled = DelayEstimate(delay=float(d.mean()), stderr=se, ci=ci, method=method, flights=d.size,
-                               diagnostics={"note": "mean of the flights; error from their spread"})
-    rows = [{"file": log.name, "delay": e.delay, "stderr": e.stderr, "ci": list(e.ci) if e.ci else None,
+        pooled = E.DelayEstimate(delay=float(d.mean()), stderr=se, ci=ci, method=method, flights=d.size,
+                                 diagnostics=E.Diagnostics(note="mean of the flights; error from their spread"))
+    rows = [{"file": log.name, "delay": e.delay, "stderr": e.stderr, "ci": _ci_list(e.ci),
              "skipped_rows": log.skipped, "warnings": e.warnings} for log, e in zip(logs, each)]
-    result = {"flights": rows, "pooled": {"delay": pooled.delay, "stderr": pooled.stderr,
-                                          "ci": list(pooled.ci) if pooled.ci else None,
-                                          "spread": pooled.diagnostics.get("spread"),
+    result = {"flights": rows, "pooled": {"delay": pooled.delay, "stderr": pooled.stderr, "ci": _ci_list(pooled.ci),
+                                          "spread": pooled.diagnostics.spread,
                                           "warnings": pooled.warnings}, "method": method}
     if plot is not None and method == "trajectory":
         from ..plotting.figures import plot_fit
@@ -516,11 +522,10 @@ def estimate(
     table = Table(title=f"Delay by the {method} method (Kp = {kp:g})")
     for col in ("flight", "delay (s)", "± stderr", "95 % interval", "skipped rows"):
         table.add_column(col, justify="right")
-    fmt_ci = lambda c: "–" if not c else f"{c[0]:.4f} to {c[1]:.4f}"  # noqa: E731
     for r in rows:
-        table.add_row(Path(r["file"]).name, f"{r['delay']:.4f}", _fmt(r["stderr"]), fmt_ci(r["ci"]), str(r["skipped_rows"]))
+        table.add_row(Path(r["file"]).name, f"{r['delay']:.4f}", _fmt(r["stderr"]), _fmt_ci(r["ci"]), str(r["skipped_rows"]))
     if len(rows) > 1:
-        table.add_row("pooled", f"{pooled.delay:.4f}", _fmt(pooled.stderr), fmt_ci(pooled.ci), "")
+        table.add_row("pooled", f"{pooled.delay:.4f}", _fmt(pooled.stderr), _fmt_ci(pooled.ci), "")
     out.print(table)
     for w in pooled.warnings + [w for r in rows for w in r["warnings"]]:
         out.print(f"[yellow]warning:[/] {w}", highlight=False)
@@ -656,7 +661,8 @@ def demo(
         print(json.dumps(rep.to_dict(), indent=2, default=str))
         return
     e = rep.estimate
-    out.print(f"Estimated delay {e.delay:.4f} s ± {e.stderr or 0:.4f} (95 % {e.ci[0]:.4f} to {e.ci[1]:.4f}) from "
+    interval = "no interval" if e.ci is None else f"95 % {_fmt_ci(e.ci)}"
+    out.print(f"Estimated delay {e.delay:.4f} s ± {e.stderr or 0:.4f} ({interval}) from "
               f"{e.flights} step tests" + (f"; the emulator's truth is {rep.true_delay:.4f} s (error "
                                           f"{1e3 * rep.error:+.1f} ms)" if rep.true_delay is not None else "") + ".",
               highlight=False)

@@ -41,11 +41,17 @@ CRITERIA = ("abscissa", "settling", "overshoot")
 def parse_range(spec: str | Sequence[float], name: str = "range") -> list[float]:
     """Values from ``START:STOP:N`` (N values, ends included), a comma list, a number, or a sequence.
 
+    Text that is none of these raises :class:`~delaykit.errors.RangeSpecError`; a well-formed range with bad
+    values (``N < 1``, a reversed range, a value that is not finite) a plain
+    :class:`~delaykit.errors.InvalidValueError`.
+
     Examples
     --------
     >>> parse_range("0:0.7:8")
     [0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]
     """
+    from ..errors import RangeSpecError
+
     if not isinstance(spec, str):
         vals = [check_real(name, v) for v in spec]
     elif ":" in spec:
@@ -53,7 +59,7 @@ def parse_range(spec: str | Sequence[float], name: str = "range") -> list[float]
             a_s, b_s, n_s = spec.split(":")
             a, b, n = float(a_s), float(b_s), int(n_s)
         except ValueError:
-            raise InvalidValueError(f"{name} {spec!r} must be START:STOP:N, a comma list or a number") from None
+            raise RangeSpecError(f"{name} {spec!r} must be START:STOP:N, a comma list or a number") from None
         if n < 1:
             raise InvalidValueError(f"{name} {spec!r}: N must be at least 1")
         if n > 1 and not b > a:
@@ -63,7 +69,7 @@ def parse_range(spec: str | Sequence[float], name: str = "range") -> list[float]
         try:
             vals = [float(x) for x in spec.split(",")]
         except ValueError:
-            raise InvalidValueError(f"{name} {spec!r} must be START:STOP:N, a comma list or a number") from None
+            raise RangeSpecError(f"{name} {spec!r} must be START:STOP:N, a comma list or a number") from None
     if not vals:
         raise InvalidValueError(f"{name} is empty")
     for v in vals:
@@ -365,13 +371,16 @@ class FilterReport:
     paper_cutoff: float
     candidates: dict[str, float]
     verdict: str
+    status: str = "not checked"
+    cutoff_tolerance: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
         return {"wn": self.wn, "zeta": self.zeta, "poles": [[p.real, p.imag] for p in self.poles],
                 "band": list(self.band), "lowpass_cutoff": self.lowpass_cutoff, "crossover": self.crossover,
                 "phase_lag_at_crossover_deg": self.phase_lag_at_crossover, "paper_cutoff": self.paper_cutoff,
-                "candidates": self.candidates, "verdict": self.verdict}
+                "candidates": self.candidates, "cutoff_tolerance": self.cutoff_tolerance, "status": self.status,
+                "verdict": self.verdict}
 
     def __repr__(self) -> str:
         return (f"FilterReport(wn={self.wn:g} rad/s, zeta={self.zeta:g}: poles {self.poles[0]:.3g}, "
@@ -399,20 +408,55 @@ def _minus3db(H: Callable[[np.ndarray], np.ndarray], w: np.ndarray) -> tuple[flo
     return float(lo), float(hi)
 
 
+#: The paper quotes the cutoff twice, "5.68 rad/s (0.90 Hz)"; the coarser form, 0.90 Hz, is good to half a unit of
+#: its last digit, 0.005 Hz, i.e. 0.56 % of the value.  A reading fits the quoted cutoff within this fraction.
+FILTER_CUTOFF_RTOL = 0.005 / 0.90
+
+
+def filter_cutoff_verdict(candidates: dict[str, float], paper_cutoff: float = 5.68,
+                          rtol: float = FILTER_CUTOFF_RTOL, wn: float = 38.0, zeta: float = 1.0) -> tuple[str, str]:
+    """``(status, verdict)``: which readings of the filter's "cutoff" (``candidates``, rad/s) fit ``paper_cutoff``
+    within ``rtol * paper_cutoff`` (by default half a unit of the last digit of the paper's "0.90 Hz").
+
+    Examples
+    --------
+    >>> filter_cutoff_verdict({"low-pass -3 dB": 24.4566}, 5.68)[0]
+    'not reproduced'
+    >>> filter_cutoff_verdict({"low-pass -3 dB": 24.4566}, 24.4)[0]
+    'reproduced'
+    """
+    tol = rtol * abs(paper_cutoff)
+    rule = (f"tolerance {tol:.3g} rad/s = {100 * rtol:.2g} % of {paper_cutoff:g} rad/s, half a unit of the last "
+            "digit of the paper's coarser form, 0.90 Hz")
+    close = {k: v for k, v in candidates.items() if abs(v - paper_cutoff) <= tol}
+    if close:
+        return "reproduced", (f"reproduced: the quoted cutoff {paper_cutoff:g} rad/s fits "
+                              + ", ".join(f"{k} (|{v:.3f} - {paper_cutoff:g}| = {abs(v - paper_cutoff):.3f} rad/s)"
+                                          for k, v in close.items()) + f" ({rule})")
+    nearest = min(candidates.items(), key=lambda kv_: abs(kv_[1] - paper_cutoff))
+    return "not reproduced", (f"not reproduced: no reading of a wn = {wn:g} rad/s, zeta = {zeta:g} filter has a cutoff "
+                              f"within {tol:.3g} rad/s of {paper_cutoff:g} rad/s (the nearest, {nearest[0]}, is "
+                              f"{nearest[1]:.2f} rad/s, |{nearest[1]:.3f} - {paper_cutoff:g}| = "
+                              f"{abs(nearest[1] - paper_cutoff):.3f} rad/s; {rule})")
+
+
 def filter_analysis(wn: float = 38.0, zeta: float = 1.0, kp: float = 2.0, kv: float = 0.3,
-                    paper_cutoff: float = 5.68) -> FilterReport:
-    """The filter's poles, band, cutoff and phase lag at the PV loop's crossover; which form fits 5.68 rad/s.
+                    paper_cutoff: float = 5.68, rtol: float = FILTER_CUTOFF_RTOL) -> FilterReport:
+    """The filter's poles, band, cutoff and phase lag at the PV loop's crossover; which form fits ``paper_cutoff``.
 
     Candidates checked for the paper's "cutoff frequency 5.68 rad/s (0.90 Hz)" with ``wn = 38``, ``zeta = 1``:
     the low-pass part's -3 dB frequency, the band-pass derivative filter's -3 dB band, a second-order
     high-pass ``s^2 / (s + wn)^2``, and each of these discretised at the paper's Ts = 0.065 s (Tustin), plus
-    ``wn`` read as hertz.
+    ``wn`` read as hertz.  A reading fits if it is within ``rtol * paper_cutoff`` of ``paper_cutoff`` (see
+    :func:`filter_cutoff_verdict`); the verdict and ``status`` say which, if any, does.
 
     Examples
     --------
     >>> r = filter_analysis()
-    >>> round(r.lowpass_cutoff, 2), r.poles[0]
-    (24.46, (-38+0j))
+    >>> round(r.lowpass_cutoff, 2), r.poles[0], r.status
+    (24.46, (-38+0j), 'not reproduced')
+    >>> filter_analysis(paper_cutoff=24.4).status
+    'reproduced'
     """
     wn = check_real("filter_wn", wn, minimum=0.0, strict=True)
     zeta = check_real("filter_zeta", zeta, minimum=0.0, strict=True)
@@ -445,13 +489,9 @@ def filter_analysis(wn: float = 38.0, zeta: float = 1.0, kp: float = 2.0, kv: fl
     ch = np.flatnonzero(np.sign(v[:-1]) != np.sign(v[1:]))
     wc = float(xs[ch[0]]) if ch.size else None
     lag = float(-np.degrees(np.angle(lp(np.array([wc])))[0])) if wc else None
-    close = {k: v for k, v in cands.items() if abs(v - paper_cutoff) <= 0.05 * paper_cutoff}
-    if close:
-        verdict = "the paper's 5.68 rad/s fits: " + ", ".join(f"{k} ({v:.2f} rad/s)" for k, v in close.items())
-    else:
-        nearest = min(cands.items(), key=lambda kv_: abs(kv_[1] - paper_cutoff))
-        verdict = (f"not reproduced: no reading of a wn = {wn:g} rad/s, zeta = {zeta:g} filter has a cutoff near "
-                   f"{paper_cutoff:g} rad/s (the nearest, {nearest[0]}, is {nearest[1]:.2f} rad/s); the poles at "
-                   f"{poles[0].real:g} (repeated) do fit this filter")
+    paper_cutoff = check_real("paper_cutoff", paper_cutoff, minimum=0.0, strict=True)
+    rtol = check_real("rtol", rtol, minimum=0.0)
+    status, verdict = filter_cutoff_verdict(cands, paper_cutoff, rtol, wn, zeta)
     return FilterReport(wn=wn, zeta=zeta, poles=poles, band=band, lowpass_cutoff=lp_cut, crossover=wc,
-                        phase_lag_at_crossover=lag, paper_cutoff=paper_cutoff, candidates=cands, verdict=verdict)
+                        phase_lag_at_crossover=lag, paper_cutoff=paper_cutoff, candidates=cands, verdict=verdict,
+                        status=status, cutoff_tolerance=rtol * paper_cutoff)

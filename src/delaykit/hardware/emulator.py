@@ -43,19 +43,18 @@ from collections import deque
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from ..errors import InvalidValueError, check_real
+from ..errors import PortError, PortNumberError, check_real
 from .ardrone import CtrlState, Demo, NavState, ProtocolError, REF_EMERGENCY, REF_TAKEOFF, encode_navdata, parse_at
 
-__all__ = ["EmulatorConfig", "DroneEmulator", "PortError"]
+__all__ = ["EmulatorConfig", "DroneEmulator", "PortError", "PortNumberError"]
 
-
-class PortError(InvalidValueError):
-    """A port that is out of range or already in use."""
+# PortError (a port that cannot be bound: an OSError, not a bad value) and PortNumberError (a port number out
+# of range: a bad value) are defined in delaykit.errors and re-exported here
 
 
 def _check_port(name: str, p: Any) -> int:
     if isinstance(p, bool) or not isinstance(p, int) or not 0 <= p <= 65535:
-        raise PortError(f"{name} must be a port number from 0 to 65535 (0 = any free one), got {p!r}")
+        raise PortNumberError(f"{name} must be a port number from 0 to 65535 (0 = any free one), got {p!r}")
     return p
 
 

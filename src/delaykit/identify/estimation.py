@@ -26,22 +26,23 @@ DelayEstimate(delay=0.3686 s, method='overshoot', flights=1)
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 from scipy import stats
 from scipy.optimize import brentq, least_squares
 
-from ..errors import InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop
 from ..simulate.metrics import SecondOrder, step_metrics
 from ..simulate.simulation import Sampler, simulate
 from ..spectrum.lambert import delay_for_damping, lambert_w
 from .flightlog import FlightLog
 
-__all__ = ["DelayEstimate", "EstimationError", "estimate_overshoot", "estimate_lambert", "estimate_trajectory",
+__all__ = ["DelayEstimate", "EstimateParams", "Diagnostics", "FlightFit", "EstimationError", "estimate_overshoot", "estimate_lambert", "estimate_trajectory",
            "estimate_flights", "fitted_altitude", "lambert_paper_iterations"]
 
 FREE_CHOICES = ("gain", "lag")
@@ -50,6 +51,157 @@ LAG_FLOOR = 0.004
 
 class EstimationError(InvalidValueError):
     """The method cannot estimate a delay from these data (the message says why)."""
+
+
+class _Record:
+    """Shared behaviour of the small result records: ``to_dict`` writes the fields that are set (not None), as
+    the dicts they replace did; reading them as a mapping (``diag["spread"]``) is kept for older code."""
+
+    def _present(self) -> list[str]:
+        return [f.name for f in dataclasses.fields(self)  # type: ignore[arg-type]
+                if getattr(self, f.name) is not None or f.name in self._always()]
+
+    def _always(self) -> tuple[str, ...]:
+        """Fields written even when None."""
+        return ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form: the fields that are set."""
+        return {k: _jsonable(getattr(self, k)) for k in self._present()}
+
+
+@dataclass(frozen=True)
+class EstimateParams(_Record):
+    """Values an estimator fitted or used besides the delay; a field is None when the method has none.
+
+    Attributes
+    ----------
+    kp : float or None
+        The proportional gain the flights used (``overshoot``, ``lambert``).
+    overshoot : float or None
+        The measured overshoot, % (``overshoot``).
+    variant : str or None
+        ``"paper"`` or ``"damping"`` (``lambert``).
+    offsets, scales : tuple of float or None
+        Per flight: the altimeter's offset (m) and scale, profiled out of the fit (``trajectory``).
+    gain, lag : tuple of float or None
+        Per flight: the drone's effective speed gain and speed-loop lag (s), when fitted (``free``).
+    """
+
+    kp: float | None = None
+    overshoot: float | None = None
+    variant: str | None = None
+    offsets: tuple[float, ...] | None = None
+    scales: tuple[float, ...] | None = None
+    gain: tuple[float, ...] | None = None
+    lag: tuple[float, ...] | None = None
+
+
+@dataclass(frozen=True)
+class FlightFit:
+    """One flight's part of a trajectory fit: its nuisance parameters and measured-vs-model checks."""
+
+    file: str
+    offset: float
+    scale: float
+    gain: float
+    lag: float
+    residual_rms: float
+    measured_overshoot: float
+    model_overshoot: float
+    measured_peak_time: float | None
+    model_peak_time: float | None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (every field, None as null)."""
+        return {f.name: _jsonable(getattr(self, f.name)) for f in dataclasses.fields(self)}
+
+
+@dataclass(frozen=True)
+class Diagnostics(_Record):
+    """Checks of an estimate and its warnings; a field is None when the method does not compute it.
+
+    Attributes
+    ----------
+    warnings : tuple of str
+        Warnings from the model-adequacy checks (empty when none).
+    note : str or None
+        A remark on the checks (for example, residuals at the altitude resolution).
+    slope_percent_per_second : float or None
+        ``overshoot``: the slope of the overshoot in the delay, % per s.
+    model_peak_time : float or None
+        ``overshoot``: the model's peak time at the estimate (s); None, and still reported, when the model does
+        not overshoot.
+    measured_peak_time : float or None
+        ``overshoot``: the measured peak time, when given.
+    zeta, omega_n : float or None
+        ``lambert``: the damping ratio and natural frequency from (Mo, tp).
+    root : complex or None
+        ``lambert``: the dominant root they give.
+    iterations : tuple of complex or None
+        ``lambert`` ``paper``: Newton's iterates for the complex delay.
+    model_root : complex or None
+        ``lambert`` ``damping``: the model's dominant root at the estimate.
+    ljung_box_q, whiteness_p : float or None
+        ``trajectory``: the Ljung-Box statistic of the residuals and its p-value.
+    per_flight : tuple of FlightFit or None
+        ``trajectory``: each flight's nuisance parameters and checks.
+    nfev, samples : int or None
+        ``trajectory``: function evaluations of the fit, and samples fitted.
+    resolution, resolution_stderr : float or None
+        ``trajectory``: the altitude rounding step (m) and the timing error it adds (s).
+    stderr_inflation : float or None
+        ``trajectory``: the Newey-West factor applied to the standard error.
+    spread, per_flight_delays, heterogeneity_chi2, heterogeneity_p
+        Pooled estimates: the standard deviation of the flights' delays (s), the delays, and the heterogeneity
+        test.
+    """
+
+    warnings: tuple[str, ...] = ()
+    note: str | None = None
+    slope_percent_per_second: float | None = None
+    model_peak_time: float | None = None
+    measured_peak_time: float | None = None
+    zeta: float | None = None
+    omega_n: float | None = None
+    root: complex | None = None
+    iterations: tuple[complex, ...] | None = None
+    model_root: complex | None = None
+    ljung_box_q: float | None = None
+    whiteness_p: float | None = None
+    per_flight: tuple[FlightFit, ...] | None = None
+    nfev: int | None = None
+    samples: int | None = None
+    resolution: float | None = None
+    resolution_stderr: float | None = None
+    stderr_inflation: float | None = None
+    spread: float | None = None
+    per_flight_delays: tuple[float, ...] | None = None
+    heterogeneity_chi2: float | None = None
+    heterogeneity_p: float | None = None
+
+    def _always(self) -> tuple[str, ...]:
+        # the overshoot method reports the model's peak time even when there is none (null)
+        return ("model_peak_time",) if self.slope_percent_per_second is not None else ()
+
+
+def _record(cls: type, value: Any, name: str) -> Any:
+    """``value`` as a ``cls`` record: records pass, mappings (the former form) are converted."""
+    if isinstance(value, cls):
+        return value
+    if isinstance(value, Mapping):
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(value) - names)
+        if unknown:
+            raise InvalidValueError(f"{name} has no field(s) {', '.join(map(repr, unknown))}; "
+                                    f"the fields are {', '.join(sorted(names))}")
+        kw = {k: tuple(v) if isinstance(v, (list, np.ndarray)) else v for k, v in value.items()}
+        if kw.get("per_flight") is not None:
+            kw["per_flight"] = tuple(x if isinstance(x, FlightFit) else FlightFit(**x) for x in kw["per_flight"])
+        if isinstance(kw.get("warnings"), str):
+            kw["warnings"] = (kw["warnings"],)
+        return cls(**kw)
+    raise InvalidTypeError(f"{name} must be a {cls.__name__}, got {type(value).__name__}")
 
 
 @dataclass(frozen=True, repr=False)
@@ -72,10 +224,12 @@ class DelayEstimate:
         The imaginary part, for the ``lambert`` ``paper`` variant (whose delay is complex).
     residual_rms : float or None
         RMS of the fit residuals (m), for ``trajectory``.
-    params : dict
-        Other fitted values (gain, lag, offset, per-flight delays, ...).
-    diagnostics : dict
-        Checks of the fit and warnings (``diagnostics["warnings"]``).
+    params : EstimateParams
+        Other fitted values (gain, lag, offsets, ...).
+    diagnostics : Diagnostics
+        Checks of the fit and warnings (``diagnostics.warnings``).
+
+    A mapping given for ``params`` or ``diagnostics`` is converted to its record.
     """
 
     delay: float
@@ -85,20 +239,24 @@ class DelayEstimate:
     flights: int = 1
     delay_imag: float | None = None
     residual_rms: float | None = None
-    params: dict = field(default_factory=dict)
-    diagnostics: dict = field(default_factory=dict)
+    params: EstimateParams = field(default_factory=EstimateParams)
+    diagnostics: Diagnostics = field(default_factory=Diagnostics)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "params", _record(EstimateParams, self.params, "params"))
+        object.__setattr__(self, "diagnostics", _record(Diagnostics, self.diagnostics, "diagnostics"))
 
     @property
     def warnings(self) -> list[str]:
         """Warnings from the model-adequacy checks (empty when none)."""
-        return list(self.diagnostics.get("warnings", []))
+        return list(self.diagnostics.warnings)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
         return {"delay": self.delay, "stderr": self.stderr, "ci": list(self.ci) if self.ci else None,
                 "method": self.method, "flights": self.flights, "delay_imag": self.delay_imag,
-                "residual_rms": self.residual_rms, "params": _jsonable(self.params),
-                "diagnostics": _jsonable(self.diagnostics)}
+                "residual_rms": self.residual_rms, "params": self.params.to_dict(),
+                "diagnostics": self.diagnostics.to_dict()}
 
     def __repr__(self) -> str:
         err = f" ± {self.stderr:.4f}" if self.stderr is not None else ""
@@ -107,6 +265,8 @@ class DelayEstimate:
 
 
 def _jsonable(x: Any) -> Any:
+    if isinstance(x, (FlightFit, _Record)):
+        return x.to_dict()
     if isinstance(x, dict):
         return {k: _jsonable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
@@ -175,20 +335,21 @@ def estimate_overshoot(
     h = 1e-5
     slope = (f(td + h) - f(td - h)) / (2 * h)
     se = None if overshoot_stderr is None else check_real("overshoot_stderr", overshoot_stderr, minimum=0.0) / slope
-    diag: dict[str, Any] = {"slope_percent_per_second": slope, "warnings": []}
+    warnings: list[str] = []
     model = simulate(base.replace(delay=td), step).metrics
-    diag["model_peak_time"] = model.peak_time
+    tp = None
     if peak_time is not None:
         tp = check_real("peak_time", peak_time, minimum=0.0, strict=True)
-        diag["measured_peak_time"] = tp
         if model.peak_time is not None and abs(model.peak_time - tp) > 0.1 * tp:
-            diag["warnings"].append(
+            warnings.append(
                 f"at this delay the model peaks at {model.peak_time:.3f} s but the flight peaked at {tp:.3f} s: "
                 "the model does not explain the measured peak time (the drone's own speed loop adds lag; fit "
                 "the trajectory with --free lag)"
             )
     ci = (td - 1.96 * se, td + 1.96 * se) if se is not None else None
-    return DelayEstimate(delay=td, stderr=se, ci=ci, method="overshoot", params={"kp": kp, "overshoot": mo},
+    diag = Diagnostics(warnings=tuple(warnings), slope_percent_per_second=slope, model_peak_time=model.peak_time,
+                       measured_peak_time=tp)
+    return DelayEstimate(delay=td, stderr=se, ci=ci, method="overshoot", params=EstimateParams(kp=kp, overshoot=mo),
                          diagnostics=diag)
 
 
@@ -236,7 +397,7 @@ def estimate_lambert(overshoot: float, peak_time: float, kp: float, *, variant: 
     """
     so = SecondOrder.from_step(overshoot, peak_time)
     kp = check_real("kp", kp, minimum=0.0, strict=True)
-    diag: dict[str, Any] = {"zeta": so.zeta, "omega_n": so.omega_n, "root": so.root, "warnings": []}
+    common = dict(zeta=so.zeta, omega_n=so.omega_n, root=so.root)
     if variant == "paper":
         it = lambert_paper_iterations(so.root, kp)
         T = it[-1]
@@ -246,23 +407,21 @@ def estimate_lambert(overshoot: float, peak_time: float, kp: float, *, variant: 
                 f"the complex Newton iteration from 0.2 s did not converge for the root {so.root:.4f} "
                 f"(last iterate {complex(T):.4g}); the paper's method has no answer here"
             )
-        diag["iterations"] = [complex(x) for x in it]
-        diag["warnings"].append(
+        diag = Diagnostics(**common, iterations=tuple(complex(x) for x in it), warnings=(
             f"no real delay puts the dominant root at {so.root:.4f}; the solver converged to the complex delay "
-            f"{T.real:.4f}{T.imag:+.4f}j, whose real part is reported (as the paper did)"
-        )
+            f"{T.real:.4f}{T.imag:+.4f}j, whose real part is reported (as the paper did)",
+        ))
         return DelayEstimate(delay=T.real, stderr=None, ci=None, method="lambert", delay_imag=T.imag,
-                             params={"variant": "paper", "kp": kp}, diagnostics=diag)
+                             params=EstimateParams(variant="paper", kp=kp), diagnostics=diag)
     if variant == "damping":
         td = delay_for_damping(so.zeta, kp)
         w = complex(lambert_w(-kp * td, 0)) / td
-        diag["model_root"] = complex(w.real, abs(w.imag))
-        diag["warnings"].append(
+        diag = Diagnostics(**common, model_root=complex(w.real, abs(w.imag)), warnings=(
             f"the damping ratio {so.zeta:.4f} is matched; the model's natural frequency is then {abs(w):.4f} rad/s, "
-            f"the flight's {so.omega_n:.4f} rad/s"
-        )
+            f"the flight's {so.omega_n:.4f} rad/s",
+        ))
         return DelayEstimate(delay=td, stderr=None, ci=None, method="lambert",
-                             params={"variant": "damping", "kp": kp}, diagnostics=diag)
+                             params=EstimateParams(variant="damping", kp=kp), diagnostics=diag)
     raise InvalidValueError(f"variant must be 'paper' or 'damping', got {variant!r}")
 
 
@@ -492,10 +651,11 @@ def estimate_trajectory(
         meas = step_metrics(f.log.t, f.log.z, step=f.log.step, z0=f.log.z0 + offsets[i], step_time=f.log.step_time)
         mod = simulate(f.base.replace(delay=td, gain=gains[i], lag=lags[i]), f.log.step,
                        t_end=float(f.t[-1])).metrics
-        item = {"file": f.log.name, "offset": offsets[i], "scale": scales[i], "gain": gains[i], "lag": lags[i],
-                "residual_rms": float(np.sqrt(np.mean(seg**2))), "measured_overshoot": meas.overshoot,
-                "model_overshoot": mod.overshoot, "measured_peak_time": meas.peak_time,
-                "model_peak_time": mod.peak_time}
+        item = FlightFit(file=f.log.name, offset=float(offsets[i]), scale=float(scales[i]), gain=float(gains[i]),
+                         lag=float(lags[i]),
+                         residual_rms=float(np.sqrt(np.mean(seg**2))), measured_overshoot=meas.overshoot,
+                         model_overshoot=mod.overshoot, measured_peak_time=meas.peak_time,
+                         model_peak_time=mod.peak_time)
         per_flight.append(item)
         tol_t = 0.1 * (mod.peak_time or 1.0) + 2 * float(np.median(np.diff(f.log.t)))
         if (meas.peak_time is not None and mod.peak_time is not None and abs(meas.peak_time - mod.peak_time) > tol_t):
@@ -508,16 +668,14 @@ def estimate_trajectory(
             f"the residuals are not white (Ljung-Box p = {pval:.2g}): the model does not explain the data fully"
             + ("" if "lag" in free else "; try freeing the lag of the drone's speed loop")
         )
-    diag = {"ljung_box_q": q, "whiteness_p": pval, "per_flight": per_flight, "warnings": warnings,
-            "nfev": int(fit.nfev), "samples": int(n), "resolution": quantum, "resolution_stderr": floor,
-            "stderr_inflation": inflation}
-    if at_quantum:
-        diag["note"] = f"the residuals are at the altitude resolution ({quantum:g} m): their whiteness is not judged"
-    params: dict[str, Any] = {"offsets": offsets, "scales": scales}
-    if "gain" in free:
-        params["gain"] = gains
-    if "lag" in free:
-        params["lag"] = lags
+    note = (f"the residuals are at the altitude resolution ({quantum:g} m): their whiteness is not judged"
+            if at_quantum else None)
+    diag = Diagnostics(ljung_box_q=q, whiteness_p=pval, per_flight=tuple(per_flight), warnings=tuple(warnings),
+                       nfev=int(fit.nfev), samples=int(n), resolution=quantum, resolution_stderr=floor,
+                       stderr_inflation=inflation, note=note)
+    params = EstimateParams(offsets=tuple(map(float, offsets)), scales=tuple(map(float, scales)),
+                            gain=tuple(map(float, gains)) if "gain" in free else None,
+                            lag=tuple(map(float, lags)) if "lag" in free else None)
     return DelayEstimate(delay=td, stderr=se, ci=ci, method="trajectory", flights=nf,
                          residual_rms=float(math.sqrt(rss / n)), params=params, diagnostics=diag)
 
@@ -552,13 +710,11 @@ def estimate_flights(logs: Sequence[FlightLog], kp: float, **kwargs: Any) -> tup
     pooled = estimate_trajectory(logs, kp, **kwargs)
     d = np.array([e.delay for e in each])
     se = np.array([e.stderr or np.nan for e in each])
-    diag = dict(pooled.diagnostics)
-    warnings = list(diag.get("warnings", []))
+    warnings = list(pooled.diagnostics.warnings)
     chi2 = float(np.nansum(((d - pooled.delay) / se) ** 2))
     dof = len(d) - 1
     p_het = float(stats.chi2.sf(chi2, dof))
-    diag.update({"spread": float(np.std(d, ddof=1)), "per_flight_delays": d.tolist(), "heterogeneity_chi2": chi2,
-                 "heterogeneity_p": p_het})
+    spread = float(np.std(d, ddof=1))
     stderr, ci = pooled.stderr, pooled.ci
     if p_het < 0.05 and stderr is not None:
         k = math.sqrt(chi2 / dof)
@@ -566,9 +722,10 @@ def estimate_flights(logs: Sequence[FlightLog], kp: float, **kwargs: Any) -> tup
         if ci is not None:
             ci = (pooled.delay - k * (pooled.delay - ci[0]), pooled.delay + k * (ci[1] - pooled.delay))
         warnings.append(f"the flights disagree beyond their errors (heterogeneity p = {p_het:.2g}): the delay "
-                        f"varies between flights (spread {1e3 * diag['spread']:.1f} ms); the pooled error is widened "
+                        f"varies between flights (spread {1e3 * spread:.1f} ms); the pooled error is widened "
                         f"by {k:.2f}")
-    diag["warnings"] = warnings
+    diag = dataclasses.replace(pooled.diagnostics, warnings=tuple(warnings), spread=spread,
+                               per_flight_delays=tuple(d.tolist()), heterogeneity_chi2=chi2, heterogeneity_p=p_het)
     pooled = DelayEstimate(delay=pooled.delay, stderr=stderr, ci=ci, method=pooled.method, flights=len(logs),
                            residual_rms=pooled.residual_rms, params=pooled.params, diagnostics=diag)
     return pooled, each
@@ -582,9 +739,12 @@ def fitted_altitude(log: FlightLog, est: DelayEstimate, kp: float, index: int = 
     """
     base = AltitudeLoop(kp=kp, delay=0.0, **loop)
     f = _Flight(log, base)
-    gains = est.params.get("gain", [1.0] * est.flights)
-    lags = est.params.get("lag", [0.0] * est.flights)
+    if est.params.offsets is None or est.params.scales is None:
+        raise InvalidValueError(f"the estimate is not a trajectory fit (method {est.method!r}): it has no fitted "
+                                "offsets and scales")
+    gains = est.params.gain if est.params.gain is not None else (1.0,) * est.flights
+    lags = est.params.lag if est.params.lag is not None else (0.0,) * est.flights
     m = f.model(est.delay, gains[index], lags[index])
-    off = est.params["offsets"][index]
-    scale = est.params["scales"][index]
+    off = est.params.offsets[index]
+    scale = est.params.scales[index]
     return log.z0 + off + scale * (m - log.z0)

@@ -21,6 +21,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..design.tuning import design_sweep
+from ..errors import FlightError
 from ..models.altitude import AltitudeLoop
 from ..hardware.emulator import DroneEmulator, EmulatorConfig
 from ..hardware.flight import FlightPlan, FlightResult, fly
@@ -87,7 +88,10 @@ def run_demo(
     confirm: Callable[[], bool] | None = None,
     status: Callable[[str], None] | None = None,
 ) -> DemoReport:
-    """Run the pipeline and write ``demo.md``, ``demo.json`` and the figures into ``out``."""
+    """Run the pipeline and write ``demo.md``, ``demo.json`` and the figures into ``out``.
+
+    Raises :class:`~delaykit.errors.FlightError` when the P flight produced no logs (nothing to estimate from).
+    """
     say = status or (lambda _m: None)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -107,12 +111,12 @@ def run_demo(
         p = fly(FlightPlan(kp=1.31, steps=steps, step_duration=step_duration, hover_time=1.5), out / "p_flight.csv",
                 host=host, at_port=at_port, navdata_port=navdata_port, confirm=confirm, status=say)
         if not p.logs:
-            raise RuntimeError(f"the P flight did not fly: {p.reason}")
+            raise FlightError(f"the P flight did not fly: {p.reason}")
         say("estimating the delay")
         logs = [FlightLog.from_csv(f) for f in p.logs]
         period = p.packet_interval
         est, _ = estimate_flights(logs, kp=1.31, period=period, free=("lag",))
-        lag = float(np.mean(est.params["lag"])) if "lag" in est.params else None
+        lag = float(np.mean(est.params.lag)) if est.params.lag is not None else None
         say(f"designing PV gains for Td = {est.delay:.4f} s")
         d = design_sweep(AltitudeLoop(kp=2.0, delay=est.delay, period=period, lag=lag or 0.0), 2.0, "0:0.7:8",
                          criterion="settling")
@@ -151,11 +155,11 @@ def _write(out, truth, est, lag, kv, d, p, pv, pm, vm) -> tuple[Path, ...]:
                  f"{f(m['rise_time'])} | {f(m['settling_time'])} |" for m in ms]
         return "\n".join(rows)
 
+    interval = "no interval" if est.ci is None else f"95 % interval {est.ci[0]:.4f} to {est.ci[1]:.4f} s"
     md = out / "demo.md"
     md.write_text(
         "# delaykit demo: fly, estimate, design, fly again\n\n"
-        f"Estimated loop delay: **{est.delay:.4f} s ± {est.stderr or 0:.4f}** (95 % interval "
-        f"{est.ci[0]:.4f} to {est.ci[1]:.4f} s) from {est.flights} step tests, with the drone's speed-loop lag "
+        f"Estimated loop delay: **{est.delay:.4f} s ± {est.stderr or 0:.4f}** ({interval}) from {est.flights} step tests, with the drone's speed-loop lag "
         f"fitted ({lag if lag is not None else 0:.3f} s).{err}\n\n"
         f"PV design for that delay (Kp = 2.0, criterion: settling time): Kv = {kv:g} ({d.reason}).\n\n"
         f"Loop latency (navdata received to command sent): median {p.latency_median_ms:.3f} ms, 99th percentile "

@@ -8,12 +8,12 @@ This layer reads models only; it is a peer of :mod:`delaykit.simulate` and neith
 
 from .lambert import (LambertRoots, complex_delays_for_root, delay_for_damping, dominant_root, kp_delay_for_damping,
                       lambert_roots, lambert_w)
-from .roots import Spectrum, find_roots, neutral_lines, root_bound
+from .roots import RootStatus, Spectrum, find_roots, neutral_lines, root_bound
 from .stability import DelayMargin, Rightmost, StabilityMap, delay_margin, rightmost, stability_map
 
 __all__ = [
     "LambertRoots", "lambert_w", "lambert_roots", "dominant_root", "kp_delay_for_damping", "delay_for_damping",
     "complex_delays_for_root",
-    "Spectrum", "find_roots", "neutral_lines", "root_bound",
+    "RootStatus", "Spectrum", "find_roots", "neutral_lines", "root_bound",
     "Rightmost", "DelayMargin", "StabilityMap", "rightmost", "delay_margin", "stability_map",
 ]

@@ -15,20 +15,22 @@ The method is "find cheaply, then certify":
    longer be evaluated above rounding noise while it still holds ``m >= 2`` roots is a cluster: its centroid,
    refined by Newton's method on ``Q^(m-1)``, is reported as one root of multiplicity ``m``.
 
-The result says whether the count was matched (``certified``) and, if not, why.
+The result says whether the count was matched (``certified``) and, if not, why: ``status`` (a
+:class:`RootStatus`, for code) and ``reason`` (a sentence, for people).
 
 Examples
 --------
 >>> from delaykit import AltitudeLoop
 >>> sp = find_roots(AltitudeLoop(kp=2.0, delay=0.37, kv=0.3).characteristic(), (-10, 2, 0, 100))
->>> sp.certified, sp.count
-(True, 7)
+>>> sp.certified, sp.count, sp.status
+(True, 7, <RootStatus.CERTIFIED: 'certified'>)
 >>> sp.rightmost
 (-3.1950...+5.5819...j)
 """
 
 from __future__ import annotations
 
+import enum
 import math
 from dataclasses import dataclass, field
 from typing import Any, Sequence
@@ -39,11 +41,48 @@ from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.quasipolynomial import QuasiPolynomial
 from . import _rootkernel as RK
 
-__all__ = ["Spectrum", "find_roots", "neutral_lines", "root_bound"]
+__all__ = ["RootStatus", "Spectrum", "find_roots", "neutral_lines", "root_bound"]
 
 _RELIABLE = 32.0  # |Q| must exceed this many times its rounding-error bound on a boundary
 _MAX_PHASE = 0.6
 _CAP = 4_000_000
+
+
+class RootStatus(enum.Enum):
+    """How a root search ended: certified, or the cause that stopped the certificate.
+
+    Code decides by this (``sp.status is RootStatus.SAMPLE_BUDGET``); the result's ``reason`` says the same in
+    words, with the numbers, for people.  The value is the name used in JSON.
+    """
+
+    #: the roots found (with multiplicity) match the argument principle's count
+    CERTIFIED = "certified"
+    #: a root lies on or next to a boundary edge (``|Q|`` there is at rounding level), and moving the edges
+    #: outwards did not clear it
+    ROOT_ON_BOUNDARY = "root_on_boundary"
+    #: tracking the phase along the boundary needs more samples than the budget allows
+    SAMPLE_BUDGET = "sample_budget"
+    #: the argument principle gave a count that is not an integer
+    NON_INTEGER_COUNT = "non_integer_count"
+    #: the subdivision reached its depth limit with a part still unmatched
+    DEPTH_LIMIT = "depth_limit"
+    #: the counts of the two halves of a part do not add up to the part's count
+    INCONSISTENT_COUNTS = "inconsistent_counts"
+    #: fewer (or more) roots were found than the argument principle counts
+    COUNT_MISMATCH = "count_mismatch"
+    #: the certificate was not asked for (``certify=False``)
+    NOT_REQUESTED = "not_requested"
+
+    @property
+    def ok(self) -> bool:
+        """True for :attr:`CERTIFIED`."""
+        return self is RootStatus.CERTIFIED
+
+    @property
+    def retryable(self) -> bool:
+        """True when the count may succeed on a slightly larger box (a root on the boundary); a sample budget or
+        a non-integer count is not cured by moving the edges."""
+        return self is RootStatus.ROOT_ON_BOUNDARY
 
 
 class _Eval:
@@ -82,27 +121,37 @@ def _contour(ev: _Eval, corners: list[complex], cap: int | None = None) -> _Coun
         status, total, m, where = RK.contour(ev.C, ev.A, ev.tau, cs, n_init, _MAX_PHASE, _RELIABLE, cap, out_s, out_dl)
         ev.evals += m
         if status == 1:
-            return _Count(0, False, f"a root lies on or next to the boundary near {complex(where):.6g}",
+            return _Count(0, RootStatus.ROOT_ON_BOUNDARY,
+                          f"a root lies on or next to the boundary near {complex(where):.6g}",
                           np.zeros(0, complex), np.zeros(0, complex))
         if status == 2:
-            return _Count(0, False, f"the boundary needs more than {cap} samples (too coarse to certify)",
+            return _Count(0, RootStatus.SAMPLE_BUDGET,
+                          f"the boundary needs more than {cap} samples (too coarse to certify)",
                           np.zeros(0, complex), np.zeros(0, complex))
         if m <= size:
             break
         size = m + 16
     n = int(round(total))
     if abs(total - n) > 0.05 or n < 0:
-        return _Count(0, False, f"the argument principle gave a non-integer count {total:.3f}", np.zeros(0), np.zeros(0))
-    return _Count(n, True, "", out_s[:m], out_dl[:m])
+        return _Count(0, RootStatus.NON_INTEGER_COUNT, f"the argument principle gave a non-integer count {total:.3f}",
+                      np.zeros(0), np.zeros(0))
+    return _Count(n, RootStatus.CERTIFIED, "", out_s[:m], out_dl[:m])
 
 
 @dataclass
 class _Count:
+    """The argument principle's count on a contour: ``status`` is CERTIFIED when ``n`` is valid, else why not
+    (``reason`` in words)."""
+
     n: int
-    ok: bool
+    status: RootStatus
     reason: str
     s: np.ndarray
     dlog: np.ndarray
+
+    @property
+    def ok(self) -> bool:
+        return self.status is RootStatus.CERTIFIED
 
 
 def _count(ev: _Eval, box: tuple[float, float, float, float]) -> _Count:
@@ -250,13 +299,16 @@ class Spectrum:
     certified : bool
         True when the roots found (with multiplicity) match ``count``.
     reason : str
-        Why not, when not certified.
+        Why not, when not certified (for people; code reads ``status``).
     kind : str
         ``"retarded"`` or ``"neutral"``.
     neutral_lines : tuple of float
         Vertical lines approached by neutral root chains.
     evaluations : int
         How many times Q was evaluated.
+    status : RootStatus
+        :attr:`RootStatus.CERTIFIED`, or the cause that stopped the certificate.  When not given it follows
+        ``certified`` (a bare failure is :attr:`RootStatus.COUNT_MISMATCH`).
     """
 
     roots: np.ndarray
@@ -268,6 +320,15 @@ class Spectrum:
     kind: str
     neutral_lines: tuple[float, ...]
     evaluations: int = 0
+    status: RootStatus | None = None
+
+    def __post_init__(self) -> None:
+        if self.status is None:
+            object.__setattr__(self, "status", RootStatus.CERTIFIED if self.certified else RootStatus.COUNT_MISMATCH)
+        elif not isinstance(self.status, RootStatus):
+            raise InvalidTypeError(f"status must be a RootStatus, got {self.status!r}")
+        elif self.status.ok != bool(self.certified):
+            raise InvalidValueError(f"status {self.status.name} contradicts certified={self.certified}")
 
     @property
     def rightmost(self) -> complex | None:
@@ -299,6 +360,7 @@ class Spectrum:
             "neutral_line": self.neutral_lines[0] if len(self.neutral_lines) == 1 else (list(self.neutral_lines) or None),
             "stable": self.stable,
             "certified": self.certified,
+            "status": self.status.value,
             "count": self.count,
             "reason": self.reason or None,
             "region": list(self.region),
@@ -353,7 +415,8 @@ def _nudged_count(ev: _Eval, box: tuple[float, float, float, float],
     grown = (x0, x1, y0, y1)
     c = _count(ev, grown)
     delta = 1e-4 * scale
-    while not c.ok and "boundary" in c.reason and delta < 5e-2 * scale:
+    # only a root on the boundary is cured by moving the edges out; a sample budget or a non-integer count is not
+    while c.status.retryable and delta < 5e-2 * scale:
         grown = (x0 - delta, x1 + delta, y0 - delta, y1 + delta)
         c = _count(ev, grown)
         delta *= 4.0
@@ -512,13 +575,13 @@ def find_roots(
     if certify:
         grown, cnt = _nudged_count(ev, box, known)
     else:
-        grown, cnt = box, _Count(0, False, "not certified (certify=False)", np.zeros(0), np.zeros(0))
+        grown, cnt = box, _Count(0, RootStatus.NOT_REQUESTED, "not certified (certify=False)", np.zeros(0), np.zeros(0))
     keep0 = _inside(known, grown)
     known, mult = known[keep0], mult[keep0]
-    certified, reason, count = False, cnt.reason, (cnt.n if cnt.ok else None)
+    certified, status, reason, count = False, cnt.status, cnt.reason, (cnt.n if cnt.ok else None)
 
     if certify and cnt.ok:
-        ok_all, why = True, ""
+        ok_all, why, why_status = True, "", RootStatus.CERTIFIED
         stack = [(grown, cnt, 0)]
         while stack:
             b, c, depth = stack.pop()
@@ -537,7 +600,8 @@ def find_roots(
                 if int(mult[inb].sum()) == c.n:
                     continue
             if depth >= max_depth:
-                ok_all, why = False, f"subdivision depth {max_depth} reached near {complex((b[0] + b[1]) / 2, (b[2] + b[3]) / 2):.6g}"
+                ok_all, why_status = False, RootStatus.DEPTH_LIMIT
+                why = f"subdivision depth {max_depth} reached near {complex((b[0] + b[1]) / 2, (b[2] + b[3]) / 2):.6g}"
                 continue
             b1, b2 = _split_boxes(b, known[inb])
             c1, c2 = _count(ev, b1), _count(ev, b2)
@@ -548,7 +612,12 @@ def find_roots(
                         known, mult = known[~inb], mult[~inb]
                         known, mult = np.append(known, cl[0]), np.append(mult, cl[1])
                         continue
-                ok_all, why = False, (c1.reason or c2.reason or f"inconsistent counts {c1.n} + {c2.n} != {c.n}")
+                bad = c1 if not c1.ok else c2 if not c2.ok else None
+                ok_all = False
+                if bad is not None:
+                    why, why_status = bad.reason, bad.status
+                else:
+                    why, why_status = f"inconsistent counts {c1.n} + {c2.n} != {c.n}", RootStatus.INCONSISTENT_COUNTS
                 continue
             stack.append((b1, c1, depth + 1))
             stack.append((b2, c2, depth + 1))
@@ -556,7 +625,12 @@ def find_roots(
         known, mult = known[inside], mult[inside]
         total = int(mult.sum())
         certified = ok_all and total == cnt.n
-        reason = "" if certified else (why or f"found {total} roots but the argument principle counts {cnt.n}")
+        if certified:
+            status, reason = RootStatus.CERTIFIED, ""
+        elif not ok_all:
+            status, reason = why_status, why
+        else:
+            status, reason = RootStatus.COUNT_MISMATCH, f"found {total} roots but the argument principle counts {cnt.n}"
     # report the roots in the closed original region; snap real roots of real quasi-polynomials
     if ev.real and known.size:
         snap = np.abs(known.imag) <= 1e-10 * (1 + np.abs(known))
@@ -567,4 +641,4 @@ def find_roots(
         count = int(mult.sum()) if certified else count
     order = np.lexsort((-known.imag, -known.real))
     return Spectrum(roots=known[order], multiplicities=mult[order], region=box, count=count, certified=certified,
-                    reason=reason, kind=kind, neutral_lines=lines, evaluations=ev.evals)
+                    reason=reason, kind=kind, neutral_lines=lines, evaluations=ev.evals, status=status)
