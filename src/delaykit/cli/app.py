@@ -57,7 +57,7 @@ def parse_delays(spec: str) -> list[float]:
     >>> len(parse_delays("table1"))
     7
     """
-    from ..design.tuning import parse_range
+    from ..models.ranges import parse_range
 
     spec = spec.strip()
     if spec.lower() == "table1":

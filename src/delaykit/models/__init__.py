@@ -14,6 +14,7 @@ from .loop import LOOP_KEYS, Loop, load_loop, loop_from_dict
 from .plants import (PLANT_FAMILIES, first_order, integrator, integrator_lag, integrator_speed_loop, second_order,
                      second_order_wn)
 from .quasipolynomial import QuasiPolynomial
+from .ranges import parse_range
 from .signals import LoadStep, Ramp, Samples, Step, as_reference
 from .transfer import MAX_ORDER, TransferFunction
 
@@ -24,5 +25,5 @@ __all__ = [
     "PLANT_FAMILIES", "integrator", "integrator_lag", "integrator_speed_loop", "first_order", "second_order",
     "second_order_wn",
     "Step", "Ramp", "Samples", "LoadStep", "as_reference",
-    "TransferFunction", "MAX_ORDER",
+    "TransferFunction", "MAX_ORDER", "parse_range",
 ]

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import brentq
 
 from ..models.altitude import PAPER_PERIOD, AltitudeLoop
 from ..simulate.simulation import simulate, simulate_many
@@ -104,6 +103,8 @@ def _equivalent_delay(target: float, delay: float, kp: float) -> float | None:
     lo, hi = delay - 0.02, delay + 0.02
     if f(lo) * f(hi) > 0:
         return None
+    from scipy.optimize import brentq
+
     return brentq(f, lo, hi, xtol=1e-10)
 
 
