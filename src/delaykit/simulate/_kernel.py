@@ -348,11 +348,11 @@ def _first_switch(V, nv, E, ne, regime, frozen, umin, umax, aw):
 # -- one piece -------------------------------------------------------------------------------------------
 @njit(cache=True)
 def _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dist, X, R, nR,
-               Wd, nW, Ym, Vm, use_meas, Y, Yd, V, Wp, E):
+               Wd, nW, Ym, Vm, use_meas, Y, Yd, V, E, need_yd):
     """Taylor coefficients of every signal on one piece of length ``H`` with the regime fixed.
 
     ``X[:, 0]`` holds the states at the start; fills ``X[:, 1:]``, the output ``Y``, its derivative ``Yd``,
-    the controller output ``V``, the plant input ``Wp`` and the error ``E``.
+    the controller output ``V`` and the error ``E`` (``Yd`` only where ``need_yd``: something reads y').
     """
     umin = par[_UMIN]
     umax = par[_UMAX]
@@ -389,8 +389,10 @@ def _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, 
         for i in range(N):
             xi = X[i, j]
             cy += VE[5, i] * xi
-            cyd += VE[6, i] * xi
             cv += VE[7, i] * xi
+        if need_yd:
+            for i in range(N):
+                cyd += VE[6, i] * X[i, j]
         if sampled:
             wj = (Wd[j] if (ti_pos and j < nW) else (uhold if j == 0 else 0.0)) + dj
             vj = 0.0  # filled below
@@ -422,7 +424,6 @@ def _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, 
         Y[j] = yj
         Yd[j] = ydj
         V[j] = vj
-        Wp[j] = wj
         E[j] = rj - ymj
         if j == DEG:
             break
@@ -441,7 +442,6 @@ def _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, 
         Y[j] = 0.0
         Yd[j] = 0.0
         V[j] = 0.0
-        Wp[j] = 0.0
         E[j] = 0.0
         for i in range(N):
             X[i, j] = 0.0
@@ -485,6 +485,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     ti_pos = ti > 0.0
     to_pos = to > 0.0
     algebraic = cont and not ti_pos and not to_pos
+    need_yd = keep_y or to_pos or dvv != 0.0
     regime_matters = (cont and not ti_pos) or aw != 0
     switches = cont or aw != 0
     keep_y = keep_y or to_pos
@@ -502,12 +503,14 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     Y = np.zeros(NC)
     Yd = np.zeros(NC)
     V = np.zeros(NC)
-    Wp = np.zeros(NC)
     E = np.zeros(NC)
     Wn = np.zeros(NC)
     dW = np.zeros(NC)
     xs = np.zeros(_GRID + 2)
     x0 = np.zeros(MAXN)
+    for i in range(N):
+        if par[OFF_BVM + i] != 0.0:
+            need_yd = True
     # the loop's matrices, read once: M, then the input and output vectors (w, r, ym, vm, aw; y, y', v)
     Mloc = np.empty((N, N))
     VE = np.empty((8, N))
@@ -637,7 +640,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
         prev_regime = regime
         for attempt in range(4):
             nt = _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dcur, X, R, nR,
-                            Wd, nW, Ym, Vm, to_pos, Y, Yd, V, Wp, E)
+                            Wd, nW, Ym, Vm, to_pos, Y, Yd, V, E, need_yd)
             nv = _degree(V, nt)
             new = _classify(V, nv, umin, umax, ptol)
             newf = False
@@ -677,7 +680,6 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
             _scale(Y, nt, xc)
             _scale(Yd, nt, xc)
             _scale(V, nt, xc)
-            _scale(Wp, nt, xc)
             if to_pos:
                 _scale(Ym, NC, xc)
                 _scale(Vm, NC, xc)
