@@ -19,7 +19,7 @@ from rich.console import Console
 from rich.table import Table
 
 from ..errors import DelaykitError, InvalidValueError, RangeSpecError, check_real
-from .loopopts import with_loop
+from .loopopts import parse_limit, with_loop
 
 __all__ = ["app", "main", "parse_delays"]
 
@@ -70,15 +70,6 @@ def parse_delays(spec: str) -> list[float]:
     except RangeSpecError:
         raise RangeSpecError(f"--delay {spec!r} is not a delay: give seconds (0.368), START:STOP:N, a comma "
                              "list, or 'table1'") from None
-
-
-def _optional_float(name: str, text: Optional[str]) -> Optional[float]:
-    if text is None or text.strip().lower() in ("none", "off", "inf"):
-        return None
-    try:
-        return float(text)
-    except ValueError:
-        raise InvalidValueError(f"{name} must be a number or 'none', got {text!r}") from None
 
 
 def _fmt(x: Optional[float], digits: int = 4) -> str:
@@ -459,8 +450,8 @@ def estimate(
     methods = ("trajectory", "overshoot", "lambert")
     if method not in methods:
         raise InvalidValueError(f"--method must be one of {', '.join(methods)}; got {method!r}")
-    vm = _optional_float("--vmax", vmax)
-    per = _optional_float("--period", period)
+    vm = parse_limit("--vmax", vmax)
+    per = parse_limit("--period", period)
     free_t = tuple(x.strip() for x in free.split(",") if x.strip())
     if not flights:
         if overshoot is None:

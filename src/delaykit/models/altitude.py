@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
 from ..errors import InvalidValueError, check_real
+from .loop import check_sampling
 from .quasipolynomial import QuasiPolynomial
 
 if TYPE_CHECKING:
@@ -107,14 +108,9 @@ class AltitudeLoop:
         set_("filter_zeta", check_real("filter_zeta", self.filter_zeta, minimum=0.0, strict=True))
         set_("gain", check_real("gain (effective speed gain)", self.gain, minimum=0.0, strict=True))
         set_("lag", check_real("lag (s)", self.lag, minimum=0.0))
-        if self.period is not None:
-            set_("period", check_real("period (s)", self.period, minimum=0.0, strict=True))
-            off = check_real("sample_offset (s)", self.sample_offset, minimum=0.0)
-            if off >= self.period:
-                raise InvalidValueError(f"sample_offset must be less than the period {self.period:g} s, got {off:g}")
-            set_("sample_offset", off)
-        else:
-            set_("sample_offset", check_real("sample_offset (s)", self.sample_offset, minimum=0.0, maximum=0.0))
+        per, off = check_sampling(self.period, self.sample_offset)
+        set_("period", per)
+        set_("sample_offset", off)
 
     @property
     def filtered(self) -> bool:

@@ -45,7 +45,24 @@ from .controllers import Controller
 from .quasipolynomial import QuasiPolynomial
 from .transfer import TransferFunction
 
-__all__ = ["Loop", "LOOP_KEYS", "loop_from_dict", "load_loop"]
+__all__ = ["Loop", "LOOP_KEYS", "loop_from_dict", "load_loop", "check_sampling"]
+
+
+def check_sampling(period: Any, sample_offset: Any) -> tuple[float | None, float]:
+    """A validated sampling period (``None``: continuous) and first-sample offset in ``[0, period)``.
+
+    Examples
+    --------
+    >>> check_sampling(0.065, 0.03)
+    (0.065, 0.03)
+    """
+    if period is None:
+        return None, check_real("sample_offset (s)", sample_offset, minimum=0.0, maximum=0.0)
+    per = check_real("period (s)", period, minimum=0.0, strict=True)
+    off = check_real("sample_offset (s)", sample_offset, minimum=0.0)
+    if off >= per:
+        raise InvalidValueError(f"sample_offset must be less than the period {per:g} s, got {off:g}")
+    return per, off
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -100,14 +117,9 @@ class Loop:
             raise InvalidValueError(f"umin must be below umax; got umin={lo:g}, umax={hi:g}")
         set_("umin", lo)
         set_("umax", hi)
-        if self.period is not None:
-            set_("period", check_real("period (s)", self.period, minimum=0.0, strict=True))
-            off = check_real("sample_offset (s)", self.sample_offset, minimum=0.0)
-            if off >= self.period:
-                raise InvalidValueError(f"sample_offset must be less than the period {self.period:g} s, got {off:g}")
-            set_("sample_offset", off)
-        else:
-            set_("sample_offset", check_real("sample_offset (s)", self.sample_offset, minimum=0.0, maximum=0.0))
+        per, off = check_sampling(self.period, self.sample_offset)
+        set_("period", per)
+        set_("sample_offset", off)
         if self.controller.uses_velocity and not self.plant.is_strictly_proper:
             raise InvalidValueError(
                 "the PV law with the true velocity needs a strictly proper plant (its output's derivative "
