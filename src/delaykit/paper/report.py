@@ -1,4 +1,4 @@
-"""The main job until the later parts land: Table 1 regenerated, with a figure, into a folder.
+"""Table 1 regenerated, with a figure, into a folder (`delaykit report`; `delaykit reproduce` does every table).
 
 Examples
 --------
