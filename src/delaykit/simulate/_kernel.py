@@ -345,6 +345,20 @@ def _first_switch(V, nv, E, ne, regime, frozen, umin, umax, aw):
     return xc
 
 
+@njit(cache=True)
+def _image(t0, gen, n, q, qg, s, a, delay, eps):
+    """In a history of ``n`` pieces (starts ``t0``, ``gen`` = not analytic at the start): the piece ``q``
+    that contains ``s``, the first piece ``qg`` after it that starts where the signal is not analytic, and
+    the time that start's image reaches (one ``delay`` later; ``a + delay`` if there is none yet)."""
+    while q < n - 1 and t0[q + 1] <= s + eps:
+        q += 1
+    if qg <= q:
+        qg = q + 1
+    while qg < n and gen[qg] == 0:
+        qg += 1
+    return q, qg, (t0[qg] if qg < n else a) + delay
+
+
 # -- one piece -------------------------------------------------------------------------------------------
 @njit(cache=True)
 def _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dist, X, R, nR,
@@ -589,26 +603,14 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
             if su < -eps:
                 t_img_u = ti
             else:
-                while qu < nu - 1 and tu0[qu + 1] <= su + eps:
-                    qu += 1
-                if qgu <= qu:
-                    qgu = qu + 1
-                while qgu < nu and ugen[qgu] == 0:
-                    qgu += 1
-                t_img_u = (tu0[qgu] if qgu < nu else a) + ti
+                qu, qgu, t_img_u = _image(tu0, ugen, nu, qu, qgu, su, a, ti, eps)
             end = min(end, t_img_u)
         sy = a - to
         if to_pos:
             if sy < -eps:
                 t_img_y = to
             else:
-                while qy < ny - 1 and ty0[qy + 1] <= sy + eps:
-                    qy += 1
-                if qgy <= qy:
-                    qgy = qy + 1
-                while qgy < ny and ygen[qgy] == 0:
-                    qgy += 1
-                t_img_y = (ty0[qgy] if qgy < ny else a) + to
+                qy, qgy, t_img_y = _image(ty0, ygen, ny, qy, qgy, sy, a, to, eps)
             end = min(end, t_img_y)
         H = end - a
         # the delayed signals and the reference on this piece
