@@ -217,3 +217,41 @@ def test_demo_report_with_no_interval(tmp_path, monkeypatch):
     assert "(no interval)" in md and "0.3712" in md
     assert json.loads((tmp_path / "demo.json").read_text())["estimate"]["ci"] is None
     assert files[0] == tmp_path / "demo.md"
+
+
+def test_plant_dead_time_adds_to_the_delay_option():
+    """A dead time written into --plant (exp(-12*s)) adds to --delay, in simulate as in roots."""
+    res = run("simulate", "--plant", "0.62*exp(-12*s)/(150*s+1)", "--controller", "pi", "--kp", "2", "--ki", "0.02",
+              "--delay", "0.5", "--t-end", "200", "--json")
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["loop"]["delay"] == pytest.approx(12.5)
+
+
+def test_loop_file_controller_override_and_paper_limits(tmp_path):
+    f = tmp_path / "loop.toml"
+    f.write_text('plant = "1/((s+1)*(0.5*s+1))"\ncontroller = "pid"\nkp = 1.5\nki = 0.8\nkd = 1.0\n'
+                 'derivative_filter = 0.05\ndelay = 0.2\numin = -2\numax = 2\n')
+    res = run("simulate", "--loop", str(f), "--controller", "pi", "--json")
+    assert res.exit_code == 0, res.output
+    ctrl = json.loads(res.stdout)["loop"]["controller"]
+    assert ctrl["kind"] == "pi" and ctrl["kp"] == 1.5 and ctrl["ki"] == 0.8 and "kd" not in ctrl
+    # the paper's loop keeps its +1 limit when only --umin is given
+    res = run("simulate", "--kp", "1.31", "--delay", "0.368", "--umin", "-0.5", "--json")
+    loop = json.loads(res.stdout)["loop"]
+    assert res.exit_code == 0 and loop["umin"] == -0.5 and loop["umax"] == 1.0
+    res = run("simulate", "--kp", "1.31", "--delay", "0.368", "--controller", "p", "--kv", "0.3")
+    assert res.exit_code == 2 and "--controller p has no --kv" in res.output
+
+
+def test_design_keeps_the_filtered_velocity_when_kv_starts_at_zero():
+    """--velocity filtered with Kv candidates from 0: the Kv > 0 rows are the filtered PV loop."""
+    from delaykit import Controller, Loop
+    from delaykit.spectrum.stability import rightmost
+
+    res = run("design", "--plant", "1/(s*(0.05*s+1))", "--velocity", "filtered", "--filter-wn", "5", "--kp", "2",
+              "--kv", "0,0.3", "--delay", "0.3", "--json")
+    assert res.exit_code == 0, res.output
+    row = [r for r in json.loads(res.stdout)["rows"] if r["kv"] == 0.3][0]
+    want = rightmost(Loop("1/(s*(0.05*s+1))", Controller.pv(2.0, 0.3, velocity="filtered", filter_wn=5.0),
+                          delay=0.3, umin=-math.inf, umax=math.inf)).abscissa
+    assert row["abscissa"] == pytest.approx(want, abs=1e-9)

@@ -267,3 +267,32 @@ def test_bad_controllers_are_refused():
 def test_true_velocity_needs_strictly_proper_plant():
     with pytest.raises(InvalidValueError, match="strictly proper"):
         Loop("(s+1)/(s+2)", Controller.pv(1.0, 0.2), delay=0.1)
+
+
+# -- found by review --------------------------------------------------------------------------------------------
+def test_simulate_many_sweeps_filtered_pv_from_kv_zero_on_a_general_loop():
+    """A filtered PV law swept from Kv = 0 keeps its filter for Kv > 0 (each row equals simulate on that loop)."""
+    base = Loop("1/s", Controller.pv(2.0, 0.0, velocity="filtered"), delay=0.3, umin=-1, umax=1)
+    kv = [0.0, 0.3, 0.6]
+    m = simulate_many(base, kv=kv, t_end=12.0)
+    for i, k in enumerate(kv):
+        one = simulate(base.replace(kv=k), t_end=12.0).metrics
+        assert math.isclose(m.overshoot[i], one.overshoot, abs_tol=1e-9)
+        assert math.isclose(m.settling_time[i], one.settling_time, abs_tol=1e-9)
+    assert m.overshoot[0] != m.overshoot[1]
+
+
+def test_loop_replace_keeps_a_new_controller_and_refuses_vmax_with_umin():
+    loop = Loop("1/s", Controller.p(1.0), delay=0.3)
+    new = loop.replace(controller=Controller.pi(1.0, 0.5), kp=2.0)
+    assert new.controller.kind == "pi" and new.controller.kp == 2.0 and new.controller.ki == 0.5
+    with pytest.raises(InvalidValueError, match="vmax or umin/umax"):
+        loop.replace(vmax=2.0, umin=-1.0)
+
+
+def test_clamp_sliding_mode_is_reported_not_simulated_wrongly():
+    """PI with clamping at v = umax from the start: the rule has no solution (a sliding mode); the simulator
+    stops with an error that says so (and quickly: it detects the stall instead of exhausting the piece budget)."""
+    loop = Loop("1/((s+1)*(0.5*s+1))", Controller.pi(0.5, 0.8, antiwindup="clamp"), delay=0.2, umin=-0.5, umax=0.5)
+    with pytest.raises(InvalidValueError, match="chatters"):
+        simulate(loop)

@@ -278,13 +278,15 @@ def design(
         opts["delay"] = str(D.parse_range(delays_range, "--delays")[0])
     if opts.get("loop_file") is None:
         opts["kp"] = kps[0]
-        opts["kv"] = kvs[0] or None
-    base, _ = build_loop(opts, parse_delays)
+        opts["kv"] = next((k for k in kvs if k), None)  # a Kv > 0 builds the PV law with its velocity options
+    raw = parse_delays(str(opts["delay"])) if opts.get("delay") is not None else None
+    base, base_delays = build_loop(opts, parse_delays)
+    extra = base_delays[0] - raw[0] if raw else 0.0  # a dead time in the plant's text adds to --delays too
     if delays_range is not None:
         if criterion not in ("abscissa", "settling"):
             raise InvalidValueError(f"--criterion {criterion} is not available with --delays (the robust search "
                                     "ranks by the worst case over the delays): use settling or abscissa")
-        dl = D.parse_range(delays_range, "--delays")
+        dl = [d + extra for d in D.parse_range(delays_range, "--delays")]
         with Progress(console=err, transient=True) as bar:
             task = bar.add_task("gain search", total=None)
             gm = D.gain_search(base, dl, kps, kvs, criterion=criterion, step=step, scheduler=scheduler,

@@ -49,6 +49,13 @@ _SPECS: list[tuple[str, Any, Any]] = [
     ("sample_offset", Optional[float], _opt(None, "--sample-offset", "First sample time after the step, s.")),
 ]
 LOOP_OPTION_NAMES = tuple(name for name, _, _ in _SPECS)
+_CONTROLLER_KEYS = ("kp", "ki", "kd", "kv", "derivative_filter", "velocity", "filter_wn", "filter_zeta", "antiwindup",
+                    "tracking_time")
+_KIND_KEYS = {  # the settings each law reads (a transfer-function law reads none)
+    "p": ("kp",), "pv": ("kp", "kv", "velocity", "filter_wn", "filter_zeta"),
+    "pi": ("kp", "ki", "antiwindup", "tracking_time"), "pd": ("kp", "kd", "derivative_filter"),
+    "pid": ("kp", "ki", "kd", "derivative_filter", "antiwindup", "tracking_time"),
+}
 
 
 def parse_limit(flag: str, text: Optional[str]) -> Optional[float]:
@@ -95,15 +102,22 @@ def build_loop(opts: dict[str, Any], parse_delays: Callable[[str], list[float]])
             raise InvalidValueError("give --kp (or --loop FILE.toml)")
         if delays is None:
             raise InvalidValueError("give --delay (or --loop FILE.toml)")
-        o.pop("controller", None)
+        if o.pop("controller", None) == "p" and o.get("kv"):
+            raise InvalidValueError("--controller p has no --kv; use --controller pv")
         vmax = parse_limit("--vmax", limits["vmax"]) if "vmax" in limits else 1.0
         return AltitudeLoop(delay=delays[0], vmax=vmax, **o), delays
     if path is not None:
         d = _flatten(load_loop(path))
+        if "controller" in o:  # another law than the file's: keep only the file's settings the new law uses
+            keep = _KIND_KEYS.get(str(o["controller"]).lower(), ())
+            for k in _CONTROLLER_KEYS:
+                if k not in o and k not in keep:
+                    d.pop(k, None)
     else:
         d = {"plant": "1/s"}
-        if not limits and "plant" not in o:
-            limits["vmax"] = "1"
+        if "plant" not in o and "vmax" not in limits:  # the paper's limits, +-1, where not given
+            limits.setdefault("umin", "-1")
+            limits.setdefault("umax", "1")
     d.update(o)
     d.setdefault("controller", "pv" if d.get("kv") else "p")
     if "vmax" in limits:
@@ -116,7 +130,11 @@ def build_loop(opts: dict[str, Any], parse_delays: Callable[[str], list[float]])
     if delays is not None:
         d["delay"] = delays[0]
     loop = loop_from_dict(d, source=str(path) if path else "options")
-    return loop, delays if delays is not None else [loop.delay]
+    if delays is None:
+        return loop, [loop.delay]
+    # a dead time written into the plant (exp(-T*s)) adds to every delay of the sweep
+    extra = loop.delay - delays[0]
+    return loop, [x + extra for x in delays]
 
 
 def _flatten(loop: Any) -> dict[str, Any]:

@@ -153,11 +153,13 @@ class Loop:
         """
         ctrl = {k: changes.pop(k) for k in list(changes) if k in _CONTROLLER_FIELDS}
         if "vmax" in changes:
+            if "umin" in changes or "umax" in changes:
+                raise InvalidValueError("give vmax or umin/umax, not both")
             v = changes.pop("vmax")
             v = math.inf if v is None else check_real("vmax (command limit)", v, minimum=0.0, strict=True, allow_inf=True)
             changes.update(umin=-v, umax=v)
         if ctrl:
-            changes["controller"] = self.controller.replace(**ctrl)
+            changes["controller"] = changes.get("controller", self.controller).replace(**ctrl)
         try:
             return dataclasses.replace(self, **changes)
         except TypeError as exc:

@@ -86,10 +86,11 @@ AW = {"none": 0, "clamp": 1, "backcalc": 2}
 OUT = {
     "overshoot": 0, "peak_time": 1, "peak": 2, "t10": 3, "t90": 4, "rise_time": 5,
     "settling_time": 6, "final_error": 7, "truncation": 8, "pieces": 9, "status": 10,
-    "u_pieces": 11, "y_pieces": 12,
+    "u_pieces": 11, "y_pieces": 12, "t_stop": 13,
 }
 NOUT = len(OUT)
-STATUS_OK, STATUS_CAPACITY = 0.0, 1.0
+STATUS_OK, STATUS_CAPACITY, STATUS_STALLED = 0.0, 1.0, 2.0
+_STALL = 256  # consecutive pieces shorter than 1e-9 of the run: no progress (the command chatters)
 
 _LIN, _HIGH, _LOW = 0, 1, 2
 
@@ -569,6 +570,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     ms[_WEND] = 0.0
     status = STATUS_OK
     regime = _LIN
+    tiny = 0
     genu = True  # the command and the output are not analytic at t = 0
     geny = True
     y_end = 0.0
@@ -689,6 +691,10 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
             end = a + H
         if cont and regime != prev_regime:
             genu = True
+        tiny = tiny + 1 if H < 1e-9 * max(1.0, tend) else 0
+        if tiny > _STALL:
+            status = STATUS_STALLED
+            break
         # store the command's piece (constant pieces of equal value merged)
         nU = 1
         if sampled:
@@ -786,6 +792,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     out[10] = status
     out[11] = nu
     out[12] = ny
+    out[13] = a
     return n
 
 

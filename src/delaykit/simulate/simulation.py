@@ -184,8 +184,14 @@ class _Workspace:
         """Run the kernel on one parameter row; returns the number of pieces."""
         while True:
             n = K.run_one(row, *knots, self.cap, *self.u, *self.y, self.out, self.store, self.t, self.ez)
-            if self.out[K.OUT["status"]] == K.STATUS_OK:
+            status = self.out[K.OUT["status"]]
+            if status == K.STATUS_OK:
                 return n
+            if status == K.STATUS_STALLED:
+                raise InvalidValueError(
+                    f"the simulation stalls at t = {self.out[K.OUT['t_stop']]:.6g} s: the command chatters at its "
+                    "limit (with clamping anti-windup, a sliding mode, which the simulator does not model yet; "
+                    "antiwindup='backcalc' avoids it)")
             if self.cap >= _CAP_MAX:
                 hmax = row[K.HEAD["hmax"]]
                 raise InvalidValueError(
@@ -538,6 +544,9 @@ def simulate_many(loop: Any, *, t_end: float = 15.0, band: float = 0.02, **sweep
     if isinstance(loop, AltitudeLoop) and "kv" in sweep and loop.kv == 0.0:
         loop = loop.replace(kv=1.0)  # the PV structure, swept from Kv = 0 (where it is the P loop)
     gen = as_loop(loop)
+    c0 = gen.controller
+    if "kv" in sweep and c0.kind == "pv" and c0.velocity == "filtered" and c0.kv == 0.0:
+        gen = gen.replace(kv=1.0)  # the filter's states exist; rows with Kv = 0 get the P structure below
     t_end, band = _check_run(t_end, band)
     unknown = sorted(set(sweep) - set(SWEEPABLE))
     if unknown:
@@ -674,7 +683,7 @@ def _batch(pars: np.ndarray) -> np.ndarray:
         return np.empty((0, K.NOUT))
     nchunks = max(1, min(m, 8 * numba.get_num_threads()))
     out = K.run_batch(pars, _CAP0, nchunks)
-    redo = np.flatnonzero(out[:, K.OUT["status"]] != K.STATUS_OK)
+    redo = np.flatnonzero(out[:, K.OUT["status"]] != K.STATUS_OK)  # a stall raises its error from run()
     for i in redo:
         ws = _Workspace(store=False)
         ws.run(pars[i], (np.zeros(1), np.array([pars[i, K.HEAD["step"]]]), np.zeros(1)))
