@@ -42,7 +42,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.dont_write_bytecode = True  # importing bench_simulate leaves no __pycache__ in benchmarks/
 
 import delaykit as dk  # noqa: E402
-from bench_simulate import KEYS, TARGET, HermiteSpline, agreement, errors, meets  # noqa: E402
+from bench_simulate import KEYS, TARGET, HermiteSpline, agreement, errors, meets, spline_metrics  # noqa: E402
 from delaykit.models import Controller, Loop  # noqa: E402
 from oracle_loop import LoopOracle, LoopSpec  # noqa: E402
 
@@ -129,16 +129,7 @@ class Jit:
         yv = np.array([float(C @ a[1][:n]) for a in anchors])  # y = C x
         dy = np.array([float(C @ a[2][:n]) for a in anchors])  # y' = C x'
         spl = HermiteSpline(t[keep], yv[keep], dy[keep])
-        wmax, tmax = spl.maximum()
-        out = {"overshoot": max(0.0, wmax - 1.0) * 100.0, "peak_time": tmax + td if wmax > 1.0 else math.nan}
-        t10, t90 = spl.crossings(0.1), spl.crossings(0.9)
-        out["rise_time"] = (t90[0] - t10[0]) if t10.size and t90.size else math.nan
-        if abs(spl.y[-1] - 1.0) >= 0.02:
-            out["settling_time"] = math.nan
-        else:
-            hits = np.concatenate([spl.crossings(0.98), spl.crossings(1.02)])
-            out["settling_time"] = float(hits.max()) + td
-        return {k: out[k] for k in KEYS}
+        return spline_metrics(spl, td)
 
 
 def cold_compile_time() -> tuple[float, float]:
