@@ -17,17 +17,23 @@ import sys
 import types
 from typing import Any
 
-from .errors import (DelaykitError, FlightError, InvalidTypeError, InvalidValueError, PortError, PortNumberError,
-                     RangeSpecError)
+from .errors import (DelaykitError, FlightError, InvalidTypeError, InvalidValueError, MissingDependencyError,
+                     PortError, PortNumberError, RangeSpecError)
 
 __all__ = [
     "AltitudeLoop", "Loop", "Controller", "TransferFunction", "Step", "Ramp", "Samples", "LoadStep", "load_loop",
     "BatchMetrics", "PAPER_PERIOD",
     "QuasiPolynomial", "Response", "SecondOrder", "StepMetrics", "noise_level", "simulate", "simulate_many",
     "step_metrics", "RootStatus",
+    "frequency_response", "frequency_grid", "margins", "FrequencyResponse", "Margins", "Crossover", "to_control",
+    "pade_error", "PadeError",
+    "sampled_spectrum", "sampled_margins", "compare_sampling", "sampled_frequency_response",
     # every exception class of the package (all derive from DelaykitError)
     "DelaykitError", "InvalidTypeError", "InvalidValueError", "RangeSpecError", "PortError", "PortNumberError",
-    "FlightError", "ProtocolError", "ATError", "NavdataError", "LinkError", "EstimationError", "LogError",
+    "FlightError", "MissingDependencyError", "ProtocolError", "ATError", "NavdataError", "LinkError", "EstimationError", "LogError",
+    "IdentificationError",
+    # identification
+    "Experiment", "read_experiment", "identify", "predict", "load_model", "IdentifiedModel",
 ]
 __version__ = "0.1.0"
 
@@ -38,9 +44,19 @@ _LAZY = {
     "TransferFunction": ".models.transfer", "SecondOrder": ".simulate.metrics", "StepMetrics": ".simulate.metrics",
     "noise_level": ".simulate.metrics", "step_metrics": ".simulate.metrics", "BatchMetrics": ".simulate.simulation",
     "Response": ".simulate.simulation", "simulate_many": ".simulate.simulation", "RootStatus": ".spectrum.roots",
+    "frequency_response": ".spectrum.frequency", "frequency_grid": ".spectrum.frequency",
+    "margins": ".spectrum.frequency", "FrequencyResponse": ".spectrum.frequency", "Margins": ".spectrum.frequency",
+    "Crossover": ".spectrum.frequency", "to_control": ".models.interop", "pade_error": ".models.interop",
+    "PadeError": ".models.interop",
+    "sampled_spectrum": ".spectrum.sampled", "sampled_margins": ".spectrum.sampled",
+    "compare_sampling": ".spectrum.sampled", "sampled_frequency_response": ".spectrum.sampled",
     # exception classes defined beside the code that raises them (also re-exported by delaykit.errors)
     "ProtocolError": ".hardware.ardrone", "ATError": ".hardware.ardrone", "NavdataError": ".hardware.ardrone",
     "LinkError": ".hardware.flight", "EstimationError": ".identify.estimation", "LogError": ".identify.flightlog",
+    "IdentificationError": ".identify.identification",
+    "Experiment": ".identify.iodata", "read_experiment": ".identify.iodata", "identify": ".identify.identification",
+    "predict": ".identify.identification", "load_model": ".identify.identification",
+    "IdentifiedModel": ".identify.identification",
 }
 
 

@@ -8,8 +8,9 @@ Every exception class of the package derives from :class:`DelaykitError` and is 
 The ones of general use are defined here; those that belong to one layer are defined next to the code that raises
 them (this module is the lowest layer and imports nothing of the package) and are loaded on first use by
 ``delaykit``: ``ProtocolError``, ``ATError`` and ``NavdataError`` (:mod:`delaykit.hardware.ardrone`),
-``LinkError`` (:mod:`delaykit.hardware.flight`), ``EstimationError`` (:mod:`delaykit.identify.estimation`) and
-``LogError`` (:mod:`delaykit.identify.flightlog`).
+``LinkError`` (:mod:`delaykit.hardware.flight`), ``EstimationError`` (:mod:`delaykit.identify.estimation`),
+``LogError`` (:mod:`delaykit.identify.flightlog`) and ``IdentificationError``
+(:mod:`delaykit.identify.identification`).
 
 Hierarchy::
 
@@ -19,11 +20,13 @@ Hierarchy::
     │   ├── ProtocolError: a malformed datagram (ATError, NavdataError)
     │   ├── EstimationError: the data cannot give a delay by this method
     │   ├── LogError: an unreadable flight log
+    │   ├── IdentificationError: data or settings that do not allow an identification
     │   └── PortNumberError (also PortError): a port number out of range
     ├── InvalidTypeError (also TypeError): a value of the wrong type
     ├── PortError (also OSError): a port that cannot be bound (already in use, ...)
     ├── LinkError (also RuntimeError): the drone does not answer
-    └── FlightError (also RuntimeError): a flight produced nothing to work with
+    ├── FlightError (also RuntimeError): a flight produced nothing to work with
+    └── MissingDependencyError (also ImportError): an optional package (python-control) is not installed
 """
 
 from __future__ import annotations
@@ -32,7 +35,7 @@ import math
 from typing import Any
 
 __all__ = ["DelaykitError", "InvalidValueError", "InvalidTypeError", "RangeSpecError", "PortError",
-           "PortNumberError", "FlightError", "check_real"]
+           "PortNumberError", "FlightError", "MissingDependencyError", "check_real"]
 
 
 class DelaykitError(Exception):
@@ -68,6 +71,13 @@ class PortNumberError(PortError, InvalidValueError):
 
 class FlightError(DelaykitError, RuntimeError):
     """A flight produced nothing to work with (no logs), so the pipeline cannot go on."""
+
+
+class MissingDependencyError(DelaykitError, ImportError):
+    """An optional package that a function needs is not installed (the message says which and how to install it).
+
+    An :class:`ImportError`, so ``except ImportError`` around optional features keeps working.
+    """
 
 
 def check_real(

@@ -232,8 +232,9 @@ def reproduce(
     from ..paper.reproduce import reproduce as run
 
     with Progress(console=err, transient=True) as bar:
-        task = bar.add_task("reproducing the paper", total=7)
-        rep = run(out_dir, progress=lambda name, done, total: bar.update(task, completed=done, description=name))
+        task = bar.add_task("reproducing the paper", total=None)  # the total comes with the first report
+        rep = run(out_dir, progress=lambda name, done, total: bar.update(task, completed=done, total=total,
+                                                                           description=name))
     if as_json:
         print(json.dumps(rep.to_dict(), indent=2))
         return
@@ -526,6 +527,135 @@ def estimate(
 
 @app.command()
 @_friendly
+@with_loop(omit=("plant",))
+def identify(
+    logs: list[Path] = typer.Argument(..., help="Logs (CSV with a header: time, the input or reference, outputs)."),
+    closed_loop: bool = typer.Option(False, "--closed-loop", help="Closed-loop fit from the reference through the controller given by the loop options (P or PV, its limits, --period = the log's)."),
+    input_col: str = typer.Option("u", "--input", help="The plant's command column (open-loop fit)."),
+    reference: str = typer.Option("z_ref", "--reference", help="The reference column (with --closed-loop)."),
+    output: str = typer.Option("z", "--output", help="The output column."),
+    rate: Optional[str] = typer.Option(None, "--rate", help="A column holding the output's rate (e.g. vz), fitted jointly."),
+    time_col: str = typer.Option("t", "--time", help="The time column (s)."),
+    model: str = typer.Option("auto", "--model", help="auto | ipdt | ipdt_lag | ipdt_speed | fopdt | sopdt."),
+    baseline: str = typer.Option("initial", "--baseline", help="initial (mean before the drive moves) | fit (an offset per log)."),
+    u_before: Optional[float] = typer.Option(None, "--u-before", help="The input before the log, when the log starts with the step (default 0)."),
+    fresh_only: bool = typer.Option(False, "--fresh-only", help="Count only output samples that changed (a sensor slower than the log repeats its values)."),
+    save: Optional[Path] = typer.Option(None, "--save", help="Write the model here (JSON), for `delaykit predict`."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Overlay each log and the model's free-run prediction here."),
+    loop_options: Any = None,
+) -> None:
+    """Identify a plant and its dead time from logs, open loop (from the command) or closed loop (from the reference).
+
+    With --model auto every structure is fitted and one is chosen: by leave-one-log-out prediction error with
+    two logs or more, by BIC with one. Standard errors allow for coloured residuals (an autoregressive noise model).
+    """
+    from ..identify.identification import identify as run_identify
+    from ..identify.identification import predict as run_predict
+    from ..identify.iodata import read_experiment
+    from .loopopts import build_loop
+
+    given = {k: v for k, v in loop_options.items() if v is not None}
+    loop = None
+    if closed_loop:
+        if given.get("delay") not in (None, "0", "0.0"):
+            raise InvalidValueError("identify finds the delay: do not give --delay")
+        loop, _ = build_loop(loop_options, parse_delays)
+    elif given:
+        raise InvalidValueError(f"the loop options ({', '.join('--' + k.replace('_', '-') for k in given)}) describe "
+                                "the controller of a closed-loop fit: add --closed-loop, or drop them")
+    if closed_loop:
+        exps = [read_experiment(f, outputs=[output] + ([rate] if rate else []), reference=reference, time=time_col)
+                for f in logs]
+    else:
+        exps = [read_experiment(f, outputs=[output] + ([rate] if rate else []), input=input_col, time=time_col,
+                                u_before=u_before) for f in logs]
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=err,
+                  transient=True) as bar:
+        task = bar.add_task("identifying…", total=None)
+        m = run_identify(exps, model=model, loop=loop, outputs=[output], rate=rate,
+                         baseline=baseline, fresh_only=fresh_only,
+                         progress=lambda msg: bar.update(task, description=msg))
+    if save is not None:
+        m.save(save)
+    if plot is not None:
+        from ..plotting.identification import plot_predictions
+
+        plot_predictions([run_predict(m, e) for e in exps], path=plot, title=repr(m))
+    if as_json:
+        print(json.dumps(m.to_dict(), indent=2))
+        return
+    table = Table(title=f"{m.structure.title} ({m.model}), {'closed' if closed_loop else 'open'} loop, {len(exps)} log(s)")
+    for col in ("parameter", "value", "± stderr", "95 % interval"):
+        table.add_column(col, justify="right")
+    for p in m.structure.params:
+        table.add_row(p, f"{m.params[p]:.5g}", f"{m.stderr[p]:.2g}", _fmt_ci(m.ci[p]))
+    out.print(table)
+    if m.candidates:
+        ct = Table(title=f"candidates (chosen by {m.criterion})")
+        for col in ("model", "rms", "BIC", "leave-one-out rms"):
+            ct.add_column(col, justify="right")
+        for c in m.candidates:
+            ct.add_row(c.model, f"{c.rms:.4g}", f"{c.bic:.1f}", _fmt(c.lolo_rms))
+        out.print(ct)
+    lt = Table(title="logs")
+    for col in ("log", "rms", "initial wander", "rms / wander"):
+        lt.add_column(col, justify="right")
+    for g in m.logs:
+        d = g.to_dict()
+        lt.add_row(g.file, f"{d['rms']:.4g}", _fmt(d["wander"]), _fmt(d["rms_over_wander"], 3))
+    out.print(lt)
+    for w in m.warnings:
+        out.print(f"[yellow]warning:[/] {w}", highlight=False)
+    if save is not None:
+        out.print(f"model written to {save}", highlight=False)
+
+
+@app.command()
+@_friendly
+def predict(
+    model_file: Path = typer.Argument(..., help="A model written by `delaykit identify --save`."),
+    logs: list[Path] = typer.Argument(..., help="Logs to predict (same columns as the model was fitted on)."),
+    time_col: str = typer.Option("t", "--time", help="The time column (s)."),
+    u_before: Optional[float] = typer.Option(None, "--u-before", help="The input before the log, when it starts with the step."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Overlay each log and the prediction here."),
+) -> None:
+    """Predict logs with an identified model, free-run from each log's input or reference (not one step ahead)."""
+    from ..identify.identification import load_model
+    from ..identify.identification import predict as run_predict
+    from ..identify.iodata import read_experiment
+
+    m = load_model(model_file)
+    outs = list(m.outputs) + ([m.rate] if m.rate else [])
+    if m.closed_loop is not None:
+        exps = [read_experiment(f, outputs=outs, reference=m.drive_column, time=time_col) for f in logs]
+    else:
+        exps = [read_experiment(f, outputs=outs, input=m.drive_column, time=time_col, u_before=u_before)
+                for f in logs]
+    preds = [run_predict(m, e) for e in exps]
+    if plot is not None:
+        from ..plotting.identification import plot_predictions
+
+        plot_predictions(preds, path=plot, title=f"{m.model} predicting {len(preds)} log(s)")
+    rows = [p.to_dict() for p in preds]
+    if as_json:
+        print(json.dumps(rows[0] if len(rows) == 1 else {"logs": rows}, indent=2))
+        return
+    table = Table(title=f"free-run prediction by {m!r}")
+    for col in ("log", "rms", "initial wander", "rms / wander"):
+        table.add_column(col, justify="right")
+    first = m.outputs[0]
+    for r in rows:
+        w = r["wander"][first]
+        table.add_row(r["file"], f"{r['rms']:.4g}", _fmt(w), _fmt(r["rms"] / w if w else None, 3))
+    out.print(table)
+
+
+@app.command()
+@_friendly
 def emulate(
     host: str = typer.Option("127.0.0.1", "--host", help="Address to bind (loopback unless told otherwise)."),
     at_port: int = typer.Option(5556, "--at-port", help="UDP port for AT commands (0 = any free one)."),
@@ -663,7 +793,8 @@ def demo(
 
     pm = np.mean([m["settling_time"] or np.nan for m in rep.p_metrics])
     vm = np.mean([m["settling_time"] or np.nan for m in rep.pv_metrics])
-    out.print(f"PV design: Kp = 2.0, Kv = {rep.kv:g}. Mean settling time: P {pm:.2f} s, PV {vm:.2f} s.", highlight=False)
+    out.print(f"PV design: Kp = {rep.pv_kp:g}, Kv = {rep.kv:g} ({rep.kv_source}). Mean settling time: P {pm:.2f} s, "
+              f"PV {vm:.2f} s.", highlight=False)
     out.print(f"Report: {out_dir / 'demo.md'}", highlight=False)
 
 

@@ -1,0 +1,935 @@
+"""Identify a plant and its dead time from logs: open or closed loop, any input, several logs, honest errors.
+
+:func:`identify` fits one of the :mod:`.structures` (or every one, ``model="auto"``) to one or more
+:class:`~.iodata.Experiment` logs by output error: the whole log is simulated exactly from its input (open loop)
+or its reference through the known controller (closed loop: the controller's gains, limits and period from a
+:class:`~delaykit.models.loop.Loop`), sample by sample (:mod:`delaykit.simulate.discrete`), and the squared
+differences to the measured outputs are minimised.  Several logs share the plant; each keeps its own initial
+steady state (deviation variables).  Several outputs (altitude and its rate) are fitted jointly, each weighted
+by its own residual level.
+
+Uncertainty: residuals are modelled as autoregressive noise per log and output (:mod:`.noise`), so standard
+errors and 95 % intervals (Wald, from the sandwich covariance) stay honest when the residuals are coloured.
+Model selection: BIC from the autoregressive likelihood; with two logs or more, leave-one-log-out prediction
+error decides (BIC is still reported).
+
+Examples
+--------
+>>> import numpy as np
+>>> from delaykit.models.transfer import TransferFunction
+>>> from delaykit.simulate.discrete import held_delay_model, held_response
+>>> t = np.arange(0, 600.0, 1.0); u = np.where(t >= 20, 50.0, 0.0)
+>>> y = 20 + held_response(held_delay_model(TransferFunction.parse("0.6/(150*s+1)"), 1.0, 12.0), u).y
+>>> y += np.random.default_rng(0).normal(0, 0.05, t.size)
+>>> m = identify([Experiment.from_arrays(t, {"T": y}, u=u)], model="fopdt")
+>>> m
+IdentifiedModel(fopdt: gain=0.600... ± ..., time_constant=15... ± ... s, delay=1... ± ... s; rms=0.04..., 1 log)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+from scipy import stats
+from scipy.optimize import least_squares
+
+from ..errors import InvalidTypeError, InvalidValueError
+from ..models.loop import Loop
+from ..models.transfer import TransferFunction
+from ..simulate.discrete import closed_loop_response, held_delay_model, held_response
+from .iodata import Experiment
+from .noise import ARNoise, ar_covariance, cross_correlation, fit_ar, ljung_box
+from .structures import STRUCTURES, Structure, structure
+
+__all__ = ["IdentifiedModel", "Candidate", "LogFit", "Prediction", "identify", "predict", "simulate_experiment",
+           "load_model", "IdentificationError", "CORRELATION_WARNING"]
+
+CORRELATION_WARNING = 0.9
+"""Above this absolute correlation two time parameters are reported as traded against each other."""
+Z95 = float(stats.norm.ppf(0.975))
+
+
+class IdentificationError(InvalidValueError):
+    """The data or the settings do not allow an identification (the message says why)."""
+
+
+# -- the controller of a closed-loop fit --------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Law:
+    kp: float
+    kv: float
+    umin: float
+    umax: float
+    period: float | None
+
+
+def _law(loop: Loop | None) -> _Law | None:
+    if loop is None:
+        return None
+    if not isinstance(loop, Loop):
+        to_loop = getattr(loop, "to_loop", None)
+        if to_loop is None:
+            raise InvalidTypeError(f"loop must be a Loop, got {type(loop).__name__}")
+        loop = to_loop()
+    c = loop.controller
+    static = c.kind in ("p", "pv") and not c.filtered
+    if not static:
+        raise IdentificationError(
+            f"closed-loop identification takes a P or PV (true velocity) controller sampled at the log's rate; "
+            f"the loop's controller is {c!r} (identify open loop from the logged command instead)")
+    if loop.delay or loop.output_delay:
+        raise IdentificationError("the loop given for a closed-loop fit must have no delay: the delay is what is "
+                                  f"identified (got delay {loop.delay:g} s, output delay {loop.output_delay:g} s)")
+    return _Law(c.kp, c.kv if c.kind == "pv" else 0.0, loop.umin, loop.umax, loop.period)
+
+
+# -- one log, prepared ------------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class _Prepared:
+    exp: Experiment
+    outputs: tuple[str, ...]
+    rate: str | None
+    drive: np.ndarray          # deviation input (open) or reference (closed)
+    lo: float
+    hi: float
+    meas: dict[str, np.ndarray]  # deviation outputs
+    keep: dict[str, np.ndarray]  # indices of fresh samples per output
+    base: dict[str, float]
+    wander: dict[str, float]
+
+
+def _fresh(x: np.ndarray) -> np.ndarray:
+    keep = np.ones(x.size, bool)
+    keep[1:] = x[1:] != x[:-1]
+    return np.flatnonzero(keep)
+
+
+def _prepare(exp: Experiment, outputs: tuple[str, ...], rate: str | None, law: _Law | None,
+             fresh_only: bool) -> _Prepared:
+    for o in outputs + ((rate,) if rate else ()):
+        if o not in exp.outputs:
+            raise IdentificationError(f"{exp.name}: no output column {o!r} (it has {', '.join(exp.outputs)})")
+    if law is None and exp.closed:
+        raise IdentificationError(f"{exp.name}: a log with a reference needs the controller for a closed-loop fit "
+                                  "(give the loop), or give its input column for an open-loop fit")
+    if law is not None and not exp.closed:
+        raise IdentificationError(f"{exp.name}: a closed-loop fit needs the reference column; this log has an input")
+    names = outputs + ((rate,) if rate else ())
+    base = {o: exp.baseline(o) for o in names}
+    meas = {o: exp.outputs[o] - base[o] for o in names}
+    pre = exp.onset if not exp.starts_moving else 0
+    wander = {o: float(np.std(exp.outputs[o][:pre])) if pre >= 5 else math.nan for o in names}
+    keep = {o: (_fresh(exp.outputs[o]) if fresh_only else np.arange(exp.t.size)) for o in names}
+    if law is None:
+        drive = exp.u - exp.drive_baseline  # type: ignore[operator]
+        lo, hi = -math.inf, math.inf
+    else:
+        if law.period is None or abs(law.period - exp.period) > 1e-3 * exp.period:
+            raise IdentificationError(
+                f"{exp.name}: the controller's period ({law.period} s) must equal the log's sample period "
+                f"({exp.period:.6g} s): closed-loop fits simulate the controller at the log's samples")
+        r0 = exp.drive_baseline
+        y0 = base[outputs[0]]
+        u0 = min(max(law.kp * (r0 - y0), law.umin), law.umax)
+        drive = exp.r - r0 + (r0 - y0) - (u0 / law.kp if law.kp else 0.0)  # type: ignore[operator]
+        lo, hi = law.umin - u0, law.umax - u0
+    return _Prepared(exp, outputs, rate, np.ascontiguousarray(drive), lo, hi, meas, keep, base, wander)
+
+
+def _simulate(prep: _Prepared, plant: TransferFunction, delay: float, law: _Law | None,
+              cache: dict | None = None) -> dict[str, np.ndarray]:
+    key = (prep.exp.period, delay)
+    model = None if cache is None else cache.get(key)
+    if model is None:
+        model = held_delay_model(plant, prep.exp.period, delay)
+        if cache is not None:
+            cache[key] = model
+    if law is None:
+        res = held_response(model, prep.drive)
+    else:
+        res = closed_loop_response(model, prep.drive, kp=law.kp, kv=law.kv, umin=prep.lo, umax=prep.hi)
+    out = {prep.outputs[0]: res.y}
+    if prep.rate:
+        out[prep.rate] = res.dy
+    return out
+
+
+# -- results ----------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class LogFit:
+    """How the model fits one log: RMS error per output, the hover/initial wander, their ratio, its noise order."""
+
+    file: str
+    rms: dict[str, float]
+    wander: dict[str, float]
+    samples: int
+    noise_order: int
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (``rms`` is the first output's; ``rms_by_output`` all)."""
+        first = next(iter(self.rms))
+        w = self.wander[first]
+        return {"file": self.file, "rms": self.rms[first], "rms_by_output": dict(self.rms),
+                "wander": None if math.isnan(w) else w,
+                "rms_over_wander": None if not w or math.isnan(w) else self.rms[first] / w,
+                "samples": self.samples, "noise_order": self.noise_order}
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One structure tried by ``model="auto"``: its fit and the criteria."""
+
+    model: str
+    params: dict[str, float]
+    k: int
+    rms: float
+    aic: float
+    bic: float
+    lolo_rms: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {"model": self.model, "params": dict(self.params), "k": self.k, "rms": self.rms, "aic": self.aic,
+                "bic": self.bic, "lolo_rms": self.lolo_rms}
+
+
+@dataclass(frozen=True, repr=False, eq=False)
+class IdentifiedModel:
+    """An identified plant with its dead time, its uncertainty and how it was chosen.
+
+    ``params``, ``stderr`` and ``ci`` are keyed by the structure's parameter names (``gain``, ``delay``,
+    ``time_constant``...).  ``closed_loop`` holds the controller of a closed-loop fit (``None`` for open loop).
+    """
+
+    model: str
+    params: dict[str, float]
+    stderr: dict[str, float]
+    ci: dict[str, tuple[float, float]]
+    cov: np.ndarray
+    rms: float
+    aic: float
+    bic: float
+    n: int
+    outputs: tuple[str, ...]
+    rate: str | None
+    closed_loop: dict[str, Any] | None
+    logs: tuple[LogFit, ...]
+    candidates: tuple[Candidate, ...] = ()
+    criterion: str = "bic"
+    warnings: tuple[str, ...] = ()
+    per_log: tuple[dict[str, Any], ...] = ()
+    combinations: tuple[dict[str, Any], ...] = field(default=())
+    drive_column: str = "u"
+
+    @property
+    def structure(self) -> Structure:
+        """The model structure."""
+        return STRUCTURES[self.model]
+
+    @property
+    def plant(self) -> TransferFunction:
+        """The identified plant, without its dead time."""
+        return self.structure.plant([self.params[p] for p in self.structure.params])
+
+    @property
+    def delay(self) -> float:
+        """The identified dead time (s)."""
+        return self.params["delay"]
+
+    def correlation(self, a: str, b: str) -> float:
+        """Correlation of two parameters' estimates."""
+        names = self.structure.params
+        i, j = names.index(a), names.index(b)
+        d = math.sqrt(self.cov[i, i] * self.cov[j, j])
+        return float(self.cov[i, j] / d) if d > 0 else 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (the contract of ``delaykit identify --json``), enough to :func:`load_model` it."""
+        return {
+            "model": self.model, "params": dict(self.params), "stderr": dict(self.stderr),
+            "ci": {k: [lo, hi] for k, (lo, hi) in self.ci.items()},
+            "correlation": {f"{a},{b}": self.correlation(a, b) for i, a in enumerate(self.structure.params)
+                            for b in self.structure.params[i + 1:]},
+            "cov": self.cov.tolist(), "rms": self.rms, "aic": self.aic, "bic": self.bic, "n": self.n,
+            "criterion": self.criterion, "outputs": list(self.outputs), "rate": self.rate,
+            "closed_loop": self.closed_loop, "plant": self.plant.to_string(digits=10),
+            "candidates": [c.to_dict() for c in self.candidates], "logs": [g.to_dict() for g in self.logs],
+            "per_log": list(self.per_log), "combinations": list(self.combinations), "warnings": list(self.warnings),
+            "drive_column": self.drive_column,
+        }
+
+    def save(self, path: str | Path) -> None:
+        """Write the model as JSON (read back with :func:`load_model`)."""
+        Path(path).write_text(json.dumps(self.to_dict(), indent=2))
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any], *, source: str = "model") -> "IdentifiedModel":
+        """Rebuild a model from :meth:`to_dict`'s form."""
+        try:
+            name = d["model"]
+            st = structure(name)
+            params = {k: float(d["params"][k]) for k in st.params}
+            stderr = {k: float(d["stderr"][k]) for k in st.params}
+            ci = {k: (float(v[0]), float(v[1])) for k, v in d["ci"].items()}
+            cov = np.array(d["cov"], dtype=float).reshape(st.size, st.size)
+            logs = tuple(LogFit(g["file"], dict(g["rms_by_output"]),
+                                {k: math.nan for k in g["rms_by_output"]}, int(g["samples"]), int(g["noise_order"]))
+                         for g in d.get("logs", []))
+            return cls(model=name, params=params, stderr=stderr, ci=ci, cov=cov, rms=float(d["rms"]),
+                       aic=float(d["aic"]), bic=float(d["bic"]), n=int(d["n"]), outputs=tuple(d["outputs"]),
+                       rate=d.get("rate"), closed_loop=d.get("closed_loop"), logs=logs,
+                       criterion=d.get("criterion", "bic"), warnings=tuple(d.get("warnings", ())),
+                       drive_column=str(d.get("drive_column", "u")))
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise IdentificationError(f"{source}: not a delaykit model file ({type(exc).__name__}: {exc})") from None
+
+    def __repr__(self) -> str:
+        parts = []
+        for p, u in zip(self.structure.params, self.structure.units):
+            unit = " s" if u == "s" else (" rad/s" if u == "rad/s" else "")
+            parts.append(f"{p}={self.params[p]:.4g} ± {self.stderr[p]:.2g}{unit}")
+        return (f"IdentifiedModel({self.model}: {', '.join(parts)}; rms={self.rms:.4g}, "
+                f"{len(self.logs)} log{'s' if len(self.logs) != 1 else ''})")
+
+
+# -- the fit ----------------------------------------------------------------------------------------------
+class _Problem:
+    """Residuals of one structure on prepared logs, in fitting coordinates (log scale for positive values)."""
+
+    def __init__(self, st: Structure, preps: list[_Prepared], law: _Law | None, weights: dict[str, float],
+                 fit_offset: bool) -> None:
+        self.st, self.preps, self.law, self.w, self.fit_offset = st, preps, law, weights, fit_offset
+        self.pos = np.array(st.positive)
+        self.fit_bias = law is None and st.integrating
+
+    def to_phys(self, z: np.ndarray) -> np.ndarray:
+        return np.where(self.pos, np.exp(np.clip(z, -60.0, 60.0)), z)
+
+    def to_fit(self, p: np.ndarray) -> np.ndarray:
+        return np.where(self.pos, np.log(np.maximum(p, 1e-300)), p)
+
+    def blocks(self, p: np.ndarray) -> list[tuple[_Prepared, str, np.ndarray]]:
+        """Raw (unweighted) residual blocks ``(log, output, r)`` at the fresh samples, after the per-log linear
+        nuisance parameters (output offsets, the input's hover level) are projected out."""
+        plant = self.st.plant(p)
+        out = []
+        cache: dict = {}
+        for prep in self.preps:
+            sim = _simulate(prep, plant, float(p[-1]), self.law, cache)
+            names = list(sim)
+            res = {o: prep.meas[o][prep.keep[o]] - sim[o][prep.keep[o]] for o in names}
+            cols: dict[str, list[np.ndarray]] = {o: [] for o in names}
+            if self.fit_bias:  # the input that holds the output still differs from the logged baseline
+                unit = held_response(cache[(prep.exp.period, float(p[-1]))], np.ones(prep.exp.t.size))
+                for o in names:
+                    cols[o].append((unit.dy if o == prep.rate else unit.y)[prep.keep[o]])
+            if self.fit_offset:
+                for j, o in enumerate(names):
+                    for q in names:
+                        if o != prep.rate:
+                            cols[q].append(np.full(res[q].size, 1.0 if q == o else 0.0))
+            if cols[names[0]]:
+                X = np.vstack([np.column_stack(cols[o]) / self.w[o] for o in names])
+                y = np.concatenate([res[o] / self.w[o] for o in names])
+                if np.all(np.isfinite(X)) and np.all(np.isfinite(y)):
+                    beta = np.linalg.lstsq(X, y, rcond=None)[0]
+                    for o in names:
+                        res[o] = res[o] - np.column_stack(cols[o]) @ beta
+                else:  # a trial point where the simulation overflowed: no projection, the cost rejects it
+                    res = {o: np.full(r.size, np.nan) for o, r in res.items()}
+            out.extend((prep, o, res[o]) for o in names)
+        return out
+
+    @property
+    def linear_count(self) -> int:
+        """Number of per-log linear nuisance parameters projected out."""
+        per = int(self.fit_bias) + (int(self.fit_offset) * len(self.preps[0].outputs))
+        return per * len(self.preps)
+
+    def residuals(self, z: np.ndarray) -> np.ndarray:
+        p = self.to_phys(z)
+        with np.errstate(all="ignore"):  # a trial point far out may overflow: it is rejected by its cost
+            try:
+                r = np.concatenate([r / self.w[o] for _, o, r in self.blocks(p)]) if np.all(np.isfinite(p)) else None
+            except (InvalidValueError, np.linalg.LinAlgError, ValueError):
+                r = None
+        if r is None or not np.all(np.isfinite(r)):
+            return np.full(self.size, 1e6)
+        return r
+
+    @property
+    def size(self) -> int:
+        return sum(prep.keep[o].size for prep in self.preps for o in prep.outputs + ((prep.rate,) if prep.rate else ()))
+
+
+def _guesses(st: Structure, preps: list[_Prepared], law: _Law | None) -> list[np.ndarray]:
+    """Starting points from the data: the response's onset for the delay, its slope or level for the gain."""
+    prep = preps[0]
+    e = prep.exp
+    o = prep.outputs[0]
+    y = prep.meas[o]
+    i0 = e.onset
+    span = float(np.ptp(y)) or 1.0
+    noise = prep.wander[o] if not math.isnan(prep.wander[o]) else 0.0
+    thr = max(4.0 * noise, 0.05 * span)
+    moved = np.flatnonzero(np.abs(y[i0:] - y[i0]) > thr)
+    t_resp = float(e.t[i0 + moved[0]] - e.t[i0]) if moved.size else 0.1 * e.duration
+    t_resp = max(t_resp, 2.0 * e.period)
+    h = e.period
+    d = prep.drive
+    if law is None:
+        du = float(d[-max(3, d.size // 20):].mean()) or float(d[np.argmax(np.abs(d))])
+        if st.integrating:
+            area = float(np.sum(d[:-1]) * h)
+            gain = (float(y[-1]) / area) if area else 1.0
+        else:
+            gain = float(y[-max(3, y.size // 20):].mean()) / du if du else 1.0
+    else:
+        gain = 1.0
+        if not st.integrating:  # the loop's steady state y = K kp (r - y): a small error means a large gain
+            ys = float(y[-max(3, y.size // 20):].mean())
+            rs = float(d[-1])
+            err_ss = abs(rs - ys)
+            gain = abs(ys) / (abs(law.kp) * err_ss) if law.kp and err_ss > 0.02 * abs(rs) else 50.0
+            gain = min(max(gain, 0.1), 100.0)
+    if not math.isfinite(gain) or gain == 0.0:
+        gain = 1.0
+    # time to 63 % of the final change after the onset, for non-integrating plants
+    yf = float(y[-max(3, y.size // 20):].mean())
+    cross = np.flatnonzero(np.abs(y[i0:]) >= 0.632 * abs(yf)) if yf else np.array([], int)
+    t63 = float(e.t[i0 + cross[0]] - e.t[i0]) if cross.size else 0.3 * e.duration
+    starts = []
+    for frac in (0.3, 0.7, 1.0):
+        td = frac * t_resp
+        tau = max(t63 - td, 2.0 * h)
+        lag = max(0.5 * t_resp, 2.0 * h)
+        if law is not None and not st.integrating:
+            tau = max(tau, gain)  # near an integrator of unit gain: K / (tau s + 1) ~ (K / tau) / s
+        vals = {"gain": gain, "delay": td, "lag": lag, "time_constant": tau, "time_constant2": max(0.2 * tau, h),
+                "wn": 2.0 / lag, "zeta": 0.7, "zero": lag}
+        if st.name == "sopdt":
+            vals["time_constant"] = max(0.8 * tau, 2.0 * h)
+        starts.append(np.array([vals[p] for p in st.params]))
+    return starts
+
+
+def _delay_bound(preps: list[_Prepared]) -> float:
+    return min(0.5 * p.exp.duration for p in preps)
+
+
+def _grid_starts(st: Structure, preps: list[_Prepared]) -> list[np.ndarray]:
+    """A coarse grid of delays and time scales (gain 1: it is solved for linearly in open loop)."""
+    dur = min(p.exp.duration for p in preps)
+    h = preps[0].exp.period
+    out = []
+    for td in np.linspace(0.0, 0.2 * dur, 6):
+        for ts in np.geomspace(2 * h, dur / 3.0, 5):
+            vals = {"gain": 1.0, "delay": td, "lag": ts, "time_constant": ts, "time_constant2": 0.25 * ts,
+                    "wn": 1.0 / ts, "zeta": 0.8, "zero": ts}
+            out.append(np.array([vals[p] for p in st.params]))
+    return out
+
+
+def _with_best_gain(prob: _Problem, p: np.ndarray) -> tuple[np.ndarray, float]:
+    """In open loop the output is linear in the gain (and the projection keeps it affine): solve it exactly."""
+    p = p.copy()
+    if prob.law is not None or prob.st.params[0] != "gain":
+        r = prob.residuals(prob.to_fit(p))
+        return p, float(np.dot(r, r))
+    p[0] = 0.0
+    with np.errstate(all="ignore"):
+        r0 = np.concatenate([r / prob.w[o] for _, o, r in prob.blocks(p)])
+        p[0] = 1.0
+        d = np.concatenate([r / prob.w[o] for _, o, r in prob.blocks(p)]) - r0
+    dd = float(np.dot(d, d))
+    if not np.isfinite(dd) or dd == 0.0:
+        return p, math.inf
+    p[0] = -float(np.dot(r0, d)) / dd
+    r = r0 + p[0] * d
+    return p, float(np.dot(r, r))
+
+
+def _fit(prob: _Problem, starts: list[np.ndarray], explore: bool = True) -> tuple[np.ndarray, Any]:
+    """Least squares from the most promising starts; then the delay hops across sample boundaries, where the
+    cost is only piecewise smooth (a held input's edge crossing a sample), until no neighbour is better."""
+    hi_delay = _delay_bound(prob.preps)
+    h = prob.preps[0].exp.period
+    lb = np.full(prob.st.size, -np.inf)
+    ub = np.full(prob.st.size, np.inf)
+    lb[-1], ub[-1] = 0.0, hi_delay
+    cand = [np.array(p0, dtype=float) for p0 in starts] + (_grid_starts(prob.st, prob.preps) if explore else [])
+    scored = []
+    for p0 in cand:
+        p0[-1] = min(max(p0[-1], 0.0), hi_delay * 0.999)
+        p0 = np.where(prob.pos, np.maximum(p0, 1e-6), p0)
+        p0, c = _with_best_gain(prob, p0) if explore else (p0, float(np.sum(prob.residuals(prob.to_fit(p0)) ** 2)))
+        if math.isfinite(c) and (prob.st.params[0] != "gain" or not prob.pos[0] or p0[0] > 0):
+            scored.append((c, p0))
+    scored.sort(key=lambda x: x[0])
+
+    def run(p0: np.ndarray) -> Any:
+        p0 = p0.copy()
+        p0[-1] = min(max(p0[-1], 0.0), hi_delay * 0.999)
+        try:
+            with np.errstate(all="ignore"):
+                return least_squares(prob.residuals, prob.to_fit(p0), bounds=(lb, ub), method="trf", x_scale="jac",
+                                     diff_step=1e-6, xtol=1e-10, ftol=1e-10, max_nfev=300)
+        except (ValueError, np.linalg.LinAlgError):
+            return None
+
+    best = None
+    for _, p0 in scored[:2]:  # the two most promising starts
+        fit = run(p0)
+        if fit is not None and (best is None or fit.cost < best.cost):
+            best = fit
+    if best is None:
+        raise IdentificationError(f"the {prob.st.name} fit failed from every starting point")
+    # a fast lag and the delay trade against each other; a fit that lost the lag (or the delay) may sit in the
+    # other valley: try half the delay given to the lag
+    fast = {"ipdt_lag": "lag", "sopdt": "time_constant2", "fopdt": "time_constant"}.get(prob.st.name)
+    if fast is not None:
+        i = prob.st.params.index(fast)
+        p0 = prob.to_phys(best.x)
+        for share in (0.5, -0.5):
+            q = p0.copy()
+            move = share * (p0[-1] if share > 0 else p0[i])
+            q[-1] -= move
+            q[i] += move
+            if q[-1] >= 0 and q[i] > 0:
+                fit = run(q)
+                if fit is not None and fit.cost < best.cost * (1 - 1e-9):
+                    best = fit
+    for direction in (-1.0, 1.0):
+        while True:
+            p0 = prob.to_phys(best.x)
+            p0[-1] += direction * h
+            if not 0.0 <= p0[-1] < hi_delay:
+                break
+            fit = run(p0)
+            if fit is None or fit.cost >= best.cost * (1 - 1e-9):
+                break
+            best = fit
+    return prob.to_phys(best.x), best
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    st: Structure
+    p: np.ndarray
+    cov: np.ndarray
+    loglik: float
+    k: int
+    n: int
+    rms: float
+    blocks: list
+    noise: list
+    prob: _Problem
+
+
+def _fit_structure(st: Structure, preps: list[_Prepared], law: _Law | None, fit_offset: bool,
+                   starts: list[np.ndarray], explore: bool = True) -> _Outcome:
+    names = {o for p in preps for o in p.outputs + ((p.rate,) if p.rate else ())}
+    weights = {o: 1.0 for o in names}
+    prob = _Problem(st, preps, law, weights, fit_offset)
+    p, fit = _fit(prob, starts, explore)
+    if len(names) > 1:  # weight each output by its own residual level, then refit
+        sq: dict[str, list[float]] = {o: [] for o in names}
+        for _, o, r in prob.blocks(p):
+            sq[o].extend((r * r).tolist())
+        weights = {o: math.sqrt(max(float(np.mean(v)), 1e-300)) for o, v in sq.items()}
+        prob = _Problem(st, preps, law, weights, fit_offset)
+        p, fit = _fit(prob, [p] + starts[:1], explore=False)
+    p, perm = st.canonical(p)
+    blocks = prob.blocks(p)
+    # Jacobian in physical parameters, by central differences
+    with np.errstate(all="ignore"):
+        J = _jacobian(prob, p)
+    noise, jb, loglik, row = [], [], 0.0, 0
+    for prep, o, r in blocks:
+        rw = r / prob.w[o]
+        ar = fit_ar(rw)
+        noise.append(ar)
+        jb.append((J[row:row + r.size], ar))
+        row += r.size
+        loglik += ar.loglik() - r.size * math.log(prob.w[o])
+    try:
+        if not np.all(np.isfinite(J)):
+            raise np.linalg.LinAlgError("sensitivities are not finite")
+        cov = ar_covariance(jb)
+    except np.linalg.LinAlgError:
+        cov = np.full((st.size, st.size), np.nan)
+    k = st.size + sum(a.order for a in noise) + prob.linear_count
+    first = preps[0].outputs[0]
+    rr = np.concatenate([r for _, o, r in blocks if o == first])
+    rms = float(np.sqrt(np.mean(rr * rr)))
+    return _Outcome(st, p, cov, loglik, k, row, rms, blocks, noise, prob)
+
+
+def _jacobian(prob: _Problem, p: np.ndarray) -> np.ndarray:
+    cols = []
+    for i in range(p.size):
+        h = 1e-6 * max(abs(p[i]), 1e-3)
+        if i == p.size - 1:
+            h = max(h, 1e-7)
+        a, b = p.copy(), p.copy()
+        a[i] += h
+        b[i] -= h
+        if b[i] < 0 and i == p.size - 1:
+            b[i] = p[i]
+            ra = np.concatenate([r / prob.w[o] for _, o, r in prob.blocks(a)])
+            rb = np.concatenate([r / prob.w[o] for _, o, r in prob.blocks(b)])
+            cols.append((ra - rb) / h)
+            continue
+        ra = np.concatenate([r / prob.w[o] for _, o, r in prob.blocks(a)])
+        rb = np.concatenate([r / prob.w[o] for _, o, r in prob.blocks(b)])
+        cols.append((ra - rb) / (2 * h))
+    # residual = measured - model, so d(residual)/dp = -d(model)/dp; the sign does not matter for covariances
+    return np.column_stack(cols)
+
+
+def _criteria(o: _Outcome) -> tuple[float, float]:
+    return -2.0 * o.loglik + 2.0 * o.k, -2.0 * o.loglik + o.k * math.log(max(o.n, 2))
+
+
+def _combinations(st: Structure, p: np.ndarray, cov: np.ndarray) -> tuple[list[dict[str, Any]], list[str]]:
+    """Pairs of time parameters traded against each other: their sum's interval and a plain warning."""
+    out, warns = [], []
+    timey = [i for i, (name, u) in enumerate(zip(st.params, st.units)) if u == "s"]
+    for a_i, i in enumerate(timey):
+        for j in timey[a_i + 1:]:
+            d = math.sqrt(max(cov[i, i] * cov[j, j], 0.0))
+            if d <= 0:
+                continue
+            rho = cov[i, j] / d
+            if rho < -CORRELATION_WARNING:
+                s = p[i] + p[j]
+                se = math.sqrt(max(cov[i, i] + cov[j, j] + 2 * cov[i, j], 0.0))
+                a, b = st.params[i], st.params[j]
+                out.append({"sum": f"{a}+{b}", "value": s, "stderr": se, "ci": [s - Z95 * se, s + Z95 * se],
+                            "correlation": rho})
+                warns.append(f"the data determine {a} + {b} = {s:.4g} ± {se:.2g} s, but not each part (their "
+                             f"estimates correlate at {rho:.2f}: one trades for the other)")
+    return out, warns
+
+
+def identify(
+    experiments: Experiment | Sequence[Experiment],
+    *,
+    model: str = "auto",
+    loop: Loop | None = None,
+    outputs: Sequence[str] | None = None,
+    rate: str | None = None,
+    baseline: str = "initial",
+    fresh_only: bool = False,
+    candidates: Sequence[str] | None = None,
+    per_log: bool = True,
+    progress: Callable[[str], None] | None = None,
+) -> IdentifiedModel:
+    """Identify a plant and its dead time from one or more logs.
+
+    Parameters
+    ----------
+    experiments : Experiment or sequence of Experiment
+        The logs (:func:`~.iodata.read_experiment`); all open loop (an input column) or all closed loop (a
+        reference column), on the same sample period.
+    model : str
+        A structure name (:data:`~.structures.STRUCTURES`) or ``"auto"`` to fit the candidates and choose.
+    loop : Loop, optional
+        For closed-loop logs: the controller (P or PV with the true velocity, sampled at the log's period), its
+        limits and its period; the loop's plant is ignored (it is what is identified).
+    outputs : sequence of str, optional
+        The output column(s) fitted; default: every output of the first log but ``rate``.
+    rate : str, optional
+        A column holding the first output's rate (e.g. ``vz``), fitted jointly with it.
+    baseline : {"initial", "fit"}
+        Deviation from the initial steady state (mean before the drive moves), or fit an offset per log.
+    fresh_only : bool
+        Count only samples whose value changed since the previous one: for a sensor slower than the log, whose
+        repeated values are not new measurements (the PX4 logs).  Not for a quantised sensor, whose repeats are
+        real (a thermometer that reads 0.1 °C steps).
+    candidates : sequence of str, optional
+        The structures ``auto`` tries (default: all).
+    per_log : bool
+        Also fit the chosen structure to each log alone, to compare the logs' delays.
+    progress : callable, optional
+        Called with a short message before each fit.
+
+    Returns
+    -------
+    IdentifiedModel
+
+    Raises
+    ------
+    IdentificationError
+        Logs that mix open and closed loop or sample clocks, a missing column, a closed-loop fit without a
+        controller, an unknown model name.
+
+    See Also
+    --------
+    predict : a model's free-run prediction of another log.
+    delaykit.identify.experiment.expected_errors : standard errors to expect from a planned experiment.
+
+    References
+    ----------
+    .. [1] L. Ljung, *System Identification: Theory for the User*, 2nd ed., Prentice Hall, 1999 (output-error
+       models, ch. 4; asymptotic covariance under coloured noise, ch. 9; model validation, ch. 16).
+    """
+    exps = [experiments] if isinstance(experiments, Experiment) else list(experiments)
+    if not exps:
+        raise IdentificationError("no logs given")
+    for e in exps:
+        if not isinstance(e, Experiment):
+            raise InvalidTypeError(f"expected Experiment logs, got {type(e).__name__}")
+    if len({e.closed for e in exps}) > 1:
+        raise IdentificationError("the logs mix open-loop (input) and closed-loop (reference) data")
+    h0 = exps[0].period
+    for e in exps[1:]:
+        if abs(e.period - h0) > 1e-6 * h0:
+            raise IdentificationError(f"the logs have different sample clocks: {exps[0].name} every {h0:.6g} s, "
+                                      f"{e.name} every {e.period:.6g} s; resample them onto one clock")
+    if baseline not in ("initial", "fit"):
+        raise IdentificationError(f"baseline must be 'initial' or 'fit', got {baseline!r}")
+    names = [model] if model != "auto" else list(candidates or STRUCTURES)
+    for nm in names:
+        structure(nm)
+    law = _law(loop)
+    if outputs is None:
+        outs = tuple(o for o in exps[0].outputs if o != rate)
+    else:
+        outs = tuple([outputs] if isinstance(outputs, str) else outputs)
+    if len(outs) != 1:
+        raise IdentificationError(f"give one output (and its rate with rate=...), got {list(outs)}")
+    preps = [_prepare(e, outs, rate, law, fresh_only) for e in exps]
+    fit_offset = baseline == "fit"
+
+    say = progress or (lambda msg: None)
+    results: dict[str, _Outcome] = {}
+    for nm in names:
+        st = STRUCTURES[nm]
+        say(f"fitting {nm}")
+        starts = _guesses(st, preps, law)
+        starts += _nested_starts(st, results)
+        results[nm] = _fit_structure(st, preps, law, fit_offset, starts)
+    crit = {nm: _criteria(o) for nm, o in results.items()}
+    lolo: dict[str, float] = {}
+    if len(names) > 1 and len(preps) >= 2:
+        for nm in names:
+            say(f"leave-one-log-out {nm}")
+            lolo[nm] = _leave_one_out(results[nm], preps, law, fit_offset)
+        chosen, criterion = min(names, key=lambda nm: lolo[nm]), "leave-one-log-out"
+    else:
+        chosen, criterion = min(names, key=lambda nm: crit[nm][1]), "bic"
+    best = results[chosen]
+    cands = tuple(Candidate(nm, dict(zip(o.st.params, map(float, o.p))), o.k, o.rms, crit[nm][0], crit[nm][1],
+                            lolo.get(nm)) for nm, o in results.items()) if len(names) > 1 else ()
+    return _assemble(best, preps, law, crit[chosen], cands, criterion, per_log, fit_offset, say)
+
+
+def _nested_starts(st: Structure, done: dict[str, _Outcome]) -> list[np.ndarray]:
+    """Start a richer structure from a simpler one already fitted (its delay and gain kept)."""
+    out = []
+    if st.name == "ipdt_lag" and "ipdt" in done:
+        g, d = done["ipdt"].p
+        out.append(np.array([g, max(0.25 * d, 1e-3), 0.75 * d]))
+    if st.name == "ipdt_speed" and "ipdt_lag" in done:
+        g, lag, d = done["ipdt_lag"].p
+        out.append(np.array([g, 1.0 / max(lag, 1e-3), 1.0, 0.1 * lag, d]))
+        out.append(np.array([g, 2.0 / max(lag, 1e-3), 0.5, lag, d]))
+    if st.name == "sopdt" and "fopdt" in done:
+        g, tau, d = done["fopdt"].p
+        out.append(np.array([g, 0.9 * tau, 0.1 * tau + 0.2 * d, 0.5 * d]))
+        out.append(np.array([g, 0.7 * tau, 0.3 * tau, 0.1 * d]))
+    return out
+
+
+def _leave_one_out(o: _Outcome, preps: list[_Prepared], law: _Law | None, fit_offset: bool) -> float:
+    errs = []
+    for i, held in enumerate(preps):
+        rest = preps[:i] + preps[i + 1:]
+        sub = _Problem(o.st, rest, law, o.prob.w, fit_offset)
+        p, _ = _fit(sub, [o.p], explore=False)
+        sim = _simulate(held, o.st.plant(p), float(p[-1]), law)
+        first = held.outputs[0]
+        k = held.keep[first]
+        r = held.meas[first][k] - sim[first][k]
+        if fit_offset:
+            r = r - r.mean()
+        errs.append(float(np.sqrt(np.mean(r * r))))
+    return float(np.mean(errs))
+
+
+def _assemble(o: _Outcome, preps: list[_Prepared], law: _Law | None, crit: tuple[float, float],
+              cands: tuple[Candidate, ...], criterion: str, per_log: bool, fit_offset: bool,
+              say: Callable[[str], None]) -> IdentifiedModel:
+    st = o.st
+    se = np.sqrt(np.maximum(np.diag(o.cov), 0.0))
+    params = {nm: float(v) for nm, v in zip(st.params, o.p)}
+    stderr = {nm: float(s) for nm, s in zip(st.params, se)}
+    # Wald intervals, cut at the parameters' bounds (a time constant or a delay is not negative)
+    floor = [0.0 if (pos or nm == "delay") else -math.inf for nm, pos in zip(st.params, st.positive)]
+    ci = {nm: (float(max(v - Z95 * s, f)), float(v + Z95 * s)) for nm, v, s, f in zip(st.params, o.p, se, floor)}
+    warnings: list[str] = []
+    single = [p.exp.name for p in preps if p.exp.starts_moving]
+    if single and not fit_offset:
+        warnings.append(f"{', '.join(single[:3])}{', ...' if len(single) > 3 else ''}: the log starts with the drive "
+                        "moving, so its baseline is one sample (its noise is not in the errors); baseline='fit' "
+                        "(--baseline fit) fits it instead")
+    if o.p[-1] < 1e-6 * max(1.0, float(np.max(np.abs(o.p[:-1])))):
+        warnings.append("the delay is at its bound 0: these data prefer no dead time for this structure (the "
+                        "interval's lower end is the bound)")
+    combos, w = _combinations(st, o.p, o.cov)
+    warnings += w
+    for nm, v, s in zip(st.params, o.p, se):
+        if v != 0 and s > 0.5 * abs(v) and not any(nm in c["sum"].split("+") for c in combos):
+            warnings.append(f"{nm} is poorly determined by these data ({v:.4g} ± {s:.2g})")
+    logs = []
+    for prep in preps:
+        rms, n, order = {}, 0, 0
+        for (pp, out, r), ar in zip(o.blocks, o.noise):
+            if pp is prep:
+                rms[out] = float(np.sqrt(np.mean(r * r)))
+                n += r.size
+                order = max(order, ar.order)
+        logs.append(LogFit(prep.exp.name, rms, dict(prep.wander), n, order))
+    # whiteness of the innovations and their correlation with the drive
+    lb_bad, xc_bad = [], []
+    for (pp, out, r), ar in zip(o.blocks, o.noise):
+        e = ar.whiten(r / o.prob.w[out])
+        q, pval = ljung_box(e)
+        if pval < 0.01:
+            lb_bad.append(f"{pp.exp.name}:{out}")
+        if out == pp.outputs[0] and pp.keep[out].size == pp.exp.t.size:
+            rho, lag, bound = cross_correlation(e, ar.whiten(pp.drive))
+            if abs(rho) > bound:
+                xc_bad.append(f"{pp.exp.name} ({rho:+.2f} at lag {lag})")
+    if lb_bad:
+        warnings.append(f"the residuals are not white even after their autoregressive noise model in {len(lb_bad)} "
+                        f"of {len(o.blocks)} series (Ljung-Box p < 0.01: {', '.join(lb_bad[:4])}"
+                        f"{', ...' if len(lb_bad) > 4 else ''}); the intervals may be too narrow")
+    if xc_bad:
+        warnings.append(f"the residuals still correlate with the drive in {', '.join(xc_bad[:4])}"
+                        f"{', ...' if len(xc_bad) > 4 else ''}: dynamics the model misses")
+    first = preps[0].outputs[0]
+    ratios = [g.rms[first] / g.wander[first] for g in logs if g.wander[first] > 0]  # (NaN compares False)
+    if ratios and float(np.median(ratios)) > 2.0:
+        warnings.append(f"the fit's residual is {np.median(ratios):.1f} times the initial wander (median over the "
+                        "logs): the model misses part of the response")
+    per: list[dict[str, Any]] = []
+    if per_log and len(preps) > 1:
+        say("per-log fits")
+        dl, sl = [], []
+        for prep in preps:
+            try:
+                sub = _fit_structure(st, [prep], law, fit_offset, [o.p], explore=False)
+            except IdentificationError:
+                continue
+            s = float(math.sqrt(max(sub.cov[-1, -1], 0.0)))
+            per.append({"file": prep.exp.name, "params": dict(zip(st.params, map(float, sub.p))), "delay": float(sub.p[-1]),
+                        "delay_stderr": s, "rms": sub.rms})
+            if s > 0:
+                dl.append(float(sub.p[-1]))
+                sl.append(s)
+        if len(dl) >= 2:
+            d, s = np.array(dl), np.array(sl)
+            wmean = float(np.sum(d / s**2) / np.sum(1 / s**2))
+            chi2 = float(np.sum(((d - wmean) / s) ** 2))
+            pval = float(stats.chi2.sf(chi2, d.size - 1))
+            if pval < 0.05:
+                warnings.append(
+                    f"the logs' delays disagree beyond their errors ({d.min():.3f} to {d.max():.3f} s, "
+                    f"heterogeneity p = {pval:.2g}): the delay varies between logs or the model misses dynamics "
+                    "that each log compensates differently; the pooled interval describes the average only")
+    return IdentifiedModel(
+        model=st.name, params=params, stderr=stderr, ci=ci, cov=o.cov, rms=o.rms, aic=crit[0], bic=crit[1], n=o.n,
+        outputs=preps[0].outputs, rate=preps[0].rate,
+        closed_loop=None if law is None else {"kp": law.kp, "kv": law.kv, "umin": law.umin if math.isfinite(law.umin) else None,
+                                              "umax": law.umax if math.isfinite(law.umax) else None,
+                                              "period": law.period},
+        logs=tuple(logs), candidates=cands, criterion=criterion, warnings=tuple(warnings), per_log=tuple(per),
+        combinations=tuple(combos),
+        drive_column=preps[0].exp.reference_name if law is not None else preps[0].exp.input_name)
+
+
+# -- prediction -------------------------------------------------------------------------------------------
+@dataclass(frozen=True, repr=False, eq=False)
+class Prediction:
+    """A model's free-run prediction of a log: the measured and predicted outputs and the RMS error."""
+
+    file: str
+    t: np.ndarray
+    measured: dict[str, np.ndarray]
+    predicted: dict[str, np.ndarray]
+    rms: dict[str, float]
+    wander: dict[str, float]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (the contract of ``delaykit predict --json``: ``rms`` is the first output's)."""
+        first = next(iter(self.rms))
+        return {"file": self.file, "rms": self.rms[first], "rms_by_output": dict(self.rms),
+                "wander": {k: (None if math.isnan(v) else v) for k, v in self.wander.items()},
+                "samples": int(self.t.size)}
+
+    def __repr__(self) -> str:
+        first = next(iter(self.rms))
+        return f"Prediction({self.file!r}: rms {first} = {self.rms[first]:.4g}, {self.t.size} samples)"
+
+
+def simulate_experiment(model: IdentifiedModel, experiment: Experiment) -> dict[str, np.ndarray]:
+    """The model's free-run outputs over a log (absolute units: the log's initial steady state added back)."""
+    law = None
+    if model.closed_loop is not None:
+        c = model.closed_loop
+        law = _Law(float(c["kp"]), float(c.get("kv") or 0.0),
+                   -math.inf if c.get("umin") is None else float(c["umin"]),
+                   math.inf if c.get("umax") is None else float(c["umax"]), c.get("period"))
+    prep = _prepare(experiment, model.outputs, model.rate, law, fresh_only=False)
+    sim = _simulate(prep, model.plant, model.delay, law)
+    return {o: y + prep.base[o] for o, y in sim.items()}
+
+
+def predict(model: IdentifiedModel, experiment: Experiment) -> Prediction:
+    """Predict a log with a model, free-run (not one step ahead) from the log's input or reference.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(0, 100.0, 0.5); u = np.where(t >= 5, 1.0, 0.0)
+    >>> m = identify([Experiment.from_arrays(t, {"y": 2 * (1 - np.exp(-np.maximum(t - 8, 0) / 10))}, u=u)],
+    ...              model="fopdt")
+    >>> round(m.delay, 2), round(predict(m, Experiment.from_arrays(t, {"y": 2 * (1 - np.exp(-np.maximum(t - 8, 0) / 10))},
+    ...                                                         u=u)).rms["y"], 2)
+    (3.0, 0.0)
+    """
+    if not isinstance(model, IdentifiedModel):
+        raise InvalidTypeError(f"model must be an IdentifiedModel, got {type(model).__name__}")
+    sim = simulate_experiment(model, experiment)
+    meas = {o: experiment.outputs[o] for o in sim}
+    rms = {o: float(np.sqrt(np.mean((meas[o] - sim[o]) ** 2))) for o in sim}
+    pre = experiment.onset if not experiment.starts_moving else 0
+    wander = {o: float(np.std(meas[o][:pre])) if pre >= 5 else math.nan for o in sim}
+    return Prediction(experiment.name, experiment.t, meas, sim, rms, wander)
+
+
+def load_model(path: str | Path) -> IdentifiedModel:
+    """Read a model written by :meth:`IdentifiedModel.save`.
+
+    Raises
+    ------
+    IdentificationError
+        A file that cannot be read or is not a model.
+    """
+    p = Path(path)
+    try:
+        d = json.loads(p.read_text())
+    except OSError as exc:
+        raise IdentificationError(f"{p}: cannot be read ({exc.strerror or exc})") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise IdentificationError(f"{p}: not a JSON model file ({exc})") from None
+    if not isinstance(d, dict):
+        raise IdentificationError(f"{p}: not a delaykit model file")
+    return IdentifiedModel.from_dict(d, source=str(p))

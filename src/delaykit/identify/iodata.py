@@ -1,0 +1,291 @@
+"""Experiment data for identification: a log's time, its input or reference, and its outputs.
+
+An :class:`Experiment` is one log: the sample times (a uniform clock), the signal that drives the system (the
+plant's command ``u`` for an open-loop fit, or the loop's reference for a closed-loop fit) and one or more outputs
+(altitude ``z``, vertical speed ``vz``, a temperature).  :func:`read_experiment` reads one from a CSV file with
+a header (UTF-8, a byte-order mark and ``\\r\\n`` line ends accepted, commas only), checking every value.
+
+Deviation variables: the initial steady state is the mean of each signal before the drive first moves
+(:attr:`Experiment.onset`), or its first sample when the log starts with the move.
+
+Examples
+--------
+>>> import numpy as np
+>>> t = np.arange(0, 10, 0.5)
+>>> e = Experiment.from_arrays(t, {"y": np.where(t > 3, 1.0, 0.0)}, u=np.where(t >= 1, 2.0, 0.0), name="demo")
+>>> e
+Experiment('demo': 20 samples every 0.5 s, input u, output y, moves at 1 s)
+>>> e.baseline("y"), e.drive_baseline
+(0.0, 0.0)
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from ..errors import InvalidTypeError, InvalidValueError
+from .flightlog import LogError
+
+__all__ = ["Experiment", "read_experiment", "CLOCK_TOLERANCE"]
+
+CLOCK_TOLERANCE = 0.01
+"""Largest allowed departure of a sample interval from the log's period, as a fraction of the period."""
+
+MOVE_FRACTION = 0.1
+"""The drive has moved once it is this fraction of its range away from its first value."""
+
+
+@dataclass(frozen=True, repr=False, eq=False)
+class Experiment:
+    """One log for identification (see the module docstring).
+
+    Attributes
+    ----------
+    name : str
+        Where it came from (a file name).
+    t : ndarray
+        Sample times (s), uniform to :data:`CLOCK_TOLERANCE` of the period.
+    period : float
+        The sample period (s): the median interval.
+    outputs : dict of str to ndarray
+        The measured outputs by name.
+    u : ndarray or None
+        The plant's command (open-loop identification).
+    r : ndarray or None
+        The loop's reference (closed-loop identification).
+    input_name, reference_name : str
+        The columns they came from.
+    u_before : float or None
+        The command before the log when the log starts with the move (default 0 then).
+    """
+
+    name: str
+    t: np.ndarray
+    period: float
+    outputs: dict[str, np.ndarray]
+    u: np.ndarray | None = None
+    r: np.ndarray | None = None
+    input_name: str = "u"
+    reference_name: str = "z_ref"
+    u_before: float | None = None
+    _onset: int = field(default=0)
+
+    @classmethod
+    def from_arrays(cls, t: Any, outputs: Mapping[str, Any], *, u: Any = None, r: Any = None, name: str = "data",
+                    input_name: str = "u", reference_name: str = "z_ref", u_before: float | None = None) -> "Experiment":
+        """Check and wrap arrays (see the class docstring for the fields).
+
+        Raises
+        ------
+        InvalidValueError
+            Non-finite values, times that are not increasing or not uniform, arrays of different lengths, no
+            drive or a drive that never moves (nothing to identify).
+        """
+        if not isinstance(name, str):
+            raise InvalidTypeError(f"name must be text, got {type(name).__name__}")
+        tt = _array(name, "t", t)
+        if tt.size < 10:
+            raise InvalidValueError(f"{name}: {tt.size} samples; identification needs at least 10")
+        dt = np.diff(tt)
+        if np.any(dt <= 0):
+            i = int(np.flatnonzero(dt <= 0)[0])
+            raise InvalidValueError(f"{name}: time is not increasing at sample {i + 1} (t = {tt[i + 1]:g} s after "
+                                    f"{tt[i]:g} s)")
+        h = float(np.median(dt))
+        bad = np.abs(dt - h) > CLOCK_TOLERANCE * h
+        if np.any(bad):
+            i = int(np.flatnonzero(bad)[0])
+            raise InvalidValueError(
+                f"{name}: the sample clock is not uniform (interval {dt[i]:.6g} s at t = {tt[i]:g} s, period "
+                f"{h:.6g} s, tolerance {CLOCK_TOLERANCE:.0%}); resample the log onto a uniform clock first")
+        if not outputs:
+            raise InvalidValueError(f"{name}: no output given")
+        outs = {str(k): _array(name, str(k), v, tt.size) for k, v in outputs.items()}
+        uu = None if u is None else _array(name, input_name, u, tt.size)
+        rr = None if r is None else _array(name, reference_name, r, tt.size)
+        if (uu is None) == (rr is None):
+            raise InvalidValueError(f"{name}: give the input (open-loop fit) or the reference (closed-loop fit), "
+                                    "exactly one")
+        if u_before is not None and uu is None:
+            raise InvalidValueError("u_before applies to an open-loop log (with an input column)")
+        drive = uu if uu is not None else rr
+        what = input_name if uu is not None else reference_name
+        first = float(drive[0]) if u_before is None else float(u_before)
+        span = max(float(np.ptp(drive)), float(np.max(np.abs(drive - first))))
+        if span <= 1e-12 * max(1.0, float(np.max(np.abs(drive)))):
+            hint = (" (if it stepped to this value as the log began, give the value before the log: u_before, "
+                    "--u-before)" if uu is not None and u_before is None else "")
+            raise InvalidValueError(f"{name}: the {what} column never moves (it is {drive[0]:g} throughout): there is "
+                                    f"nothing to identify{hint}")
+        onset = int(np.flatnonzero(np.abs(drive - first) > MOVE_FRACTION * span)[0])
+        return cls(name=name, t=tt, period=h, outputs=outs, u=uu, r=rr, input_name=input_name,
+                   reference_name=reference_name, u_before=None if u_before is None else float(u_before), _onset=onset)
+
+    # -- baselines --------------------------------------------------------------------------------------
+    @property
+    def closed(self) -> bool:
+        """True when the drive is a reference (closed-loop identification)."""
+        return self.r is not None
+
+    @property
+    def drive(self) -> np.ndarray:
+        """The input (open loop) or the reference (closed loop)."""
+        return self.u if self.u is not None else self.r  # type: ignore[return-value]
+
+    @property
+    def onset(self) -> int:
+        """Index of the first sample at which the drive has moved."""
+        return self._onset
+
+    @property
+    def starts_moving(self) -> bool:
+        """True when the log starts with the move (fewer than two samples of the initial steady state)."""
+        return self._onset <= 1
+
+    def _pre(self, x: np.ndarray) -> float:
+        return float(x[0]) if self.starts_moving else float(np.mean(x[: self._onset]))
+
+    def baseline(self, output: str) -> float:
+        """The output's initial steady state (mean before the drive moves, or the first sample)."""
+        return self._pre(self.outputs[output])
+
+    @property
+    def drive_baseline(self) -> float:
+        """The drive's initial value: mean before it moves; for an input logged from its move, ``u_before``
+        (0 unless given)."""
+        if self.u is not None and self.starts_moving:
+            return 0.0 if self.u_before is None else self.u_before
+        return self._pre(self.drive)
+
+    @property
+    def duration(self) -> float:
+        """Length of the log (s)."""
+        return float(self.t[-1] - self.t[0])
+
+    def __repr__(self) -> str:
+        what = f"input {self.input_name}" if self.u is not None else f"reference {self.reference_name}"
+        return (f"Experiment({self.name!r}: {self.t.size} samples every {self.period:.4g} s, {what}, output"
+                f"{'s' if len(self.outputs) > 1 else ''} {', '.join(self.outputs)}, moves at "
+                f"{self.t[self._onset] - self.t[0]:.4g} s)")
+
+
+def _array(name: str, col: str, values: Any, n: int | None = None) -> np.ndarray:
+    try:
+        a = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidValueError(f"{name}: column {col!r} is not numeric") from None
+    if a.ndim != 1:
+        raise InvalidValueError(f"{name}: column {col!r} must be 1-d, got shape {a.shape}")
+    if n is not None and a.size != n:
+        raise InvalidValueError(f"{name}: column {col!r} has {a.size} values, the time column {n}")
+    bad = ~np.isfinite(a)
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
+        raise InvalidValueError(f"{name}: column {col!r} holds a non-finite value ({a[i]}) at sample {i}")
+    return a
+
+
+def _read_csv(path: Path) -> tuple[list[str], list[list[str]], list[int]]:
+    name = str(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise LogError(f"{name}: cannot be read ({exc.strerror or exc})") from None
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise LogError(f"{name} is not a UTF-8 text CSV (byte {exc.start} is {data[exc.start]:#04x})") from None
+    if "\x00" in text:
+        raise LogError(f"{name} is not a UTF-8 text CSV (it holds NUL bytes): a binary file?")
+    reader = csv.reader(io.StringIO(text, newline=""))
+    try:
+        try:
+            header = [h.strip() for h in next(reader)]
+        except StopIteration:
+            raise LogError(f"{name}: the file is empty") from None
+        if len(header) == 1 and any(sep in header[0] for sep in ";\t"):
+            raise LogError(f"{name}: the header {header[0][:60]!r} is not separated by commas")
+        rows, lines = [], []
+        while True:
+            line = reader.line_num + 1
+            try:
+                row = next(reader)
+            except StopIteration:
+                break
+            if row and any(c.strip() for c in row):
+                rows.append(row)
+                lines.append(line)
+    except csv.Error as exc:
+        raise LogError(f"{name}: row {reader.line_num}: not a readable CSV ({exc})") from None
+    return header, rows, lines
+
+
+def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input: str | None = None,  # noqa: A002
+                    reference: str | None = None, time: str = "t", u_before: float | None = None) -> Experiment:
+    """Read one log from a CSV file with a header row.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    outputs : sequence of str
+        Output columns (one or more: ``("z", "vz")`` fits altitude and vertical speed jointly).
+    input : str, optional
+        The command column, for an open-loop fit.
+    reference : str, optional
+        The reference column, for a closed-loop fit (give ``input`` or ``reference``).
+    time : str
+        The time column (s).
+    u_before : float, optional
+        The command before the log, when the log starts with the move (default 0).
+
+    Raises
+    ------
+    LogError
+        A file that cannot be read, a missing column (the message lists the header), a cell that is not a
+        number (row and column named), or the problems :meth:`Experiment.from_arrays` checks.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> p = os.path.join(tempfile.mkdtemp(), "step.csv")
+    >>> _ = open(p, "w").write("t,u,y\\n" + "".join(f"{k},{1.0 if k else 0.0},{0.1 * k}\\n" for k in range(12)))
+    >>> read_experiment(p, outputs=["y"], input="u")
+    Experiment('step.csv': 12 samples every 1 s, input u, output y, moves at 1 s)
+    """
+    path = Path(path)
+    name = path.name
+    if isinstance(outputs, str):
+        outputs = [outputs]
+    header, rows, lines = _read_csv(path)
+    wanted = [time, *outputs] + ([input] if input else []) + ([reference] if reference else [])
+    for col in wanted:
+        if col not in header:
+            raise LogError(f"{path}: missing column {col!r} (header: {', '.join(header)})")
+    cols: dict[str, list[float]] = {c: [] for c in wanted}
+    for row, line in zip(rows, lines):
+        for c in wanted:
+            j = header.index(c)
+            cell = row[j].strip() if j < len(row) else ""
+            try:
+                v = float(cell)
+            except ValueError:
+                raise LogError(f"{path}: row {line}: {c} is {cell[:40]!r}, not a number") from None
+            if not np.isfinite(v):
+                raise LogError(f"{path}: row {line}: {c} is {cell[:40]!r}, not a finite number")
+            cols[c].append(v)
+    try:
+        return Experiment.from_arrays(cols[time], {o: cols[o] for o in outputs},
+                                      u=cols[input] if input else None, r=cols[reference] if reference else None,
+                                      name=name, input_name=input or "u", reference_name=reference or "z_ref",
+                                      u_before=u_before)
+    except LogError:
+        raise
+    except InvalidValueError as exc:  # (its message starts with the file's name)
+        raise LogError(str(exc)) from None
