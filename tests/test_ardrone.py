@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import ast
 import struct
+from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
@@ -95,8 +97,47 @@ def test_at_commands_encode_as_the_sdk_and_parse_back():
 def test_malformed_at_is_rejected_specifically(datagram, fragment):
     with pytest.raises(ATError, match=fragment):
         parse_at(datagram)
-    with pytest.raises(ATError):
-        ATEncoder().pcmd(gaz=1.5)
+
+
+@pytest.mark.parametrize("kwargs, fragment", [
+    (dict(gaz=1.5), r"PCMD gaz must be in \[-1, 1\], got 1.5"),
+    (dict(roll=-1.01), r"PCMD roll must be in \[-1, 1\], got -1.01"),
+    (dict(yaw=float("nan")), r"PCMD yaw must be in \[-1, 1\], got nan"),
+])
+def test_pcmd_out_of_range_names_the_value(kwargs, fragment):
+    with pytest.raises(ATError, match=fragment) as info:
+        ATEncoder().pcmd(**kwargs)
+    assert type(info.value) is ATError
+
+
+@pytest.mark.parametrize("args, fragment", [
+    ((0, 0, 0, 0, 1e40, 0), r"PCMD_MAG psi must be a number in \[-1, 1\], got 1e\+40"),  # was an OverflowError
+    ((0, 0, 2.0, 0, 0, 0), r"PCMD_MAG gaz must be a number in \[-1, 1\], got 2.0"),
+    ((0, 0, 0, 0, 0, float("inf")), r"PCMD_MAG psi_accuracy must be a number in \[-1, 1\], got inf"),
+    ((0, "0", 0, 0, 0, 0), r"PCMD_MAG pitch must be a number in \[-1, 1\], got '0'"),
+])
+def test_pcmd_mag_out_of_range_is_a_value_error_naming_the_value(args, fragment):
+    with pytest.raises(InvalidValueError, match=fragment) as info:
+        ATEncoder().pcmd_mag(*args)
+    assert type(info.value) is ATError and isinstance(info.value, ValueError)
+
+
+def test_encoder_rejects_what_the_wire_cannot_carry():
+    # a float beyond the single's range (about 3.4e38) and an integer beyond 32 bits: the module's error, naming it
+    with pytest.raises(ATError, match=r"fit an IEEE-754 single .* got 1e\+40"):
+        float_to_int(1e40)
+    with pytest.raises(ATError, match="must be a real number, got 'x'"):
+        float_to_int("x")  # type: ignore[arg-type]
+    with pytest.raises(ATError, match=r"AT\*CTRL argument 1 must be a 32-bit integer, .* got 4294967296"):
+        ATEncoder().ctrl(2**32)
+    with pytest.raises(ATError, match=r"AT\*FLOAT argument 1 must be a 32-bit integer, .* got -2147483649"):
+        ATEncoder().encode("FLOAT", -(2**31) - 1)
+    # the largest single still encodes, and reads back
+    big = struct.unpack("<f", struct.pack("<f", 3.4e38))[0]
+    assert int_to_float(float_to_int(3.4e38)) == big
+    # the receiver applies the same [-1, 1] rule to PCMD_MAG as to PCMD (2.5 as a float: 1075838976)
+    with pytest.raises(ATError, match="psi = 2.5 is outside"):
+        parse_at(b"AT*PCMD_MAG=1,1,0,0,0,0,1075838976,0\r")
 
 
 def test_navdata_round_trip_and_rejections():
@@ -105,17 +146,20 @@ def test_navdata_round_trip_and_rejections():
     nd = decode_navdata(pkt)
     assert nd.demo == demo and nd.sequence == 42 and nd.options == {0x1234: b"abcd"}
     assert nd.demo.major == CtrlState.HOVERING
+    # each malformed packet, and the message that names what is wrong with it (the sizes, the values)
     bad = {
-        "too short": pkt[:20],
-        "header": b"\x00" + pkt[1:],
-        "checksum": pkt[:-1] + bytes([pkt[-1] ^ 1]),
-        "no checksum": pkt[:-8],
-        "past the end": pkt[:16] + struct.pack("<HH", 0, 200) + pkt[20:],
-        "demo option has size": pkt[:16] + struct.pack("<HH", 0, 100) + pkt[20:],
+        "navdata packet of 20 bytes is too short": pkt[:20],
+        "navdata header is 0x55667700, expected 0x55667788": b"\x00" + pkt[1:],
+        r"navdata checksum \d+ does not match the data \(\d+\)": pkt[:-1] + bytes([pkt[-1] ^ 1]),
+        "navdata packet has no checksum option": pkt[:-8],
+        r"navdata option 0x0000 at byte 16 \(size 200\) runs past the end \(\d+ bytes\)":
+            pkt[:16] + struct.pack("<HH", 0, 200) + pkt[20:],
+        "demo option has size 100, expected 148": pkt[:16] + struct.pack("<HH", 0, 100) + pkt[20:],
     }
-    for what, data in bad.items():
-        with pytest.raises(NavdataError):
+    for fragment, data in bad.items():
+        with pytest.raises(NavdataError, match=fragment) as info:
             decode_navdata(data)
+        assert type(info.value) is NavdataError
 
 
 def test_pyardrone_parses_delaykit_navdata():
@@ -203,3 +247,33 @@ def test_fuzz_navdata_with_valid_header_and_checksum(body, state):
     except NavdataError:
         return
     assert nd.state == state
+
+
+def _unused_names(path: Path) -> list[str]:
+    """Parameters never used, and local names assigned but never read, in each function of a module (read with
+    :mod:`ast`; names starting with ``_`` are deliberate throwaways)."""
+    found = []
+    for fn in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        loads = {n.id for n in ast.walk(fn) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Load)}
+        params = [a.arg for a in fn.args.posonlyargs + fn.args.args + fn.args.kwonlyargs]
+        found += [f"{path.name}:{fn.lineno} {fn.name}: parameter {a!r} is never used" for a in params
+                  if a not in ("self", "cls") and not a.startswith("_") and a not in loads]
+        stores = {n.id: n.lineno for n in ast.walk(fn)
+                  if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store) and not n.id.startswith("_")}
+        found += [f"{path.name}:{line} {fn.name}: {name!r} is assigned but never read" for name, line in stores.items()
+                  if name not in loads]
+    return found
+
+
+def test_hardware_code_has_no_unused_parameters_or_dead_assignments(tmp_path):
+    import delaykit.hardware
+
+    folder = Path(delaykit.hardware.__file__).parent
+    assert [f for p in sorted(folder.glob("*.py")) for f in _unused_names(p)] == []
+    # the check finds what it is for: a parameter and an assignment nobody reads (and not the throwaways)
+    sample = tmp_path / "sample.py"
+    sample.write_text("def f(a, b, _c):\n    x = 1\n    y, _z = a, 2\n    return y\n")
+    assert _unused_names(sample) == ["sample.py:1 f: parameter 'b' is never used",
+                                     "sample.py:2 f: 'x' is assigned but never read"]

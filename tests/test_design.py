@@ -17,13 +17,64 @@ from delaykit.errors import InvalidValueError
 from delaykit.spectrum.stability import rightmost
 
 
-def test_design_sweep_rows_agree_with_roots_and_simulation():
-    d = design_sweep(AltitudeLoop(kp=1.0, delay=0.37), 2.0, [0.0, 0.3, 0.7])
+def _zeros_in_box(f, x0: float, x1: float, y0: float, y1: float) -> int:
+    """Zeros of an analytic f in the rectangle, by the argument principle: the change of arg f along the boundary,
+    sampled until no step turns by more than 0.3 rad (independent of delaykit's root finder)."""
+    corners = [complex(x0, y0), complex(x1, y0), complex(x1, y1), complex(x0, y1), complex(x0, y0)]
+    total = 0.0
+    for a, b in zip(corners[:-1], corners[1:]):
+        t = np.linspace(0.0, 1.0, 4001)
+        for _ in range(80):
+            v = f(a + (b - a) * t)
+            d = np.angle(v[1:] / v[:-1])
+            coarse = np.abs(d) > 0.3
+            if not coarse.any():
+                break
+            t = np.sort(np.concatenate([t, 0.5 * (t[:-1] + t[1:])[coarse]]))
+        else:
+            raise AssertionError("the contour passes through a zero")
+        total += float(d.sum())
+    n = total / (2 * math.pi)
+    assert abs(n - round(n)) < 1e-6
+    return round(n)
+
+
+def test_design_sweep_rows_against_an_independent_solver_and_the_argument_principle():
+    """Each row of the paper's Kv sweep (Kp = 2.0, Td = 0.37 s) checked without delaykit's own solvers: the step
+    metrics against the DOP853 oracle (tests/oracle.py); the rightmost root as a root of
+    s + (Kv s + Kp) exp(-s Td) (mpmath, 30 digits) with no root to its right (argument principle on a box that
+    provably holds every root with Re s > abscissa); for Kv = 0, the Lambert W closed form W_0(-Kp Td) / Td."""
+    import mpmath
+
+    from oracle import Oracle
+
+    kp, td = 2.0, 0.37
+    d = design_sweep(AltitudeLoop(kp=1.0, delay=td), kp, [0.0, 0.3, 0.7])
     for r in d.rows:
-        loop = AltitudeLoop(kp=2.0, delay=0.37, kv=r.kv)
-        assert r.abscissa == rightmost(loop).abscissa
-        assert r.overshoot == simulate(loop, 1.0).metrics.overshoot
-    assert d.best.kv == 0.3 and "spectral abscissa" in d.reason  # the paper's choice, by the abscissa
+        ref = Oracle(kp=kp, td=td, kv=r.kv, vmax=1.0, step=1.0, t_end=15.0).metrics()
+        assert math.isclose(r.overshoot, ref["overshoot"], abs_tol=1e-6)
+        for key in ("rise_time", "settling_time"):
+            assert math.isclose(getattr(r, key), ref[key], abs_tol=1e-6), (r.kv, key)
+        if ref["overshoot"] > 1e-6:  # a peak exists only with an overshoot above rounding
+            assert math.isclose(r.peak_time, ref["peak_time"], abs_tol=1e-6)
+        s, kv = r.rightmost, r.kv
+        with mpmath.workdps(30):
+            sm = mpmath.mpc(s.real, s.imag)
+            resid = abs(sm + (kv * sm + kp) * mpmath.exp(-sm * td)) / (abs(sm) + abs(kv * sm + kp))
+        assert resid < 1e-12
+        assert r.abscissa == s.real and r.stable == (s.real < 0)
+        # every root with Re s >= a has |s| = |Kv s + Kp| e^{-Re s Td} <= (Kp + Kv |s|) e^{-a Td}, so |s| <= H
+        a = s.real + 1e-6
+        g = math.exp(-a * td)
+        H = kp * g / (1 - kv * g) + 1.0
+        f = lambda z, kv=kv: z + (kv * z + kp) * np.exp(-z * td)  # noqa: E731
+        assert _zeros_in_box(f, a, H, -H, H) == 0  # nothing to the right of the reported rightmost root
+        assert _zeros_in_box(f, s.real - 1e-6, H, -H, H) >= 1
+        if kv == 0.0:
+            w = complex(mpmath.lambertw(-kp * td, 0)) / td
+            assert abs(s - w) < 1e-12
+    # the best by the abscissa: Kv = 0.3, as in the paper (Table 3), and the most negative of the three
+    assert d.best.kv == 0.3 and d.best.abscissa == min(r.abscissa for r in d.rows) and "spectral abscissa" in d.reason
 
 
 def test_design_criteria_and_no_candidate():
@@ -113,9 +164,21 @@ def test_filter_analysis_closed_forms():
 def test_reproduce_writes_every_item(tmp_path):
     from delaykit.paper.reproduce import reproduce
 
-    rep = reproduce(tmp_path)
+    calls = []
+    rep = reproduce(tmp_path, progress=lambda name, done, total: calls.append((name, done, total)))
     keys = [i.key for i in rep.items]
     assert keys == ["table1", "section511", "section512", "table3", "table4", "fig5", "filter"]
+    # progress: one report per item and a last one, each with the number of items as its total
+    assert [c[1:] for c in calls] == [(i, 7) for i in range(8)] and calls[-1][0] == "writing"
+    # Table 2's five flights (the paper's printed Mo and tp) in section 5.1.1, each with its delay by the same method
+    from delaykit.identify.estimation import estimate_overshoot
+    from delaykit.paper.data import TABLE2
+
+    header, flights = rep.items[1].tables[1]
+    assert header[0] == "Table 2 flight" and len(flights) == 5
+    assert [float(r[1]) for r in flights] == list(TABLE2["overshoot"])
+    assert [float(r[2]) for r in flights] == list(TABLE2["peak_time"])
+    assert flights[0][3] == f"{estimate_overshoot(2.300, 1.31).delay:.4f}"
     verdicts = {i.key: i.verdict for i in rep.items}
     assert verdicts["table1"].startswith("reproduced to within solver error")
     assert verdicts["table4"].startswith("reproduced to within solver error by the configuration 'filter, saturation, sampled")
@@ -129,6 +192,28 @@ def test_reproduce_writes_every_item(tmp_path):
     md = (tmp_path / "report.md").read_text()
     for fig in ("fig7_iterations.png", "fig8_spectra.png", "fig9_pv_responses.png"):
         assert (tmp_path / fig).stat().st_size > 10_000 and fig in md
+
+
+def test_cli_reproduce_progress_takes_its_total_from_the_reproduction(tmp_path, monkeypatch):
+    # the bar's total is whatever the reproduction reports (here 3 stages), not a number of the command's own
+    from rich.progress import Progress
+    from typer.testing import CliRunner
+
+    import delaykit.paper.reproduce as R
+    from delaykit.cli import app
+
+    def fake(out, progress=None):
+        for i, name in enumerate(("a", "b", "c", "writing")):
+            progress(name, i, 3)
+        return R.Reproduction(out=out, items=(), files=())
+
+    seen = []
+    update = Progress.update
+    monkeypatch.setattr(R, "reproduce", fake)
+    monkeypatch.setattr(Progress, "update", lambda self, task, **kw: (seen.append(kw), update(self, task, **kw))[1])
+    res = CliRunner().invoke(app, ["reproduce", "--out", str(tmp_path), "--json"])
+    assert res.exit_code == 0, res.output
+    assert [(kw["completed"], kw["total"]) for kw in seen] == [(0, 3), (1, 3), (2, 3), (3, 3)]
 
 
 def test_report_page_renders_in_headless_chromium(tmp_path):

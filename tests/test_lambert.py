@@ -44,10 +44,50 @@ def test_agrees_with_scipy_away_from_the_branch_point():
         assert np.allclose(lambert_w(x, k), lambertw(x, k), rtol=1e-13, atol=1e-13)
 
 
+@pytest.mark.parametrize("r", [5e-4, 1e-5, 1e-7])
+@pytest.mark.parametrize("k", [-1, 0, 1])
+def test_against_mpmath_all_around_the_branch_point(r, k):
+    # x = -1/e + (r/e) e^{i phi}, |e x + 1| = r: inside the region where lambert_w replaces SciPy's value by the
+    # branch-point series, in every direction (below the real axis branch 0 meets branch 1 there, not -1).
+    # Reference: mpmath at the same double x.  Tolerance: W is ill-conditioned there; e x + 1 carries an absolute
+    # rounding error of about 1e-16, which moves p = sqrt(2 (e x + 1)), hence W, by about 1e-16 / sqrt(r).
+    for phi in np.linspace(-math.pi, math.pi, 17):
+        x = complex(-1 / math.e + r / math.e * np.exp(1j * phi))
+        ours = complex(lambert_w(x, k))
+        ref = complex(mpmath.lambertw(mpmath.mpc(x.real, x.imag), k))
+        assert abs(ours - ref) <= 1e-14 + 2e-16 / math.sqrt(r), (x, k, ours, ref)
+
+
+def test_at_the_double_precision_branch_point():
+    # the double nearest -1/e is 8e-18 below it: there W_0 and W_-1 are -1 +- 8.2e-9j (mpmath, at that double);
+    # e x + 1 rounds to 0 in double precision, so delaykit returns the branch point itself, -1 on both branches
+    # (SciPy 1.17 returns NaN on both): within 2e-8 of the exact values, the conditioning of W at 1 ulp from -1/e
+    x = -1 / math.e
+    for k in (0, -1):
+        ref = complex(mpmath.lambertw(mpmath.mpf(x), k))
+        assert abs(ref + 1) > 1e-9 and abs(ref.imag) < 1e-8  # the exact value is not -1, but within 1e-8 of it
+        assert complex(lambert_w(x, k)) == -1.0
+        assert abs(complex(lambert_w(x, k)) - ref) < 2e-8
+
+
+def test_away_from_the_branch_point_the_value_is_scipys_own():
+    # SciPy's lambertw is accurate to about 1e-15 there (test_agrees_with_scipy, and mpmath above): lambert_w returns
+    # it untouched, and the P loop's roots are W_0(-Kp Td) / Td with no further work (the speed of a million loops)
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=2000) * 3 + 1j * rng.normal(size=2000)
+    x = x[np.abs(math.e * x + 1) > 1.1e-3]
+    for k in (-2, -1, 0, 1, 2):
+        assert np.array_equal(lambert_w(x, k), lambertw(x, k))
+    kp, td = rng.uniform(0.5, 3.0, 1000), rng.uniform(0.05, 0.8, 1000)
+    away = np.abs(math.e * kp * td - 1) > 1.1e-3  # two of the thousand are near the branch point: the series there
+    assert 0 < np.sum(~away) < 10
+    roots = lambert_roots(0.0, -kp, td, branches=[0]).roots[0]
+    assert np.array_equal(roots[away], (lambertw(-kp * td, 0) / td)[away])
+
+
 def test_branch_point_is_a_double_root():
-    # Kp Td = 1/e: s Td = W(-1/e) = -1 on branches 0 and -1, where scipy's branch -1 returns NaN
+    # Kp Td = 1/e: s Td = W(-1/e) = -1 on branches 0 and -1
     kp, td = 1.0 / (math.e * 0.4), 0.4
-    assert np.isnan(lambertw(-1 / math.e, -1)) or abs(lambertw(-1 / math.e, -1) + 1) < 1e-6
     r = lambert_roots(0.0, -kp, td, branches=[0, -1]).roots
     assert np.allclose(r, -1 / td, atol=1e-12)
     s = r[0]

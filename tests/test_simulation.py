@@ -197,6 +197,40 @@ def test_batch_equals_single_runs():
                 assert (a is None and np.isnan(b)) or a == b
 
 
+@pytest.mark.parametrize("base", [
+    AltitudeLoop(kp=1.0, delay=0.3, period=0.065),  # sampled P (and PV when Kv > 0)
+    AltitudeLoop(kp=1.0, delay=0.3, period=0.05, velocity="filtered"),  # sampled, derivative filter
+    AltitudeLoop(kp=1.0, delay=0.3, gain=0.8, lag=0.15),  # the drone's speed gain and lag
+    AltitudeLoop(kp=1.0, delay=0.3, gain=1.2, lag=0.08, period=0.065),  # all of it
+], ids=["sampled", "sampled-filtered", "gain-lag", "sampled-gain-lag"])
+def test_batch_equals_single_runs_for_sampled_gain_and_lag_loops(base):
+    # simulate_many sweeps the gains, delay, step, saturation and sampling phase of a base loop whose period,
+    # gain and lag it keeps; each of its rows must be what simulate gives for that loop alone (the same numbers)
+    rng = np.random.default_rng(11)
+    n = 24
+    kp = rng.uniform(0.8, 2.2, n)
+    td = rng.uniform(0.1, 0.5, n)
+    kv = np.where(rng.random(n) < 0.4, 0.0, rng.uniform(0.05, 0.6, n))
+    step = rng.choice([-1.0, 1.0], n) * rng.uniform(0.3, 2.0, n)
+    vmax = rng.uniform(0.5, 1.5, n)
+    sweep = dict(kp=kp, delay=td, kv=kv, step=step, vmax=vmax)
+    if base.period is not None:
+        sweep["sample_offset"] = rng.uniform(0.0, 0.99, n) * base.period
+    batch = simulate_many(base, t_end=10.0, **sweep)
+    for i in range(n):
+        loop = base.replace(kp=kp[i], delay=td[i], kv=kv[i], vmax=vmax[i],
+                            sample_offset=sweep["sample_offset"][i] if "sample_offset" in sweep else 0.0)
+        single = simulate(loop, step[i], t_end=10.0)
+        for k in METRICS:
+            a = getattr(single.metrics, k)
+            b = getattr(batch, k)[i]
+            assert (a is None and np.isnan(b)) or a == b, (i, k, a, b)
+    # the period, gain and lag did matter: the same sweep on the plain continuous integrator differs
+    plain = simulate_many(AltitudeLoop(kp=1.0, delay=0.3), t_end=10.0, **{k: v for k, v in sweep.items()
+                                                                          if k != "sample_offset"})
+    assert not np.allclose(plain.overshoot, batch.overshoot)
+
+
 def test_batch_table1_against_single_and_broadcasting():
     td = np.array([4.0, 5.0, 5.6, 5.664, 5.6645, 5.6646, 5.666]) * 0.065
     m = simulate_many(AltitudeLoop(kp=1.31, delay=0.3), delay=td)

@@ -50,7 +50,8 @@ MAX_AT = 1024
 INT32_MIN, UINT32_END = -(2**31), 2**32  # an AT integer argument is in [INT32_MIN, UINT32_END)
 ARITY = {"REF": 1, "PCMD": 5, "PCMD_MAG": 7, "FTRIM": 0, "CONFIG": 2, "CONFIG_IDS": 3, "CTRL": 2, "COMWDG": 0,
          "CALIB": 1}
-_FLOAT_ARGS = {"PCMD": (1, 2, 3, 4), "PCMD_MAG": (1, 2, 3, 4, 5, 6)}
+_FLOAT_ARGS = {"PCMD": (1, 2, 3, 4), "PCMD_MAG": (1, 2, 3, 4, 5, 6)}  # each in [-1, 1]
+_FLOAT_NAMES = ("roll", "pitch", "gaz", "yaw", "psi", "psi_accuracy")
 _INT_ARGS = {"REF": (0,), "PCMD": (0,), "PCMD_MAG": (0,), "CTRL": (0, 1), "CALIB": (0,)}  # flags, modes, bits
 _STR_ARGS = {"CONFIG": (0, 1), "CONFIG_IDS": (0, 1, 2)}  # quoted keys, values, ids
 
@@ -70,12 +71,20 @@ class NavdataError(ProtocolError):
 def float_to_int(x: float) -> int:
     """The signed 32-bit integer with the bits of the IEEE-754 single ``x`` (how AT commands carry floats).
 
+    Raises :class:`ATError` (an :class:`~delaykit.errors.InvalidValueError`) for a value that is not a real number
+    or is too large for a single (beyond about ±3.4e38).
+
     Examples
     --------
     >>> float_to_int(1.0), float_to_int(-0.8)
     (1065353216, -1085485875)
     """
-    return struct.unpack("<i", struct.pack("<f", x))[0]
+    try:
+        return struct.unpack("<i", struct.pack("<f", x))[0]
+    except OverflowError:
+        raise ATError(f"an AT float must fit an IEEE-754 single (at most about 3.4e38 in size), got {x!r}") from None
+    except struct.error:
+        raise ATError(f"an AT float must be a real number, got {x!r} ({type(x).__name__})") from None
 
 
 def _int32(value: object, what: str = "AT argument") -> int:
@@ -142,10 +151,11 @@ class ATEncoder:
     def encode(self, name: str, *args: int | float | str) -> bytes:
         """``AT*NAME=<seq>,args...\\r`` (floats as integers, strings quoted)."""
         parts = [str(self._next())]
-        for a in args:
+        for k, a in enumerate(args):
             if isinstance(a, bool):
                 parts.append(str(int(a)))
             elif isinstance(a, int):
+                _int32(a, f"AT*{name} argument {k + 1}")  # a value the receiver can read back, or an ATError
                 parts.append(str(a))
             elif isinstance(a, float):
                 parts.append(str(float_to_int(a)))
@@ -171,8 +181,19 @@ class ATEncoder:
 
     def pcmd_mag(self, roll: float, pitch: float, gaz: float, yaw: float, psi: float, psi_accuracy: float,
                  progressive: bool = True) -> bytes:
-        """PCMD with the magnetometer heading."""
-        return self.encode("PCMD_MAG", 1 if progressive else 0, *(float(x) for x in (roll, pitch, gaz, yaw, psi, psi_accuracy)))
+        """PCMD with the magnetometer heading: the four moves as in :meth:`pcmd`, and the normalised heading and
+        its accuracy, all six in [-1, 1] (an :class:`ATError` names the value otherwise).
+
+        Examples
+        --------
+        >>> ATEncoder().pcmd_mag(0, 0, 0.5, 0, 0.25, 0.1)
+        b'AT*PCMD_MAG=1,1,0,0,1056964608,0,1048576000,1036831949\\r'
+        """
+        values = (roll, pitch, gaz, yaw, psi, psi_accuracy)
+        for name, v in zip(("roll", "pitch", "gaz", "yaw", "psi", "psi_accuracy"), values):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and -1.0 <= v <= 1.0):
+                raise ATError(f"PCMD_MAG {name} must be a number in [-1, 1], got {v!r}")
+        return self.encode("PCMD_MAG", 1 if progressive else 0, *(float(x) for x in values))
 
     def ftrim(self) -> bytes:
         """Flat trim (on the ground, before take-off)."""
@@ -195,7 +216,7 @@ class ATEncoder:
         return self.encode("COMWDG")
 
 
-def _parse_args(name: str, raw: str, where: str) -> tuple:
+def _parse_args(raw: str, where: str) -> tuple:
     args = []
     i = 0
     while i < len(raw):
@@ -231,7 +252,7 @@ def parse_at(datagram: bytes) -> list[ATCommand]:
     Checks: at most 1024 bytes, ASCII, each command ``AT*NAME=<seq>[,args]`` ended by ``\\r`` (a lone ``\\n``
     is accepted too, as the SDK guide writes it), a known name with its number of arguments, integer
     arguments that fit 32 bits (signed or unsigned), integers where the command needs them (flags, modes,
-    floats' bits), quoted strings where it needs them (CONFIG), and PCMD floats within [-1, 1].
+    floats' bits), quoted strings where it needs them (CONFIG), and PCMD and PCMD_MAG floats within [-1, 1].
     """
     if len(datagram) > MAX_AT:
         raise ATError(f"AT datagram of {len(datagram)} bytes exceeds {MAX_AT}")
@@ -257,7 +278,7 @@ def parse_at(datagram: bytes) -> list[ATCommand]:
             raise ATError(f"{where}: sequence number {seq_s!r} is not an integer") from None
         if seq < 1:
             raise ATError(f"{where}: sequence number {seq} is not positive")
-        args = _parse_args(name, argstr, where) if argstr or rest.endswith(",") else ()
+        args = _parse_args(argstr, where) if argstr or rest.endswith(",") else ()
         if rest.endswith(",") and not argstr:
             raise ATError(f"{where}: trailing comma")
         if len(args) != ARITY[name]:
@@ -272,8 +293,8 @@ def parse_at(datagram: bytes) -> list[ATCommand]:
             if not isinstance(args[i], int):
                 raise ATError(f"{where}: argument {i + 1} must be a float sent as an integer")
             v = int_to_float(args[i])
-            if name == "PCMD" and not (math.isfinite(v) and -1.0 <= v <= 1.0):
-                raise ATError(f"{where}: {('roll', 'pitch', 'gaz', 'yaw')[i - 1]} = {v} is outside [-1, 1]")
+            if not (math.isfinite(v) and -1.0 <= v <= 1.0):
+                raise ATError(f"{where}: {_FLOAT_NAMES[i - 1]} = {v} is outside [-1, 1]")
         out.append(ATCommand(name, seq, args))
     if not out:
         raise ATError("AT datagram holds no command")

@@ -8,9 +8,12 @@ then demo packets at ``rate`` Hz); TCP accepted on the video and control ports (
 The vertical motion: while flying, a progressive PCMD commands the speed ``gaz * control_vz_max``; it takes
 effect ``delay`` seconds after the command arrives (the actuator delay), plus ``link_delay`` on the way in,
 and the actual speed follows it through a first-order lag ``lag``.  The altitude is integrated exactly
-between events.  The altitude in navdata is the true altitude ``link_delay`` before sending, plus Gaussian
-ultrasonic noise, in millimetres.  Take-off climbs to 0.8 m, landing descends to the ground; the state bits
-follow take-off, flying, landing, emergency and the communication watchdog (2 s without a command: hover).
+between events.  The altitude and the vertical speed in navdata are the true ones ``link_delay`` before
+sending (the altitude plus Gaussian ultrasonic noise, in millimetres).  Navdata packets go out every ``1 / rate``
+seconds, each one late by a uniform random ``[0, jitter]`` seconds, and dropped with probability ``loss`` (the
+sequence number still counts it, so a receiver sees the gap).  Take-off climbs to 0.8 m, landing descends to the
+ground; the state bits follow take-off, flying, landing, emergency and the communication watchdog (2 s without a
+command: hover).
 
 **The loop delay** a controller sees is ``delay + 2 * link_delay`` (:attr:`DroneEmulator.true_delay`):
 actuator plus the network both ways; on loopback the real network adds microseconds.  The controller's
@@ -100,7 +103,7 @@ class _Physics:
     mode: int = CtrlState.LANDED
     t: float = 0.0
     pending: deque = field(default_factory=deque)
-    history: deque = field(default_factory=lambda: deque(maxlen=4096))
+    history: deque = field(default_factory=lambda: deque(maxlen=4096))  # (t, z, v) every 2 ms
 
 
 class DroneEmulator:
@@ -277,24 +280,26 @@ class DroneEmulator:
         # record the trajectory finely enough for the link delay's look-back (linear between points)
         while t - p.t > 0.002:
             self._integrate(0.002)
-            p.history.append((p.t, p.z))
+            p.history.append((p.t, p.z, p.v))
         self._integrate(t - p.t)
-        p.history.append((p.t, p.z))
+        p.history.append((p.t, p.z, p.v))
 
-    def _z_at(self, t: float) -> float:
-        """The true altitude at an earlier time t (for the link delay): linear between recorded states."""
+    def _state_at(self, t: float) -> tuple[float, float]:
+        """The true altitude and vertical speed at an earlier time t (for the link delay): linear between
+        recorded states."""
         h = self._phys.history
         prev = None
-        for tt, z in reversed(h):
+        for tt, z, v in reversed(h):
             if tt <= t:
                 if prev is None or prev[0] == tt:
-                    return z
-                return z + (prev[1] - z) * (t - tt) / (prev[0] - tt)
-            prev = (tt, z)
-        return h[0][1] if h else self._phys.z
+                    return z, v
+                f = (t - tt) / (prev[0] - tt)
+                return z + (prev[1] - z) * f, v + (prev[2] - v) * f
+            prev = (tt, z, v)
+        return (h[0][1], h[0][2]) if h else (self._phys.z, self._phys.v)
 
     # ---- commands -------------------------------------------------------------------------------------
-    def _handle(self, data: bytes, addr: tuple, t: float) -> None:
+    def _handle(self, data: bytes, t: float) -> None:
         try:
             cmds = parse_at(data)
         except ProtocolError as exc:
@@ -360,16 +365,16 @@ class DroneEmulator:
     def _at_loop(self) -> None:
         while not self._stop.is_set():
             try:
-                data, addr = self._at.recvfrom(4096)
+                data, _ = self._at.recvfrom(4096)
             except (socket.timeout, OSError):
                 continue
-            self._handle(data, addr, time.monotonic())
+            self._handle(data, time.monotonic())
 
     def _wake_loop(self) -> None:
         """Datagrams to the navdata port: any of them makes the sender the navdata client."""
         while not self._stop.is_set():
             try:
-                data, addr = self._nav.recvfrom(4096)
+                _, addr = self._nav.recvfrom(4096)
             except (socket.timeout, OSError):
                 continue
             with self._lock:
@@ -405,8 +410,7 @@ class DroneEmulator:
                 if now - self._last_cmd > c.watchdog:
                     self._watchdog = True
                 self._advance(now)
-                z_true = self._z_at(now - c.link_delay) if c.link_delay else self._phys.z
-                v = self._phys.v
+                z_true, v = self._state_at(now - c.link_delay) if c.link_delay else (self._phys.z, self._phys.v)
                 mode = self._phys.mode
                 state = self._state_bits()
                 client, demo_on = self._client, self._demo

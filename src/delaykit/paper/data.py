@@ -20,10 +20,10 @@ import numpy as np
 from ..models.altitude import PAPER_PERIOD, AltitudeLoop
 from ..simulate.simulation import simulate, simulate_many
 
-__all__ = ["TABLE1", "TABLE2", "TABLE3", "TABLE3_TOLERANCE", "TABLE1_KP", "Table1Row", "Table3Row", "table1", "table3",
-           "paper_loop"]
+__all__ = ["TABLE1", "TABLE2", "TABLE3", "TABLE3_TOLERANCE", "TABLE1_KP", "TABLE3_KP", "TABLE3_DELAY", "PAPER_PV_KV",
+           "Table1Row", "Table3Row", "table1", "table3", "paper_loop"]
 
-TABLE1_KP = 1.31
+TABLE1_KP = 1.31  # the P gain of Table 1 and of the flights of Table 2
 TABLE1 = (  # (K, printed Td = K Ts, printed Mo %); the starred row is the paper's estimate
     (4.0000, 0.260, 0.000),
     (5.0000, 0.325, 0.419),
@@ -40,10 +40,12 @@ TABLE3 = (  # (Kv, printed "rightmost" root) of s + (2 + Kv s) exp(-0.37 s), Kp 
     (0.5, complex(-1.84, 6.98)),
     (0.7, complex(-0.89, 7.47)),
 )
-TABLE3_KP, TABLE3_DELAY = 2.0, 0.37
+TABLE3_KP, TABLE3_DELAY = 2.0, 0.37  # the PV loop of Tables 3 and 4
+#: The velocity gain the paper chooses for the PV loop at Kp = 2.0 (Table 3 and Fig. 8: the most stable of its five).
+PAPER_PV_KV = 0.3
 #: Table 3 prints two decimals: a printed root agrees with a computed one within half a unit of the last digit.
 TABLE3_TOLERANCE = 0.005
-TABLE2 = {  # five flights at Kp = 1.31: overshoot (%) and peak time (s)
+TABLE2 = {  # five flights at Kp = 1.31: overshoot (%) and peak time (s); section 5.1 estimates from the first
     "overshoot": (2.300, 2.290, 2.300, 2.270, 2.140),
     "peak_time": (3.055, 3.084, 3.575, 3.194, 3.096),
 }

@@ -28,10 +28,18 @@ from ..hardware.flight import FlightPlan, FlightResult, fly
 from ..identify.estimation import DelayEstimate, estimate_flights
 from ..identify.flightlog import FlightLog
 from ..simulate.metrics import step_metrics
+from .data import PAPER_PV_KV, TABLE1_KP, TABLE3_KP
 
-__all__ = ["DemoReport", "run_demo"]
+__all__ = ["DemoReport", "run_demo", "P_KP", "PV_KP", "PV_KV_CANDIDATES", "FALLBACK_KV"]
 
 P_STEPS = (1.0, -1.0, 1.0, -1.0, 1.0)
+#: The P gain of the step tests the delay is estimated from: the paper's flights (Table 1, Table 2).
+P_KP = TABLE1_KP
+#: The PV loop's proportional gain, and the velocity gains its design compares: the paper's Tables 3 and 4.
+PV_KP = TABLE3_KP
+PV_KV_CANDIDATES = "0:0.7:8"
+#: Flown only when the design finds no candidate that settles: the paper's own choice (Table 3, Fig. 8).
+FALLBACK_KV = PAPER_PV_KV
 
 
 @dataclass(frozen=True, repr=False)
@@ -43,11 +51,14 @@ class DemoReport:
     estimate: DelayEstimate
     lag: float | None
     kv: float
+    kv_source: str
     p_flight: FlightResult
     pv_flight: FlightResult
     p_metrics: list[dict]
     pv_metrics: list[dict]
     files: tuple[Path, ...]
+    p_kp: float = P_KP
+    pv_kp: float = PV_KP
 
     @property
     def error(self) -> float | None:
@@ -57,13 +68,15 @@ class DemoReport:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
         return {"true_delay": self.true_delay, "estimate": self.estimate.to_dict(), "error": self.error,
-                "lag": self.lag, "pv_kv": self.kv, "p_flight": self.p_flight.to_dict(),
+                "lag": self.lag, "p_kp": self.p_kp, "pv_kp": self.pv_kp, "pv_kv": self.kv,
+                "pv_kv_source": self.kv_source, "p_flight": self.p_flight.to_dict(),
                 "pv_flight": self.pv_flight.to_dict(), "p_metrics": self.p_metrics, "pv_metrics": self.pv_metrics,
                 "files": [str(f) for f in self.files]}
 
     def __repr__(self) -> str:
         t = "" if self.true_delay is None else f" (truth {self.true_delay:.4f} s, error {1e3 * self.error:+.1f} ms)"
-        return f"DemoReport(delay {self.estimate.delay:.4f} s ± {self.estimate.stderr or 0:.4f}{t}, PV Kv = {self.kv:g})"
+        return (f"DemoReport(delay {self.estimate.delay:.4f} s ± {self.estimate.stderr or 0:.4f}{t}, "
+                f"PV Kp = {self.pv_kp:g}, Kv = {self.kv:g} ({self.kv_source}))")
 
 
 def _metrics(logs: tuple[Path, ...]) -> list[dict]:
@@ -90,6 +103,10 @@ def run_demo(
 ) -> DemoReport:
     """Run the pipeline and write ``demo.md``, ``demo.json`` and the figures into ``out``.
 
+    The P step tests fly at :data:`P_KP` (the paper's 1.31); the PV loop at :data:`PV_KP` (2.0) with the Kv that
+    settles fastest among :data:`PV_KV_CANDIDATES` for the estimated delay.  If none of them settles, the paper's
+    Kv = :data:`FALLBACK_KV` is flown instead, and the report, its ``kv_source`` and the status line say so.
+
     Raises :class:`~delaykit.errors.FlightError` when the P flight produced no logs (nothing to estimate from).
     """
     say = status or (lambda _m: None)
@@ -106,46 +123,51 @@ def run_demo(
         host, at_port, navdata_port = "127.0.0.1", emu.ports["at"], emu.ports["navdata"]
         say("emulator started on 127.0.0.1 with a delay the pipeline is not told")
     try:
-        say(f"P flight: {p_steps} step tests at Kp = 1.31")
+        say(f"P flight: {p_steps} step tests at Kp = {P_KP:g}")
         steps = tuple((P_STEPS * 3)[:p_steps])
-        p = fly(FlightPlan(kp=1.31, steps=steps, step_duration=step_duration, hover_time=1.5), out / "p_flight.csv",
+        p = fly(FlightPlan(kp=P_KP, steps=steps, step_duration=step_duration, hover_time=1.5), out / "p_flight.csv",
                 host=host, at_port=at_port, navdata_port=navdata_port, confirm=confirm, status=say)
         if not p.logs:
             raise FlightError(f"the P flight did not fly: {p.reason}")
         say("estimating the delay")
         logs = [FlightLog.from_csv(f) for f in p.logs]
         period = p.packet_interval
-        est, _ = estimate_flights(logs, kp=1.31, period=period, free=("lag",))
+        est, _ = estimate_flights(logs, kp=P_KP, period=period, free=("lag",))
         lag = float(np.mean(est.params.lag)) if est.params.lag is not None else None
         say(f"designing PV gains for Td = {est.delay:.4f} s")
-        d = design_sweep(AltitudeLoop(kp=2.0, delay=est.delay, period=period, lag=lag or 0.0), 2.0, "0:0.7:8",
-                         criterion="settling")
-        kv = d.best.kv if d.best else 0.3
-        say(f"PV flight: Kp = 2.0, Kv = {kv:g}")
-        pv = fly(FlightPlan(kp=2.0, kv=kv, steps=tuple((P_STEPS * 2)[:pv_steps]), step_duration=step_duration,
+        d = design_sweep(AltitudeLoop(kp=PV_KP, delay=est.delay, period=period, lag=lag or 0.0), PV_KP,
+                         PV_KV_CANDIDATES, criterion="settling")
+        if d.best is not None:
+            kv, kv_source = d.best.kv, "design"
+        else:
+            kv, kv_source = FALLBACK_KV, f"fallback: the paper's Kv, as the design found no candidate ({d.reason})"
+            say(f"no PV design: {d.reason}; flying the paper's Kv = {kv:g} instead")
+        say(f"PV flight: Kp = {PV_KP:g}, Kv = {kv:g}")
+        pv = fly(FlightPlan(kp=PV_KP, kv=kv, steps=tuple((P_STEPS * 2)[:pv_steps]), step_duration=step_duration,
                             hover_time=1.5), out / "pv_flight.csv", host=host, at_port=at_port,
                  navdata_port=navdata_port, confirm=confirm, status=say)
     finally:
         if emu is not None:
             emu.stop()
     pm, vm = _metrics(p.logs), _metrics(pv.logs)
-    files = _write(out, truth, est, lag, kv, d, p, pv, pm, vm)
-    return DemoReport(out=out, true_delay=truth, estimate=est, lag=lag, kv=kv, p_flight=p, pv_flight=pv,
-                      p_metrics=pm, pv_metrics=vm, files=files)
+    files = _write(out, truth, est, lag, kv, d, p, pv, pm, vm, kv_source=kv_source)
+    return DemoReport(out=out, true_delay=truth, estimate=est, lag=lag, kv=kv, kv_source=kv_source, p_flight=p,
+                      pv_flight=pv, p_metrics=pm, pv_metrics=vm, files=files)
 
 
-def _write(out, truth, est, lag, kv, d, p, pv, pm, vm) -> tuple[Path, ...]:
+def _write(out, truth, est, lag, kv, d, p, pv, pm, vm, kv_source="design") -> tuple[Path, ...]:
     from ..plotting.figures import plot_fit
 
     from ..identify.estimation import fitted_altitude
 
     fig_p, fig_v = out / "p_flights.png", out / "pv_flights.png"
     ls = [FlightLog.from_csv(f) for f in p.logs]
-    fits = [(lg.t, fitted_altitude(lg, est, 1.31, i, period=p.packet_interval)) for i, lg in enumerate(ls)]
-    plot_fit(ls, fits, fig_p, title=f"P control, Kp = 1.31: data (dots) and the fitted model, Td = {est.delay:.4f} s")
+    fits = [(lg.t, fitted_altitude(lg, est, P_KP, i, period=p.packet_interval)) for i, lg in enumerate(ls)]
+    plot_fit(ls, fits, fig_p,
+             title=f"P control, Kp = {P_KP:g}: data (dots) and the fitted model, Td = {est.delay:.4f} s")
     ls = [FlightLog.from_csv(f) for f in pv.logs]
     plot_fit(ls, [(lg.t, lg.z_ref) for lg in ls], fig_v, lower_label="tracking error z - z_ref (mm)",
-             title=f"PV control, Kp = 2.0, Kv = {kv:g}: altitude (dots) and reference (lines)")
+             title=f"PV control, Kp = {PV_KP:g}, Kv = {kv:g}: altitude (dots) and reference (lines)")
     err = "" if truth is None else f" The emulator's true delay is {truth:.4f} s: the error is {1e3 * (est.delay - truth):+.1f} ms."
 
     def table(ms):
@@ -156,17 +178,21 @@ def _write(out, truth, est, lag, kv, d, p, pv, pm, vm) -> tuple[Path, ...]:
         return "\n".join(rows)
 
     interval = "no interval" if est.ci is None else f"95 % interval {est.ci[0]:.4f} to {est.ci[1]:.4f} s"
+    design = f"PV design for that delay (Kp = {PV_KP:g}, criterion: settling time): "
+    design += (f"Kv = {kv:g} ({d.reason})." if kv_source == "design"
+               else f"no candidate; **Kv = {kv:g} flown instead** ({kv_source}).")
     md = out / "demo.md"
     md.write_text(
         "# delaykit demo: fly, estimate, design, fly again\n\n"
-        f"Estimated loop delay: **{est.delay:.4f} s ± {est.stderr or 0:.4f}** ({interval}) from {est.flights} step tests, with the drone's speed-loop lag "
-        f"fitted ({lag if lag is not None else 0:.3f} s).{err}\n\n"
-        f"PV design for that delay (Kp = 2.0, criterion: settling time): Kv = {kv:g} ({d.reason}).\n\n"
+        f"Estimated loop delay: **{est.delay:.4f} s ± {est.stderr or 0:.4f}** ({interval}) from {est.flights} step "
+        f"tests, with the drone's speed-loop lag fitted ({lag if lag is not None else 0:.3f} s).{err}\n\n"
+        f"{design}\n\n"
         f"Loop latency (navdata received to command sent): median {p.latency_median_ms:.3f} ms, 99th percentile "
-        f"{p.latency_p99_ms:.3f} ms.\n\n## P flights (Kp = 1.31)\n\n{table(pm)}\n\n![P flights](p_flights.png)\n\n"
-        f"## PV flights (Kp = 2.0, Kv = {kv:g})\n\n{table(vm)}\n\n![PV flights](pv_flights.png)\n")
+        f"{p.latency_p99_ms:.3f} ms.\n\n## P flights (Kp = {P_KP:g})\n\n{table(pm)}\n\n![P flights](p_flights.png)\n\n"
+        f"## PV flights (Kp = {PV_KP:g}, Kv = {kv:g})\n\n{table(vm)}\n\n![PV flights](pv_flights.png)\n")
     js = out / "demo.json"
-    js.write_text(json.dumps({"true_delay": truth, "estimate": est.to_dict(), "lag": lag, "kv": kv,
+    js.write_text(json.dumps({"true_delay": truth, "estimate": est.to_dict(), "lag": lag, "p_kp": P_KP,
+                              "pv_kp": PV_KP, "kv": kv, "kv_source": kv_source,
                               "p_metrics": pm, "pv_metrics": vm, "p_flight": p.to_dict(), "pv_flight": pv.to_dict()},
                              indent=2, default=str))
     return (md, js, fig_p, fig_v, *p.logs, *pv.logs)

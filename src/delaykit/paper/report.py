@@ -156,7 +156,7 @@ def variants_check(variants: Mapping[str, float], paper_overshoot: float = 2.300
 def table1_markdown(rows: list[Table1Row] | tuple[Table1Row, ...]) -> str:
     """Table 1 with the paper's and delaykit's overshoot side by side, as Markdown."""
     lines = [
-        f"| K | Td = K·Ts (s) | paper Mo (%) | delaykit Mo (%) | paper − delaykit | delay giving the paper's Mo (s) | extra (ms) |",
+        "| K | Td = K·Ts (s) | paper Mo (%) | delaykit Mo (%) | paper − delaykit | delay giving the paper's Mo (s) | extra (ms) |",
         "|---|---|---|---|---|---|---|",
     ]
     for r in rows:
@@ -167,12 +167,20 @@ def table1_markdown(rows: list[Table1Row] | tuple[Table1Row, ...]) -> str:
     return "\n".join(lines)
 
 
-def plot_table1_responses(path: str | Path) -> None:
-    """The responses of Table 1's loop for four of its delays (K = 4, 5, 5.6, 5.6646), to ``path``."""
+def plot_table1_responses(path: str | Path | None = None, *, ax: Any = None) -> Any:
+    """The responses of Table 1's loop for four of its delays (K = 4, 5, 5.6, 5.6646): the figure, written to
+    ``path`` when one is given (``ax``: draw into these axes, as :func:`~delaykit.plotting.figures.plot_responses`).
+
+    Examples
+    --------
+    >>> fig = plot_table1_responses()
+    >>> [line.get_label() for line in fig.axes[0].lines][:2]
+    ['K=4, Td=0.2600 s', 'K=5, Td=0.3250 s']
+    """
     ks = (4.0, 5.0, 5.6, 5.6646)
-    plot_responses([simulate(paper_loop(k * PAPER_PERIOD)) for k in ks], path,
-                   labels=[f"K={k:g}, Td={k * PAPER_PERIOD:.4f} s" for k in ks],
-                   title=f"P control, Kp = {TABLE1_KP}, ±1 m/s, 1 m step (the loop behind Table 1)", t_max=6.0)
+    return plot_responses([simulate(paper_loop(k * PAPER_PERIOD)) for k in ks], path, ax=ax,
+                          labels=[f"K={k:g}, Td={k * PAPER_PERIOD:.4f} s" for k in ks],
+                          title=f"P control, Kp = {TABLE1_KP}, ±1 m/s, 1 m step (the loop behind Table 1)", t_max=6.0)
 
 
 def write_report(out: str | Path = "out", progress: Callable[[str], None] | None = None) -> Report:

@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-import numpy as np
 
 from ..design.tuning import filter_analysis
 from ..identify.estimation import estimate_lambert, estimate_overshoot, lambert_paper_iterations
@@ -34,7 +33,7 @@ from ..models.altitude import PAPER_PERIOD, AltitudeLoop
 from ..simulate.metrics import SecondOrder
 from ..simulate.simulation import simulate
 from ..spectrum.roots import find_roots
-from .data import TABLE1_KP, TABLE3_TOLERANCE, table1, table3
+from .data import PAPER_PV_KV, TABLE1_KP, TABLE2, TABLE3_DELAY, TABLE3_KP, TABLE3_TOLERANCE, table1, table3
 from .report import SOLVER_TOLERANCE_S, Status, Verdict, plot_table1_responses, table1_check
 
 __all__ = ["Item", "Reproduction", "reproduce", "TABLE4", "section511_check", "section512_check", "table3_check",
@@ -42,7 +41,9 @@ __all__ = ["Item", "Reproduction", "reproduce", "TABLE4", "section511_check", "s
 
 PAPER_511_DELAY = 5.6646 * PAPER_PERIOD  # section 5.1.1: "5.6646 Ts"
 PAPER_512 = {"zeta": 0.7684, "omega_n": 1.6069, "root": complex(-1.2347, 1.0284), "delay": 0.374}  # section 5.1.2
-PAPER_BEST_KV = 0.3  # Table 3 / Fig. 8: the paper's most stable Kv (also the most negative printed real part)
+PAPER_BEST_KV = PAPER_PV_KV  # Table 3 / Fig. 8: the paper's most stable Kv (also the most negative printed real part)
+#: Section 5.1's measurement: the first flight of Table 2 (Mo = 2.300 %, tp = 3.055 s)
+PAPER_MO, PAPER_TP = TABLE2["overshoot"][0], TABLE2["peak_time"][0]
 PAPER_DESIGN_TEXT = {"overshoot": 0.44, "settling_time": 1.52, "peak_time": 1.76}  # Kp = 2.0, Kv = 0.3, no filter
 TABLE4_TOLERANCE = (0.5, 0.05, 0.1)  # pp, s, s: the paper does not give its step, solver or filter discretisation
 FIG5_NO_OVERSHOOT_KP = 1.0  # "Kp = 1.0 ... the response has no overshoot, however, the response is very slow"
@@ -323,45 +324,37 @@ def _table1(out: Path) -> Item:
 
 
 def _section511() -> Item:
-    est = estimate_overshoot(2.300, TABLE1_KP, peak_time=3.055)
+    est = estimate_overshoot(PAPER_MO, TABLE1_KP, peak_time=PAPER_TP)
     paper = PAPER_511_DELAY
     verdict = section511_check(est.delay, paper)
     notes = [w for w in est.warnings]
-    notes.append("Sensitivity: Kp = 1.20 gives " + _f(estimate_overshoot(2.3, 1.20).delay) + " s, Kp = 1.40 gives "
-                 + _f(estimate_overshoot(2.3, 1.40).delay) + " s, no saturation "
-                 + _f(estimate_overshoot(2.3, TABLE1_KP, vmax=None).delay) + " s.")
-    return Item.from_verdict("section511", "Section 5.1.1: the numerical estimate (Mo = 2.300 %)", verdict,
+    notes.append("Sensitivity: Kp = 1.20 gives " + _f(estimate_overshoot(PAPER_MO, 1.20).delay) + " s, Kp = 1.40 gives "
+                 + _f(estimate_overshoot(PAPER_MO, 1.40).delay) + " s, no saturation "
+                 + _f(estimate_overshoot(PAPER_MO, TABLE1_KP, vmax=None).delay) + " s.")
+    # every flight of Table 2 by the same method: how much the one estimate the paper made depends on the flight
+    flights = [[str(i + 1), f"{mo:.3f}", f"{tp:.3f}", _f(estimate_overshoot(mo, TABLE1_KP).delay)]
+               for i, (mo, tp) in enumerate(zip(TABLE2["overshoot"], TABLE2["peak_time"]))]
+    notes.append("Table 2's five flights give delays from " + min(r[3] for r in flights) + " to "
+                 + max(r[3] for r in flights) + " s by the same method; the paper used the first.")
+    return Item.from_verdict("section511", f"Section 5.1.1: the numerical estimate (Mo = {PAPER_MO:.3f} %)", verdict,
                 [(["", "paper", "delaykit"], [["delay (s)", f"{paper:.4f} (5.6646 Ts)", f"{est.delay:.4f}"],
                                               ["model peak time at that delay (s)", "–",
                                                _f(est.diagnostics.model_peak_time, 3)],
-                                              ["measured peak time (s)", "3.055", "3.055"]])], [], notes)
+                                              ["measured peak time (s)", f"{PAPER_TP:.3f}", f"{PAPER_TP:.3f}"]]),
+                 (["Table 2 flight", "Mo (%)", "tp (s)", "delay matching its Mo (s)"], flights)], [], notes)
 
 
 def _section512(out: Path) -> Item:
-    import matplotlib
+    from ..plotting.figures import plot_iterations
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    so = SecondOrder.from_step(2.300, 3.055)
-    paper_root = SecondOrder(0.7684, 1.6069).root
+    so = SecondOrder.from_step(PAPER_MO, PAPER_TP)
+    paper_root = SecondOrder(PAPER_512["zeta"], PAPER_512["omega_n"]).root
     it = lambert_paper_iterations(paper_root, TABLE1_KP)
     T = it[-1]
-    dmp = estimate_lambert(2.300, 3.055, TABLE1_KP, variant="damping")
+    dmp = estimate_lambert(PAPER_MO, PAPER_TP, TABLE1_KP, variant="damping")
     fig = out / "fig7_iterations.png"
-    f, ax = plt.subplots(figsize=(7, 4))
-    k = np.arange(len(it))
-    ax.plot(k, [z.real for z in it], "o-", label="Re Td")
-    ax.plot(k, [z.imag for z in it], "s-", label="Im Td")
-    ax.axhline(0.374, color="k", ls=":", lw=0.8, label="paper: 0.374 s")
-    ax.set_xlabel("Newton iteration (from Td = 0.2 s)")
-    ax.set_ylabel("Td (s)")
-    ax.set_title("Fig. 7 redone: the iteration converges to a complex delay")
-    ax.legend()
-    ax.grid(alpha=0.3)
-    f.tight_layout()
-    f.savefig(fig, dpi=110)
-    plt.close(f)
+    plot_iterations(it, fig, reference=PAPER_512["delay"],
+                    title="Fig. 7 redone: the paper's Newton iteration converges to a complex delay")
     verdict = section512_check(so.zeta, so.omega_n, paper_root, T, dmp.delay)
     rows = [["damping ratio", "0.7684", _f(so.zeta)], ["natural frequency (rad/s)", "1.6069", _f(so.omega_n)],
             ["dominant root", "−1.2347 ± 1.0284j", _c(so.root) + " (unrounded)"],
@@ -377,7 +370,8 @@ def _table3(out: Path) -> Item:
     from ..plotting.figures import plot_spectrum
 
     rows = table3()
-    spectra = [find_roots(AltitudeLoop(kp=2.0, delay=0.37, kv=r.kv).characteristic(), (-10, 2, 0, 100)) for r in rows]
+    spectra = [find_roots(AltitudeLoop(kp=TABLE3_KP, delay=TABLE3_DELAY, kv=r.kv).characteristic(), (-10, 2, 0, 100))
+               for r in rows]
     fig = out / "fig8_spectra.png"
     plot_spectrum(spectra, fig, labels=[f"Kv = {r.kv:g}" for r in rows],
                   title="Fig. 8 redone: s + (2 + Kv s) exp(-0.37 s), roots in [-10, 2] x [0, 100]")
@@ -403,7 +397,8 @@ def _table4(out: Path) -> Item:
     }
     res = {}
     for name, kw in variants.items():
-        res[name] = [simulate(AltitudeLoop(kp=2.0, delay=0.37, kv=kv, **kw), 1.0).metrics for kv in TABLE4["kv"]]
+        res[name] = [simulate(AltitudeLoop(kp=TABLE3_KP, delay=TABLE3_DELAY, kv=kv, **kw), 1.0).metrics
+                     for kv in TABLE4["kv"]]
     dev = {}
     for name, ms in res.items():
         d_mo = max(abs(m.overshoot - p) for m, p in zip(ms, TABLE4["overshoot"]))
@@ -413,7 +408,7 @@ def _table4(out: Path) -> Item:
     best = min(dev, key=lambda k: dev[k][0] + 10 * dev[k][1] + 10 * dev[k][2])
     d = dev[best]
     fig = out / "fig9_pv_responses.png"
-    loops = [AltitudeLoop(kp=2.0, delay=0.37, kv=kv, **variants[best]) for kv in TABLE4["kv"]]
+    loops = [AltitudeLoop(kp=TABLE3_KP, delay=TABLE3_DELAY, kv=kv, **variants[best]) for kv in TABLE4["kv"]]
     plot_responses([simulate(lp, 1.0, t_end=6.0) for lp in loops], fig, labels=[f"Kv = {kv:g}" for kv in TABLE4["kv"]],
                    title=f"Fig. 9 redone: PV control, Kp = 2.0, Td = 0.37 s ({best})")
     verdict = table4_check(best, d)
@@ -425,10 +420,10 @@ def _table4(out: Path) -> Item:
         body.append([name, "Mo (%)"] + [f"{m.overshoot:.2f}" for m in ms] + [f"{dev[name][0]:.2f} pp"])
         body.append([name, "tp (s)"] + [_f(m.peak_time, 2) for m in ms] + [f"{dev[name][1]:.3f} s"])
         body.append([name, "ts (s)"] + [_f(m.settling_time, 2) for m in ms] + [f"{dev[name][2]:.3f} s"])
-    design_text = simulate(AltitudeLoop(kp=2.0, delay=0.37, kv=0.3), 1.0).metrics
+    design_text = simulate(AltitudeLoop(kp=TABLE3_KP, delay=TABLE3_DELAY, kv=PAPER_PV_KV), 1.0).metrics
     design_verdict = design_text_check(design_text.overshoot, design_text.settling_time, design_text.peak_time)
-    notes = [f"The filter: poles at -38 rad/s (repeated), W(s) = wf^2 s / (s^2 + 2 zf wf s + wf^2); the controller "
-             f"samples at Ts = 0.065 s with the step on a sample.",
+    notes = ["The filter: poles at -38 rad/s (repeated), W(s) = wf^2 s / (s^2 + 2 zf wf s + wf^2); the controller "
+             "samples at Ts = 0.065 s with the step on a sample.",
              f"The paper's design text quotes Mo = 0.44 %, ts = 1.52 s, tp = 1.76 s for Kp = 2.0, Kv = 0.3 without the "
              f"filter; the continuous true-velocity loop gives Mo = {design_text.overshoot:.2f} %, ts = "
              f"{_f(design_text.settling_time, 2)} s, tp = {_f(design_text.peak_time, 2)} s: {design_verdict.text}."]
@@ -440,7 +435,7 @@ def _fig5(out: Path) -> Item:
     from ..plotting.figures import plot_responses
 
     kps = (1.0, 1.31, 1.6, 2.0)
-    td = estimate_overshoot(2.300, TABLE1_KP).delay
+    td = estimate_overshoot(PAPER_MO, TABLE1_KP).delay
     rs = [simulate(AltitudeLoop(kp=k, delay=td), 1.0, t_end=8.0) for k in kps]
     fig = out / "fig5_p_responses.png"
     plot_responses(rs, fig, labels=[f"Kp = {k:g}" for k in kps], title=f"Fig. 5's simulated counterpart: P control, Td = {td:.4f} s")
@@ -467,7 +462,7 @@ def _filter(out: Path) -> Item:
                  f"{_f(f.phase_lag_at_crossover, 1)} degrees."])
 
 
-def _markdown(items: list[Item], out: Path) -> str:
+def _markdown(items: list[Item]) -> str:
     lines = ["# The paper, regenerated by delaykit", "",
              "Armah & Yi, *Altitude Regulation of Quadrotor Types of UAVs Considering Communication Delays*.", ""]
     lines.append("| item | verdict |")
@@ -541,7 +536,7 @@ def reproduce(out: str | Path = "out", progress: Callable[[str, int, int], None]
     if progress:
         progress("writing", len(stages), len(stages))
     md = out / "report.md"
-    md.write_text(_markdown(items, out))
+    md.write_text(_markdown(items))
     page = out / "index.html"
     page.write_text(_html(items))
     js = out / "report.json"

@@ -1,167 +1,267 @@
-"""Figures (matplotlib, drawn off-screen).  Computation lives elsewhere; these only draw.
+"""Figures (matplotlib) of what the lower layers compute: responses, spectra, stability maps, fits, Bode plots of the
+derivative filter, and the iterations of the paper's section 5.1.2.  Computation lives elsewhere; these only draw.
+
+Every function draws into the axes it is given (``ax``; a pair of axes for the two-panel figures) or, without
+one, into a new :class:`matplotlib.figure.Figure`; it returns the figure, and writes it to ``path`` (PNG, PDF or
+SVG by the suffix) only when a path is given.  Nothing here imports :mod:`matplotlib.pyplot` or chooses a
+backend: a new figure is a plain ``Figure`` (which ``savefig`` renders with the Agg canvas, on any machine), so
+importing this module leaves a notebook's or an application's backend as it was.
 
 Examples
 --------
->>> import tempfile, os
 >>> from delaykit import AltitudeLoop, simulate
->>> path = os.path.join(tempfile.mkdtemp(), "r.png")
->>> plot_responses([simulate(AltitudeLoop(kp=1.31, delay=0.368))], path)
->>> os.path.getsize(path) > 0
-True
+>>> fig = plot_responses([simulate(AltitudeLoop(kp=1.31, delay=0.368))])
+>>> [ax.get_ylabel() for ax in fig.axes]
+['altitude z (m)', 'command u (m/s)']
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence
 
-import matplotlib
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+from ..errors import InvalidTypeError, InvalidValueError
+from ..simulate.simulation import Response
 
-from ..simulate.simulation import Response  # noqa: E402
+__all__ = ["plot_responses", "plot_spectrum", "plot_stability_map", "plot_fit", "plot_filter_bode",
+           "plot_iterations", "save_figure"]
 
-__all__ = ["plot_responses", "plot_spectrum", "plot_stability_map", "plot_fit", "plot_filter_bode"]
+DPI = 120
+
+
+def save_figure(fig: Figure, path: str | Path | None, dpi: int = DPI) -> Figure:
+    """Write ``fig`` to ``path`` (its folder created; the format from the suffix) when ``path`` is given;
+    return the figure either way.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> path = os.path.join(tempfile.mkdtemp(), "sub", "empty.png")
+    >>> fig = save_figure(Figure(), path)
+    >>> os.path.getsize(path) > 0, save_figure(fig, None) is fig
+    (True, True)
+    """
+    if path is not None:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        root = fig if isinstance(fig, Figure) else fig.figure  # axes given on a subfigure: save the whole figure
+        root.savefig(path, dpi=dpi)
+    return fig
+
+
+def _axes(ax: Any, panels: int, figsize: tuple[float, float], **grid: Any) -> tuple[Figure, list[Axes], bool]:
+    """The figure and ``panels`` axes to draw into: those given (one Axes, or a sequence of them), or new ones.
+
+    Returns ``(figure, axes, new)``; with fewer axes given than ``panels``, only those panels are drawn."""
+    if ax is None:
+        fig = Figure(figsize=figsize, layout="tight")
+        axes = fig.subplots(panels, 1, squeeze=False, **grid)[:, 0] if panels > 1 else [fig.subplots()]
+        return fig, list(axes), True
+    given = [ax] if isinstance(ax, Axes) else list(ax)
+    if not given or not all(isinstance(a, Axes) for a in given):
+        raise InvalidTypeError(f"ax must be a matplotlib Axes or a sequence of them, got {ax!r}")
+    if len(given) > panels:
+        raise InvalidValueError(f"this figure has {panels} panel(s); got {len(given)} axes")
+    return given[0].figure, given, False
+
+
+def _default_label(loop: Any) -> str:
+    kv = getattr(loop, "kv", None)
+    if kv is None:
+        kv = getattr(getattr(loop, "controller", None), "kv", None)
+    return f"Td={loop.delay:.4g} s" + (f", Kv={kv:g}" if kv else "")
 
 
 def plot_responses(
     responses: Sequence[Response],
-    path: str | Path,
+    path: str | Path | None = None,
     *,
+    ax: Axes | Sequence[Axes] | None = None,
     labels: Sequence[str] | None = None,
     title: str | None = None,
     dt: float = 0.005,
     t_max: float | None = None,
-) -> None:
-    """Altitude and command of one or more responses, saved to ``path`` (PNG, PDF or SVG by suffix).
+) -> Figure:
+    """Output and command of one or more responses: one line per response in each panel, the reference (dashed)
+    and the first response's settling band (shaded).
 
     Parameters
     ----------
     responses : sequence of Response
-        The responses to draw.
-    path : str or Path
-        Output file.
+        The responses to draw (from :func:`delaykit.simulate.simulation.simulate`).
+    path : str or Path, optional
+        Write the figure there (PNG, PDF or SVG by suffix).
+    ax : Axes or (Axes, Axes), optional
+        Where to draw: one Axes draws the output only; two draw the output and the command.
     labels : sequence of str, optional
         Legend entries; by default the delay (and Kv) of each loop.
     title : str, optional
-        Figure title.
+        Title of the output panel.
     dt : float
         Drawing resolution, seconds.
     t_max : float, optional
         Draw up to this time after the step (default: each response's whole length).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from delaykit import AltitudeLoop, simulate
+    >>> r = simulate(AltitudeLoop(kp=1.31, delay=0.368), t_end=4.0)
+    >>> fig = plot_responses([r], labels=["paper"], dt=0.5)
+    >>> fig.axes[0].lines[0].get_label(), fig.axes[0].lines[0].get_ydata()[:3].round(3).tolist()
+    ('paper', [0.0, 0.132, 0.632])
     """
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, height_ratios=[3, 1.4])
+    fig, axes, new = _axes(ax, 2, (8, 6), sharex=True, height_ratios=[3, 1.4])
+    if labels is not None and len(labels) != len(responses):
+        raise InvalidValueError(f"labels must name each of the {len(responses)} responses, got {len(labels)}")
+    ax1 = axes[0]
+    ax2 = axes[1] if len(axes) > 1 else None
     for i, r in enumerate(responses):
         s = r.sample(dt=dt)
-        lab = labels[i] if labels else (f"Td={r.loop.delay:.4g} s" + (f", Kv={r.loop.kv:g}" if r.loop.kv else ""))
+        lab = labels[i] if labels is not None else _default_label(r.loop)
         (line,) = ax1.plot(s["t"], s["z"], lw=1.4, label=lab)
-        ax2.plot(s["t"], s["u"], lw=1.0, color=line.get_color())
+        if ax2 is not None:
+            ax2.plot(s["t"], s["u"], lw=1.0, color=line.get_color(), label=lab)
     if responses:
         r0 = responses[0]
-        ref = r0.z0 + r0.step
-        ax1.axhline(ref, color="k", lw=0.6, ls="--")
-        band = r0.metrics.band * abs(r0.step)
-        ax1.axhspan(ref - band, ref + band, color="0.85", zorder=0, label=f"±{100 * r0.metrics.band:g} % band")
+        s0 = r0.sample(dt=dt)
+        ax1.plot(s0["t"], s0["z_ref"], color="k", lw=0.6, ls="--", label="reference")
+        if r0.metrics is not None and r0.step != 0:
+            ref = r0.z0 + r0.step
+            band = r0.metrics.band * abs(r0.step)
+            ax1.axhspan(ref - band, ref + band, color="0.85", zorder=0, label=f"±{100 * r0.metrics.band:g} % band")
     if t_max is not None:
-        ax2.set_xlim(-0.05 * t_max, t_max)
+        for a in axes:
+            a.set_xlim(-0.05 * t_max, t_max)
     ax1.set_ylabel("altitude z (m)")
-    ax2.set_ylabel("command u (m/s)")
-    ax2.set_xlabel("time after the step (s)")
+    last = ax2 if ax2 is not None else ax1
+    last.set_xlabel("time after the step (s)")
     ax1.grid(alpha=0.3)
-    ax2.grid(alpha=0.3)
+    if ax2 is not None:
+        ax2.set_ylabel("command u (m/s)")
+        ax2.grid(alpha=0.3)
     ax1.legend(fontsize=8, ncol=2)
     if title:
         ax1.set_title(title)
-    fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return save_figure(fig, path)
 
 
 def plot_spectrum(
     spectra: Sequence,
-    path: str | Path,
+    path: str | Path | None = None,
     *,
+    ax: Axes | None = None,
     labels: Sequence[str] | None = None,
     title: str | None = None,
-) -> None:
-    """Roots in the complex plane, as in the paper's Fig. 8: roots, neutral lines, the stable half-plane shaded.
+) -> Figure:
+    """Roots in the complex plane, as in the paper's Fig. 8: one marker series per spectrum, its rightmost root
+    enlarged, its neutral lines dashed, the stable half-plane shaded.
 
     Parameters
     ----------
     spectra : sequence of Spectrum
         Results of :func:`delaykit.spectrum.roots.find_roots` (one per loop).
-    path : str or Path
-        Output file.
+    path : str or Path, optional
+        Write the figure there.
+    ax : Axes, optional
+        Where to draw.
     labels : sequence of str, optional
         Legend entries.
     title : str, optional
         Figure title.
 
+    Returns
+    -------
+    matplotlib.figure.Figure
+
     Examples
     --------
-    >>> import tempfile, os
     >>> from delaykit import AltitudeLoop
     >>> from delaykit.spectrum.roots import find_roots
     >>> sp = find_roots(AltitudeLoop(kp=2, delay=0.37, kv=0.3).characteristic(), (-10, 2, 0, 100))
-    >>> path = os.path.join(tempfile.mkdtemp(), "s.png")
-    >>> plot_spectrum([sp], path)
-    >>> os.path.getsize(path) > 0
-    True
+    >>> fig = plot_spectrum([sp], labels=["Kv = 0.3"])
+    >>> series = [line for line in fig.axes[0].lines if line.get_label() == "Kv = 0.3"]
+    >>> len(series), len(series[0].get_xdata()) == len(sp.roots)
+    (1, True)
     """
-    fig, ax = plt.subplots(figsize=(7, 6))
+    fig, (ax,), _ = _axes(ax, 1, (7, 6))
+    if labels is not None and len(labels) != len(spectra):
+        raise InvalidValueError(f"labels must name each of the {len(spectra)} spectra, got {len(labels)}")
     markers = "oxs^vD+*"
-    x0 = min(sp.region[0] for sp in spectra)
-    x1 = max(sp.region[1] for sp in spectra)
-    y1 = max(sp.region[3] for sp in spectra)
-    y0 = min(sp.region[2] for sp in spectra)
-    ax.axvspan(x0, 0.0, color="#e8f4e8", zorder=0, label="stable half-plane")
+    if spectra:
+        x0 = min(sp.region[0] for sp in spectra)
+        x1 = max(sp.region[1] for sp in spectra)
+        y0 = min(sp.region[2] for sp in spectra)
+        y1 = max(sp.region[3] for sp in spectra)
+        ax.axvspan(x0, min(0.0, x1), color="#e8f4e8", zorder=0, label="stable half-plane")
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y0, y1)
+    else:
+        y0 = 0.0
     ax.axvline(0.0, color="k", lw=0.8)
     for i, sp in enumerate(spectra):
-        lab = labels[i] if labels else None
-        pts = ax.plot(sp.roots.real, sp.roots.imag, markers[i % len(markers)], ms=5, mfc="none", label=lab)
+        lab = labels[i] if labels is not None else None
+        mk = markers[i % len(markers)]
+        pts = ax.plot(sp.roots.real, sp.roots.imag, mk, ms=5, mfc="none", label=lab)
         color = pts[0].get_color()
         for xline in sp.neutral_lines:
             ax.axvline(xline, color=color, ls="--", lw=0.8)
         rm = sp.rightmost
         if rm is not None:
-            ax.plot([rm.real], [rm.imag], markers[i % len(markers)], ms=9, color=color)
+            ax.plot([rm.real], [rm.imag], mk, ms=9, color=color)
         for z, m in zip(sp.roots, sp.multiplicities):
             if m > 1:
                 ax.annotate(f"×{m}", (z.real, z.imag), textcoords="offset points", xytext=(4, 4), fontsize=8)
-    ax.set_xlim(x0, x1)
-    ax.set_ylim(y0, y1)
     ax.set_xlabel("Re s")
     ax.set_ylabel("Im s (conjugates not shown)" if y0 >= 0 else "Im s")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="best")
     if title:
         ax.set_title(title)
-    fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return save_figure(fig, path)
 
 
-def plot_stability_map(smap, path: str | Path, *, title: str | None = None) -> None:
-    """The spectral abscissa over a parameter grid, with the stability boundary (abscissa = 0) drawn.
+def plot_stability_map(smap: Any, path: str | Path | None = None, *, ax: Axes | None = None,
+                       title: str | None = None) -> Figure:
+    """The spectral abscissa over a parameter grid (clipped to ±10 1/s, with a colour bar), and the stability
+    boundary (abscissa = 0) drawn where the grid crosses it.
+
+    Parameters
+    ----------
+    smap : StabilityMap
+        From :func:`delaykit.spectrum.stability.stability_map` (or a gain search's worst case).
+    path : str or Path, optional
+        Write the figure there.
+    ax : Axes, optional
+        Where to draw (the colour bar takes room from it).
+    title : str, optional
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
 
     Examples
     --------
-    >>> import tempfile, os, numpy as np
+    >>> import numpy as np
     >>> from delaykit import AltitudeLoop
     >>> from delaykit.spectrum.stability import stability_map
-    >>> m = stability_map(AltitudeLoop(kp=1, delay=0.3), "kp", np.linspace(0.5, 6, 12), "delay", np.linspace(0.1, 0.8, 8))
-    >>> path = os.path.join(tempfile.mkdtemp(), "m.png")
-    >>> plot_stability_map(m, path)
-    >>> os.path.getsize(path) > 0
-    True
+    >>> m = stability_map(AltitudeLoop(kp=1, delay=0.3), "kp", np.linspace(0.5, 6, 12),
+    ...                   "delay", np.linspace(0.1, 0.8, 8))
+    >>> fig = plot_stability_map(m)
+    >>> fig.axes[0].get_xlabel(), fig.axes[0].get_ylabel()
+    ('kp', 'delay')
     """
-    fig, ax = plt.subplots(figsize=(7, 5))
-    a = np.clip(smap.abscissa, -10, 10)
-    lim = max(1e-9, float(np.nanmax(np.abs(a))))
+    fig, (ax,), _ = _axes(ax, 1, (7, 5))
+    a = np.clip(np.asarray(smap.abscissa, dtype=float), -10, 10)
+    lim = max(1e-9, float(np.nanmax(np.abs(a)))) if np.any(np.isfinite(a)) else 1.0
     cs = ax.pcolormesh(smap.x, smap.y, a, cmap="RdBu_r", vmin=-lim, vmax=lim, shading="auto")
     fig.colorbar(cs, ax=ax, label="spectral abscissa (1/s)")
     if np.any(a < 0) and np.any(a >= 0) and min(a.shape) > 1:
@@ -169,63 +269,162 @@ def plot_stability_map(smap, path: str | Path, *, title: str | None = None) -> N
     ax.set_xlabel(smap.x_name)
     ax.set_ylabel(smap.y_name)
     ax.set_title(title or "stability map (black line: stability boundary)")
-    fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return save_figure(fig, path)
 
 
-def plot_fit(logs: Sequence, fits: Sequence, path: str | Path, *, title: str | None = None,
-             lower_label: str = "residual (mm)") -> None:
-    """Measured altitude, the fitted model, and the residuals, one colour per flight.
+def plot_fit(logs: Sequence, fits: Sequence, path: str | Path | None = None, *,
+             ax: Axes | Sequence[Axes] | None = None, title: str | None = None,
+             lower_label: str = "residual (mm)") -> Figure:
+    """Measured altitude (dots) and a model (lines), one colour per flight, and the difference in millimetres.
 
-    ``fits`` holds, per flight, ``(t, z_fit)`` on the log's own times (from
-    :func:`delaykit.identify.estimation.fitted_altitude`).
+    Parameters
+    ----------
+    logs : sequence of FlightLog
+        The flights.
+    fits : sequence of (t, z)
+        Per flight, the model's altitude ``z`` at the log's own times ``t`` (from
+        :func:`delaykit.identify.estimation.fitted_altitude`, or the reference itself).
+    path : str or Path, optional
+        Write the figure there.
+    ax : Axes or (Axes, Axes), optional
+        Where to draw: one Axes draws the data and the model only; two add the difference below.
+    title : str, optional
+        Title of the upper panel.
+    lower_label : str
+        Label of the lower panel (what the difference is).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from delaykit import AltitudeLoop
+    >>> from delaykit.identify.flightlog import synthetic_log
+    >>> log = synthetic_log(AltitudeLoop(kp=1.31, delay=0.37), 1.0, after=4.0)
+    >>> fig = plot_fit([log], [(log.t, log.z_ref)])
+    >>> len(fig.axes), len(fig.axes[0].lines)
+    (2, 2)
     """
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, height_ratios=[3, 1.3])
-    for log, (t, zf) in zip(logs, fits):
+    if len(fits) != len(logs):
+        raise InvalidValueError(f"one fit per flight: {len(logs)} flights, {len(fits)} fits")
+    fig, axes, _ = _axes(ax, 2, (8, 6), sharex=True, height_ratios=[3, 1.3])
+    ax1 = axes[0]
+    ax2 = axes[1] if len(axes) > 1 else None
+    for log, (t_fit, z_fit) in zip(logs, fits):
+        t_fit, z_fit = np.asarray(t_fit, dtype=float), np.asarray(z_fit, dtype=float)
+        if t_fit.shape != log.t.shape or z_fit.shape != log.z.shape:
+            raise InvalidValueError(f"{log.name}: the model must be given at the log's {log.t.size} times, got "
+                                    f"{t_fit.size} times and {z_fit.size} values")
         tt = log.t - log.step_time
         pts = ax1.plot(tt, log.z, ".", ms=3, label=f"{Path(log.name).name} (data)")
         c = pts[0].get_color()
-        ax1.plot(tt, zf, "-", lw=1.2, color=c)
-        ax2.plot(tt, 1e3 * (log.z - zf), ".", ms=3, color=c)
+        ax1.plot(t_fit - log.step_time, z_fit, "-", lw=1.2, color=c)
+        if ax2 is not None:
+            ax2.plot(tt, 1e3 * (log.z - z_fit), ".", ms=3, color=c)
     ax1.set_ylabel("altitude z (m)")
-    ax2.set_ylabel(lower_label)
-    ax2.set_xlabel("time after the step (s)")
-    ax2.axhline(0, color="k", lw=0.6)
     ax1.grid(alpha=0.3)
-    ax2.grid(alpha=0.3)
     ax1.legend(fontsize=7, ncol=2)
     ax1.set_title(title or "data (dots) and fitted model (lines)")
-    fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    if ax2 is not None:
+        ax2.set_ylabel(lower_label)
+        ax2.axhline(0, color="k", lw=0.6)
+        ax2.grid(alpha=0.3)
+    (ax2 if ax2 is not None else ax1).set_xlabel("time after the step (s)")
+    return save_figure(fig, path)
 
 
-def plot_filter_bode(report, path: str | Path) -> None:
-    """Bode plot of the derivative filter relative to a true differentiator, with its cutoff, the PV loop's
-    crossover, and the paper's quoted 5.68 rad/s marked (``report`` from
-    :func:`delaykit.design.tuning.filter_analysis`)."""
+def plot_filter_bode(report: Any, path: str | Path | None = None, *,
+                     ax: Axes | Sequence[Axes] | None = None) -> Figure:
+    """Bode plot of the derivative filter relative to a true differentiator, with its -3 dB cutoff, the PV loop's
+    crossover, and the paper's quoted 5.68 rad/s marked.
+
+    Parameters
+    ----------
+    report : FilterReport
+        From :func:`delaykit.design.tuning.filter_analysis`.
+    path : str or Path, optional
+        Write the figure there.
+    ax : Axes or (Axes, Axes), optional
+        Where to draw: one Axes draws the gain only; two draw the gain and the phase.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from delaykit.design.tuning import filter_analysis
+    >>> fig = plot_filter_bode(filter_analysis(38.0, 1.0))
+    >>> abs(float(fig.axes[0].lines[0].get_ydata()[0])) < 1e-3   # 0 dB at 0.1 rad/s: a true derivative there
+    True
+    """
     from ..design.tuning import filter_frequency_response
 
     w = np.logspace(-1, 3, 2000)
     H = filter_frequency_response(report.wn, report.zeta, w)
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
-    a1.semilogx(w, 20 * np.log10(np.abs(H)))
-    a2.semilogx(w, np.degrees(np.angle(H)))
-    for ax in (a1, a2):
-        ax.axvline(report.lowpass_cutoff, color="C1", ls="--", lw=1, label=f"-3 dB: {report.lowpass_cutoff:.2f} rad/s")
-        ax.axvline(report.paper_cutoff, color="C3", ls=":", lw=1, label=f"paper's 'cutoff': {report.paper_cutoff:g} rad/s")
+    fig, axes, _ = _axes(ax, 2, (7, 5), sharex=True)
+    axes[0].semilogx(w, 20 * np.log10(np.abs(H)), label="|W(jw)| / w")
+    if len(axes) > 1:
+        axes[1].semilogx(w, np.degrees(np.angle(H)), label="phase")
+    for a in axes:
+        a.axvline(report.lowpass_cutoff, color="C1", ls="--", lw=1, label=f"-3 dB: {report.lowpass_cutoff:.2f} rad/s")
+        a.axvline(report.paper_cutoff, color="C3", ls=":", lw=1,
+                  label=f"paper's 'cutoff': {report.paper_cutoff:g} rad/s")
         if report.crossover:
-            ax.axvline(report.crossover, color="C2", ls="-.", lw=1, label=f"PV loop crossover: {report.crossover:.2f} rad/s")
-        ax.grid(alpha=0.3, which="both")
-    a1.set_ylabel("gain vs. true velocity (dB)")
-    a2.set_ylabel("phase lag (deg)")
-    a2.set_xlabel("frequency (rad/s)")
-    a1.legend(fontsize=8)
-    a1.set_title(f"derivative filter wf = {report.wn:g} rad/s, zf = {report.zeta:g}")
-    fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+            a.axvline(report.crossover, color="C2", ls="-.", lw=1,
+                      label=f"PV loop crossover: {report.crossover:.2f} rad/s")
+        a.grid(alpha=0.3, which="both")
+    axes[0].set_ylabel("gain vs. true velocity (dB)")
+    if len(axes) > 1:
+        axes[1].set_ylabel("phase lag (deg)")
+    axes[-1].set_xlabel("frequency (rad/s)")
+    axes[0].legend(fontsize=8)
+    axes[0].set_title(f"derivative filter wf = {report.wn:g} rad/s, zf = {report.zeta:g}")
+    return save_figure(fig, path, dpi=110)
+
+
+def plot_iterations(iterations: Sequence[complex], path: str | Path | None = None, *, ax: Axes | None = None,
+                    reference: float | None = None, reference_label: str = "paper",
+                    title: str | None = None) -> Figure:
+    """The iterates of a delay estimate (real and imaginary parts against the iteration number), as the paper's
+    Fig. 7, with an optional horizontal reference (the printed value).
+
+    Parameters
+    ----------
+    iterations : sequence of complex
+        The iterates, first to last (from :func:`delaykit.identify.estimation.lambert_paper_iterations`).
+    path : str or Path, optional
+        Write the figure there.
+    ax : Axes, optional
+        Where to draw.
+    reference : float, optional
+        A value to mark (dotted).
+    reference_label : str
+        Its legend entry (the value is appended).
+    title : str, optional
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> fig = plot_iterations([0.2, 0.3 - 0.2j, 0.3743 - 0.2507j], reference=0.374)
+    >>> [line.get_ydata().tolist() for line in fig.axes[0].lines[:2]]
+    [[0.2, 0.3, 0.3743], [0.0, -0.2, -0.2507]]
+    """
+    fig, (ax,), _ = _axes(ax, 1, (7, 4))
+    z = np.asarray(iterations, dtype=complex)
+    k = np.arange(z.size)
+    ax.plot(k, z.real, "o-", label="Re Td")
+    ax.plot(k, z.imag, "s-", label="Im Td")
+    if reference is not None:
+        ax.axhline(reference, color="k", ls=":", lw=0.8, label=f"{reference_label}: {reference:g} s")
+    ax.set_xlabel(f"iteration (from Td = {z[0].real:g} s)" if z.size else "iteration")
+    ax.set_ylabel("Td (s)")
+    ax.set_title(title or "the iterates of the delay")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    return save_figure(fig, path, dpi=110)

@@ -5,7 +5,9 @@ are ``s_k = W_k(Td a1 exp(-a0 Td)) / Td + a0`` for the branches ``k`` of Lambert
 the rightmost root is on branch 0 (Shinozaki & Mori, 2006): ``W_0`` has the largest real part of all branches
 for any argument, and where the argument is below ``-1/e`` branch -1 gives its complex conjugate, so the
 dominant pair is ``{k = 0, k = -1}``.  At the branch point ``-1/e`` the two branches meet at ``W = -1``: a double
-root, where SciPy's ``lambertw`` returns NaN on branch -1; delaykit returns the double root there.
+root, where SciPy's ``lambertw`` returns NaN (SciPy 1.17, on both branches); delaykit returns the double root there,
+and near it uses the branch-point series (see :func:`lambert_w`).  Everywhere else the roots cost one call of
+SciPy's ``lambertw`` per branch and a division.
 
 For the P loop (``a0 = 0``, ``a1 = -Kp``), ``s Td = W(-Kp Td)``: the damping ratio of the dominant pair depends on
 ``Kp Td`` alone (1 at ``Kp Td = 1/e``, 0 at ``pi/2``, the stability limit).
@@ -33,44 +35,59 @@ __all__ = ["LambertRoots", "lambert_w", "lambert_roots", "dominant_root", "kp_de
            "delay_for_damping", "complex_delays_for_root"]
 
 _E = math.e
+_NEAR = 1e-3  # |e x + 1| below this: the branch-point series replaces SciPy's value (see lambert_w)
 
 
 def lambert_w(x: Any, k: int = 0) -> np.ndarray:
     """Lambert W on branch ``k``, vectorised, accurate near and exactly at the branch point -1/e.
 
-    SciPy's ``lambertw`` loses accuracy near ``-1/e`` and gives NaN exactly there on branch -1; this uses the
-    branch-point series there and polishes every value with two Halley steps on ``w e^w = x``.
+    SciPy's ``lambertw`` is accurate to a few units of the last place everywhere except close to the branch point
+    ``-1/e``, where it loses digits and gives NaN exactly there.  Within ``|e x + 1| < 1e-3`` of it, on the branches
+    that meet there (0 and -1 from the upper half-plane and the cut, 0 and 1 from the lower half-plane), this uses
+    the branch-point series polished by two Halley steps on ``w e^w = x``; everywhere else it returns SciPy's value
+    as it is (a polish there changes nothing: both agree with mpmath to about 1e-15).
 
     Examples
     --------
     >>> complex(lambert_w(-1 / np.e, 0)), complex(lambert_w(-1 / np.e, -1))
     ((-1+0j), (-1+0j))
     """
-    x = np.asarray(x, dtype=complex)
+    x = np.asarray(x)
+    if x.dtype.kind not in "fc":
+        x = x.astype(float)
     w = np.asarray(lambertw(x, k), dtype=complex)
-    q = _E * x + 1.0  # distance from the branch point, scaled
-    near = np.abs(q) < 1e-3
-    if np.any(near) and k in (0, -1):
-        # W = -1 + p - p^2/3 + 11/72 p^3 - 43/540 p^4, p = +-sqrt(2 (e x + 1)); the sign picks the branch
-        p = np.sqrt(2.0 * q[near])
-        # principal sqrt has Re p >= 0; W_0 takes the root with Re(p) >= 0 for x above the cut and the one with
-        # Im(p) >= 0 on the cut (x < -1/e real); W_-1 the other
-        p = np.where((p.real == 0) & (p.imag < 0), -p, p)
-        if k == -1:
-            p = -p
-        w_near = -1.0 + p - p**2 / 3.0 + 11.0 / 72.0 * p**3 - 43.0 / 540.0 * p**4
-        w = w.copy()
-        w[near] = w_near
-    # Halley polish (skipped exactly at the branch point, where w + 1 = 0)
-    with np.errstate(all="ignore"):  # W is -inf at x = 0 on branches other than 0: left as it is
-        for _ in range(2):
-            ew = np.exp(w)
-            f = w * ew - x
-            wp1 = w + 1.0
-            ok = (np.abs(wp1) > 1e-8) & np.isfinite(w)
-            step = f / (ew * wp1 - (w + 2.0) * f / (2.0 * wp1))
-            w = np.where(ok & np.isfinite(step), w - step, w)
-    return w
+    if k not in (-1, 0, 1):
+        return w
+    near = np.abs(x + 1.0 / _E) < _NEAR / _E
+    if not np.any(near):
+        return w
+    shape = w.shape
+    w = w.reshape(-1)
+    idx = np.flatnonzero(near.reshape(-1))
+    xn = x.reshape(-1)[idx].astype(complex)
+    below = xn.imag < 0  # the cut itself (Im x = +-0) belongs to the upper half-plane, as in SciPy and mpmath
+    # which of the two sheets meeting at -1/e: W = -1 + p on branch 0, -1 - p on branch -1 (from above) or 1 (below)
+    if k == 0:
+        use, sign = np.ones(idx.size, dtype=bool), 1.0
+    else:
+        use, sign = (~below if k == -1 else below), -1.0
+    if not np.any(use):
+        return w.reshape(shape)
+    idx, xn = idx[use], xn[use]
+    q = _E * xn + 1.0
+    q = np.where(xn.imag == 0, q.real + 0j, q)  # a real x gives a real q (no -0 imaginary part to flip the sqrt)
+    p = sign * np.sqrt(2.0 * q)  # the principal root: Im p has the sign of Im x, and Im p >= 0 on the cut
+    # W = -1 + p - p^2/3 + 11/72 p^3 - 43/540 p^4 + O(p^5), p = +-sqrt(2 (e x + 1))
+    wn = -1.0 + p * (1.0 + p * (-1.0 / 3.0 + p * (11.0 / 72.0 - p * 43.0 / 540.0)))
+    with np.errstate(all="ignore"):
+        for _ in range(2):  # Halley on w e^w = x, skipped at the branch point itself (where w + 1 = 0)
+            ew = np.exp(wn)
+            f = wn * ew - xn
+            wp1 = wn + 1.0
+            step = f / (ew * wp1 - (wn + 2.0) * f / (2.0 * wp1))
+            wn = np.where((np.abs(wp1) > 1e-8) & np.isfinite(step), wn - step, wn)
+    w[idx] = wn
+    return w.reshape(shape)
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -128,6 +145,17 @@ def _branches(branches: Iterable[int] | int) -> tuple[int, ...]:
     return out
 
 
+def _numbers(v: Any) -> np.ndarray:
+    """``v`` as a float array, or a complex one if it has a nonzero imaginary part (TypeError, ValueError if not
+    numbers)."""
+    a = np.asarray(v)
+    if a.dtype.kind == "c":
+        return a.real.astype(float) if not np.any(a.imag) else a.astype(complex, copy=False)
+    if a.dtype.kind in "biuf":
+        return a.astype(float, copy=False)
+    return np.asarray(a, dtype=complex)  # objects, strings: numbers or a TypeError / ValueError
+
+
 def lambert_roots(a0: Any, a1: Any, delay: Any, branches: Iterable[int] | int = (0, -1)) -> LambertRoots:
     """Characteristic roots of ``x' = a0 x + a1 x(t - Td)`` on the given Lambert W branches, vectorised.
 
@@ -153,8 +181,8 @@ def lambert_roots(a0: Any, a1: Any, delay: Any, branches: Iterable[int] | int = 
     """
     ks = _branches(branches)
     try:
-        a0a = np.asarray(a0, dtype=complex)
-        a1a = np.asarray(a1, dtype=complex)
+        # real coefficients stay real (no copy for float arrays): real arithmetic up to W
+        a0a, a1a = (_numbers(v) for v in (a0, a1))
         td = np.asarray(delay, dtype=float)
     except (TypeError, ValueError) as exc:
         raise InvalidValueError(f"a0, a1 and delay must be numbers: {exc}") from exc
@@ -164,14 +192,22 @@ def lambert_roots(a0: Any, a1: Any, delay: Any, branches: Iterable[int] | int = 
     if np.any(td < 0):
         raise InvalidValueError(f"delay must be at least 0, got {td.min():g}")
     a0b, a1b, tdb = np.broadcast_arrays(a0a, a1a, td)
-    x = tdb * a1b * np.exp(-a0b * tdb)
+    shift = bool(np.any(a0a))  # a0 = 0 (the P loop): no exponential factor, no shift of the roots
+    x = tdb * a1b * np.exp(-a0b * tdb) if shift else tdb * a1b
     pos = tdb > 0
-    roots = np.empty((len(ks),) + tdb.shape, dtype=complex)
-    safe_td = np.where(pos, tdb, 1.0)
-    for i, k in enumerate(ks):
-        w = lambert_w(x, k)
+    every = bool(np.all(pos))
+    safe_td = tdb if every else np.where(pos, tdb, 1.0)
+    per_branch = []
+    for k in ks:
+        r = lambert_w(x, k)  # a new array: the root is formed in place
         with np.errstate(all="ignore"):  # at Td = 0 the W value is not used
-            roots[i] = np.where(pos, w / safe_td + a0b, a0b + a1b)
+            np.divide(r, safe_td, out=r)
+        if shift:
+            r += a0b
+        if not every:
+            r = np.where(pos, r, a0b + a1b)
+        per_branch.append(r)
+    roots = per_branch[0][np.newaxis] if len(ks) == 1 else np.stack(per_branch)
     return LambertRoots(branches=ks, roots=roots, a0=a0, a1=a1, delay=delay)
 
 

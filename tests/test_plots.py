@@ -1,0 +1,248 @@
+"""The figures show what they are given: each line's data against the arrays it was drawn from, the labels, the
+number of series, the axes used, the files written only when asked; and importing the plotting layer leaves
+matplotlib's backend alone.  References: the Response, Spectrum, StabilityMap and FlightLog objects drawn (their
+own arrays), and closed forms (the derivative filter's gain, its -3 dB frequency)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from delaykit import AltitudeLoop, Controller, InvalidTypeError, InvalidValueError, Loop, simulate
+from delaykit.models.signals import Ramp
+from delaykit.plotting.figures import (plot_filter_bode, plot_fit, plot_iterations, plot_responses, plot_spectrum,
+                                       plot_stability_map, save_figure)
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+
+
+def _lines(ax: Axes, label: str):
+    return [line for line in ax.lines if line.get_label() == label]
+
+
+# ---- the backend -----------------------------------------------------------------------------------------------
+
+def test_importing_and_drawing_leave_the_backend_and_pyplot_alone(tmp_path):
+    """A user's backend (here svg, set the way a notebook or an application sets it) is still in force after
+    importing delaykit's plotting layer and drawing and saving a figure; no figure is registered with pyplot."""
+    script = f"""
+import json, sys
+import matplotlib
+before = matplotlib.get_backend()
+import delaykit.plotting
+from delaykit import AltitudeLoop, simulate
+from delaykit.plotting.figures import plot_responses
+after_import = matplotlib.get_backend()
+fig = plot_responses([simulate(AltitudeLoop(kp=1.31, delay=0.368), t_end=3.0)], {str(tmp_path / "r.png")!r})
+pyplot = sys.modules.get("matplotlib.pyplot")
+print(json.dumps({{"before": before, "after_import": after_import, "after_plot": matplotlib.get_backend(),
+                  "pyplot_figures": pyplot.get_fignums() if pyplot else [], "canvas": type(fig.canvas).__name__}}))
+"""
+    env = {**os.environ, "MPLBACKEND": "svg", "PYTHONPATH": str(SRC) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
+    assert res.returncode == 0, res.stderr
+    got = json.loads(res.stdout.strip().splitlines()[-1])
+    assert got["before"] == got["after_import"] == got["after_plot"] == "svg"
+    assert got["pyplot_figures"] == []
+    assert (tmp_path / "r.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"  # the file is a PNG whatever the backend
+
+
+# ---- responses ---------------------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def responses():
+    return [simulate(AltitudeLoop(kp=1.31, delay=0.368), 1.0, t_end=5.0),
+            simulate(AltitudeLoop(kp=2.0, delay=0.37, kv=0.3), 1.0, t_end=5.0)]
+
+
+def test_plot_responses_draws_each_response_and_the_reference(responses):
+    fig = plot_responses(responses, dt=0.01)
+    assert isinstance(fig, Figure) and len(fig.axes) == 2
+    top, bottom = fig.axes
+    # one line per response in each panel, labelled by its loop (the default), plus the reference on top
+    assert [ln.get_label() for ln in top.lines] == ["Td=0.368 s", "Td=0.37 s, Kv=0.3", "reference"]
+    assert [ln.get_label() for ln in bottom.lines] == ["Td=0.368 s", "Td=0.37 s, Kv=0.3"]
+    for i, r in enumerate(responses):
+        s = r.sample(dt=0.01)
+        assert np.array_equal(top.lines[i].get_xdata(), s["t"]) and np.array_equal(top.lines[i].get_ydata(), s["z"])
+        assert np.array_equal(bottom.lines[i].get_ydata(), s["u"])
+        assert top.lines[i].get_color() == bottom.lines[i].get_color()
+    assert np.array_equal(top.lines[2].get_ydata(), responses[0].sample(dt=0.01)["z_ref"])
+    # the settling band of the first response: 1 +- 2 %
+    band = [p for p in top.patches if "band" in p.get_label()]
+    assert len(band) == 1
+    lo, hi = band[0].get_y(), band[0].get_y() + band[0].get_height()  # a rectangle in data units along y
+    assert math.isclose(lo, 0.98) and math.isclose(hi, 1.02)
+    assert top.get_ylabel() == "altitude z (m)" and bottom.get_ylabel() == "command u (m/s)"
+
+
+def test_plot_responses_into_given_axes_and_labels(responses):
+    host = Figure()
+    a, b = host.subplots(1, 2)
+    fig = plot_responses(responses, ax=(a, b), labels=["P", "PV"], title="two loops", t_max=4.0)
+    assert fig is a.figure is host and len(host.axes) == 2  # drawn where asked, nothing added
+    assert [ln.get_label() for ln in a.lines][:2] == ["P", "PV"] and a.get_title() == "two loops"
+    assert len(b.lines) == 2 and a.get_xlim() == (-0.2, 4.0)
+    # one Axes: the output only
+    single = Figure().subplots()
+    fig = plot_responses(responses[:1], ax=single)
+    assert fig is single.figure and len(fig.axes) == 1 and len(single.lines) == 2  # the response and the reference
+    with pytest.raises(InvalidValueError, match="labels must name each of the 2 responses, got 1"):
+        plot_responses(responses, labels=["only one"])
+    with pytest.raises(InvalidTypeError, match="ax must be a matplotlib Axes"):
+        plot_responses(responses, ax="top")
+    with pytest.raises(InvalidValueError, match="2 panel"):
+        plot_responses(responses, ax=Figure().subplots(1, 3))
+
+
+def test_plot_responses_of_a_general_loop_and_a_ramp():
+    # a general Loop has no .kv of its own (the default label reads the controller's); a ramp has no step metrics
+    pd = simulate(Loop("1/(s*(0.05*s+1))", Controller.pd(2.0, 0.1, 0.02), delay=0.3, umin=-1, umax=3), 1.0, t_end=4.0)
+    pv = simulate(Loop("1/s", Controller.pv(2.0, 0.3), delay=0.3), 1.0, t_end=4.0)
+    fig = plot_responses([pd, pv])
+    assert [ln.get_label() for ln in fig.axes[0].lines][:2] == ["Td=0.3 s", "Td=0.3 s, Kv=0.3"]
+    ramp = simulate(AltitudeLoop(kp=1.31, delay=0.368), reference=Ramp(slope=0.2), t_end=4.0)
+    assert ramp.metrics is None
+    fig = plot_responses([ramp], dt=0.5)
+    ref = _lines(fig.axes[0], "reference")[0]
+    assert np.allclose(ref.get_ydata(), 0.2 * np.arange(0, 4.01, 0.5))  # the ramp itself
+    assert not [p for p in fig.axes[0].patches if "band" in p.get_label()]
+
+
+def test_files_are_written_only_when_asked(tmp_path, monkeypatch, responses):
+    monkeypatch.chdir(tmp_path)
+    plot_responses(responses)
+    assert list(tmp_path.iterdir()) == []
+    fig = plot_responses(responses, tmp_path / "deep" / "r.svg")
+    assert (tmp_path / "deep" / "r.svg").read_text().lstrip().startswith("<?xml")
+    assert save_figure(fig, None) is fig and save_figure(fig, tmp_path / "r.pdf").figure is fig
+    assert (tmp_path / "r.pdf").read_bytes()[:5] == b"%PDF-"
+    # axes on a subfigure: the whole figure is written
+    sub = Figure().subfigures(1, 2)[0]
+    fig = plot_responses(responses, tmp_path / "sub.png", ax=sub.subplots())
+    assert fig is sub and (tmp_path / "sub.png").read_bytes()[:4] == b"\x89PNG"
+
+
+# ---- spectra, maps, fits, the filter, the iterations ------------------------------------------------------------
+
+def test_plot_spectrum_shows_each_spectrum_its_rightmost_and_its_neutral_lines():
+    from delaykit.spectrum.roots import find_roots
+
+    spectra = [find_roots(AltitudeLoop(kp=2.0, delay=0.37, kv=kv).characteristic(), (-10, 2, 0, 60))
+               for kv in (0.3, 0.5)]
+    ax = Figure().subplots()
+    fig = plot_spectrum(spectra, ax=ax, labels=["Kv = 0.3", "Kv = 0.5"], title="Fig. 8")
+    assert fig is ax.figure and ax.get_title() == "Fig. 8"
+    for sp, lab in zip(spectra, ["Kv = 0.3", "Kv = 0.5"]):
+        (series,) = _lines(ax, lab)
+        assert np.array_equal(series.get_xdata(), sp.roots.real) and np.array_equal(series.get_ydata(), sp.roots.imag)
+        # its rightmost root, enlarged, in its colour
+        big = [ln for ln in ax.lines if ln.get_markersize() == 9 and ln.get_color() == series.get_color()]
+        assert len(big) == 1 and big[0].get_xdata()[0] == sp.rightmost.real
+        # its neutral line ln(Kv) / Td, dashed, in its colour
+        vertical = [ln.get_xdata()[0] for ln in ax.lines
+                    if ln.get_linestyle() == "--" and ln.get_color() == series.get_color()]
+        assert vertical == pytest.approx([math.log(float(lab.split()[-1])) / 0.37], abs=1e-6)
+    assert ax.get_xlim() == (-10, 2) and ax.get_ylim() == (0, 60)
+
+
+def test_plot_stability_map_shows_the_clipped_abscissa_and_the_boundary():
+    from delaykit.spectrum.stability import stability_map
+
+    m = stability_map(AltitudeLoop(kp=1, delay=0.3), "kp", np.linspace(0.5, 6, 12), "delay", np.linspace(0.1, 0.8, 8))
+    fig = plot_stability_map(m, title="P loop")
+    ax = fig.axes[0]
+    mesh, boundary = ax.collections
+    assert np.allclose(np.asarray(mesh.get_array()).reshape(m.abscissa.shape), np.clip(m.abscissa, -10, 10))
+    # the boundary: the zero level, which for the P loop is Kp Td = pi / 2 (closed form; the contour interpolates
+    # linearly between grid points 0.5 apart in Kp and 0.1 s in Td, hence the 6 % tolerance)
+    assert list(boundary.levels) == [0.0]
+    kp_td = np.prod(np.concatenate([p.vertices for p in boundary.get_paths()]), axis=1)
+    assert kp_td.size > 3 and np.allclose(kp_td, math.pi / 2, rtol=0.06)
+    assert len(fig.axes) == 2 and fig.axes[1].get_ylabel() == "spectral abscissa (1/s)"  # the colour bar
+    assert (ax.get_xlabel(), ax.get_ylabel(), ax.get_title()) == ("kp", "delay", "P loop")
+
+
+def test_plot_fit_shows_data_model_and_difference():
+    from delaykit.identify.flightlog import synthetic_log
+
+    logs = [synthetic_log(AltitudeLoop(kp=1.31, delay=d), 1.0, after=4.0, noise=0.003, rng=np.random.default_rng(i),
+                          t0=10.0) for i, d in enumerate((0.35, 0.4))]
+    fits = [(lg.t, lg.z_ref + 0.001) for lg in logs]
+    fig = plot_fit(logs, fits, title="fit")
+    top, bottom = fig.axes
+    assert len(top.lines) == 4 and len(bottom.lines) == 2 + 1  # data and model per flight; differences and zero
+    for i, lg in enumerate(logs):
+        data, model = top.lines[2 * i], top.lines[2 * i + 1]
+        assert np.array_equal(data.get_xdata(), lg.t - lg.step_time) and np.array_equal(data.get_ydata(), lg.z)
+        assert np.array_equal(model.get_ydata(), fits[i][1])
+        assert np.allclose(bottom.lines[i].get_ydata(), 1e3 * (lg.z - fits[i][1]))
+        assert model.get_color() == data.get_color() == bottom.lines[i].get_color()
+    with pytest.raises(InvalidValueError, match="one fit per flight: 2 flights, 1 fits"):
+        plot_fit(logs, fits[:1])
+    with pytest.raises(InvalidValueError, match="at the log's"):
+        plot_fit(logs[:1], [(logs[0].t[:-1], logs[0].z[:-1])])
+    ax = Figure().subplots()
+    assert plot_fit(logs, fits, ax=ax) is ax.figure and len(ax.lines) == 4
+
+
+def test_plot_filter_bode_against_the_closed_form():
+    from delaykit.design.tuning import filter_analysis
+
+    rep = filter_analysis(38.0, 1.0)
+    fig = plot_filter_bode(rep)
+    gain, phase = fig.axes
+    w = gain.lines[0].get_xdata()
+    # W(jw) / (jw) = wf^2 / (wf^2 - w^2 + 2j zf wf w): |.| = wf^2 / (wf^2 + w^2) at zf = 1, phase -2 atan(w / wf)
+    assert np.allclose(gain.lines[0].get_ydata(), 20 * np.log10(38.0**2 / (38.0**2 + w**2)), atol=1e-10)
+    assert np.allclose(phase.lines[0].get_ydata(), -2 * np.degrees(np.arctan(w / 38.0)), atol=1e-9)
+    cutoff = [ln for ln in gain.lines if ln.get_label().startswith("-3 dB")]
+    assert cutoff[0].get_xdata()[0] == pytest.approx(38.0 * math.sqrt(math.sqrt(2) - 1), rel=1e-6)
+    one = Figure().subplots()
+    assert plot_filter_bode(rep, ax=one) is one.figure and len(one.figure.axes) == 1
+
+
+def test_plot_iterations_shows_both_parts():
+    from delaykit.identify.estimation import lambert_paper_iterations
+
+    it = lambert_paper_iterations(complex(-1.2347, 1.0284), 1.31)
+    fig = plot_iterations(it, reference=0.374, reference_label="paper")
+    ax = fig.axes[0]
+    assert np.array_equal(_lines(ax, "Re Td")[0].get_ydata(), np.real(it))
+    assert np.array_equal(_lines(ax, "Im Td")[0].get_ydata(), np.imag(it))
+    assert _lines(ax, "paper: 0.374 s")[0].get_ydata()[0] == 0.374
+
+
+# ---- callers: the command line and the paper write their figures through these ----------------------------------
+
+def test_command_line_plots_are_written(tmp_path):
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+
+    runner = CliRunner()
+    res = runner.invoke(app, ["simulate", "--kp", "1.31", "--delay", "0.3,0.368", "--plot", str(tmp_path / "s.png")])
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(app, ["roots", "--kp", "2", "--kv", "0.3", "--delay", "0.37", "--region", "-10", "2", "0", "40",
+                              "--plot", str(tmp_path / "r.svg")])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "s.png").read_bytes()[:4] == b"\x89PNG" and "<svg" in (tmp_path / "r.svg").read_text()
+
+
+def test_table1_figure_of_the_report():
+    from delaykit.paper.report import plot_table1_responses
+
+    ax = Figure().subplots()
+    fig = plot_table1_responses(ax=ax)
+    assert fig is ax.figure
+    assert [ln.get_label() for ln in ax.lines] == ["K=4, Td=0.2600 s", "K=5, Td=0.3250 s", "K=5.6, Td=0.3640 s",
+                                                   "K=5.6646, Td=0.3682 s", "reference"]
