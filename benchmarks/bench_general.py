@@ -42,7 +42,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.dont_write_bytecode = True  # importing bench_simulate leaves no __pycache__ in benchmarks/
 
 import delaykit as dk  # noqa: E402
-from bench_simulate import KEYS, TARGET, HermiteSpline, agreement, errors, meets, spline_metrics  # noqa: E402
+from bench_simulate import KEYS, HermiteSpline, agreement, errors, meets, spline_metrics  # noqa: E402
 from delaykit.models import Controller, Loop  # noqa: E402
 from oracle_loop import LoopOracle, LoopSpec  # noqa: E402
 

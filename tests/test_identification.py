@@ -25,7 +25,6 @@ from delaykit.identify.structures import STRUCTURES
 from delaykit.models.controllers import Controller
 from delaykit.models.loop import Loop
 from delaykit.models.plants import integrator_speed_loop
-from delaykit.models.signals import Samples
 from delaykit.models.transfer import TransferFunction
 from delaykit.simulate.discrete import closed_loop_response, held_delay_model, held_response
 from delaykit.simulate.simulation import simulate
@@ -95,7 +94,7 @@ def _closed_log(plant, delay, *, seed, noise=0.003, n=600, h=0.02, steps=((2.0, 
 
 def test_closed_loop_recovers_a_known_plant_and_delay_with_two_steps_in_one_log():
     truth = {"gain": 0.8, "lag": 0.15, "delay": 0.12}
-    plant = f"0.8/(s*(0.15*s+1))"
+    plant = "0.8/(s*(0.15*s+1))"
     e = _closed_log(plant, 0.12, seed=1, n=900, steps=((2.0, -1.0), (9.0, 0.6)))
     m = identify(e, model="ipdt_lag", loop=PX4_LOOP, outputs="z")
     for k, v in truth.items():

@@ -564,12 +564,8 @@ def identify(
     elif given:
         raise InvalidValueError(f"the loop options ({', '.join('--' + k.replace('_', '-') for k in given)}) describe "
                                 "the controller of a closed-loop fit: add --closed-loop, or drop them")
-    if closed_loop:
-        exps = [read_experiment(f, outputs=[output] + ([rate] if rate else []), reference=reference, time=time_col)
-                for f in logs]
-    else:
-        exps = [read_experiment(f, outputs=[output] + ([rate] if rate else []), input=input_col, time=time_col,
-                                u_before=u_before) for f in logs]
+    drive = {"reference": reference} if closed_loop else {"input": input_col, "u_before": u_before}
+    exps = [read_experiment(f, outputs=[output] + ([rate] if rate else []), time=time_col, **drive) for f in logs]
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=err,
@@ -600,13 +596,7 @@ def identify(
         for c in m.candidates:
             ct.add_row(c.model, f"{c.rms:.4g}", f"{c.bic:.1f}", _fmt(c.lolo_rms))
         out.print(ct)
-    lt = Table(title="logs")
-    for col in ("log", "rms", "initial wander", "rms / wander"):
-        lt.add_column(col, justify="right")
-    for g in m.logs:
-        d = g.to_dict()
-        lt.add_row(g.file, f"{d['rms']:.4g}", _fmt(d["wander"]), _fmt(d["rms_over_wander"], 3))
-    out.print(lt)
+    _print_rms("logs", [(d["file"], d["rms"], d["wander"]) for d in (g.to_dict() for g in m.logs)])
     for w in m.warnings:
         out.print(f"[yellow]warning:[/] {w}", highlight=False)
     if save is not None:
@@ -630,11 +620,9 @@ def predict(
 
     m = load_model(model_file)
     outs = list(m.outputs) + ([m.rate] if m.rate else [])
-    if m.closed_loop is not None:
-        exps = [read_experiment(f, outputs=outs, reference=m.drive_column, time=time_col) for f in logs]
-    else:
-        exps = [read_experiment(f, outputs=outs, input=m.drive_column, time=time_col, u_before=u_before)
-                for f in logs]
+    drive = ({"reference": m.drive_column} if m.closed_loop is not None
+             else {"input": m.drive_column, "u_before": u_before})
+    exps = [read_experiment(f, outputs=outs, time=time_col, **drive) for f in logs]
     preds = [run_predict(m, e) for e in exps]
     if plot is not None:
         from ..plotting.identification import plot_predictions
@@ -644,13 +632,16 @@ def predict(
     if as_json:
         print(json.dumps(rows[0] if len(rows) == 1 else {"logs": rows}, indent=2))
         return
-    table = Table(title=f"free-run prediction by {m!r}")
+    _print_rms(f"free-run prediction by {m!r}", [(r["file"], r["rms"], r["wander"][m.outputs[0]]) for r in rows])
+
+
+def _print_rms(title: str, rows: list[tuple[str, float, Optional[float]]]) -> None:
+    """A table of each log's RMS error beside its initial wander (``None`` where the log has none)."""
+    table = Table(title=title)
     for col in ("log", "rms", "initial wander", "rms / wander"):
         table.add_column(col, justify="right")
-    first = m.outputs[0]
-    for r in rows:
-        w = r["wander"][first]
-        table.add_row(r["file"], f"{r['rms']:.4g}", _fmt(w), _fmt(r["rms"] / w if w else None, 3))
+    for file, rms, w in rows:
+        table.add_row(file, f"{rms:.4g}", _fmt(w), _fmt(rms / w if w else None, 3))
     out.print(table)
 
 

@@ -41,6 +41,7 @@ from ..simulate.metrics import SecondOrder, step_metrics
 from ..simulate.simulation import Sampler, simulate
 from ..spectrum.lambert import delay_for_damping, lambert_w
 from .flightlog import FlightLog
+from .noise import ljung_box
 
 __all__ = ["DelayEstimate", "EstimateParams", "Diagnostics", "FlightFit", "EstimationError", "estimate_overshoot", "estimate_lambert", "estimate_trajectory",
            "estimate_flights", "fitted_altitude", "lambert_paper_iterations"]
@@ -482,17 +483,11 @@ def _residuals(theta, flights, free, offsets_out=None):
 
 
 def _ljung_box(r: np.ndarray, lags: int = 10) -> tuple[float, float]:
-    r = r - r.mean()
-    n = r.size
-    denom = float(np.dot(r, r))
-    if denom == 0 or n <= lags + 1:
+    """Ljung-Box ``(Q, p)`` over ``lags`` lags (:func:`.noise.ljung_box`); no test (0, 1) on a series too short
+    for that many lags."""
+    if np.size(r) <= lags + 1:
         return 0.0, 1.0
-    q = 0.0
-    for k in range(1, lags + 1):
-        rho = float(np.dot(r[:-k], r[k:])) / denom
-        q += rho * rho / (n - k)
-    q *= n * (n + 2)
-    return q, float(stats.chi2.sf(q, lags))
+    return ljung_box(r, lags)
 
 
 def estimate_trajectory(

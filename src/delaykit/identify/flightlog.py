@@ -40,7 +40,8 @@ import numpy as np
 
 from ..errors import InvalidValueError, check_real
 
-__all__ = ["FlightLog", "LogError", "REQUIRED", "MAX_ALTITUDE", "MAX_TIME", "write_log", "synthetic_log"]
+__all__ = ["FlightLog", "LogError", "REQUIRED", "MAX_ALTITUDE", "MAX_TIME", "read_csv_rows", "write_log",
+           "synthetic_log"]
 
 REQUIRED = ("t", "z", "z_ref")
 MAX_ALTITUDE = 1e6  # m: the largest |z|, |z_ref| (and |u|, m/s) accepted; beyond it is garbage, not a flight
@@ -60,6 +61,56 @@ def _out_of_range(key: str, v: float) -> str | None:
 
 class LogError(InvalidValueError):
     """A flight log that cannot be used, with the file and row named."""
+
+
+def read_csv_rows(path: Path) -> tuple[list[str], list[tuple[list[str], int]]]:
+    """A CSV file's header and its non-blank rows, each with the file line it starts on.
+
+    The file must be UTF-8 text (a byte-order mark and ``\r\n`` line ends, as spreadsheets save, are fine)
+    separated by commas: a semicolon- or tab-separated header is refused with an error saying the separator
+    must be a comma (it is not guessed, so a decimal comma is never misread).
+
+    Raises
+    ------
+    LogError
+        A file that cannot be read, is not UTF-8 text, is empty, is not comma-separated or is not a readable CSV.
+    """
+    name = str(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise LogError(f"{name}: cannot be read ({exc.strerror or exc})") from None
+    try:
+        text = data.decode("utf-8-sig")  # (drops the byte-order mark a spreadsheet writes)
+    except UnicodeDecodeError as exc:
+        raise LogError(f"{name} is not a UTF-8 text CSV (byte {exc.start} is {data[exc.start]:#04x}); "
+                       "save it as CSV UTF-8") from None
+    if "\x00" in text:
+        raise LogError(f"{name} is not a UTF-8 text CSV (it holds NUL bytes at byte {data.index(0)}): a "
+                       "binary file?")
+    reader = csv.reader(io.StringIO(text, newline=""))  # (newline="": the reader takes \n, \r\n and \r)
+    records: list[tuple[list[str], int]] = []
+    try:
+        try:
+            header = [h.strip() for h in next(reader)]
+        except StopIteration:
+            raise LogError(f"{name}: the file is empty") from None
+        if len(header) == 1:
+            for sep, what in ((";", "semicolons"), ("\t", "tabs")):
+                if sep in header[0]:
+                    raise LogError(f"{name}: the header {header[0][:60]!r} is separated by {what}; the "
+                                   "separator must be a comma (save as CSV with commas)")
+        while True:
+            lineno = reader.line_num + 1  # the file row (line) this record starts on
+            try:
+                row = next(reader)
+            except StopIteration:
+                break
+            if row and any(c.strip() for c in row):
+                records.append((row, lineno))
+    except csv.Error as exc:  # e.g. a field longer than the csv module's limit
+        raise LogError(f"{name}: row {reader.line_num}: not a readable CSV ({exc})") from None
+    return header, records
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -217,79 +268,48 @@ class FlightLog:
         """
         path = Path(path)
         name = str(path)
-        try:
-            data = path.read_bytes()
-        except OSError as exc:
-            raise LogError(f"{name}: cannot be read ({exc.strerror or exc})") from None
-        try:
-            text = data.decode("utf-8-sig")  # (drops the byte-order mark a spreadsheet writes)
-        except UnicodeDecodeError as exc:
-            raise LogError(f"{name} is not a UTF-8 text CSV (byte {exc.start} is {data[exc.start]:#04x}); "
-                           "save it as CSV UTF-8") from None
-        if "\x00" in text:
-            raise LogError(f"{name} is not a UTF-8 text CSV (it holds NUL bytes at byte {data.index(0)}): a "
-                           "binary file?")
-        reader = csv.reader(io.StringIO(text, newline=""))  # (newline="": the reader takes \n, \r\n and \r)
-        try:
-            try:
-                header = [h.strip() for h in next(reader)]
-            except StopIteration:
-                raise LogError(f"{name}: the file is empty") from None
-            if len(header) == 1:
-                for sep, what in ((";", "semicolons"), ("\t", "tabs")):
-                    if sep in header[0]:
-                        raise LogError(f"{name}: the header {header[0][:60]!r} is separated by {what}; the "
-                                       "separator must be a comma (save as CSV with commas)")
-            mapping = {k: k for k in (*REQUIRED, "u")}
-            mapping.update(columns or {})
-            idx: dict[str, int] = {}
-            for ours, theirs in mapping.items():
-                if theirs in header:
-                    idx[ours] = header.index(theirs)
-                elif ours in ("t", "z"):
-                    raise LogError(f"{name}: missing column {theirs!r} (header: {', '.join(header)})")
-            if "z_ref" not in idx and "step_time" not in kwargs:
-                raise LogError(f"{name}: missing column {mapping['z_ref']!r} (header: {', '.join(header)}); "
-                               "without it give the step time and size")
-            rows: dict[str, list[float]] = {k: [] for k in idx}
-            others = [h for h in header if h not in {mapping[k] for k in idx}]
-            extra: dict[str, list[str]] = {h: [] for h in others}
-            skipped = 0
-            linenos: list[int] = []
-            while True:
-                lineno = reader.line_num + 1  # the file row (line) this record starts on
+        header, records = read_csv_rows(path)
+        mapping = {k: k for k in (*REQUIRED, "u")}
+        mapping.update(columns or {})
+        idx: dict[str, int] = {}
+        for ours, theirs in mapping.items():
+            if theirs in header:
+                idx[ours] = header.index(theirs)
+            elif ours in ("t", "z"):
+                raise LogError(f"{name}: missing column {theirs!r} (header: {', '.join(header)})")
+        if "z_ref" not in idx and "step_time" not in kwargs:
+            raise LogError(f"{name}: missing column {mapping['z_ref']!r} (header: {', '.join(header)}); "
+                           "without it give the step time and size")
+        rows: dict[str, list[float]] = {k: [] for k in idx}
+        others = [h for h in header if h not in {mapping[k] for k in idx}]
+        extra: dict[str, list[str]] = {h: [] for h in others}
+        skipped = 0
+        linenos: list[int] = []
+        for row, lineno in records:
+            vals = {}
+            bad = None
+            for k, j in idx.items():
+                cell = row[j].strip() if j < len(row) else ""
                 try:
-                    row = next(reader)
-                except StopIteration:
+                    v = float(cell)
+                except ValueError:
+                    bad = f"{k} is {cell[:40]!r}, not a number"
                     break
-                if not row or all(not c.strip() for c in row):
-                    continue
-                vals = {}
-                bad = None
-                for k, j in idx.items():
-                    cell = row[j].strip() if j < len(row) else ""
-                    try:
-                        v = float(cell)
-                    except ValueError:
-                        bad = f"{k} is {cell[:40]!r}, not a number"
-                        break
-                    bad = _out_of_range(k, v)
-                    if bad:
-                        break
-                    vals[k] = v
+                bad = _out_of_range(k, v)
                 if bad:
-                    if skip_bad:
-                        skipped += 1
-                        continue
-                    raise LogError(f"{name}: row {lineno}: {bad}")
-                for k, v in vals.items():
-                    rows[k].append(v)
-                linenos.append(lineno)
-                for h in others:
-                    j = header.index(h)
-                    extra[h].append(row[j] if j < len(row) else "")
-        except csv.Error as exc:  # e.g. a field longer than the csv module's limit
-            raise LogError(f"{name}: row {reader.line_num}: not a readable CSV ({exc})") from None
+                    break
+                vals[k] = v
+            if bad:
+                if skip_bad:
+                    skipped += 1
+                    continue
+                raise LogError(f"{name}: row {lineno}: {bad}")
+            for k, v in vals.items():
+                rows[k].append(v)
+            linenos.append(lineno)
+            for h in others:
+                j = header.index(h)
+                extra[h].append(row[j] if j < len(row) else "")
         if not rows["t"]:
             raise LogError(f"{name}: no data rows")
         arrays = {k: np.array(v) for k, v in rows.items()}

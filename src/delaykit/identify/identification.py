@@ -39,11 +39,12 @@ from scipy import stats
 from scipy.optimize import least_squares
 
 from ..errors import InvalidTypeError, InvalidValueError
+from ..models.altitude import as_loop
 from ..models.loop import Loop
 from ..models.transfer import TransferFunction
 from ..simulate.discrete import closed_loop_response, held_delay_model, held_response
 from .iodata import Experiment
-from .noise import ARNoise, ar_covariance, cross_correlation, fit_ar, ljung_box
+from .noise import ar_covariance, cross_correlation, fit_ar, ljung_box
 from .structures import STRUCTURES, Structure, structure
 
 __all__ = ["IdentifiedModel", "Candidate", "LogFit", "Prediction", "identify", "predict", "simulate_experiment",
@@ -71,11 +72,7 @@ class _Law:
 def _law(loop: Loop | None) -> _Law | None:
     if loop is None:
         return None
-    if not isinstance(loop, Loop):
-        to_loop = getattr(loop, "to_loop", None)
-        if to_loop is None:
-            raise InvalidTypeError(f"loop must be a Loop, got {type(loop).__name__}")
-        loop = to_loop()
+    loop = as_loop(loop)
     c = loop.controller
     static = c.kind in ("p", "pv") and not c.filtered
     if not static:
@@ -136,7 +133,8 @@ def _prepare(exp: Experiment, outputs: tuple[str, ...], rate: str | None, law: _
         r0 = exp.drive_baseline
         y0 = base[outputs[0]]
         u0 = min(max(law.kp * (r0 - y0), law.umin), law.umax)
-        drive = exp.r - r0 + (r0 - y0) - (u0 / law.kp if law.kp else 0.0)  # type: ignore[operator]
+        # u - u0 = clip(kp (r - y), umin, umax) - u0 = clip(kp (r - y0 - u0 / kp - (y - y0)), umin - u0, umax - u0)
+        drive = exp.r - y0 - (u0 / law.kp if law.kp else 0.0)  # type: ignore[operator]
         lo, hi = law.umin - u0, law.umax - u0
     return _Prepared(exp, outputs, rate, np.ascontiguousarray(drive), lo, hi, meas, keep, base, wander)
 
@@ -351,11 +349,15 @@ class _Problem:
         per = int(self.fit_bias) + (int(self.fit_offset) * len(self.preps[0].outputs))
         return per * len(self.preps)
 
+    def weighted(self, p: np.ndarray) -> np.ndarray:
+        """All residual blocks, each divided by its output's weight, in one vector."""
+        return np.concatenate([r / self.w[o] for _, o, r in self.blocks(p)])
+
     def residuals(self, z: np.ndarray) -> np.ndarray:
         p = self.to_phys(z)
         with np.errstate(all="ignore"):  # a trial point far out may overflow: it is rejected by its cost
             try:
-                r = np.concatenate([r / self.w[o] for _, o, r in self.blocks(p)]) if np.all(np.isfinite(p)) else None
+                r = self.weighted(p) if np.all(np.isfinite(p)) else None
             except (InvalidValueError, np.linalg.LinAlgError, ValueError):
                 r = None
         if r is None or not np.all(np.isfinite(r)):
@@ -443,9 +445,9 @@ def _with_best_gain(prob: _Problem, p: np.ndarray) -> tuple[np.ndarray, float]:
         return p, float(np.dot(r, r))
     p[0] = 0.0
     with np.errstate(all="ignore"):
-        r0 = np.concatenate([r / prob.w[o] for _, o, r in prob.blocks(p)])
+        r0 = prob.weighted(p)
         p[0] = 1.0
-        d = np.concatenate([r / prob.w[o] for _, o, r in prob.blocks(p)]) - r0
+        d = prob.weighted(p) - r0
     dd = float(np.dot(d, d))
     if not np.isfinite(dd) or dd == 0.0:
         return p, math.inf
@@ -571,23 +573,21 @@ def _fit_structure(st: Structure, preps: list[_Prepared], law: _Law | None, fit_
 
 
 def _jacobian(prob: _Problem, p: np.ndarray) -> np.ndarray:
+    """Sensitivities of the weighted residuals to the physical parameters, by central differences (one-sided for
+    a delay at its bound 0)."""
     cols = []
+    last = p.size - 1
     for i in range(p.size):
         h = 1e-6 * max(abs(p[i]), 1e-3)
-        if i == p.size - 1:
+        if i == last:
             h = max(h, 1e-7)
         a, b = p.copy(), p.copy()
         a[i] += h
         b[i] -= h
-        if b[i] < 0 and i == p.size - 1:
-            b[i] = p[i]
-            ra = np.concatenate([r / prob.w[o] for _, o, r in prob.blocks(a)])
-            rb = np.concatenate([r / prob.w[o] for _, o, r in prob.blocks(b)])
-            cols.append((ra - rb) / h)
-            continue
-        ra = np.concatenate([r / prob.w[o] for _, o, r in prob.blocks(a)])
-        rb = np.concatenate([r / prob.w[o] for _, o, r in prob.blocks(b)])
-        cols.append((ra - rb) / (2 * h))
+        width = 2 * h
+        if i == last and b[i] < 0:
+            b[i], width = p[i], h
+        cols.append((prob.weighted(a) - prob.weighted(b)) / width)
     # residual = measured - model, so d(residual)/dp = -d(model)/dp; the sign does not matter for covariances
     return np.column_stack(cols)
 

@@ -21,8 +21,6 @@ Experiment('demo': 20 samples every 0.5 s, input u, output y, moves at 1 s)
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -30,7 +28,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError
-from .flightlog import LogError
+from .flightlog import LogError, read_csv_rows
 
 __all__ = ["Experiment", "read_experiment", "CLOCK_TOLERANCE"]
 
@@ -191,41 +189,6 @@ def _array(name: str, col: str, values: Any, n: int | None = None) -> np.ndarray
     return a
 
 
-def _read_csv(path: Path) -> tuple[list[str], list[list[str]], list[int]]:
-    name = str(path)
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise LogError(f"{name}: cannot be read ({exc.strerror or exc})") from None
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise LogError(f"{name} is not a UTF-8 text CSV (byte {exc.start} is {data[exc.start]:#04x})") from None
-    if "\x00" in text:
-        raise LogError(f"{name} is not a UTF-8 text CSV (it holds NUL bytes): a binary file?")
-    reader = csv.reader(io.StringIO(text, newline=""))
-    try:
-        try:
-            header = [h.strip() for h in next(reader)]
-        except StopIteration:
-            raise LogError(f"{name}: the file is empty") from None
-        if len(header) == 1 and any(sep in header[0] for sep in ";\t"):
-            raise LogError(f"{name}: the header {header[0][:60]!r} is not separated by commas")
-        rows, lines = [], []
-        while True:
-            line = reader.line_num + 1
-            try:
-                row = next(reader)
-            except StopIteration:
-                break
-            if row and any(c.strip() for c in row):
-                rows.append(row)
-                lines.append(line)
-    except csv.Error as exc:
-        raise LogError(f"{name}: row {reader.line_num}: not a readable CSV ({exc})") from None
-    return header, rows, lines
-
-
 def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input: str | None = None,  # noqa: A002
                     reference: str | None = None, time: str = "t", u_before: float | None = None) -> Experiment:
     """Read one log from a CSV file with a header row.
@@ -263,13 +226,13 @@ def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input:
     name = path.name
     if isinstance(outputs, str):
         outputs = [outputs]
-    header, rows, lines = _read_csv(path)
+    header, records = read_csv_rows(path)
     wanted = [time, *outputs] + ([input] if input else []) + ([reference] if reference else [])
     for col in wanted:
         if col not in header:
             raise LogError(f"{path}: missing column {col!r} (header: {', '.join(header)})")
     cols: dict[str, list[float]] = {c: [] for c in wanted}
-    for row, line in zip(rows, lines):
+    for row, line in records:
         for c in wanted:
             j = header.index(c)
             cell = row[j].strip() if j < len(row) else ""

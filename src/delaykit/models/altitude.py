@@ -31,14 +31,14 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
-from ..errors import InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real
 from .loop import check_sampling
 from .quasipolynomial import QuasiPolynomial
 
 if TYPE_CHECKING:
     from .loop import Loop
 
-__all__ = ["AltitudeLoop", "VELOCITY_CHOICES", "PAPER_PERIOD"]
+__all__ = ["AltitudeLoop", "VELOCITY_CHOICES", "PAPER_PERIOD", "as_loop"]
 
 VELOCITY_CHOICES = ("true", "filtered")
 PAPER_PERIOD = 0.065
@@ -215,3 +215,20 @@ class AltitudeLoop:
             else "continuous"
         )
         return f"AltitudeLoop({', '.join(parts)})"
+
+
+def as_loop(loop: Any) -> "Loop":
+    """The general :class:`~delaykit.models.loop.Loop` of a loop object (an ``AltitudeLoop`` is a preset).
+
+    Examples
+    --------
+    >>> as_loop(AltitudeLoop(kp=1.31, delay=0.368)).plant.to_string()
+    '1/s'
+    """
+    from .loop import Loop
+
+    if isinstance(loop, Loop):
+        return loop
+    if isinstance(loop, AltitudeLoop):
+        return loop.to_loop()
+    raise InvalidTypeError(f"loop must be a Loop or an AltitudeLoop, got {type(loop).__name__}")

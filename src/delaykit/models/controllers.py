@@ -38,7 +38,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidValueError, check_real
 from .transfer import TransferFunction
 
 __all__ = ["Controller", "Realisation", "CONTROLLER_KINDS", "ANTIWINDUP_CHOICES", "VELOCITY_CHOICES"]

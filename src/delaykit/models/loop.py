@@ -185,9 +185,20 @@ class Loop:
             raise InvalidValueError(
                 f"a sampled controller (period {self.period:g} s) has no quasi-polynomial characteristic "
                 "function; use the continuous loop (period=None) for roots")
+        num, den = self.open_loop()
+        return QuasiPolynomial([den, num], [0.0, self.total_delay])
+
+    def open_loop(self) -> tuple[np.ndarray, np.ndarray]:
+        """Numerator and denominator of the loop transfer function without its delay, broken at the plant
+        input: ``L(s) exp(s (Ti + To)) = Np(s) Nc(s) / (Dp(s) Dc(s))`` (saturation and sampling ignored).
+
+        Examples
+        --------
+        >>> [c.tolist() for c in Loop("1/s", Controller.pv(2.0, 0.3)).open_loop()]
+        [[0.3, 2.0], [1.0, 0.0]]
+        """
         nc, dc = self.controller.feedback_polynomials()
-        p = self.plant
-        return QuasiPolynomial([np.polymul(p.den, dc), np.polymul(p.num, nc)], [0.0, self.total_delay])
+        return np.polymul(self.plant.num, nc), np.polymul(self.plant.den, dc)
 
     # -- input and output -------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:

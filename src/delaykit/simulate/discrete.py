@@ -35,9 +35,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
-from scipy.linalg import expm
 
 from ..errors import InvalidValueError, check_real
+from ..models.hold import hold_matrices, split_delay
 from ..models.transfer import TransferFunction
 
 __all__ = ["HeldDelayModel", "HeldResponse", "held_delay_model", "held_response", "closed_loop_response"]
@@ -120,12 +120,8 @@ def _phi_gamma(A: np.ndarray, B: np.ndarray, t: float) -> tuple[np.ndarray, np.n
     if A.shape[0] == 0:
         return np.zeros((0, 0)), np.zeros(0)
     if np.abs(A).sum() * t > 1e3:  # far from what the compiled series is meant for: SciPy's Pade method
-        n = A.shape[0]
-        M = np.zeros((n + 1, n + 1))
-        M[:n, :n] = A * t
-        M[:n, n] = B * t
-        E = expm(M)
-        return E[:n, :n], E[:n, n]
+        E, J = hold_matrices(A, B[:, None], t)
+        return E, J[:, 0]
     return _phi_gamma_fast(np.ascontiguousarray(A, dtype=float), np.ascontiguousarray(B, dtype=float), float(t))
 
 
@@ -155,10 +151,7 @@ def held_delay_model(plant: TransferFunction, period: float, delay: float = 0.0)
     if not isinstance(plant, TransferFunction):
         raise InvalidValueError(f"plant must be a TransferFunction, got {type(plant).__name__}")
     A, B, C, D = plant.state_space()
-    m = int(math.floor(T / h + 1e-12))
-    f = T - m * h
-    if f < 1e-12 * h:
-        f = 0.0
+    m, f = split_delay(T, h)
     phi_h, gam_h = _phi_gamma(A, B, h)
     if f > 0.0:
         phi_r, gam_r = _phi_gamma(A, B, h - f)

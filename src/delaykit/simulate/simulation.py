@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
-from ..models.altitude import AltitudeLoop
+from ..models.altitude import AltitudeLoop, as_loop
 from ..models.loop import Loop
 from ..models.signals import LoadStep, Ramp, Samples, Step, as_reference
 from . import _kernel as K
@@ -39,21 +39,6 @@ _CAP_MAX = 1 << 22
 _NO_T = np.empty(0)
 SWEEPABLE = ("kp", "ki", "kd", "kv", "delay", "output_delay", "umin", "umax", "vmax", "step", "sample_offset")
 """The parameters :func:`simulate_many` sweeps (arrays broadcast together)."""
-
-
-def as_loop(loop: Any) -> Loop:
-    """The general :class:`~delaykit.models.loop.Loop` of a loop object (an ``AltitudeLoop`` is a preset).
-
-    Examples
-    --------
-    >>> as_loop(AltitudeLoop(kp=1.31, delay=0.368)).plant.to_string()
-    '1/s'
-    """
-    if isinstance(loop, Loop):
-        return loop
-    if isinstance(loop, AltitudeLoop):
-        return loop.to_loop()
-    raise InvalidTypeError(f"loop must be a Loop or an AltitudeLoop, got {type(loop).__name__}")
 
 
 # -- parameter rows ---------------------------------------------------------------------------------------

@@ -55,11 +55,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.linalg import expm
 from scipy.optimize import brentq, minimize_scalar
 
 from ..errors import InvalidTypeError, InvalidValueError
-from ..models.altitude import AltitudeLoop
+from ..models.altitude import AltitudeLoop, as_loop
+from ..models.hold import hold_matrices, split_delay
 from ..models.loop import Loop
 from .stability import delay_margin as _continuous_delay_margin
 from .stability import rightmost
@@ -71,20 +71,11 @@ __all__ = ["SampledModel", "SampledSpectrum", "SampledCrossover", "SampledMargin
 MAX_ORDER = 2000
 """The largest lifted state (plant + controller + held commands) built; a longer delay-to-period ratio is refused."""
 
-_SNAP = 1e-9  # a delay within this fraction of a period from a multiple of it is that multiple
 _GAIN_SCAN_MAX = 1e6
 
 
-def _as_loop(loop: Any) -> Loop:
-    if isinstance(loop, Loop):
-        return loop
-    if isinstance(loop, AltitudeLoop):
-        return loop.to_loop()
-    raise InvalidTypeError(f"loop must be a Loop or an AltitudeLoop, got {type(loop).__name__}")
-
-
 def _sampled_loop(loop: Any, what: str) -> Loop:
-    lp = _as_loop(loop)
+    lp = as_loop(loop)
     if not lp.sampled:
         raise InvalidValueError(
             f"{what} needs a sampled loop (period set, in s); this loop is continuous (period=None): use "
@@ -138,28 +129,6 @@ class SampledModel:
                 f"h = {self.period:g} s)")
 
 
-def _exp_parts(F: np.ndarray, G: np.ndarray, tau: float) -> tuple[np.ndarray, np.ndarray]:
-    """``e^{F tau}`` and ``int_0^tau e^{F s} ds G`` (columns of ``G``), from one augmented exponential."""
-    n, k = F.shape[0], G.shape[1]
-    if tau == 0.0:
-        return np.eye(n), np.zeros((n, k))
-    M = np.zeros((n + k, n + k))
-    M[:n, :n] = F
-    M[:n, n:] = G
-    X = expm(M * tau)
-    return X[:n, :n], X[:n, n:]
-
-
-def _split_delay(total: float, h: float) -> tuple[int, float]:
-    m = math.floor(total / h)
-    f = total - m * h
-    if f < _SNAP * h:
-        f = 0.0
-    elif h - f < _SNAP * h:
-        m, f = m + 1, 0.0
-    return m, f
-
-
 def sampled_model(loop: Loop | AltitudeLoop) -> SampledModel:
     """The exact discrete-time model of a sampled loop, linearised (saturation ignored).
 
@@ -211,7 +180,7 @@ def sampled_model(loop: Loop | AltitudeLoop) -> SampledModel:
     Gr = np.r_[np.zeros(n), rz.Bcr]
     kx = np.r_[rz.dvy * C + rz.dvv * CA, rz.Cc]
     kl = rz.dvy * D + rz.dvv * CB  # the sample's dependence on the plant input at the left limit
-    m, f = _split_delay(lp.total_delay, h)
+    m, f = split_delay(lp.total_delay, h)
     p = m + 1 if (f > 0.0 or kl != 0.0) else m
     N = nx + p
     if N > MAX_ORDER:
@@ -219,8 +188,8 @@ def sampled_model(loop: Loop | AltitudeLoop) -> SampledModel:
             f"the total delay {lp.total_delay:g} s is {m} periods of {h:g} s: the lifted state would have {N} "
             f"entries, more than {MAX_ORDER}; use a longer period or the continuous loop")
     GG = np.column_stack([G, Gr]) if nx else np.zeros((0, 2))
-    Ef, Jf = _exp_parts(F, GG, f)
-    Eg, Jg = _exp_parts(F, GG, h - f)
+    Ef, Jf = hold_matrices(F, GG, f)
+    Eg, Jg = hold_matrices(F, GG, h - f)
     E = Eg @ Ef
     G1 = Eg @ Jf[:, 0]
     G2 = Jg[:, 0]
