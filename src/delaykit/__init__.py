@@ -25,6 +25,8 @@ __all__ = [
     "BatchMetrics", "PAPER_PERIOD",
     "QuasiPolynomial", "Response", "SecondOrder", "StepMetrics", "noise_level", "simulate", "simulate_many",
     "step_metrics", "RootStatus",
+    "frequency_response", "frequency_grid", "margins", "FrequencyResponse", "Margins", "Crossover", "to_control",
+    "pade_error", "PadeError",
     "sampled_spectrum", "sampled_margins", "compare_sampling", "sampled_frequency_response",
     # every exception class of the package (all derive from DelaykitError)
     "DelaykitError", "InvalidTypeError", "InvalidValueError", "RangeSpecError", "PortError", "PortNumberError",
@@ -42,6 +44,10 @@ _LAZY = {
     "TransferFunction": ".models.transfer", "SecondOrder": ".simulate.metrics", "StepMetrics": ".simulate.metrics",
     "noise_level": ".simulate.metrics", "step_metrics": ".simulate.metrics", "BatchMetrics": ".simulate.simulation",
     "Response": ".simulate.simulation", "simulate_many": ".simulate.simulation", "RootStatus": ".spectrum.roots",
+    "frequency_response": ".spectrum.frequency", "frequency_grid": ".spectrum.frequency",
+    "margins": ".spectrum.frequency", "FrequencyResponse": ".spectrum.frequency", "Margins": ".spectrum.frequency",
+    "Crossover": ".spectrum.frequency", "to_control": ".models.interop", "pade_error": ".models.interop",
+    "PadeError": ".models.interop",
     "sampled_spectrum": ".spectrum.sampled", "sampled_margins": ".spectrum.sampled",
     "compare_sampling": ".spectrum.sampled", "sampled_frequency_response": ".spectrum.sampled",
     # exception classes defined beside the code that raises them (also re-exported by delaykit.errors)

@@ -386,6 +386,95 @@ def roots(
                   "Kv >= 1): it cannot be stable whatever its other gains.")
 
 
+@app.command()
+@_friendly
+@with_loop
+def margins(
+    wmin: Optional[float] = typer.Option(None, "--wmin", help="Lowest frequency of the plot, rad/s (default: from the loop)."),
+    wmax: Optional[float] = typer.Option(None, "--wmax", help="Highest frequency of the plot, rad/s (default: from the loop)."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Write a Bode plot, with the Nyquist plot beside it, here."),
+    loop: Any = None,
+    delays: Any = None,
+) -> None:
+    """Gain, phase and delay margins, peak sensitivity and every crossover of a continuous loop, exact with the delay.
+
+    Any continuous loop (the loop options or --loop); saturation is ignored (the linearised loop).  Stability comes
+    from the exact characteristic roots; an unstable closed loop gets no margins.  A sampled loop (--period) is
+    refused: its margins are those of a discrete-time loop.
+    """
+    from ..spectrum.frequency import frequency_grid, frequency_response
+    from ..spectrum.frequency import margins as loop_margins
+
+    if len(delays) > 1:
+        raise InvalidValueError("margins takes one --delay, not a sweep")
+    lo = None if wmin is None else check_real("--wmin", wmin, minimum=0.0, strict=True)
+    hi = None if wmax is None else check_real("--wmax", wmax, minimum=0.0, strict=True)
+    if lo is not None and hi is not None and not lo < hi:
+        raise InvalidValueError(f"--wmin {lo:g} must be below --wmax {hi:g} (rad/s): the frequency range is "
+                                f"{'empty' if lo == hi else 'reversed'}")
+    m = loop_margins(loop)
+    if plot is not None or lo is not None or hi is not None:
+        w = frequency_grid(loop, 1000, wmin=lo, wmax=hi)  # checks a range given at one end against the other
+    if plot is not None:
+        from matplotlib.figure import Figure
+
+        from ..plotting.frequency import plot_bode, plot_nyquist
+
+        resp = frequency_response(loop, w)
+        fig = Figure(figsize=(12.0, 6.0), layout="constrained")
+        grid = fig.add_gridspec(2, 2)
+        ax_mag = fig.add_subplot(grid[0, 0])
+        ax_ph = fig.add_subplot(grid[1, 0], sharex=ax_mag)
+        plot_bode(resp, axes=(ax_mag, ax_ph), margins=m)
+        plot_nyquist(resp, ax=fig.add_subplot(grid[:, 1]))
+        fig.suptitle(repr(loop), fontsize=9)
+        plot.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(plot, dpi=120)
+    if as_json:
+        print(json.dumps(m.to_dict(), indent=2))
+        return
+
+    def at(w: Optional[float]) -> str:
+        return "" if w is None else " at ∞" if math.isinf(w) else f" at {w:.6g} rad/s"
+
+    table = Table(title=f"Margins of {loop!r}")
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    why = {"roots": "its characteristic roots", "nyquist": "the Nyquist count",
+           "neutral chains": "neutral root chains at Re s = ln|L(j∞)|/T ≥ 0"}
+    why = why.get(m.stability_from, m.stability_from)
+    table.add_row("closed loop", f"{'stable' if m.stable else 'UNSTABLE'} (from {why})")
+    if m.stable:
+        table.add_row("gain margin", "∞" if math.isinf(m.gain_margin) else
+                      f"{m.gain_margin:.6g} ({m.gain_margin_db:.4f} dB){at(m.phase_crossover)}")
+        if m.lower_gain_margin > 0:
+            low_db = 20 * math.log10(m.lower_gain_margin)
+            table.add_row("lower gain margin", f"{m.lower_gain_margin:.6g} ({low_db:.4f} dB)")
+        table.add_row("phase margin", "∞" if math.isinf(m.phase_margin) else f"{m.phase_margin:.4f}°")
+        table.add_row("delay margin (extra)", "∞" if math.isinf(m.delay_margin) else
+                      f"{m.delay_margin:.6g} s{at(m.crossover)}")
+        table.add_row("critical delay (total)", "∞" if math.isinf(m.critical_delay) else f"{m.critical_delay:.6g} s")
+        table.add_row("peak sensitivity Ms", f"{m.ms:.6g}{at(m.ms_frequency)}")
+    table.add_row("open-loop RHP poles P", str(m.open_loop_rhp_poles))
+    table.add_row("encirclements of -1 (ccw)", "–" if m.encirclements is None else str(m.encirclements))
+    out.print(table)
+    cross = Table(title=f"crossovers up to {m.cutoff:.6g} rad/s")
+    for col in ("kind", "ω (rad/s)", "|L|", "phase (deg)", "gives"):
+        cross.add_column(col, justify="right")
+    shown = 12
+    for c in m.crossovers[:shown]:
+        gives = (f"PM {c.phase_margin:.4f}°, DM {c.delay_margin:.6g} s" if c.kind == "gain"
+                 else f"gain factor {c.gain_margin:.6g}")
+        phase = "–" if math.isnan(c.phase_deg) else f"{c.phase_deg:.4f}"
+        cross.add_row(c.kind, "∞" if math.isinf(c.frequency) else f"{c.frequency:.6g}", f"{c.magnitude:.6g}", phase,
+                      gives)
+    out.print(cross)
+    if len(m.crossovers) > shown:
+        out.print(f"… and {len(m.crossovers) - shown} more phase crossovers (--json lists them all).",
+                  highlight=False)
+
+
 def _parse_branches(spec: str) -> list[int]:
     try:
         if ":" in spec:

@@ -61,6 +61,7 @@ from ..errors import InvalidTypeError, InvalidValueError
 from ..models.altitude import AltitudeLoop, as_loop
 from ..models.hold import hold_matrices, split_delay
 from ..models.loop import Loop
+from .frequency import _jsonable
 from .stability import delay_margin as _continuous_delay_margin
 from .stability import rightmost
 
@@ -390,17 +391,6 @@ def sampled_frequency_response(loop: Loop | AltitudeLoop, w: Any) -> Any:
 
 
 # -- margins ---------------------------------------------------------------------------------------------------
-def _jsonable(x: Any) -> Any:
-    """``x`` with every infinite or NaN float replaced by ``None`` (JSON's null), recursively."""
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    return x
-
-
 @dataclass(frozen=True, repr=False)
 class SampledCrossover:
     """A crossover of the discrete open loop ``L(e^{j w h})``: ``kind`` ``"gain"`` (``|L| = 1``) or ``"phase"``

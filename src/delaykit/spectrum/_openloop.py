@@ -1,0 +1,401 @@
+"""The exact open-loop frequency response of a continuous delay loop, and the crossings of its Nyquist curve.
+
+Private machinery of :mod:`delaykit.spectrum.frequency` (which documents the method): :class:`OpenLoop` holds
+``L(s) = N(s) / D(s) exp(-s T)`` with the roots of ``N`` and ``D``, evaluates ``L(jw)``, its unwrapped phase (a
+sum of the angles of the root factors minus ``w T``) and the phase's derivative; :func:`gain_crossovers` finds
+``|L(jw)| = 1`` from a polynomial in ``w^2``; :func:`scan_phase` finds the phase crossovers on a dense grid and
+counts the encirclements of -1; :func:`cutoff_frequency` and :func:`dense_grid` choose where to look.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..errors import InvalidValueError
+from ..models.loop import Loop
+
+__all__ = ["OpenLoop", "PhaseScan", "gain_crossovers", "scan_phase", "cutoff_frequency", "dense_grid",
+           "positive_real_roots", "snap_half_turns", "TWO_PI"]
+
+_AXIS_TOL = 1e-9  # a root with |Re r| <= _AXIS_TOL |r| is taken to lie on the imaginary axis
+_LEVEL_TOL = 1e-11  # phases within this many (relative) half-turns of an odd multiple of pi are on it
+_PER_DECADE = 100
+_MAX_PHASE_CROSSOVERS = 10_000
+TWO_PI = 2.0 * math.pi
+
+
+def _trim(p: np.ndarray) -> np.ndarray:
+    """Leading zeros stripped (an empty array for the zero polynomial)."""
+    nz = np.flatnonzero(p)
+    return p[nz[0]:] if nz.size else p[:0]
+
+
+def _nonzero_roots(polys: Sequence[np.ndarray]) -> tuple[np.ndarray, int]:
+    """The roots other than 0 of the product of ``polys`` (each factored on its own), and how many are 0."""
+    roots: list[complex] = []
+    zeros = 0
+    for p in polys:
+        c = [float(x) for x in p]  # a few coefficients: plain Python is faster than NumPy here
+        while c and c[0] == 0:
+            c.pop(0)
+        while len(c) > 1 and c[-1] == 0:
+            c.pop()
+            zeros += 1
+        if len(c) == 2:
+            roots.append(complex(-c[1] / c[0]))
+        elif len(c) == 3:  # the quadratic formula, without cancellation, and exact conjugates
+            a, b, d = c
+            disc = b * b - 4 * a * d
+            if disc < 0:
+                z = complex(-b / (2 * a), math.sqrt(-disc) / (2 * abs(a)))
+                roots += [z, z.conjugate()]
+            else:
+                q = -0.5 * (b + math.copysign(math.sqrt(disc), b))
+                roots += [complex(q / a), complex(d / q if q != 0 else q / a)]
+        elif len(c) > 3:
+            roots += [complex(z) for z in np.roots(c)]
+    snapped = [complex(0.0, z.imag) if abs(z.real) <= _AXIS_TOL * abs(z) else z for z in roots]
+    zeros += sum(z == 0 for z in snapped)  # a root at rounding level of 0 is one
+    return np.array([z for z in snapped if z != 0], complex), zeros
+
+
+class OpenLoop:
+    """``L(jw)`` of a continuous loop, its exact unwrapped phase and the phase's derivative."""
+
+    def __init__(self, loop: Loop) -> None:
+        nc, dc = loop.controller.feedback_polynomials()
+        p = loop.plant
+        num, den = loop.open_loop()
+        self.num = _trim(num)
+        self.den = _trim(den)
+        self.T = float(loop.total_delay)
+        self.zero = self.num.size == 0 or not self.num.any()
+        if self.zero:
+            self.num = np.zeros(1)
+        self.zr, self.z0 = _nonzero_roots([p.num, nc])
+        self.pr, self.p0 = _nonzero_roots([p.den, dc])
+        self.integrators = self.p0 - self.z0  # net poles at s = 0
+        self.k_term = 0.0 if self.zero or self.num[0] / self.den[0] > 0 else -math.pi
+        # |L(j inf)|: nonzero only for a biproper loop
+        self.l_inf = abs(self.num[0] / self.den[0]) if self.num.size == self.den.size and not self.zero else 0.0
+        self.zparts, self.pparts = self._split(self.zr), self._split(self.pr)
+        self.offset = 0.0
+        raw0 = float(self.phase(np.zeros(1))[0])
+        self.offset = TWO_PI * round((-self.integrators * math.pi / 2 - raw0) / TWO_PI)
+
+    # -- values -------------------------------------------------------------------------------------
+    def value(self, w: np.ndarray) -> np.ndarray:
+        s = 1j * np.asarray(w, float)
+        with np.errstate(all="ignore"):
+            return np.polyval(self.num, s) / np.polyval(self.den, s) * np.exp(-s * self.T)
+
+    @staticmethod
+    def _split(r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The roots as single real roots, quadratic factors ``s^2 + p s + q`` (``q > 0``, ``p != 0``: a complex
+        pair, or two real roots on the same side of the axis) and the frequencies ``b`` of pairs ``+-jb``."""
+        rs = [complex(x) for x in r]  # a few roots: plain Python is faster than NumPy here
+        key = lambda z: (z.real, z.imag)  # noqa: E731
+        up = sorted((z for z in rs if z.imag > 0), key=key)
+        down = sorted((z.conjugate() for z in rs if z.imag < 0), key=key)
+        if up != down:  # not exact conjugates (rounding): average each root with its nearest mirror image
+            up = [(u + min(down, key=lambda d: abs(d - u))) / 2 for u in up]
+        p = [-2.0 * z.real for z in up if z.real != 0]
+        q = [abs(z) ** 2 for z in up if z.real != 0]
+        singles: list[float] = []
+        for half in (sorted(z.real for z in rs if z.imag == 0 and z.real < 0),
+                     sorted(z.real for z in rs if z.imag == 0 and z.real > 0)):
+            for i in range(0, len(half) - 1, 2):
+                p.append(-(half[i] + half[i + 1]))
+                q.append(half[i] * half[i + 1])
+            singles += half[len(half) // 2 * 2:]
+        return (np.array(singles), np.array([p, q], float).reshape(2, -1),
+                np.array([z.imag for z in up if z.real == 0]))
+
+    def _angles(self, w: np.ndarray, parts: tuple[np.ndarray, np.ndarray, np.ndarray], side: float) -> np.ndarray:
+        """Sum of the angles of ``jw - r`` over roots ``r``, continuous in ``w >= 0`` up to a constant multiple of
+        2 pi (fixed by the offset in ``__init__``)."""
+        real, quad, axis = parts
+        out = np.zeros(w.shape)
+        if real.size:  # atan2(w, -a): in [0, pi/2) left of the axis, (pi/2, pi] right of it
+            out += np.arctan2(w[:, None], -real[None, :]).sum(axis=1)
+        if quad.shape[1]:  # (q - w^2) + j p w: the imaginary part keeps the sign of p, so no branch cut is crossed
+            out += np.arctan2(quad[0][None, :] * w[:, None], quad[1][None, :] - (w * w)[:, None]).sum(axis=1)
+        if axis.size:  # (jw)^2 + b^2 is real: angle 0 below b, pi above, side pi/2 +- pi/2 at b
+            d = w[:, None] - axis[None, :]
+            out += (math.pi / 2 * (1.0 + np.where(d > 0, 1.0, np.where(d < 0, -1.0, side)))).sum(axis=1)
+        return out
+
+    def phase(self, w: np.ndarray, side: float = 0.0) -> np.ndarray:
+        """Unwrapped phase (rad) at ``w >= 0``; at a root on the axis, its left (side=-1) or right (+1) limit."""
+        w = np.asarray(w, float)
+        return (self.offset + (self.z0 - self.p0) * math.pi / 2 + self.k_term - w * self.T
+                + self._angles(w, self.zparts, side) - self._angles(w, self.pparts, side))
+
+    def dphase(self, w: np.ndarray) -> np.ndarray:
+        """d(phase)/dw (rad s); roots on the axis contribute only their jumps, which are left out."""
+        w = np.asarray(w, float)
+        out = np.full(w.shape, -self.T)
+        for r, sign in ((self.zr, 1.0), (self.pr, -1.0)):
+            r = r[r.real != 0]
+            if r.size:
+                a, b = r.real, r.imag
+                out += sign * np.sum(-a / ((w[:, None] - b) ** 2 + a * a), axis=1)
+        return out
+
+    def phase_at_infinity(self) -> float:
+        """The limit of the phase as ``w -> inf`` without the delay's ``- w T``."""
+        def lim(parts: tuple[np.ndarray, np.ndarray, np.ndarray]) -> float:
+            real, quad, axis = parts
+            return math.pi / 2 * real.size + math.pi * float(np.sum(np.sign(quad[0]))) + math.pi * axis.size
+
+        return (self.offset + (self.z0 - self.p0) * math.pi / 2 + self.k_term + lim(self.zparts)
+                - lim(self.pparts))
+
+    # -- polynomials in x = w^2 ------------------------------------------------------------------------
+    @staticmethod
+    def _sq(p: np.ndarray) -> np.ndarray:
+        """``|p(jw)|^2`` as a polynomial in ``x = w^2``, highest power first."""
+        n = p.size - 1
+        pj = p * (1j) ** np.arange(n, -1, -1)
+        return np.polymul(pj, np.conj(pj)).real[::2]
+
+    def squares(self) -> tuple[np.ndarray, np.ndarray]:
+        a, b = self._sq(self.num), self._sq(self.den)
+        n = max(a.size, b.size)
+        return np.pad(a, (n - a.size, 0)), np.pad(b, (n - b.size, 0))
+
+
+def positive_real_roots(p: np.ndarray, scale: float) -> np.ndarray:
+    """Real roots ``x > 0`` of the polynomial ``p`` (coefficients below 1e-14 ``scale`` at the top dropped)."""
+    p = np.asarray(p, float)
+    big = np.flatnonzero(np.abs(p) > 1e-14 * scale)
+    if big.size == 0:
+        return np.zeros(0)
+    p = p[big[0]:]
+    if p.size < 2:
+        return np.zeros(0)
+    r = np.roots(p)
+    keep = (r.real > 0) & (np.abs(r.imag) <= 1e-6 * np.abs(r))
+    return np.sort(r.real[keep])
+
+
+def gain_crossovers(ol: OpenLoop, grid: np.ndarray | None = None) -> np.ndarray:
+    """Frequencies ``w > 0`` with ``|L(jw)| = 1``: roots of ``|N|^2 - |D|^2`` in ``w^2``, polished."""
+    if ol.zero:
+        return np.zeros(0)
+    a, b = ol.squares()
+    scale = max(np.abs(a).max(), np.abs(b).max())
+    if np.abs(a - b).max() <= 1e-13 * scale:
+        raise InvalidValueError("the margins are undefined: |L(jw)| = 1 at every frequency (an all-pass loop with "
+                                "unit gain), so every frequency is a gain crossover")
+    cands = list(np.sqrt(positive_real_roots(a - b, scale)))
+    if grid is not None and grid.size > 1:  # a net under the polynomial: sign changes of log|L| on the grid
+        with np.errstate(all="ignore"):
+            g = np.log(np.abs(ol.value(grid)))
+        k = np.flatnonzero(np.isfinite(g[:-1]) & np.isfinite(g[1:]) & (np.sign(g[:-1]) * np.sign(g[1:]) < 0))
+        cands += [0.5 * (grid[i] + grid[i + 1]) for i in k]
+    dn, dd = np.polyder(ol.num), np.polyder(ol.den)
+    found: list[float] = []
+    for w in cands:
+        for _ in range(60):
+            s = 1j * w
+            n, d = np.polyval(ol.num, s), np.polyval(ol.den, s)
+            if n == 0 or d == 0:
+                break
+            g = math.log(abs(n)) - math.log(abs(d))
+            gp = -(np.polyval(dn, s) / n).imag + (np.polyval(dd, s) / d).imag
+            if gp == 0 or not math.isfinite(gp):
+                break
+            step = g / gp
+            w_new = w - step
+            w = w_new if w_new > 0 else 0.5 * w
+            if abs(step) <= 1e-15 * w:
+                break
+        n, d = np.polyval(ol.num, 1j * w), np.polyval(ol.den, 1j * w)
+        if w > 0 and d != 0 and abs(math.log(abs(n) / abs(d))) < 1e-9 and \
+                not any(abs(w - f) <= 1e-9 * w for f in found):
+            found.append(float(w))
+    return np.array(sorted(found))
+
+
+def _bisect(f: Any, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Roots of the vectorised ``f`` bracketed by ``[a, b]`` (sign change or zero at an end), to rounding."""
+    a, b = a.astype(float).copy(), b.astype(float).copy()
+    if a.size == 0:
+        return a
+    fa = np.sign(f(a))
+    for _ in range(200):
+        m = 0.5 * (a + b)
+        if np.all((b - a) <= 4e-16 * np.abs(b)):
+            break
+        fm = np.sign(f(m))
+        right = (fm == fa) & (fm != 0)
+        a, fa, b = np.where(right, m, a), np.where(right, fm, fa), np.where(right, b, m)
+    return 0.5 * (a + b)
+
+
+@dataclass(frozen=True)
+class PhaseScan:
+    """What :func:`scan_phase` found: the phase crossovers as ``(w, |L|, phase in rad, direction)`` (those with
+    a finite ``|L|``), the counterclockwise encirclements of -1 (``None`` when there is no finite count) and the
+    points it used (the grid with the phase's extrema added)."""
+
+    crossings: list
+    ccw: int | None
+    grid: np.ndarray
+
+
+def scan_phase(ol: OpenLoop, grid: np.ndarray, w_hi: float) -> PhaseScan:
+    """Phase crossovers on ``[0, w_hi]`` and the Nyquist encirclement count.
+
+    See :func:`delaykit.spectrum.frequency.margins` for the counting rules.  In half-turns ``u = phase / pi``,
+    the crossovers are the odd integers crossed between consecutive points (the phase is monotone between
+    them).  An odd integer exactly at a point belongs to the interval where it is the upper end (rule A: the
+    negative real axis turned by a vanishing angle one way) for the curve ``w >= 0``, and to the interval where
+    it is the lower end (rule B, the other way, which is the mirror curve ``w <= 0`` seen from this side).
+    """
+    axis = {}  # frequency of a root on the positive imaginary axis -> net pole multiplicity
+    for r, sign in ((ol.pr, 1), (ol.zr, -1)):
+        for b in r.imag[(r.real == 0) & (r.imag > 0)]:
+            key = next((k for k in axis if abs(k - b) <= 1e-9 * b), float(b))
+            axis[key] = axis.get(key, 0) + sign
+    breaks = sorted(b for b in axis if b < w_hi)
+    edges = [0.0, *breaks, w_hi]
+    crossings: list[tuple[float, float, float, int]] = []
+    ccw = 0
+    pts_all = []
+    for j in range(len(edges) - 1):
+        lo, hi = edges[j], edges[j + 1]
+        inner = grid[(grid > lo) & (grid < hi)]
+        pts = np.concatenate([[lo], inner, [hi]])
+        # extrema of the phase, so that it is monotone between the points
+        d = ol.dphase(pts)
+        k = np.flatnonzero(np.sign(d[:-1]) * np.sign(d[1:]) < 0)
+        if k.size:
+            inner = np.sort(np.concatenate([inner, _bisect(ol.dphase, pts[k], pts[k + 1])]))
+            pts = np.concatenate([[lo], inner, [hi]])
+        phi = np.concatenate([ol.phase(pts[:1], side=1.0), ol.phase(inner), ol.phase(pts[-1:], side=-1.0)])
+        pts_all.append(pts)
+        u = snap_half_turns(phi / math.pi)
+        ua, ub = u[:-1], u[1:]
+        lo_u, hi_u = np.minimum(ua, ub), np.maximum(ua, ub)
+        # odd integers m in [lo_u, hi_u]: rule A counts (lo, hi], rule B counts [lo, hi)
+        m0 = 2 * np.floor((lo_u - 1) / 2) + 1  # the largest odd integer <= lo_u, then the smallest >= lo_u
+        m0 = np.where(m0 < lo_u, m0 + 2, m0)
+        count = np.where(hi_u >= m0, np.floor((hi_u - m0) / 2).astype(int) + 1, 0)
+        count = np.where(ua == ub, 0, count)
+        if count.sum() > 4 * _MAX_PHASE_CROSSOVERS:
+            raise InvalidValueError(f"too many phase crossovers below {w_hi:g} rad/s to list")
+        iv = np.repeat(np.arange(ua.size), count)
+        m = m0[iv] + 2 * (np.arange(iv.size) - np.repeat(np.cumsum(count) - count, count))
+        wa, wb, fa, fb = pts[iv], pts[iv + 1], ua[iv], ub[iv]
+        at_a, at_b = m == fa, m == fb
+        interior = ~(at_a | at_b)
+        wx = np.where(at_a, wa, wb)
+        if interior.any():
+            lev = m[interior] * math.pi
+            wx[interior] = _bisect(lambda x, lev=lev: ol.phase(x) - lev, wa[interior], wb[interior])
+        direction = np.sign(fb - fa).astype(int)
+        rule_a = (m > np.minimum(fa, fb)) & (m <= np.maximum(fa, fb))
+        rule_b = (m >= np.minimum(fa, fb)) & (m < np.maximum(fa, fb))
+        mag = np.abs(ol.value(wx))
+        poles = [b for b in breaks if axis[b] > 0]
+        zeros = [b for b in breaks if axis[b] <= 0]
+        mag = np.where(((wx == 0) & (ol.integrators > 0)) | np.isin(wx, poles), np.inf, mag)
+        mag = np.where(np.isin(wx, zeros), np.nan, mag)
+        big = mag > 1
+        ccw += int(np.sum(direction * (rule_a.astype(int) + rule_b.astype(int)) * big))
+        crossings += [(float(x), float(g), float(p * math.pi), int(s))
+                      for x, g, p, s in zip(wx, mag, m, direction) if math.isfinite(g)]
+    # the arc at infinity around the poles on the positive imaginary axis (and its mirror): clockwise
+    for b in breaks:
+        if axis[b] > 0:
+            up = snap_half_turns(ol.phase(np.array([b]), side=-1.0) / math.pi)[0]
+            dn = snap_half_turns(ol.phase(np.array([b]), side=1.0) / math.pi)[0]
+            ccw -= _odd_between(dn, up, True) + _odd_between(dn, up, False)
+    # the arc around the integrators at s = 0, from phase phi0 + n pi clockwise to phi0
+    if ol.integrators > 0:
+        u0 = snap_half_turns(ol.phase(np.zeros(1)) / math.pi)[0]
+        ccw -= _odd_between(u0, u0 + ol.integrators, True)
+    if ol.T == 0 and not ol.zero:
+        # the curve closes through the point L(j inf): a crossing may sit there (a biproper loop, L(j inf) < -1)
+        uh = snap_half_turns(ol.phase(np.array([w_hi])) / math.pi)[0]
+        ui = snap_half_turns(np.array([ol.phase_at_infinity() / math.pi]))[0]
+        if ui == round(ui) and int(round(ui)) % 2 and uh != ui and ol.l_inf > 1:
+            ccw += 1 if ui > uh else -1  # rule A counts it when the phase rises to it, rule B when it falls
+    elif ol.l_inf >= 1:
+        ccw = None  # the curve keeps circling at |L| >= 1: no finite count (a neutral loop that is not stable)
+    crossings.sort()
+    merged: list[tuple[float, float, float, int]] = []
+    for c in crossings:
+        if merged and abs(c[0] - merged[-1][0]) <= 1e-12 * max(c[0], 1e-300):
+            continue
+        merged.append(c)
+    return PhaseScan(merged, ccw, np.unique(np.concatenate(pts_all)))
+
+
+def snap_half_turns(u: np.ndarray) -> np.ndarray:
+    """Phases in half-turns, with values within rounding of an odd integer set to it."""
+    u = np.asarray(u, float)
+    near = 2 * np.round((u - 1) / 2) + 1
+    return np.where(np.abs(u - near) <= _LEVEL_TOL * (1 + np.abs(u)), near, u)
+
+
+def _odd_between(lo: float, hi: float, upper: bool) -> int:
+    """How many odd integers lie in ``(lo, hi]`` (``upper``) or ``[lo, hi)``."""
+    if hi <= lo:
+        return 0
+    first = math.floor((lo - 1) / 2) * 2 + 1
+    n = 0
+    m = first
+    while m <= hi:
+        if (lo < m <= hi) if upper else (lo <= m < hi):
+            n += 1
+        m += 2
+    return n
+
+
+def cutoff_frequency(ol: OpenLoop, gains: np.ndarray) -> tuple[float, float]:
+    """The cut-off frequency for the listed phase crossovers, and the last stationary point of ``|L(jw)|``."""
+    roots = np.abs(np.concatenate([ol.zr, ol.pr]))
+    r_max = float(roots.max()) if roots.size else 0.0
+    g_max = float(gains.max()) if gains.size else 0.0
+    w_hi = max(1.0, 100 * r_max, 2 * g_max)
+    w_m = 0.0
+    if ol.T > 0 and not ol.zero:
+        w_hi = max(w_hi, 8 * math.pi / ol.T)
+        a, b = ol.squares()
+        scale = max(np.abs(a).max(), np.abs(b).max())
+        if ol.l_inf < 1e-3:
+            x3 = positive_real_roots(a - 1e-6 * b, scale)
+            if x3.size:
+                w_hi = max(w_hi, 1.01 * math.sqrt(x3[-1]))
+        c = np.polysub(np.polymul(np.polyder(a), b), np.polymul(a, np.polyder(b)))
+        xs = positive_real_roots(c, max(1e-300, np.abs(c).max()))
+        if xs.size:
+            w_m = math.sqrt(xs[-1])
+        need = max(1.5 * w_m, 100 * r_max, 2 * g_max)
+        w_hi = max(need, min(w_hi, _MAX_PHASE_CROSSOVERS * TWO_PI / ol.T))
+    return float(w_hi), float(w_m)
+
+
+def dense_grid(ol: OpenLoop, gains: np.ndarray, w_hi: float) -> np.ndarray:
+    """The dense grid on ``(0, w_hi]``: logarithmic, plus points over each complex root and the crossovers."""
+    r = np.concatenate([ol.zr, ol.pr])
+    feats = [x for x in np.abs(r) if x > 0] + list(gains) + ([1.0 / ol.T] if ol.T > 0 else [])
+    w_lo = min(min(feats) if feats else 1.0, w_hi) * 1e-3
+    n = max(int(_PER_DECADE * math.log10(w_hi / w_lo)), 2) + 1
+    parts = [np.geomspace(w_lo, w_hi, n)]
+    c = r[(r.imag > 0) & (r.real != 0)]
+    if c.size:  # 41 points over each complex root, equally spaced in the angle of jw - r
+        t = np.tan(np.linspace(-math.pi / 2, math.pi / 2, 43)[1:-1])
+        parts.append((c.imag[:, None] + np.abs(c.real)[:, None] * t[None, :]).ravel())
+    if gains.size:
+        rel = np.array([-0.1, -0.03, -0.01, -1e-3, 0.0, 1e-3, 0.01, 0.03, 0.1])
+        parts.append((gains[:, None] * (1 + rel[None, :])).ravel())
+    g = np.concatenate(parts)
+    return np.unique(g[(g > 0) & (g <= w_hi)])

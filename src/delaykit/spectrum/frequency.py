@@ -1,0 +1,526 @@
+"""Exact frequency response and stability margins of a continuous delay loop.
+
+Broken at the plant input, a :class:`~delaykit.models.loop.Loop` has the loop transfer function
+
+    ``L(s) = Np(s) Nc(s) / (Dp(s) Dc(s)) * exp(-s T)``,   ``T = Ti + To`` (the total delay),
+
+with ``Np/Dp`` the plant and ``Nc/Dc`` the controller's feedback part, so that ``1 + L = 0`` is the loop's
+characteristic equation ``Dp Dc + Np Nc exp(-s T) = 0`` (:meth:`~delaykit.models.loop.Loop.characteristic`).
+Everything here is evaluated exactly, with the delay: no Padé approximation and no sampled phase unwrapping.
+
+* :func:`frequency_response` gives ``L(jw)`` with its magnitude and *unwrapped* phase.  The phase is the sum
+  of the angles of the factors ``jw - r`` over the zeros and poles ``r`` of ``L`` minus ``w T``, a continuous
+  function of ``w`` that needs no grid, snapped to ``angle(L)`` modulo 360 degrees.
+* :func:`margins` gives the gain, phase and delay margins, the peak sensitivity and every crossover, and the
+  closed loop's stability from its exact characteristic roots (the certified count of roots in the right
+  half-plane, :func:`~delaykit.spectrum.roots.find_roots`), with the Nyquist count beside it.
+
+Sampled loops are refused: their margins come from :mod:`delaykit.spectrum.sampled`.  The numerical machinery
+(roots of ``L``, the phase, the crossings) is the private :mod:`._openloop`.
+
+How the crossovers are found: ``|L(jw)|^2`` is a rational function of ``w^2``, so the gain crossovers are the
+positive real roots of the polynomial ``|N(jw)|^2 - |D(jw)|^2`` in ``w^2`` (polished by Newton's method on
+``log|L|``).  The phase crossovers (phase = -180 degrees modulo 360) are found on a dense grid (logarithmic,
+100 points a decade, plus points spread over every lightly damped pole or zero and the extrema of the
+phase, so that the phase is monotone between grid points), each one then refined by bisection to machine
+precision.  A delay makes infinitely many phase crossovers; they are listed up to a cut-off frequency
+``Margins.cutoff``: the largest of 100 times the largest pole or zero magnitude, twice the largest gain
+crossover, 8 pi / T, the frequency beyond which ``|L| < 1e-3`` for good (when ``|L(j inf)| < 1e-3``), and 1.5
+times the last stationary point of ``|L(jw)|``, extended until at least one phase crossover lies beyond that
+point (at most 10,000 phase crossovers are listed).  Past the last stationary point ``|L|`` is monotone, so
+no crossover beyond the cut-off can give a smaller gain margin than the listed ones and the limit
+``|L(j inf)|`` (a biproper loop's asymptote, listed as a phase crossover at infinite frequency).
+
+Examples
+--------
+>>> from delaykit import AltitudeLoop
+>>> m = margins(AltitudeLoop(kp=1.31, delay=0.368))
+>>> m
+Margins(GM 3.258 (10.26 dB) at 4.268 rad/s, PM 62.38 deg at 1.31 rad/s, DM 0.8311 s, Ms 1.561, stable)
+>>> round(m.delay_margin, 6) == round(3.141592653589793 / (2 * 1.31) - 0.368, 6)
+True
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..models.altitude import AltitudeLoop, as_loop
+from ..models.loop import Loop
+from ._openloop import (TWO_PI, OpenLoop, PhaseScan, cutoff_frequency, dense_grid, gain_crossovers, scan_phase,
+                        snap_half_turns)
+
+__all__ = ["FrequencyResponse", "Crossover", "Margins", "frequency_response", "frequency_grid", "margins"]
+
+
+# ---------------------------------------------------------------------------------------------- the loop
+def _continuous(loop: Any) -> Loop:
+    """``loop`` as a continuous :class:`Loop` (an AltitudeLoop through ``to_loop()``), or an error."""
+    loop = as_loop(loop)
+    if loop.sampled:
+        raise InvalidValueError(
+            f"the loop is sampled (period {loop.period:g} s): its frequency response and margins are those of a "
+            "discrete-time loop and come from delaykit.spectrum.sampled; this module analyses continuous loops "
+            "(period=None)")
+    return loop
+
+
+# ------------------------------------------------------------------------------------ frequency response
+def _frequencies(w: Any) -> np.ndarray:
+    """``w`` as a 1-D float array of finite frequencies >= 0, or a delaykit error naming the problem."""
+    if isinstance(w, (str, bytes)):
+        raise InvalidTypeError(f"w must be frequencies in rad/s (numbers), got {w!r}")
+    try:
+        arr = np.asarray(w)
+    except (TypeError, ValueError) as exc:
+        raise InvalidTypeError(f"w must be an array of frequencies in rad/s, got {w!r}") from exc
+    if arr.dtype.kind not in "iuf":
+        raise InvalidTypeError(f"w must be real frequencies in rad/s, got an array of dtype {arr.dtype}")
+    arr = np.atleast_1d(arr.astype(float))
+    if arr.ndim != 1:
+        raise InvalidValueError(f"w must be a one-dimensional array of frequencies, got shape {arr.shape}")
+    if arr.size == 0:
+        raise InvalidValueError("w is empty: give at least one frequency (rad/s)")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        raise InvalidValueError(f"frequencies must be finite, got {float(arr[bad][0])!r} in w")
+    if (arr < 0).any():
+        raise InvalidValueError(f"frequencies must be at least 0 rad/s, got {arr[arr < 0][0]:g} in w")
+    return arr
+
+
+@dataclass(frozen=True, repr=False, eq=False)
+class FrequencyResponse:
+    """``L(jw)`` of a loop at the frequencies ``w`` (rad/s).
+
+    ``L`` is complex, ``magnitude_db`` is ``20 log10 |L|`` and ``phase_deg`` the unwrapped phase in degrees
+    (continuous in ``w`` except where a pole or zero sits on the imaginary axis; as ``w -> 0+`` it starts at
+    the multiple of 360 degrees nearest to -90 degrees per integrator, so that ``1/(s-1)`` starts at -180).
+    At a pole on the imaginary axis ``L`` is infinite.
+    """
+
+    w: np.ndarray
+    L: np.ndarray
+    magnitude_db: np.ndarray
+    phase_deg: np.ndarray
+
+    @property
+    def magnitude(self) -> np.ndarray:
+        """``|L(jw)|``."""
+        return np.abs(self.L)
+
+    @property
+    def sensitivity(self) -> np.ndarray:
+        """``S = 1 / (1 + L)``, complex."""
+        with np.errstate(all="ignore"):
+            return 1.0 / (1.0 + self.L)
+
+    @property
+    def complementary(self) -> np.ndarray:
+        """``T = L / (1 + L)``, complex (the complementary sensitivity)."""
+        with np.errstate(all="ignore"):
+            return np.where(np.isinf(self.L), 1.0 + 0j, self.L / (1.0 + self.L))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form: ``w``, ``re``, ``im``, ``magnitude_db``, ``phase_deg`` (infinite values are ``null``)."""
+        parts = (("w", self.w), ("re", self.L.real), ("im", self.L.imag), ("magnitude_db", self.magnitude_db),
+                 ("phase_deg", self.phase_deg))
+        return {k: _jsonable(v.tolist()) for k, v in parts}
+
+    def __repr__(self) -> str:
+        db = self.magnitude_db[np.isfinite(self.magnitude_db)]
+        mag = f", |L| {db.min():.4g} to {db.max():.4g} dB" if db.size else ""
+        return (f"FrequencyResponse({self.w.size} frequencies, {self.w.min():.4g} to {self.w.max():.4g} rad/s"
+                f"{mag})")
+
+
+def frequency_grid(loop: Loop | AltitudeLoop, n: int = 500, *, wmin: float | None = None,
+                   wmax: float | None = None) -> np.ndarray:
+    """A logarithmic frequency grid (rad/s) that covers a loop's poles, zeros, crossovers and delay.
+
+    From 1/100 of the lowest to 10 times the highest of: the magnitudes of the poles and zeros of ``L``
+    (not 0), ``1/T`` and the gain crossovers; ``wmin``/``wmax`` replace either end.
+
+    Examples
+    --------
+    >>> from delaykit import AltitudeLoop
+    >>> w = frequency_grid(AltitudeLoop(kp=1.31, delay=0.368), 5)
+    >>> w.round(4).tolist()
+    [0.0131, 0.0884, 0.5966, 4.0265, 27.1739]
+    """
+    loop = _continuous(loop)
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
+        raise InvalidValueError(f"n (number of frequencies) must be an integer of at least 2, got {n!r}")
+    ol = OpenLoop(loop)
+    feats = [abs(r) for r in np.concatenate([ol.zr, ol.pr]) if abs(r) > 0]
+    if ol.T > 0:
+        feats.append(1.0 / ol.T)
+    try:
+        feats += list(gain_crossovers(ol))
+    except InvalidValueError:  # |L| = 1 everywhere: no crossover to cover
+        pass
+    lo, hi = (min(feats) / 100, max(feats) * 10) if feats else (0.01, 100.0)
+    lo = lo if wmin is None else check_real("wmin (rad/s)", wmin, minimum=0.0, strict=True)
+    hi = hi if wmax is None else check_real("wmax (rad/s)", wmax, minimum=0.0, strict=True)
+    if not hi > lo:
+        raise InvalidValueError(f"the frequency range is empty or reversed: wmin = {lo:g} rad/s must be below "
+                                f"wmax = {hi:g} rad/s")
+    return np.geomspace(lo, hi, int(n))
+
+
+def frequency_response(loop: Loop | AltitudeLoop, w: Any = None) -> FrequencyResponse:
+    """The exact loop transfer function ``L(jw) = Np Nc / (Dp Dc) (jw) exp(-jw T)`` at the frequencies ``w``.
+
+    Parameters
+    ----------
+    loop : Loop or AltitudeLoop
+        A continuous loop (a sampled one raises :class:`~delaykit.errors.InvalidValueError`).
+    w : array_like, optional
+        Frequencies in rad/s, finite and at least 0, in any order; by default :func:`frequency_grid`.
+
+    Returns
+    -------
+    FrequencyResponse
+        Vectorised: no Python loop over the frequencies.
+
+    See Also
+    --------
+    margins : gain, phase and delay margins from the same ``L``.
+
+    Examples
+    --------
+    >>> from delaykit import AltitudeLoop
+    >>> r = frequency_response(AltitudeLoop(kp=1.31, delay=0.368), [1.31])
+    >>> round(float(r.magnitude[0]), 12), round(float(r.phase_deg[0]), 4)   # -90 - 1.31*0.368*180/pi
+    (1.0, -117.6211)
+    """
+    loop = _continuous(loop)
+    w = frequency_grid(loop) if w is None else _frequencies(w)
+    ol = OpenLoop(loop)
+    L = ol.value(w)
+    phi = ol.phase(w)
+    with np.errstate(all="ignore"):
+        ang = np.angle(L)
+        snapped = ang + TWO_PI * np.round((phi - ang) / TWO_PI)
+        phase = np.where(np.isfinite(L) & (L != 0), snapped, 0.0 if ol.zero else phi)
+        mag_db = 20.0 * np.log10(np.abs(L))
+    return FrequencyResponse(w=w, L=L, magnitude_db=mag_db, phase_deg=np.degrees(phase))
+
+
+# --------------------------------------------------------------------------------------------- margins
+def _jsonable(x: Any) -> Any:
+    """``x`` with every infinite or NaN float replaced by ``None`` (JSON's null), recursively."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    return x
+
+
+@dataclass(frozen=True, repr=False)
+class Crossover:
+    """One crossover of ``L(jw)`` and what it gives.
+
+    ``kind`` is ``"gain"`` (``|L| = 1``) or ``"phase"`` (phase = -180 degrees modulo 360).  A gain crossover
+    gives ``phase_margin`` (degrees, ``180 + phase`` taken in (-180, 180]) and ``delay_margin`` (the extra
+    delay, s, that turns ``L(jw)`` onto -1 there: the phase lag to -180 modulo 360, in [0, 360), over ``w``).
+    A phase crossover gives ``gain_margin = 1 / |L|`` (the gain factor that puts a root at ``jw``) and
+    ``direction`` (+1 when the phase rises through -180, -1 when it falls: the sense in which the Nyquist
+    curve crosses the negative real axis).  A phase crossover at ``frequency = inf`` is the limit of a
+    biproper loop (``|L(j inf)| > 0``).
+    """
+
+    kind: str
+    frequency: float
+    magnitude: float
+    phase_deg: float
+    gain_margin: float | None = None
+    phase_margin: float | None = None
+    delay_margin: float | None = None
+    direction: int | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (an infinite frequency is ``null``)."""
+        return _jsonable({"kind": self.kind, "frequency": self.frequency, "magnitude": self.magnitude,
+                          "phase_deg": self.phase_deg, "gain_margin": self.gain_margin,
+                          "phase_margin": self.phase_margin, "delay_margin": self.delay_margin,
+                          "direction": self.direction})
+
+    def __repr__(self) -> str:
+        if self.kind == "gain":
+            return (f"Crossover(gain at {self.frequency:.6g} rad/s, phase {self.phase_deg:.4f} deg, "
+                    f"PM {self.phase_margin:.4f} deg, DM {self.delay_margin:.6g} s)")
+        return (f"Crossover(phase at {self.frequency:.6g} rad/s, |L| {self.magnitude:.6g}, "
+                f"GM {self.gain_margin:.6g})")
+
+
+@dataclass(frozen=True, repr=False)
+class Margins:
+    """Stability margins of a continuous delay loop (see :func:`margins` for the definitions).
+
+    All margins are ``inf`` when nothing crosses, and ``nan`` when the closed loop is already unstable
+    (``stable`` False: there is no stability to lose; the crossovers are still listed).  In :meth:`to_dict`
+    both are ``null``.
+    """
+
+    gain_margin: float
+    lower_gain_margin: float
+    phase_margin: float
+    delay_margin: float
+    critical_delay: float
+    crossover: float | None
+    phase_crossover: float | None
+    ms: float
+    ms_frequency: float | None
+    stable: bool
+    open_loop_rhp_poles: int
+    encirclements: int | None
+    cutoff: float
+    crossovers: tuple[Crossover, ...]
+    stability_from: str = "roots"
+
+    @property
+    def gain_margin_db(self) -> float:
+        """The gain margin in dB, ``20 log10(gain_margin)``."""
+        g = self.gain_margin
+        return g if not (math.isfinite(g) and g > 0) else 20.0 * math.log10(g)
+
+    @property
+    def nyquist_rhp_roots(self) -> int | None:
+        """Closed-loop roots in the right half-plane by the Nyquist criterion, ``P - encirclements``."""
+        return None if self.encirclements is None else self.open_loop_rhp_poles - self.encirclements
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form; infinite and NaN values become ``None`` (``null`` in JSON).
+
+        Keys: ``gain_margin``, ``phase_margin``, ``delay_margin``, ``critical_delay``, ``crossover``, ``ms``,
+        ``crossovers`` (a list of :meth:`Crossover.to_dict`), and also ``gain_margin_db``,
+        ``lower_gain_margin``, ``phase_crossover``, ``ms_frequency``, ``stable``, ``open_loop_rhp_poles``,
+        ``encirclements``, ``cutoff`` and ``stability_from``.
+        """
+        return _jsonable({
+            "gain_margin": self.gain_margin, "phase_margin": self.phase_margin, "delay_margin": self.delay_margin,
+            "critical_delay": self.critical_delay, "crossover": self.crossover, "ms": self.ms,
+            "crossovers": [c.to_dict() for c in self.crossovers],
+            "gain_margin_db": self.gain_margin_db, "lower_gain_margin": self.lower_gain_margin,
+            "phase_crossover": self.phase_crossover, "ms_frequency": self.ms_frequency, "stable": self.stable,
+            "open_loop_rhp_poles": self.open_loop_rhp_poles, "encirclements": self.encirclements,
+            "cutoff": self.cutoff, "stability_from": self.stability_from})
+
+    def __repr__(self) -> str:
+        if not self.stable:
+            return (f"Margins(closed loop UNSTABLE, {sum(c.kind == 'gain' for c in self.crossovers)} gain and "
+                    f"{sum(c.kind == 'phase' for c in self.crossovers)} phase crossovers)")
+        at = "as w -> inf" if math.isinf(self.phase_crossover or 0.0) else f"at {self.phase_crossover:.4g} rad/s"
+        gm = "GM inf" if math.isinf(self.gain_margin) else (
+            f"GM {self.gain_margin:.4g} ({self.gain_margin_db:.4g} dB) {at}")
+        if math.isinf(self.phase_margin):
+            pm = "PM inf, DM inf"
+        else:
+            pm = (f"PM {self.phase_margin:.4g} deg at {self.crossover:.4g} rad/s, DM {self.delay_margin:.4g} s")
+        return f"Margins({gm}, {pm}, Ms {self.ms:.4g}, stable)"
+
+
+def _peak_sensitivity(ol: OpenLoop, pts: np.ndarray) -> tuple[float, float | None]:
+    """``max |1 / (1 + L(jw))|`` over ``w >= 0`` and where it is (``None`` for a limit at w = 0 or infinity)."""
+    from scipy.optimize import minimize_scalar
+
+    with np.errstate(all="ignore"):
+        d = np.abs(1.0 + ol.value(pts))
+    d = np.where(np.isfinite(d), d, np.inf)
+    best, where = np.inf, None
+    if d.size >= 3:
+        k = 1 + np.flatnonzero((d[1:-1] <= d[:-2]) & (d[1:-1] <= d[2:]))
+        for i in k[np.argsort(d[k])][:8]:
+            f = lambda w: float(np.abs(1.0 + ol.value(np.array([w]))[0]))  # noqa: E731
+            res = minimize_scalar(f, bounds=(pts[i - 1], pts[i + 1]), method="bounded",
+                                  options={"xatol": 1e-12 * pts[i]})
+            val, at = (res.fun, res.x) if res.fun <= d[i] else (d[i], pts[i])
+            if val < best:
+                best, where = float(val), float(at)
+    i = int(np.argmin(d))
+    if d[i] < best:
+        best, where = float(d[i]), float(pts[i])
+    limits = []
+    if ol.integrators <= 0:
+        limits.append(abs(1.0 + ol.value(np.zeros(1))[0]))
+    limits.append(1.0 - ol.l_inf if ol.T > 0 else abs(1.0 + ol.num[0] / ol.den[0] * (ol.l_inf > 0)))
+    for v in limits:
+        if v < best:
+            best, where = float(v), None
+    return (1.0 / best if best > 0 else math.inf), where
+
+
+def _closed_loop_stable(loop: Loop) -> bool:
+    """Stability from the exact characteristic roots: none in the closed right half-plane.
+
+    The roots with ``Re s >= 0`` lie in ``[0, R] x [0, R]`` (``R`` from :func:`~delaykit.spectrum.roots.root_bound`;
+    the coefficients are real, so ``Im s >= 0`` suffices) and the certified root finder counts them.  It runs
+    in the time unit of the delay: ``Q(s)`` and ``Q(z / T)`` have the same roots up to the factor ``T > 0``, and
+    with the delay scaled to 1 the region fits the loop's own time scale (a 12 s delay on a 150 s lag is
+    searched in milliseconds, not seconds).  The caller has ruled out neutral chains at or right of the axis.
+    If the count is not certified, :func:`~delaykit.spectrum.stability.rightmost` decides.
+    """
+    from ..models.quasipolynomial import QuasiPolynomial
+    from .roots import find_roots, root_bound
+    from .stability import rightmost
+
+    q = loop.characteristic()
+    t = max(q.delays)
+    if t > 0:
+        polys = [[c * t ** -(len(p) - 1 - k) for k, c in enumerate(p)] for p in q.polys]
+        q = QuasiPolynomial(polys, [d / t for d in q.delays])
+    r = root_bound(q, 0.0)
+    sp = find_roots(q, (0.0, r, 0.0, r))
+    if sp.certified:
+        return sp.roots.size == 0
+    return bool(rightmost(q).stable)
+
+
+def margins(loop: Loop | AltitudeLoop) -> Margins:
+    """Gain, phase and delay margins, peak sensitivity and every crossover of a continuous delay loop.
+
+    Definitions (``L`` as in the module docstring; ``phi`` its unwrapped phase):
+
+    * ``gain_margin``: the smallest factor ``k > 1`` on the loop gain at which the closed loop loses stability.
+      Roots of ``1 + k L`` reach the imaginary axis only at a phase crossover, with ``k = 1/|L|``, so it is the
+      smallest ``1/|L|`` above 1 among the phase crossovers (including ``w = 0`` when ``L(0) < 0``, and
+      ``1/|L(j inf)|`` for a biproper loop); ``lower_gain_margin`` is the largest such factor below 1 (``0``
+      if none: lowering the gain never destabilises).  ``gain_margin_db`` is ``20 log10`` of it.
+    * ``phase_margin`` (degrees): ``180 + phi`` (taken in (-180, 180]) at the gain crossover where it is
+      smallest in size; negative means that a phase *lead* of that size reaches -1.
+    * ``delay_margin`` (s): the extra delay that first puts a root on the imaginary axis, the minimum over the
+      gain crossovers ``wc`` of ``PM / wc`` with ``PM`` the phase lag to -180 degrees in [0, 2 pi);
+      ``crossover`` is that ``wc``, and ``critical_delay = loop.total_delay + delay_margin``.
+    * ``ms``: the peak of ``|S(jw)| = 1/|1 + L(jw)|``, refined with a bounded scalar optimiser around the best
+      grid points (``ms_frequency``; ``None`` when the peak is a limit at ``w = 0`` or ``w -> inf``).
+
+    Stability comes from the exact characteristic roots of ``loop.characteristic()``, which also see modes that
+    cancel in ``L``: none may lie in the closed right half-plane, where the certified root finder counts them
+    (:func:`~delaykit.spectrum.stability.rightmost` decides if that count is not certified).  A biproper loop
+    with a delay and ``|L(j inf)| >= 1`` is neutral with root chains at or right of the imaginary axis
+    (``Re s -> ln|L(j inf)| / T``), so unstable.  ``stability_from`` says which: ``"roots"``,
+    ``"neutral chains"``, or ``"nyquist"`` when the root search could not run and the Nyquist count below
+    decided.  When the closed loop is unstable the margins are ``nan``.  The margins are also right for
+    open-loop unstable loops: they are the factors and delays at which roots cross the imaginary axis, starting
+    from a stable loop.
+
+    Nyquist count: ``open_loop_rhp_poles`` (``P``) counts the poles of ``L`` with ``Re s > 0``; poles on the
+    imaginary axis (integrators) are indented around on the right and not counted.  ``encirclements`` is the
+    number of *counterclockwise* encirclements of -1 by ``L`` along that contour, counted as signed crossings
+    of the negative real axis left of -1: twice each phase crossover with ``|L| > 1`` at ``w > 0`` (the curve
+    and its mirror image), with the sign of ``d phi / dw``; the arcs at infinity around poles on the axis
+    (clockwise, ``n`` half-turns for ``n`` poles); and the points ``w = 0`` and ``w = inf``, where the curve
+    meets its mirror image.  A crossing exactly at an end is decided by turning the axis by a vanishing angle.
+    Then ``P - encirclements`` (``nyquist_rhp_roots``) is the number of closed-loop roots in the right
+    half-plane, which is 0 exactly when the loop is stable.  It is ``None`` when -1 lies on the curve (a
+    closed-loop root on the imaginary axis) and for a loop with ``|L(j inf)| >= 1`` and a delay (a neutral loop
+    whose root chains reach the imaginary axis).
+
+    Phase crossovers are listed up to ``cutoff`` (rad/s, see the module docstring).
+
+    Raises
+    ------
+    InvalidValueError
+        For a sampled loop (its margins come from :mod:`delaykit.spectrum.sampled`), and when ``|L(jw)| = 1`` at
+        every frequency (an all-pass loop of unit gain), where every frequency is a gain crossover and the
+        phase and delay margins are undefined.
+
+    See Also
+    --------
+    frequency_response : ``L(jw)`` itself.
+    delaykit.spectrum.stability.delay_margin : the delay margin from zero delay, from the quasi-polynomial.
+
+    References
+    ----------
+    .. [1] K. J. Astrom and R. M. Murray, *Feedback Systems*, 2nd ed., Princeton University Press, 2021,
+       sections 10.2-10.3 (the Nyquist criterion and stability margins).
+    .. [2] K. Gu, V. L. Kharitonov and J. Chen, *Stability of Time-Delay Systems*, Birkhauser, 2003, ch. 2
+       (crossing frequencies and the delay margin).
+
+    Examples
+    --------
+    >>> from delaykit import Controller, Loop
+    >>> m = margins(Loop("1/(s-1)", Controller.p(2.0), delay=0.1))   # open-loop unstable, stable closed loop
+    >>> m.stable, m.open_loop_rhp_poles, m.encirclements, round(m.lower_gain_margin, 6)
+    (True, 1, 1, 0.5)
+    """
+    loop = _continuous(loop)
+    ol = OpenLoop(loop)
+    gains = gain_crossovers(ol)
+    w_hi, w_m = cutoff_frequency(ol, gains)
+    for _ in range(20):
+        grid = dense_grid(ol, gains, w_hi)
+        extra = gain_crossovers(ol, grid)  # the grid's net may add crossovers the polynomial missed
+        if extra.size > gains.size:
+            gains = extra
+            grid = dense_grid(ol, gains, w_hi)
+        if ol.zero:  # L = 0: no crossover and no encirclement
+            scan = PhaseScan([], 0, grid)
+            break
+        scan = scan_phase(ol, grid, w_hi)
+        if ol.T == 0 or any(c[0] > w_m for c in scan.crossings):
+            break
+        w_hi *= 2.0
+    crossovers: list[Crossover] = []
+    for w in map(float, gains):
+        phi = float(ol.phase(np.array([w]))[0])
+        lag = (phi + math.pi) % TWO_PI
+        pm = math.degrees(lag if lag <= math.pi else lag - TWO_PI)
+        crossovers.append(Crossover("gain", w, 1.0, math.degrees(phi), phase_margin=pm,
+                                    delay_margin=lag / w))
+    for w, mag, phi, direction in scan.crossings:
+        crossovers.append(Crossover("phase", w, mag, math.degrees(phi),
+                                    gain_margin=(1.0 / mag if mag > 0 else math.inf), direction=direction))
+    ui = ol.phase_at_infinity() / math.pi
+    if ol.l_inf > 0 and (ol.T > 0 or snap_half_turns(np.array([ui]))[0] % 2 == 1):
+        crossovers.append(Crossover("phase", math.inf, ol.l_inf, math.nan if ol.T > 0 else math.degrees(ui * math.pi),
+                                    gain_margin=1.0 / ol.l_inf))
+    crossovers.sort(key=lambda c: (c.frequency, c.kind))
+    ccw = scan.ccw
+    l0 = ol.value(np.zeros(1))[0] if ol.integrators <= 0 else math.inf
+    if any(min(c.delay_margin * c.frequency, TWO_PI - c.delay_margin * c.frequency) < 1e-12 for c in crossovers
+           if c.kind == "gain") or abs(l0 + 1) < 1e-12:
+        ccw = None  # -1 lies on the Nyquist curve: a closed-loop root on the imaginary axis, no count
+    p_rhp = int(np.sum(ol.pr.real > 0))
+    if ol.T > 0 and ol.l_inf >= 1.0:  # neutral, with root chains approaching Re s = ln|L(j inf)| / T >= 0
+        stable, source = False, "neutral chains"
+    else:
+        try:
+            stable, source = _closed_loop_stable(loop), "roots"
+        except (MemoryError, InvalidValueError):
+            # the root search gave up (a neutral loop whose roots all crowd its neutral line can exhaust it):
+            # the Nyquist count decides, P - encirclements = 0
+            if ccw is None:
+                raise
+            stable, source = p_rhp - ccw == 0, "nyquist"
+    factors = [c.gain_margin for c in crossovers if c.kind == "phase"]
+    g_cross = [c for c in crossovers if c.kind == "gain"]
+    nan = math.nan
+    if not stable:
+        return Margins(nan, nan, nan, nan, nan, None, None, nan, None, False, p_rhp, ccw, w_hi,
+                       tuple(crossovers), source)
+    up = [c for c in crossovers if c.kind == "phase" and c.gain_margin >= 1.0]
+    gm = min((c.gain_margin for c in up), default=math.inf)
+    gm_c = next((c for c in up if c.gain_margin <= gm * (1 + 1e-9)), None)  # the lowest frequency of a tie
+    low = [f for f in factors if f < 1.0]
+    if g_cross:
+        dm_c = min(g_cross, key=lambda c: c.delay_margin)
+        pm = min((c.phase_margin for c in g_cross), key=abs)
+        dm, wc = dm_c.delay_margin, dm_c.frequency
+    else:
+        pm, dm, wc = math.inf, math.inf, None
+    ms, ms_w = _peak_sensitivity(ol, np.unique(np.concatenate(
+        [scan.grid, gains, [c[0] for c in scan.crossings]])))
+    return Margins(gain_margin=gm, lower_gain_margin=max(low, default=0.0),
+                   phase_margin=pm, delay_margin=dm, critical_delay=loop.total_delay + dm, crossover=wc,
+                   phase_crossover=gm_c.frequency if gm_c else None, ms=ms, ms_frequency=ms_w, stable=True,
+                   open_loop_rhp_poles=p_rhp, encirclements=ccw, cutoff=w_hi, crossovers=tuple(crossovers),
+                   stability_from=source)
