@@ -1,10 +1,16 @@
-"""Plotting: figures of what the lower layers compute (responses, spectra, stability maps, fits, filter Bode plots).
+"""Plotting: figures of what the lower layers compute (responses, spectra, stability maps, fits, filter Bode plots,
+frequency responses, identified models' predictions).
 
-:mod:`.figures` draws with matplotlib (Agg backend) and writes PNG, PDF or SVG files. Importing this package
-imports matplotlib, which is why nothing below it (models to hardware) imports it: only the paper layer and the
-command line do, and the command line only when a figure is asked for.
+Every function draws on given axes (or a new figure), returns the figure and writes a PNG, PDF or SVG file only
+when given a path; nothing switches matplotlib's backend. :mod:`.figures` holds the paper's figures,
+:mod:`.frequency` Bode and Nyquist plots, :mod:`.identification` measured logs beside a model's predictions.
+Importing this package imports matplotlib, which is why nothing below it (models to hardware) imports it: only the
+paper layer and the command line do, and the command line only when a figure is asked for.
 """
 
 from .figures import plot_filter_bode, plot_fit, plot_responses, plot_spectrum, plot_stability_map
+from .frequency import plot_bode, plot_nyquist
+from .identification import plot_predictions
 
-__all__ = ["plot_responses", "plot_spectrum", "plot_stability_map", "plot_fit", "plot_filter_bode"]
+__all__ = ["plot_responses", "plot_spectrum", "plot_stability_map", "plot_fit", "plot_filter_bode", "plot_bode",
+           "plot_nyquist", "plot_predictions"]

@@ -18,6 +18,8 @@ from typing import Any, Sequence
 
 from matplotlib.figure import Figure
 
+from .figures import _axes, save_figure
+
 __all__ = ["plot_predictions"]
 
 
@@ -40,11 +42,7 @@ def plot_predictions(predictions: Sequence[Any], *, ax: Any = None, path: str | 
     -------
     matplotlib.figure.Figure
     """
-    if ax is None:
-        fig = Figure(figsize=(8, 4.5))
-        ax = fig.add_subplot(1, 1, 1)
-    else:
-        fig = ax.figure
+    fig, (ax,), _ = _axes(ax, 1, (8, 4.5))
     for i, p in enumerate(predictions):
         out = next(iter(p.rms))
         t = p.t - p.t[0]
@@ -58,6 +56,4 @@ def plot_predictions(predictions: Sequence[Any], *, ax: Any = None, path: str | 
         ax.set_title(title)
     if len(predictions) <= 6:
         ax.legend(fontsize=7)
-    if path is not None:
-        fig.savefig(path, dpi=120, bbox_inches="tight")
-    return fig
+    return save_figure(fig, path)
