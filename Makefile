@@ -32,6 +32,7 @@ bench: $(VENV)/.test-installed
 	$(BIN)/python benchmarks/bench_simulate.py
 	$(BIN)/python benchmarks/bench_general.py
 	$(BIN)/python benchmarks/bench_roots.py
+	$(BIN)/python benchmarks/bench_frequency.py
 	$(BIN)/python benchmarks/bench_estimate.py
 
 bench-estimate: $(VENV)/.test-installed

@@ -50,3 +50,17 @@ def test_roots_benchmark_quick_runs(tmp_path):
     res = json.loads(out.read_text())
     assert all(c["certified"] for c in res["cases"])
     assert all(c["qpmr_found_by_delaykit"] == c["qpmr_roots"] for c in res["cases"] if "mazanti" not in c["case"])
+
+
+def test_frequency_benchmark_quick_runs(tmp_path):
+    """The frequency benchmark's quick mode: delaykit's L(jw) equals both anchors' (python-control's response of
+    the delay-free part times exp(-jwT), and plain NumPy) to rounding, the stability map equals the full certified
+    search point by point, and the exact phase margin is close to the Padé-8 approximation's."""
+    out = tmp_path / "f.json"
+    subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_frequency.py"), "--quick", "--json", str(out)],
+                   check=True, capture_output=True, text=True)
+    res = json.loads(out.read_text())
+    assert all(r["error_control"] < 1e-12 and r["error_numpy"] < 1e-12 for r in res["bode"])
+    assert res["map"]["error"] < 1e-9 and 0 < res["map"]["stable_points"] < res["map"]["points"]
+    assert all(r["pade_pm_error_deg"] < 0.5 for r in res["margins"])
+    assert set(res["targets_met"]) == {"margins", "bode", "map"}

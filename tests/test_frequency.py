@@ -436,8 +436,8 @@ def test_cli_margins_json_plot_and_errors(tmp_path):
     assert res.exit_code == 2 and "reversed" in res.output
     res = run("margins", "--kp", "1.31", "--delay", "0.368", "--wmin", "-1")
     assert res.exit_code == 2 and "--wmin" in res.output
-    res = run("margins", "--kp", "1.31", "--delay", "0.368", "--period", "0.065")
-    assert res.exit_code == 2 and "sampled" in res.output
+    res = run("margins", "--kp", "1.31", "--delay", "0.368", "--period", "0.065", "--json")  # tests/test_cli_sampled.py
+    assert res.exit_code == 0 and json.loads(res.stdout)["sampled"] is True
     res = run("margins", "--kp", "5", "--delay", "0.368")
     assert res.exit_code == 0 and "UNSTABLE" in res.stdout
 

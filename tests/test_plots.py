@@ -132,6 +132,41 @@ def test_files_are_written_only_when_asked(tmp_path, monkeypatch, responses):
     assert fig is sub and (tmp_path / "sub.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_bode_and_nyquist_write_files_only_when_asked(tmp_path, monkeypatch):
+    """plot_bode and plot_nyquist take a path like the other plot functions: nothing is written without one; with
+    one, the file (format by suffix, folder created) is the figure returned, drawn from the response given (read
+    back: the PNG's pixel size is the figure's size times save_figure's dpi, and the SVG holds the axis labels)."""
+    import matplotlib.image
+
+    from delaykit import frequency_response, margins
+    from delaykit.plotting.figures import DPI
+    from delaykit.plotting.frequency import plot_bode, plot_nyquist
+
+    monkeypatch.chdir(tmp_path)
+    loop = AltitudeLoop(kp=1.31, delay=0.368)
+    resp = frequency_response(loop)
+    plot_bode(resp, margins=margins(loop))
+    plot_nyquist(resp)
+    assert list(tmp_path.iterdir()) == []
+    fig = plot_bode(resp, tmp_path / "deep" / "bode.png", margins=margins(loop))
+    img = matplotlib.image.imread(tmp_path / "deep" / "bode.png")
+    w, h = fig.get_size_inches() * DPI
+    assert img.shape[:2] == (round(h), round(w))
+    # the magnitude drawn is the response's own, in dB
+    assert np.allclose(fig.axes[0].lines[0].get_ydata(), resp.magnitude_db[resp.w > 0])
+    fig = plot_nyquist(resp, path=tmp_path / "n.svg")
+    text = (tmp_path / "n.svg").read_text()
+    assert text.lstrip().startswith("<?xml") and "Re L(jω)" in text
+    assert np.allclose(fig.axes[0].lines[0].get_xdata(), np.where(np.abs(resp.L) <= 4e3, resp.L, np.nan).real,
+                       equal_nan=True)
+    # axes given: the whole figure they belong to is written
+    outer = Figure()
+    a, b, c = outer.subplots(3, 1)
+    plot_bode(resp, tmp_path / "two.pdf", axes=(a, b))
+    plot_nyquist(resp, tmp_path / "three.pdf", ax=c)
+    assert (tmp_path / "two.pdf").read_bytes()[:5] == b"%PDF-" and (tmp_path / "three.pdf").read_bytes()[:5] == b"%PDF-"
+
+
 # ---- spectra, maps, fits, the filter, the iterations ------------------------------------------------------------
 
 def test_plot_spectrum_shows_each_spectrum_its_rightmost_and_its_neutral_lines():

@@ -285,3 +285,103 @@ def test_no_control_flow_reads_message_text():
     hits = [f"{p.relative_to(src)}:{i}: {line.strip()}" for p in sorted(src.rglob("*.py"))
             for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1) if pattern.search(line)]
     assert not hits, "control flow reads message text:\n" + "\n".join(hits)
+
+
+def _zeros_in_box(f, x0: float, x1: float, y0: float, y1: float) -> int:
+    """Zeros of an analytic f in the rectangle by the argument principle, written for these tests (plain NumPy
+    sampling of arg f along the boundary, refined until no step turns by more than 0.3 rad)."""
+    corners = [complex(x0, y0), complex(x1, y0), complex(x1, y1), complex(x0, y1), complex(x0, y0)]
+    total = 0.0
+    for a, b in zip(corners[:-1], corners[1:]):
+        t = np.linspace(0.0, 1.0, 4001)
+        for _ in range(80):
+            v = f(a + (b - a) * t)
+            d = np.angle(v[1:] / v[:-1])
+            coarse = np.abs(d) > 0.3
+            if not coarse.any():
+                break
+            t = np.sort(np.concatenate([t, 0.5 * (t[:-1] + t[1:])[coarse]]))
+        else:
+            raise AssertionError("the contour passes through a zero")
+        total += float(d.sum())
+    n = total / (2 * math.pi)
+    assert abs(n - round(n)) < 1e-6
+    return round(n)
+
+
+def test_rightmost_of_a_long_delay_on_a_slow_lag():
+    """A 12 s delay on a 150 s lag under PI (issue 12): the old search started at Re s = -1, where the root bound
+    is ~2700 with a delay of 12 s (a grid of ~1e8 points, gigabytes); now it starts at -1/T and finds the root in a
+    region of the loop's own size.  Checked without delaykit's root finder: the root is a root of Q to 30 digits
+    (mpmath's Newton from it), no root lies right of it (an independent argument-principle count on a box that
+    holds every root there, its size from the hand bound below), and the Nyquist count of `margins` agrees."""
+    from delaykit import Controller, Loop, margins
+
+    loop = Loop("0.62/(150*s+1)", Controller.pi(2.0, 0.02), delay=12.0)
+    r = rightmost(loop)
+    assert r.certified and r.stable and r.root is not None
+    assert max(abs(v) for v in r.spectrum.region) < 1.0  # searched on the loop's scale, not |s| ~ 2700
+    # Q(s) = s (150 s + 1) + 0.62 (2 s + 0.02) exp(-12 s), divided by 150
+    c2, c1, b1, b0, T = 1.0, 1 / 150, 0.62 * 2 / 150, 0.62 * 0.02 / 150, 12.0
+
+    def q(s):
+        return c2 * s * s + c1 * s + (b1 * s + b0) * np.exp(-T * s)
+
+    mpmath.mp.dps = 30
+    ref = complex(mpmath.findroot(lambda s: c2 * s * s + c1 * s + (b1 * s + b0) * mpmath.exp(-T * s), r.root))
+    assert abs(ref - r.root) < 1e-12 * (1 + abs(ref))
+    # every root with Re s >= a has |s|^2 <= c1 |s| + (b1 |s| + b0) exp(-T a): |s| <= H
+    a = r.root.real + 1e-6
+    g = math.exp(-T * a)
+    H = 1.01 * ((c1 + b1 * g) + math.sqrt((c1 + b1 * g) ** 2 + 4 * b0 * g)) / 2
+    assert _zeros_in_box(q, a, H, -H, H) == 0
+    assert _zeros_in_box(q, r.root.real - 1e-6, H, -H, H) == 2  # the pair itself
+    m = margins(loop)
+    assert m.stable and m.nyquist_rhp_roots == 0
+
+
+def test_rightmost_moves_left_until_it_finds_a_root():
+    """A fast loop with a tiny delay: 0.01 s + 1 + 0.5 exp(-0.001 s) has its rightmost root far left of -1/T
+    (the search's start is -1000 there, and the root is a real one near -158.6): the real root by Brent's method
+    on the real axis (SciPy), and nothing to its right by the independent argument principle."""
+    from scipy.optimize import brentq
+
+    from delaykit import Controller, Loop
+
+    r = rightmost(Loop("1/(0.01*s+1)", Controller.p(0.5), delay=0.001))
+
+    def q(s):
+        return 0.01 * s + 1 + 0.5 * np.exp(-0.001 * s)
+
+    ref = brentq(lambda x: float(q(x)), -200.0, -100.0, xtol=1e-14)
+    assert r.certified and abs(r.root - ref) < 1e-9 * abs(ref)
+    a = ref + 1e-6
+    H = 2.0 * (1 + 0.5 * math.exp(-0.001 * a)) / 0.01  # |0.01 s| <= 1 + 0.5 e^(-0.001 a) there
+    assert _zeros_in_box(q, a, H, -H, H) == 0
+
+
+def test_stability_map_of_a_general_loop():
+    """The map of any loop: (1) a P loop on 1/(s + 1) over gain and delay, against its closed-form boundary (the
+    critical gain sqrt(1 + w^2) where w T + atan(w) = pi, by Brent's method); (2) a PID loop over (kp, ki), each
+    point equal to the full certified search (`rightmost`) at that point, the map following the roots from point to
+    point and confirming each by one argument-principle count."""
+    from scipy.optimize import brentq
+
+    from delaykit import Controller, Loop
+
+    base = Loop("1/(s+1)", Controller.p(1.0), delay=0.5)
+    kp, td = np.linspace(0.2, 6.0, 30), np.linspace(0.1, 2.0, 12)
+    m = stability_map(base, "kp", kp, "delay", td, workers=2)
+    for i, t in enumerate(td):
+        w = brentq(lambda w: w * t + math.atan(w) - math.pi, 1e-9, math.pi / t)
+        kc = math.sqrt(1 + w * w)
+        clear = np.abs(kp - kc) > 1e-3
+        assert np.array_equal(m.stable[i, clear], (kp < kc)[clear])
+    pid = Loop("1/((s+1)*(0.5*s+1))", Controller.pid(1.0, 0.5, 0.2, 0.05), delay=0.2)
+    kp, ki = np.linspace(0.3, 8.0, 9), np.linspace(0.1, 5.0, 7)
+    seen = []
+    m = stability_map(pid, "kp", kp, "ki", ki, progress=lambda k, n: seen.append((k, n)), workers=1)
+    ref = np.array([[rightmost(pid.replace(kp=a, ki=b)).abscissa for a in kp] for b in ki])
+    assert np.max(np.abs(m.abscissa - ref)) < 1e-9
+    assert 0 < m.stable.sum() < m.stable.size  # both verdicts occur
+    assert seen[-1] == (kp.size * ki.size, kp.size * ki.size)

@@ -403,12 +403,42 @@ def test_unstable_loop_has_no_margins():
     json.dumps(c.to_dict(), allow_nan=False)
 
 
+@pytest.mark.parametrize("delay", [0.1, 0.12])  # two periods exactly, and 2.4 periods
+def test_lower_gain_margin_of_an_open_loop_unstable_plant(delay):
+    """P control (Kp = 2) of the unstable 1/(s - 1), h = 0.05 s: lowering the loop gain by the factor g puts a
+    pole at z = 1 when g Kp P(0) = -1, i.e. g = 0.5 (closed form, whatever the delay); and the radius of the
+    brute-force transition matrix (integrated ODEs, built in this file) crosses 1 there, and at the upper margin."""
+    from scipy.optimize import brentq
+
+    h = 0.05
+    loop = Loop("1/(s-1)", Controller.p(2.0), delay=delay, period=h)
+    mg = sampled_margins(loop)
+    assert mg.stable and mg.lower_gain_margin == pytest.approx(0.5, abs=1e-9)
+    assert mg.to_dict()["lower_gain_margin"] == mg.lower_gain_margin and "(lower 0.5000)" in repr(mg)
+
+    def radius(g):
+        return max(abs(np.linalg.eigvals(brute_force_phi(loop.replace(kp=2.0 * g), h)))) - 1.0
+
+    assert radius(0.45) > 0 > radius(0.55) and radius(1.0) < 0
+    assert brentq(radius, 0.45, 0.55, xtol=1e-10) == pytest.approx(mg.lower_gain_margin, abs=1e-7)
+    assert brentq(radius, 1.0, mg.gain_margin * 1.5, xtol=1e-10) == pytest.approx(mg.gain_margin, rel=1e-7)
+    # an open-loop stable plant under P control: lowering the gain never destabilises it
+    assert sampled_margins(Loop("1/(s+1)", Controller.p(2.0), delay=delay, period=h)).lower_gain_margin == 0.0
+
+
 # -- results and errors -----------------------------------------------------------------------------------------
 def test_results_are_json_ready_with_the_margin_keys():
     lp = AltitudeLoop(kp=2.0, delay=0.37, kv=0.3, velocity="filtered", period=0.065)
     mg = sampled_margins(lp)
     assert set(mg.to_dict()) == {"gain_margin", "phase_margin", "delay_margin", "critical_delay", "crossover",
-                                 "ms", "crossovers", "stable"}
+                                 "ms", "crossovers", "stable", "lower_gain_margin", "gain_margin_db",
+                                 "phase_crossover"}
+    d = mg.to_dict()
+    assert d["lower_gain_margin"] == 0.0  # an integrator in the loop: lowering the gain never destabilises it
+    assert d["gain_margin_db"] == pytest.approx(20 * math.log10(d["gain_margin"]), rel=1e-12)
+    # the phase crossover that sets the gain margin: there 1/|L| is the gain margin
+    L = sampled_frequency_response(lp, d["phase_crossover"])
+    assert 1 / abs(L) == pytest.approx(d["gain_margin"], rel=1e-6) and L.real < 0
     for obj in (mg, sampled_spectrum(lp), sampled_model(lp), compare_sampling(lp)):
         json.dumps(obj.to_dict(), allow_nan=False)
         assert "\n" not in repr(obj)

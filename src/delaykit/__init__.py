@@ -34,6 +34,9 @@ __all__ = [
     "IdentificationError",
     # identification
     "Experiment", "read_experiment", "identify", "predict", "load_model", "IdentifiedModel",
+    # delay compensation and delays that vary
+    "Compensator", "design_compensator", "delay_ratio_range", "simulate_varying", "monte_carlo", "DelaySchedule",
+    "Jitter", "Burst", "DelayTrace", "jitter_margin", "stable_for",
 ]
 __version__ = "0.1.0"
 
@@ -57,6 +60,11 @@ _LAZY = {
     "Experiment": ".identify.iodata", "read_experiment": ".identify.iodata", "identify": ".identify.identification",
     "predict": ".identify.identification", "load_model": ".identify.identification",
     "IdentifiedModel": ".identify.identification",
+    "Compensator": ".models.compensators", "design_compensator": ".design.compensators",
+    "delay_ratio_range": ".design.compensators", "simulate_varying": ".simulate.varying",
+    "monte_carlo": ".simulate.varying", "DelaySchedule": ".simulate.varying", "Jitter": ".simulate.varying",
+    "Burst": ".simulate.varying", "DelayTrace": ".simulate.varying", "jitter_margin": ".spectrum.jitter",
+    "stable_for": ".spectrum.jitter",
 }
 
 

@@ -247,6 +247,48 @@ def reproduce(
     out.print(f"Wrote {out_dir / 'report.md'} and {out_dir / 'index.html'} (open it in a browser).", highlight=False)
 
 
+def _design_compensator(kind: str, opts: dict[str, Any], uncertainty: float, as_json: bool,
+                        plot: Optional[Path]) -> None:
+    """``design --compensator``: the design, its metrics and robustness (and the map with --plot)."""
+    from ..design.compensators import design_compensator, robustness_map
+    from .loopopts import build_loop
+
+    import numpy as np
+
+    opts = {k: v for k, v in opts.items() if k not in ("controller", "model_delay")}
+    if opts.get("delay") is None and opts.get("loop_file") is None:
+        raise InvalidValueError("give --delay (the model delay of the design)")
+    loop, _ = build_loop({**opts, "controller": kind}, parse_delays)
+    with err.status(f"designing the {kind} compensator…"):
+        d = design_compensator(kind, loop.plant, loop.controller.model_delay, umin=loop.umin, umax=loop.umax,
+                               delay_uncertainty=uncertainty, closed_loop_time=opts.get("closed_loop_time"))
+    if plot is not None:
+        from rich.progress import Progress
+
+        from ..plotting.compensation import plot_robustness_map
+
+        dr, gr = np.linspace(0.25, 2.5, 46), np.linspace(0.25, 2.5, 31)
+        with Progress(console=err, transient=True) as bar:
+            task = bar.add_task("robustness map", total=dr.size * gr.size)
+            rm = robustness_map(d.compensator, dr, gr, progress=lambda: bar.advance(task))
+        plot_robustness_map(rm, path=plot)
+    if as_json:
+        print(json.dumps(d.to_dict(), indent=2))
+        return
+    out.print(repr(d.compensator), highlight=False)
+    table = Table(title=f"{kind} design for {loop.plant.to_string(times=' ')}, model delay "
+                        f"{d.compensator.model_delay:g} s")
+    for col in ("step", "Mo %", "rise s", "settle s", "bound s"):
+        table.add_column(col, justify="right")
+    for size, m in d.steps.items():
+        table.add_row(f"{size:g}", _fmt(None if m is None else m.overshoot),
+                      _fmt(None if m is None else m.rise_time),
+                      _fmt(None if m is None else m.settling_time), _fmt(d.bounds.get(size)))
+    out.print(table)
+    lo, hi = d.delay_ratio_range
+    out.print(f"Stable for true/model delay ratios {lo:.4f} to {hi:.4f}; {d.disturbance!r}.", highlight=False)
+
+
 @app.command()
 @_friendly
 @with_loop(omit=("kp", "kv"))
@@ -258,19 +300,27 @@ def design(
     overshoot_limit: float = typer.Option(5.0, "--overshoot-limit", help="Overshoot limit for --criterion overshoot, %."),
     delays_range: Optional[str] = typer.Option(None, "--delays", help="A delay range for a robust 2-D search (START:STOP:N)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address for large searches."),
+    compensator: Optional[str] = typer.Option(None, "--compensator", help="Design a delay compensator instead: smith | filtered-smith | predictor."),
+    delay_uncertainty: float = typer.Option(0.2, "--delay-uncertainty", help="Compensators: the relative delay error the design must survive."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
-    plot: Optional[Path] = typer.Option(None, "--plot", help="Responses (sweep) or the gain maps (with --delays)."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Responses (sweep), the gain maps (with --delays), or the robustness map (--compensator)."),
     loop_options: Any = None,
 ) -> None:
     """Candidate P/PV gains for a loop: rightmost root, abscissa, stability and step metrics, and the best.
 
     The loop (plant, delay, limits, velocity filter, period) comes from the loop options or --loop; --kp and
-    --kv are the candidates.
+    --kv are the candidates.  With --compensator, a Smith predictor, filtered Smith predictor or predictor
+    feedback is designed for the plant and delay instead: its parameters, the step metrics of 0.2 and 1 steps,
+    the load-disturbance recovery and the range of true-to-model delay ratios it survives.
     """
     from rich.progress import Progress
 
     from ..design import tuning as D
     from .loopopts import build_loop
+
+    if compensator is not None:
+        _design_compensator(compensator, dict(loop_options), delay_uncertainty, as_json, plot)
+        return
 
     kps = D.parse_range(kp, "--kp")
     kvs = D.parse_range(kv, "--kv")
@@ -346,13 +396,21 @@ def roots(
 ) -> None:
     """Every characteristic root of the linearised loop in a region, certified by the argument principle.
 
-    Any continuous loop (the loop options or --loop); saturation is ignored (the linearised loop).
+    Any continuous loop (the loop options or --loop); saturation is ignored (the linearised loop).  A sampled loop
+    (--period) gets its exact discrete-time poles instead (z-plane, every one: --region does not apply), with the
+    spectral radius and stability; "abscissa" and "rightmost" are then the equivalent continuous rate log(z)/h.
     """
     from ..spectrum.roots import find_roots
     from ..spectrum.stability import rightmost as rightmost_root
 
     if len(delays) > 1:
         raise InvalidValueError("roots takes one --delay, not a sweep")
+    if loop.sampled:
+        if plot is not None:
+            raise InvalidValueError("--plot draws the s-plane spectrum of a continuous loop; this loop is sampled "
+                                    f"(--period {loop.period:g}): its poles are in the z-plane (see --json)")
+        _sampled_roots(loop, as_json)
+        return
     q = loop.characteristic()
     sp = find_roots(q, region)
     rm = rightmost_root(q)
@@ -386,6 +444,32 @@ def roots(
                   "Kv >= 1): it cannot be stable whatever its other gains.")
 
 
+def _sampled_roots(loop: Any, as_json: bool) -> None:
+    """The roots command for a sampled loop: its poles (z-plane), spectral radius and stability."""
+    from ..spectrum.sampled import sampled_spectrum
+
+    sp = sampled_spectrum(loop)
+    rate = sp.rate if math.isfinite(sp.rate.real) else None
+    data = {**sp.to_dict(), "sampled": True, "abscissa": None if rate is None else rate.real,
+            "rightmost": None if rate is None else [rate.real, abs(rate.imag)]}
+    if as_json:
+        print(json.dumps(data, indent=2))
+        return
+    table = Table(title=f"Poles of the sampled loop {loop!r} (z-plane, h = {sp.period:g} s)")
+    for col in ("#", "Re z", "Im z", "|z|", "rate log|z|/h (1/s)"):
+        table.add_column(col, justify="right")
+    shown = 30
+    for i, z in enumerate(sp.poles.astype(complex)[:shown], 1):
+        table.add_row(str(i), f"{z.real:.6f}", f"{z.imag:.6f}", f"{abs(z):.6f}",
+                      f"{math.log(abs(z)) / sp.period:.6f}" if z != 0 else "-inf")
+    out.print(table)
+    more = f" (the {shown} largest shown; --json lists all)" if sp.poles.size > shown else ""
+    d = sp.dominant
+    out.print(f"{sp.poles.size} poles{more}; spectral radius {sp.radius:.6f} at {d.real:.6f} ± {abs(d.imag):.6f}j "
+              f"(decay rate {math.log(sp.radius) / sp.period if sp.radius > 0 else -math.inf:.6f}/s): "
+              f"{'stable' if sp.stable else 'UNSTABLE'}.", highlight=False)
+
+
 @app.command()
 @_friendly
 @with_loop
@@ -397,14 +481,16 @@ def margins(
     loop: Any = None,
     delays: Any = None,
 ) -> None:
-    """Gain, phase and delay margins, peak sensitivity and every crossover of a continuous loop, exact with the delay.
+    """Gain, phase and delay margins, peak sensitivity and every crossover of a loop, exact with the delay.
 
-    Any continuous loop (the loop options or --loop); saturation is ignored (the linearised loop).  Stability comes
-    from the exact characteristic roots; an unstable closed loop gets no margins.  A sampled loop (--period) is
-    refused: its margins are those of a discrete-time loop.
+    Any loop (the loop options or --loop); saturation is ignored (the linearised loop).  A continuous loop's
+    stability comes from its exact characteristic roots; a sampled loop's (--period) margins and stability are
+    those of its exact discrete-time model (its poles, and L(e^{jwh}) broken at the held command, on (0, pi/h]),
+    with the same JSON keys where they exist.  An unstable closed loop gets no margins.
     """
     from ..spectrum.frequency import frequency_grid, frequency_response
     from ..spectrum.frequency import margins as loop_margins
+    from ..spectrum.sampled import sampled_margins, sampled_response, sampled_spectrum
 
     if len(delays) > 1:
         raise InvalidValueError("margins takes one --delay, not a sweep")
@@ -413,26 +499,43 @@ def margins(
     if lo is not None and hi is not None and not lo < hi:
         raise InvalidValueError(f"--wmin {lo:g} must be below --wmax {hi:g} (rad/s): the frequency range is "
                                 f"{'empty' if lo == hi else 'reversed'}")
-    m = loop_margins(loop)
-    if plot is not None or lo is not None or hi is not None:
+    sampled = loop.sampled
+    if sampled:
+        wn = math.pi / loop.period
+        for flag, v in (("--wmin", lo), ("--wmax", hi)):
+            if v is not None and v > wn:
+                raise InvalidValueError(f"{flag} {v:g} rad/s is above pi/h = {wn:.6g} rad/s, the highest frequency "
+                                        f"of the loop sampled every {loop.period:g} s")
+    m = sampled_margins(loop) if sampled else loop_margins(loop)
+    if not sampled and (plot is not None or lo is not None or hi is not None):
         w = frequency_grid(loop, 1000, wmin=lo, wmax=hi)  # checks a range given at one end against the other
     if plot is not None:
         from matplotlib.figure import Figure
 
         from ..plotting.frequency import plot_bode, plot_nyquist
 
-        resp = frequency_response(loop, w)
+        if sampled:
+            import numpy as np
+
+            a, b = lo or 1e-3 * wn, hi or wn
+            if not a < b:
+                raise InvalidValueError(f"the frequency range is empty or reversed: {a:g} to {b:g} rad/s")
+            resp = sampled_response(loop, np.geomspace(a, b, 1000))
+        else:
+            resp = frequency_response(loop, w)
         fig = Figure(figsize=(12.0, 6.0), layout="constrained")
         grid = fig.add_gridspec(2, 2)
         ax_mag = fig.add_subplot(grid[0, 0])
         ax_ph = fig.add_subplot(grid[1, 0], sharex=ax_mag)
-        plot_bode(resp, axes=(ax_mag, ax_ph), margins=m)
-        plot_nyquist(resp, ax=fig.add_subplot(grid[:, 1]))
         fig.suptitle(repr(loop), fontsize=9)
-        plot.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(plot, dpi=120)
+        plot_bode(resp, axes=(ax_mag, ax_ph), margins=None if sampled else m)
+        plot_nyquist(resp, plot, ax=fig.add_subplot(grid[:, 1]))  # writes the whole figure
     if as_json:
-        print(json.dumps(m.to_dict(), indent=2))
+        data = m.to_dict()
+        if sampled:
+            data.update(sampled=True, period=loop.period, radius=sampled_spectrum(loop).radius,
+                        stability_from="sampled poles")
+        print(json.dumps(data, indent=2))
         return
 
     def at(w: Optional[float]) -> str:
@@ -443,7 +546,8 @@ def margins(
     table.add_column("value", justify="right")
     why = {"roots": "its characteristic roots", "nyquist": "the Nyquist count",
            "neutral chains": "neutral root chains at Re s = ln|L(j∞)|/T ≥ 0"}
-    why = why.get(m.stability_from, m.stability_from)
+    why = (f"its poles, spectral radius {sampled_spectrum(loop).radius:.6f}" if sampled
+           else why.get(m.stability_from, m.stability_from))
     table.add_row("closed loop", f"{'stable' if m.stable else 'UNSTABLE'} (from {why})")
     if m.stable:
         table.add_row("gain margin", "∞" if math.isinf(m.gain_margin) else
@@ -455,17 +559,18 @@ def margins(
         table.add_row("delay margin (extra)", "∞" if math.isinf(m.delay_margin) else
                       f"{m.delay_margin:.6g} s{at(m.crossover)}")
         table.add_row("critical delay (total)", "∞" if math.isinf(m.critical_delay) else f"{m.critical_delay:.6g} s")
-        table.add_row("peak sensitivity Ms", f"{m.ms:.6g}{at(m.ms_frequency)}")
-    table.add_row("open-loop RHP poles P", str(m.open_loop_rhp_poles))
-    table.add_row("encirclements of -1 (ccw)", "–" if m.encirclements is None else str(m.encirclements))
+        table.add_row("peak sensitivity Ms", f"{m.ms:.6g}{at(getattr(m, 'ms_frequency', None))}")
+    if not sampled:
+        table.add_row("open-loop RHP poles P", str(m.open_loop_rhp_poles))
+        table.add_row("encirclements of -1 (ccw)", "–" if m.encirclements is None else str(m.encirclements))
     out.print(table)
-    cross = Table(title=f"crossovers up to {m.cutoff:.6g} rad/s")
+    cross = Table(title=f"crossovers up to {math.pi / loop.period if sampled else m.cutoff:.6g} rad/s")
     for col in ("kind", "ω (rad/s)", "|L|", "phase (deg)", "gives"):
         cross.add_column(col, justify="right")
     shown = 12
     for c in m.crossovers[:shown]:
-        gives = (f"PM {c.phase_margin:.4f}°, DM {c.delay_margin:.6g} s" if c.kind == "gain"
-                 else f"gain factor {c.gain_margin:.6g}")
+        gives = (f"PM {c.phase_margin:.4f}°" + ("" if sampled else f", DM {c.delay_margin:.6g} s")
+                 if c.kind == "gain" else f"gain factor {c.gain_margin:.6g}")
         phase = "–" if math.isnan(c.phase_deg) else f"{c.phase_deg:.4f}"
         cross.add_row(c.kind, "∞" if math.isinf(c.frequency) else f"{c.frequency:.6g}", f"{c.magnitude:.6g}", phase,
                       gives)

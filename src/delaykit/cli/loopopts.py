@@ -29,7 +29,9 @@ def _opt(default: Any, flag: str, help: str) -> Any:  # noqa: A002 (typer's name
 _SPECS: list[tuple[str, Any, Any]] = [
     ("loop_file", Optional[Path], _opt(None, "--loop", "Read the whole loop from a TOML file (other loop options override it).")),
     ("plant", Optional[str], _opt(None, "--plant", "Plant transfer function in s, e.g. '1/(s*(0.05*s+1))' or '0.62*exp(-12*s)/(150*s+1)' (default: the paper's 1/s).")),
-    ("controller", Optional[str], _opt(None, "--controller", "p | pv | pi | pd | pid, or a transfer function on the error (default: p, or pv with --kv).")),
+    ("controller", Optional[str], _opt(None, "--controller", "p | pv | pi | pd | pid | smith | filtered-smith | predictor, or a transfer function on the error (default: p, or pv with --kv).")),
+    ("model_delay", Optional[float], _opt(None, "--model-delay", "Compensators: the delay the design assumes, s (default: --delay); the loop runs with --delay.")),
+    ("closed_loop_time", Optional[float], _opt(None, "--closed-loop-time", "Compensators: the closed-loop time constant Tc, s (default: the fastest that survives a 20 % delay error).")),
     ("kp", Optional[float], _opt(None, "--kp", "Proportional gain Kp.")),
     ("ki", Optional[float], _opt(None, "--ki", "Integral gain Ki (1/s), for pi and pid.")),
     ("kd", Optional[float], _opt(None, "--kd", "Derivative gain Kd (s), for pd and pid.")),
@@ -84,10 +86,35 @@ def build_loop(opts: dict[str, Any], parse_delays: Callable[[str], list[float]])
     >>> loop, delays
     (AltitudeLoop(kp=1.31, delay=0.368 s, vmax=±1 m/s, continuous), [0.368])
     """
+    from ..models.compensators import COMPENSATOR_KINDS
+
+    o = {k: v for k, v in opts.items() if v is not None}
+    comp = {k: o.pop(k) for k in ("model_delay", "closed_loop_time") if k in o}
+    kind = str(o.get("controller", "")).lower().replace("_", "-")
+    if kind in COMPENSATOR_KINDS:
+        o["controller"] = "p"  # a placeholder while the loop is built; the compensator replaces it
+        o.setdefault("kp", 1.0)
+        if "plant" not in o and "loop_file" not in o:  # the paper's plant and limits
+            o["plant"] = "1/s"
+            if not {"umin", "umax", "vmax"} & set(o):
+                o["umin"], o["umax"] = "-1", "1"
+    elif comp:
+        raise InvalidValueError(f"--{next(iter(comp)).replace('_', '-')} is for a compensator "
+                                f"(--controller {' | '.join(COMPENSATOR_KINDS)})")
+    loop, delays = _build(o, parse_delays)
+    if kind in COMPENSATOR_KINDS:
+        from ..design.compensators import tune_compensator
+
+        model_delay = comp.get("model_delay", loop.delay)
+        law = tune_compensator(kind, loop.plant, model_delay, closed_loop_time=comp.get("closed_loop_time"))
+        loop = loop.replace(controller=law)
+    return loop, delays
+
+
+def _build(o: dict[str, Any], parse_delays: Callable[[str], list[float]]) -> tuple[Any, list[float]]:
     from ..models.altitude import AltitudeLoop
     from ..models.loop import load_loop, loop_from_dict
 
-    o = {k: v for k, v in opts.items() if v is not None}
     delays = parse_delays(o.pop("delay")) if "delay" in o else None
     path = o.pop("loop_file", None)
     limits = {k: o.pop(k) for k in ("umin", "umax", "vmax") if k in o}

@@ -16,7 +16,15 @@ ground; the state bits follow take-off, flying, landing, emergency and the commu
 command: hover).
 
 **The loop delay** a controller sees is ``delay + 2 * link_delay`` (:attr:`DroneEmulator.true_delay`):
-actuator plus the network both ways; on loopback the real network adds microseconds.  The controller's
+actuator plus the network both ways; on loopback the real network adds microseconds.
+
+**A delay that changes mid-flight**: ``delay_schedule``, a list of ``(t, delay)`` pairs (``t`` in seconds since
+:meth:`DroneEmulator.start`, increasing; delays from 0 to 5 s), replaces the actuator delay from each time on
+(``delay`` holds before the first).  The delay in force when a command reaches the drone is the one it gets
+(:meth:`DroneEmulator.actuator_delay`, :meth:`DroneEmulator.true_delay_at`).  When the delay falls, a newer
+command can take effect before older ones still pending: the drone applies the newest, and the older ones,
+stale, are dropped (counted in ``stats["stale"]``), as :mod:`delaykit.simulate.varying` models it with
+``keep_order=False``.  The controller's
 sampling (one command per navdata packet) is not a delay but a sample-and-hold, which the estimator models.
 
 Every datagram that fails to parse is counted (``stats["bad"]``) and ignored; the emulator never stops on one.
@@ -46,13 +54,38 @@ from collections import deque
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from ..errors import PortError, PortNumberError, check_real
+from ..errors import InvalidValueError, PortError, PortNumberError, check_real
 from .ardrone import CtrlState, Demo, NavState, ProtocolError, REF_EMERGENCY, REF_TAKEOFF, encode_navdata, parse_at
 
 __all__ = ["EmulatorConfig", "DroneEmulator", "PortError", "PortNumberError"]
 
 # PortError (a port that cannot be bound: an OSError, not a bad value) and PortNumberError (a port number out
 # of range: a bad value) are defined in delaykit.errors and re-exported here
+
+
+def _check_schedule(value: Any) -> tuple[tuple[float, float], ...] | None:
+    """``delay_schedule`` as a tuple of ``(t, delay)`` floats, or a delaykit error naming the bad value."""
+    if value is None:
+        return None
+    if hasattr(value, "times") and hasattr(value, "delays") and getattr(value, "function", None) is None:
+        value = list(zip(value.times, value.delays))  # a delaykit.simulate.varying.DelaySchedule
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
+        raise InvalidValueError(f"delay_schedule must be a list of (t, delay) pairs, got {value!r}")
+    pairs: list[tuple[float, float]] = []
+    for i, pair in enumerate(value):
+        try:
+            t, d = pair
+        except (TypeError, ValueError):
+            raise InvalidValueError(f"delay_schedule[{i}] must be a (t, delay) pair, got {pair!r}") from None
+        t = check_real(f"delay_schedule[{i}] time (s since start)", t, minimum=0.0)
+        d = check_real(f"delay_schedule[{i}] delay (s)", d, minimum=0.0, maximum=5.0)
+        if pairs and not t > pairs[-1][0]:
+            raise InvalidValueError(f"delay_schedule times must increase: delay_schedule[{i}] time {t:g} s is not "
+                                    f"after {pairs[-1][0]:g} s")
+        pairs.append((t, d))
+    if not pairs:
+        raise InvalidValueError("delay_schedule must hold at least one (t, delay) pair (or be None)")
+    return tuple(pairs)
 
 
 def _check_port(name: str, p: Any) -> int:
@@ -63,7 +96,16 @@ def _check_port(name: str, p: Any) -> int:
 
 @dataclass(frozen=True)
 class EmulatorConfig:
-    """Settings of the emulated drone (see the module docstring)."""
+    """Settings of the emulated drone (see the module docstring).
+
+    ``delay_schedule``: ``(t, delay)`` pairs, ``t`` in seconds since the emulator started, that change the
+    actuator delay mid-flight (None: ``delay`` throughout).
+
+    Examples
+    --------
+    >>> EmulatorConfig(delay=0.25, delay_schedule=[(20.0, 0.40)]).delay_schedule
+    ((20.0, 0.4),)
+    """
 
     host: str = "127.0.0.1"
     at_port: int = 5556
@@ -82,6 +124,7 @@ class EmulatorConfig:
     takeoff_speed: float = 0.7
     landing_speed: float = 0.6
     watchdog: float = 2.0
+    delay_schedule: Any = None
 
     def __post_init__(self) -> None:
         for name in ("at_port", "navdata_port", "video_port", "control_port"):
@@ -93,6 +136,7 @@ class EmulatorConfig:
         check_real("rate (Hz)", self.rate, minimum=1.0, maximum=1000.0)
         check_real("loss", self.loss, minimum=0.0, maximum=0.9)
         check_real("jitter (s)", self.jitter, minimum=0.0, maximum=0.5)
+        object.__setattr__(self, "delay_schedule", _check_schedule(self.delay_schedule))
 
 
 @dataclass
@@ -123,7 +167,9 @@ class DroneEmulator:
         self.ports: dict[str, int] = {}
         # everything below that the threads share is guarded by this one lock (see the module docstring)
         self._lock = threading.Lock()
-        self._stats = {"datagrams": 0, "commands": 0, "bad": 0, "navdata_sent": 0, "navdata_dropped": 0}
+        self._stats = {"datagrams": 0, "commands": 0, "bad": 0, "navdata_sent": 0, "navdata_dropped": 0,
+                       "stale": 0}
+        self._t0 = time.monotonic()  # the schedule's clock: reset by start()
         self._last_error = ""
         self._control_conn: socket.socket | None = None
         self._stop = threading.Event()
@@ -159,12 +205,42 @@ class DroneEmulator:
         """What it counted and rejected: ports, counts, the last rejection, and the loop delay (JSON-ready)."""
         with self._lock:
             return {"ports": dict(self.ports), "stats": dict(self._stats), "last_error": self._last_error,
-                    "true_delay": self.true_delay}
+                    "true_delay": self.true_delay,
+                    "delay_schedule": [list(p) for p in self.config.delay_schedule or ()]}
 
     @property
     def true_delay(self) -> float:
-        """The loop delay a controller sees: actuator delay plus the link delay both ways."""
+        """The loop delay a controller sees: actuator delay plus the link delay both ways (with a
+        ``delay_schedule``, the one before its first change; see :meth:`true_delay_at`)."""
         return self.config.delay + 2 * self.config.link_delay
+
+    @property
+    def elapsed(self) -> float:
+        """Seconds since :meth:`start` (the clock of ``delay_schedule``)."""
+        return time.monotonic() - self._t0
+
+    def actuator_delay(self, t: float | None = None) -> float:
+        """The actuator delay in force at the monotonic time ``t`` (default: now).
+
+        Examples
+        --------
+        >>> emu = DroneEmulator(EmulatorConfig(delay=0.25, delay_schedule=[(20.0, 0.40)]))
+        >>> emu.actuator_delay(emu._t0 + 19.9), emu.actuator_delay(emu._t0 + 20.0)
+        (0.25, 0.4)
+        """
+        c = self.config
+        since = (time.monotonic() if t is None else t) - self._t0
+        d = c.delay
+        for ts, ds in c.delay_schedule or ():
+            if since < ts:
+                break
+            d = ds
+        return d
+
+    def true_delay_at(self, t: float | None = None) -> float:
+        """The loop delay a command sent at the monotonic time ``t`` (default: now) sees."""
+        return self.actuator_delay((time.monotonic() if t is None else t) + self.config.link_delay) \
+            + 2 * self.config.link_delay
 
     @property
     def altitude(self) -> float:
@@ -212,6 +288,7 @@ class DroneEmulator:
             s.settimeout(0.1)
         self._phys.t = time.monotonic()
         self._last_cmd = time.monotonic()
+        self._t0 = self._phys.t
         for target in (self._at_loop, self._wake_loop, self._nav_loop, self._tcp_loop):
             th = threading.Thread(target=target, daemon=True, name=f"emulator-{target.__name__}")
             th.start()
@@ -332,7 +409,12 @@ class DroneEmulator:
                         flag = cmd.args[0]
                         gaz = cmd.floats(3, 4)[0]
                         v = gaz * self._vz_max if flag & 1 else 0.0
-                        p.pending.append((t + c.link_delay + c.delay, v))
+                        arrive = t + c.link_delay
+                        ta = arrive + self.actuator_delay(arrive)
+                        while p.pending and p.pending[-1][0] >= ta:  # older, now stale: the newest wins
+                            p.pending.pop()
+                            self._stats["stale"] += 1
+                        p.pending.append((ta, v))
                 elif cmd.name == "COMWDG":
                     self._watchdog = False
                 elif cmd.name == "CONFIG":

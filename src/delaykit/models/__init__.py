@@ -9,6 +9,7 @@ later layer (simulate, spectrum, identify, design, ...) takes these as its input
 """
 
 from .altitude import PAPER_PERIOD, VELOCITY_CHOICES, AltitudeLoop
+from .compensators import COMPENSATOR_KINDS, Compensator
 from .controllers import ANTIWINDUP_CHOICES, CONTROLLER_KINDS, Controller, Realisation
 from .loop import LOOP_KEYS, Loop, load_loop, loop_from_dict
 from .plants import (PLANT_FAMILIES, first_order, integrator, integrator_lag, integrator_speed_loop, second_order,
@@ -20,7 +21,7 @@ from .transfer import MAX_ORDER, TransferFunction
 
 __all__ = [
     "AltitudeLoop", "VELOCITY_CHOICES", "PAPER_PERIOD", "QuasiPolynomial",
-    "Controller", "Realisation", "CONTROLLER_KINDS", "ANTIWINDUP_CHOICES",
+    "Controller", "Realisation", "CONTROLLER_KINDS", "ANTIWINDUP_CHOICES", "Compensator", "COMPENSATOR_KINDS",
     "Loop", "LOOP_KEYS", "load_loop", "loop_from_dict",
     "PLANT_FAMILIES", "integrator", "integrator_lag", "integrator_speed_loop", "first_order", "second_order",
     "second_order_wn",

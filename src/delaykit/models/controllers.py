@@ -52,8 +52,11 @@ VELOCITY_CHOICES = ("true", "filtered")
 class Realisation:
     """A controller as state-space matrices, the form the simulator runs.
 
-    ``xc' = Ac xc + Bcr r + Bcy ym + Bcv vm + Baw (u - v)`` and
+    ``xc' = Ac xc + Bcr r + Bcy ym + Bcv vm + Baw (u - v) + Bcu u + Bcm u(t - Tm)`` and
     ``v = Cc xc + dvr r + dvy ym + dvv vm``; ``integ`` is the index of the integrator state (-1: none).
+    The last two inputs, the command itself and the command one model delay ``Tm`` (``model_delay``) ago,
+    are read only by controllers with a model of the plant inside (see :mod:`delaykit.models.compensators`);
+    ``None`` stands for zeros.
     """
 
     Ac: np.ndarray
@@ -66,11 +69,19 @@ class Realisation:
     dvy: float
     dvv: float
     integ: int
+    Bcu: np.ndarray | None = None
+    Bcm: np.ndarray | None = None
+    model_delay: float = 0.0
 
     @property
     def order(self) -> int:
         """Number of controller states."""
         return int(self.Ac.shape[0])
+
+    @property
+    def reads_command(self) -> bool:
+        """True when the states read the command (a predictor's model)."""
+        return self.Bcu is not None or self.Bcm is not None
 
 
 @dataclass(frozen=True, repr=False)

@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
+from .compensators import Compensator
 from .controllers import Controller
 from .quasipolynomial import QuasiPolynomial
 from .transfer import TransferFunction
@@ -107,8 +108,9 @@ class Loop:
     def __post_init__(self) -> None:
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
         set_("plant", TransferFunction.coerce(self.plant, name="plant"))
-        if not isinstance(self.controller, Controller):
-            raise InvalidTypeError(f"controller must be a Controller, got {type(self.controller).__name__}")
+        if not isinstance(self.controller, (Controller, Compensator)):
+            raise InvalidTypeError(
+                f"controller must be a Controller or a Compensator, got {type(self.controller).__name__}")
         set_("delay", check_real("delay (input delay, s)", self.delay, minimum=0.0))
         set_("output_delay", check_real("output_delay (s)", self.output_delay, minimum=0.0))
         lo = check_real("umin (lower command limit)", self.umin, maximum=0.0, allow_neg_inf=True)
@@ -185,8 +187,33 @@ class Loop:
             raise InvalidValueError(
                 f"a sampled controller (period {self.period:g} s) has no quasi-polynomial characteristic "
                 "function; use the continuous loop (period=None) for roots")
+        if isinstance(self.controller, Compensator):
+            return self._compensated_characteristic()
         num, den = self.open_loop()
         return QuasiPolynomial([den, num], [0.0, self.total_delay])
+
+    def _compensated_characteristic(self) -> QuasiPolynomial:
+        """``Dc Dp - Nu Dp - Nm Dp exp(-s Tm) - Ny Np exp(-s T)``: the law ``u = Gy ym + Gu u + Gm u(t - Tm)``
+        (each ``N / Dc``) closed around the plant, with the structural roots at 0 divided out."""
+        rz = self.controller.realisation()
+        dc = np.poly(rz.Ac) if rz.order else np.ones(1)
+
+        def num(b: np.ndarray, d: float) -> np.ndarray:  # Cc adj(sI - Ac) b + d Dc
+            if not rz.order:
+                return d * dc
+            return np.polysub(np.poly(rz.Ac - np.outer(b, rz.Cc)), dc) + d * dc
+
+        np_, dp = self.plant.num, self.plant.den
+        polys = [np.polysub(np.polymul(dc, dp), np.polymul(num(rz.Bcu, 0.0), dp)),
+                 -np.polymul(num(rz.Bcm, 0.0), dp), -np.polymul(num(rz.Bcy, rz.dvy), np_)]
+        k = self.controller.structural_zeros()
+        scale = max(float(np.max(np.abs(p))) for p in polys)
+        polys = [np.where(np.abs(p) <= 1e-12 * scale, 0.0, p) for p in polys]  # cancellations' rounding
+        for _ in range(k):
+            if any(abs(p[-1]) > 1e-9 * scale for p in polys if p.size):
+                break  # not a root here (a plant without the model's integrator): keep it
+            polys = [p[:-1] if p.size > 1 else np.zeros(1) for p in polys]
+        return QuasiPolynomial(polys, [0.0, self.controller.model_delay, self.total_delay])
 
     def open_loop(self) -> tuple[np.ndarray, np.ndarray]:
         """Numerator and denominator of the loop transfer function without its delay, broken at the plant
@@ -197,6 +224,10 @@ class Loop:
         >>> [c.tolist() for c in Loop("1/s", Controller.pv(2.0, 0.3)).open_loop()]
         [[0.3, 2.0], [1.0, 0.0]]
         """
+        if isinstance(self.controller, Compensator):
+            raise InvalidValueError(
+                f"a loop with a {self.controller.kind} compensator has two delays, so its loop transfer function "
+                "is not a rational function times one delay; use its characteristic function (roots) instead")
         nc, dc = self.controller.feedback_polynomials()
         return np.polymul(self.plant.num, nc), np.polymul(self.plant.den, dc)
 
@@ -216,7 +247,8 @@ class Loop:
         }
 
     def __repr__(self) -> str:
-        parts = [f"plant {self.plant.to_string(times=' ')}", repr(self.controller)[len("Controller("):-1],
+        law = repr(self.controller)
+        parts = [f"plant {self.plant.to_string(times=' ')}", law[law.index("(") + 1:-1],
                  f"delay={self.delay:.4g} s"]
         if self.output_delay:
             parts.append(f"output delay={self.output_delay:.4g} s")

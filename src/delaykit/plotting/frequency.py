@@ -1,8 +1,9 @@
 """Bode and Nyquist plots of a loop's exact frequency response (computed by :mod:`delaykit.spectrum.frequency`).
 
-Each function draws on the axes it is given, or on a new :class:`matplotlib.figure.Figure`, and returns the
-figure.  Nothing is computed here beyond what the drawing needs, and no backend is chosen: a new figure is a
-plain ``Figure`` (not registered with pyplot), which ``fig.savefig(path)`` writes on any machine.
+Each function draws on the axes it is given, or on a new :class:`matplotlib.figure.Figure`, returns the
+figure, and writes it to ``path`` (PNG, PDF or SVG by the suffix, its folder created) only when a path is given,
+as the other plot functions do (:func:`~delaykit.plotting.figures.save_figure`).  Nothing is computed here beyond
+what the drawing needs, and no backend is chosen: a new figure is a plain ``Figure`` (not registered with pyplot).
 
 Examples
 --------
@@ -15,6 +16,7 @@ Examples
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
@@ -23,6 +25,7 @@ from matplotlib.figure import Figure
 
 from ..errors import InvalidTypeError, InvalidValueError
 from ..spectrum.frequency import FrequencyResponse, Margins
+from .figures import save_figure
 
 __all__ = ["plot_bode", "plot_nyquist"]
 
@@ -49,6 +52,7 @@ def _labels(labels: Sequence[str] | None, n: int) -> list[str | None]:
 
 def plot_bode(
     resp_or_list: FrequencyResponse | Sequence[FrequencyResponse],
+    path: str | Path | None = None,
     *,
     ax: Any = None,
     axes: tuple[Axes, Axes] | None = None,
@@ -61,6 +65,9 @@ def plot_bode(
     ----------
     resp_or_list : FrequencyResponse or sequence of them
         From :func:`~delaykit.spectrum.frequency.frequency_response`.
+    path : str or Path, optional
+        Write the figure here (PNG, PDF or SVG by the suffix); nothing is written without it.  With axes given, the
+        whole figure they belong to is written.
     ax, axes : pair of matplotlib Axes, optional
         ``(ax_mag, ax_phase)`` to draw on (``ax`` and ``axes`` are the same argument; give one).  By default a
         new figure with two axes sharing the frequency axis.
@@ -129,11 +136,12 @@ def plot_bode(
         a.grid(alpha=0.3, which="both")
     if any(names):
         ax_mag.legend(fontsize=8)
-    return fig
+    return save_figure(fig, path)
 
 
 def plot_nyquist(
     resp_or_list: FrequencyResponse | Sequence[FrequencyResponse],
+    path: str | Path | None = None,
     *,
     ax: Axes | None = None,
     labels: Sequence[str] | None = None,
@@ -148,6 +156,8 @@ def plot_nyquist(
     ----------
     resp_or_list : FrequencyResponse or sequence of them
         From :func:`~delaykit.spectrum.frequency.frequency_response`.
+    path : str or Path, optional
+        Write the figure here (PNG, PDF or SVG by the suffix); nothing is written without it.
     ax : matplotlib Axes, optional
         Where to draw; by default a new figure.
     labels : sequence of str, optional
@@ -200,4 +210,4 @@ def plot_nyquist(
     ax.grid(alpha=0.3)
     if any(names):
         ax.legend(fontsize=8)
-    return fig
+    return save_figure(fig, path)

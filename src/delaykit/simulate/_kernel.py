@@ -6,7 +6,10 @@ state vector ``X`` (the plant's states, then the controller's), driven by polyno
 * the plant input ``w(t) = u(t - Ti) + d``, the command one input delay ago plus a load disturbance;
 * the measured output ``ym(t) = y(t - To)`` and velocity ``vm(t) = y'(t - To)``, one output delay ago;
 * the reference ``r(t)``, piecewise linear;
-* the back-calculation term ``sat(v) - v`` of an integrator's anti-windup.
+* the back-calculation term ``sat(v) - v`` of an integrator's anti-windup;
+* for a controller with a model of the plant inside (a Smith predictor, predictor feedback), the command
+  ``u(t)`` itself and the command one *model* delay ago, ``u(t - Tm)``: a second delay, whose images are
+  breakpoints like the input delay's.
 
 Every signal is a polynomial in a local variable ``x`` in ``[0, 1]`` on each piece, and the states follow
 from the Taylor recursion ``X[j+1] = H (M X[j] + inputs[j]) / (j + 1)``.  A piece ends at the next
@@ -42,7 +45,7 @@ MAXN = 16
 _GRID = 16
 
 # Scalars at the start of a parameter row.
-(_N, _TI, _TO, _UMIN, _UMAX, _PERIOD, _OFFSET, _T_END, _BAND, _NORM, _DIST, _T_DIST, _DY, _DYD, _DVR, _DVY, _DVV, _INTEG, _AW, _HMAX, _SCALE, _STEP, _SLOPE) = range(23)
+(_N, _TI, _TO, _UMIN, _UMAX, _PERIOD, _OFFSET, _T_END, _BAND, _NORM, _DIST, _T_DIST, _DY, _DYD, _DVR, _DVY, _DVV, _INTEG, _AW, _HMAX, _SCALE, _STEP, _SLOPE, _TM) = range(24)
 HEAD = {
     "n": _N,
     "ti": _TI,
@@ -67,9 +70,10 @@ HEAD = {
     "scale": _SCALE,
     "step": _STEP,
     "slope": _SLOPE,
+    "tm": _TM,
 }
 NHEAD = 24
-# Matrices and vectors after it: M (MAXN x MAXN, row-major), then eight vectors of length MAXN.
+# Matrices and vectors after it: M (MAXN x MAXN, row-major), then ten vectors of length MAXN.
 OFF_M = NHEAD
 OFF_BW = OFF_M + MAXN * MAXN      # plant input w
 OFF_BR = OFF_BW + MAXN            # reference r
@@ -79,7 +83,9 @@ OFF_BAW = OFF_BVM + MAXN          # back-calculation term sat(v) - v
 OFF_CY = OFF_BAW + MAXN           # y = CY X + dy w
 OFF_CYD = OFF_CY + MAXN           # y' = CYD X + dyd w
 OFF_CV = OFF_CYD + MAXN           # v = CV X + dvr r + dvy ym + dvv vm
-NPAR = OFF_CV + MAXN
+OFF_BU = OFF_CV + MAXN            # the command u itself (a predictor's model input)
+OFF_BUM = OFF_BU + MAXN           # the command one model delay ago, u(t - Tm)
+NPAR = OFF_BUM + MAXN
 AW = {"none": 0, "clamp": 1, "backcalc": 2}
 
 # Column layout of a metrics row.
@@ -363,11 +369,13 @@ def _image(t0, gen, n, q, qg, s, a, delay, eps):
 # -- one piece -------------------------------------------------------------------------------------------
 @njit(cache=True)
 def _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dist, X, R, nR,
-               Wd, nW, Ym, Vm, use_meas, Y, Yd, V, E, need_yd):
+               Wd, nW, Ym, Vm, use_meas, Y, Yd, V, E, need_yd, Um, nUm, has_u):
     """Taylor coefficients of every signal on one piece of length ``H`` with the regime fixed.
 
     ``X[:, 0]`` holds the states at the start; fills ``X[:, 1:]``, the output ``Y``, its derivative ``Yd``,
     the controller output ``V`` and the error ``E`` (``Yd`` only where ``need_yd``: something reads y').
+    With ``has_u`` (a predictor's model inside the controller), the states also read the command ``u``
+    itself and ``Um`` (``nUm`` coefficients), the command one model delay ago.
     """
     umin = par[_UMIN]
     umax = par[_UMAX]
@@ -382,6 +390,8 @@ def _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, 
     lim = umax if regime == _HIGH else umin
     # the forcing is a polynomial of degree < nf: once the states' coefficients vanish past it, all do
     nf = max(nR, nW if ti_pos else 1, 1)
+    if has_u:
+        nf = max(nf, nUm)
     if use_meas:
         nf = max(nf, _degree(Ym, NC), _degree(Vm, NC))
     nt = NC
@@ -446,11 +456,27 @@ def _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, 
         if aw == 2 and regime != _LIN:
             awj = (lim if j == 0 else 0.0) - vj
         f = H / (j + 1)
-        for i in range(N):
-            acc = VE[0, i] * wj + VE[1, i] * rj + VE[2, i] * ymj + VE[3, i] * vmj + VE[4, i] * awj
-            for k in range(N):
-                acc += Mloc[i, k] * X[k, j]
-            X[i, j + 1] = f * acc
+        if has_u:
+            # the command as applied: held, the law's output, or the limit it is clipped to
+            if sampled:
+                uj = uhold if j == 0 else 0.0
+            elif regime == _LIN:
+                uj = vj
+            else:
+                uj = lim if j == 0 else 0.0
+            umj = Um[j] if j < nUm else 0.0
+            for i in range(N):
+                acc = (VE[0, i] * wj + VE[1, i] * rj + VE[2, i] * ymj + VE[3, i] * vmj + VE[4, i] * awj
+                       + VE[8, i] * uj + VE[9, i] * umj)
+                for k in range(N):
+                    acc += Mloc[i, k] * X[k, j]
+                X[i, j + 1] = f * acc
+        else:
+            for i in range(N):
+                acc = VE[0, i] * wj + VE[1, i] * rj + VE[2, i] * ymj + VE[3, i] * vmj + VE[4, i] * awj
+                for k in range(N):
+                    acc += Mloc[i, k] * X[k, j]
+                X[i, j + 1] = f * acc
         if frozen and integ >= 0:
             X[integ, j + 1] = 0.0
     for j in range(nt, NC):
@@ -485,6 +511,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     per = par[_PERIOD]
     off = par[_OFFSET]
     tend = par[_T_END]
+    tm = par[_TM]
     band = par[_BAND]
     norm = par[_NORM]
     dist = par[_DIST]
@@ -501,7 +528,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     to_pos = to > 0.0
     algebraic = cont and not ti_pos and not to_pos
     need_yd = keep_y or to_pos or dvv != 0.0
-    regime_matters = (cont and not ti_pos) or aw != 0
+    tm_pos = tm > 0.0
     switches = cont or aw != 0
     keep_y = keep_y or to_pos
     has_dist = dist != 0.0
@@ -513,6 +540,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     X = np.zeros((MAXN, NC + 1))
     R = np.zeros(NC)
     Wd = np.zeros(NC)
+    Um = np.zeros(NC)
     Ym = np.zeros(NC)
     Vm = np.zeros(NC)
     Y = np.zeros(NC)
@@ -523,12 +551,17 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     dW = np.zeros(NC)
     xs = np.zeros(_GRID + 2)
     x0 = np.zeros(MAXN)
+    has_u = False
     for i in range(N):
         if par[OFF_BVM + i] != 0.0:
             need_yd = True
+        if par[OFF_BU + i] != 0.0 or par[OFF_BUM + i] != 0.0:
+            has_u = True
+    tm_pos = tm_pos and has_u
+    regime_matters = (cont and not ti_pos) or aw != 0 or (cont and has_u)
     # the loop's matrices, read once: M, then the input and output vectors (w, r, ym, vm, aw; y, y', v)
     Mloc = np.empty((N, N))
-    VE = np.empty((8, N))
+    VE = np.empty((10, N))
     for i in range(N):
         for k in range(N):
             Mloc[i, k] = par[OFF_M + i * MAXN + k]
@@ -540,6 +573,8 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
         VE[5, i] = par[OFF_CY + i]
         VE[6, i] = par[OFF_CYD + i]
         VE[7, i] = par[OFF_CV + i]
+        VE[8, i] = par[OFF_BU + i]
+        VE[9, i] = par[OFF_BUM + i]
 
     ne = et.shape[0]
     ke = 0
@@ -559,6 +594,8 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     qgu = 1
     qy = 0
     qgy = 1
+    qm = 0
+    qgm = 1
     kr = 0
     trunc = 0.0
     ms = np.empty(_NMS)  # the step metrics as the pieces stream past
@@ -593,6 +630,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
         end = min(tend, a + hmax)
         t_img_u = np.inf
         t_img_y = np.inf
+        t_img_m = np.inf
         if sampled:
             end = min(end, nexts)
         t_knot = rt[kr + 1] if kr + 1 < nref else np.inf
@@ -614,6 +652,13 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
             else:
                 qy, qgy, t_img_y = _image(ty0, ygen, ny, qy, qgy, sy, a, to, eps)
             end = min(end, t_img_y)
+        sm = a - tm
+        if tm_pos:
+            if sm < -eps:
+                t_img_m = tm
+            else:
+                qm, qgm, t_img_m = _image(tu0, ugen, nu, qm, qgm, sm, a, tm, eps)
+            end = min(end, t_img_m)
         H = end - a
         # the delayed signals and the reference on this piece
         nW = 1
@@ -634,6 +679,10 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
                 for j in range(NC):
                     Ym[j] = 0.0
                     Vm[j] = 0.0
+        nUm = 1
+        Um[0] = 0.0
+        if tm_pos and sm >= -eps:
+            nUm = _delayed(tu0, thu, tuc, tdeg, qm, max(sm, tu0[qm]), H, Um)
         nR = _ref_poly(rt, r0, rs, kr, a, H, R)
         dcur = dist if dist_on else 0.0
         for i in range(N):
@@ -644,7 +693,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
         prev_regime = regime
         for attempt in range(4):
             nt = _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dcur, X, R, nR,
-                            Wd, nW, Ym, Vm, to_pos, Y, Yd, V, E, need_yd)
+                            Wd, nW, Ym, Vm, to_pos, Y, Yd, V, E, need_yd, Um, nUm, has_u)
             nv = _degree(V, nt)
             new = _classify(V, nv, umin, umax, ptol)
             newf = False
@@ -756,7 +805,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
         else:
             if end >= t_img_u - eps:
                 geny = True
-            if end >= t_img_y - eps:
+            if end >= t_img_y - eps or end >= t_img_m - eps:
                 genu = cont
             if sampled and end >= nexts - eps:
                 genu = True

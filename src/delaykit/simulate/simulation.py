@@ -56,6 +56,8 @@ class _Layout:
     cy: np.ndarray
     cyd: np.ndarray
     cv: np.ndarray
+    bu: np.ndarray
+    bum: np.ndarray
     dy: float
     dyd: float
     integ: int
@@ -82,7 +84,9 @@ def _layout(loop: Loop) -> _Layout:
     zp, zc = np.zeros(npl), np.zeros(nc)
     return _Layout(
         npl=npl, M=M, bw=np.r_[B, zc], br=np.r_[zp, rz.Bcr], bym=np.r_[zp, rz.Bcy], bvm=np.r_[zp, rz.Bcv],
-        baw=np.r_[zp, rz.Baw], cy=np.r_[C, zc], cyd=np.r_[C @ A, zc], cv=np.r_[zp, rz.Cc], dy=float(D),
+        baw=np.r_[zp, rz.Baw], cy=np.r_[C, zc], cyd=np.r_[C @ A, zc], cv=np.r_[zp, rz.Cc],
+        bu=np.r_[zp, rz.Bcu if rz.Bcu is not None else zc], bum=np.r_[zp, rz.Bcm if rz.Bcm is not None else zc],
+        dy=float(D),
         dyd=float(C @ B), integ=npl + rz.integ if rz.integ >= 0 else -1,
     )
 
@@ -95,6 +99,8 @@ def _rate(lay: _Layout, dvr: float, dvy: float, dvv: float, cv: np.ndarray, dela
     """The loop's fastest rate, whose reciprocal caps a piece's length (Taylor terms decay like 1/j!)."""
     rate = float(np.max(np.abs(np.linalg.eigvals(lay.M)))) if lay.M.size else 0.0
     rate = max(rate, abs(dvy * lay.dyd))
+    if np.any(lay.bu):  # a predictor's model reads the command, u = v while it is not saturated
+        rate = max(rate, float(np.max(np.abs(np.linalg.eigvals(lay.M + np.outer(lay.bu, cv))))))
     if delay_free:
         kd = dvy * lay.dy + dvv * lay.dyd
         if abs(1.0 - kd) < 1e-12:
@@ -137,11 +143,13 @@ def _row(loop: Loop, lay: _Layout, *, step: float, slope: float, norm: float, t_
     p[K.HEAD["scale"]] = max(1.0, abs(rz.dvr * step), abs(norm))
     p[K.HEAD["step"]] = step
     p[K.HEAD["slope"]] = slope
+    p[K.HEAD["tm"]] = rz.model_delay
     M = np.zeros((K.MAXN, K.MAXN))
     M[:n, :n] = lay.M
     _put(p, K.OFF_M, M.ravel())
     for off, vec in ((K.OFF_BW, lay.bw), (K.OFF_BR, lay.br), (K.OFF_BYM, lay.bym), (K.OFF_BVM, lay.bvm),
-                     (K.OFF_BAW, lay.baw), (K.OFF_CY, lay.cy), (K.OFF_CYD, lay.cyd), (K.OFF_CV, lay.cv)):
+                     (K.OFF_BAW, lay.baw), (K.OFF_CY, lay.cy), (K.OFF_CYD, lay.cyd), (K.OFF_CV, lay.cv),
+                     (K.OFF_BU, lay.bu), (K.OFF_BUM, lay.bum)):
         _put(p, off, vec)
     return p
 

@@ -19,13 +19,22 @@ from ..errors import InvalidValueError
 from ..models.loop import Loop
 
 __all__ = ["OpenLoop", "PhaseScan", "gain_crossovers", "scan_phase", "cutoff_frequency", "dense_grid",
-           "positive_real_roots", "snap_half_turns", "TWO_PI"]
+           "positive_real_roots", "snap_half_turns", "horner", "solve_bracketed", "newton_bracketed", "TWO_PI"]
 
 _AXIS_TOL = 1e-9  # a root with |Re r| <= _AXIS_TOL |r| is taken to lie on the imaginary axis
 _LEVEL_TOL = 1e-11  # phases within this many (relative) half-turns of an odd multiple of pi are on it
 _PER_DECADE = 100
 _MAX_PHASE_CROSSOVERS = 10_000
 TWO_PI = 2.0 * math.pi
+
+
+def horner(c: Sequence[float], s: Any) -> Any:
+    """The polynomial with coefficients ``c`` (highest power first, Python floats) at ``s`` (a number or an
+    array): Horner's rule, several times faster than :func:`numpy.polyval` on the few coefficients of a loop."""
+    y = 0.0 * s
+    for a in c:
+        y = y * s + a
+    return y
 
 
 def _trim(p: np.ndarray) -> np.ndarray:
@@ -69,13 +78,23 @@ class OpenLoop:
     def __init__(self, loop: Loop) -> None:
         nc, dc = loop.controller.feedback_polynomials()
         p = loop.plant
-        num, den = loop.open_loop()
+        num, den = np.convolve(p.num, nc), np.convolve(p.den, dc)  # loop.open_loop(), without poly1d's overhead
         self.num = _trim(num)
         self.den = _trim(den)
         self.T = float(loop.total_delay)
         self.zero = self.num.size == 0 or not self.num.any()
         if self.zero:
             self.num = np.zeros(1)
+        self.cn, self.cd = [float(c) for c in self.num], [float(c) for c in self.den]
+        self.cdn = [c * (len(self.cn) - 1 - i) for i, c in enumerate(self.cn[:-1])] or [0.0]  # N' and D'
+        self.cdd = [c * (len(self.cd) - 1 - i) for i, c in enumerate(self.cd[:-1])] or [0.0]
+        # N, D, N', D', N'', D'' as the columns of one matrix on the powers of s (highest first): one product
+        # evaluates all
+        n = max(self.num.size, self.den.size)
+        self.K = np.zeros((n, 6))
+        for j, c in enumerate((self.cn, self.cd, self.cdn, self.cdd)):
+            self.K[n - len(c):, j] = c
+        self.K[1:, 4:] = self.K[:-1, 2:4] * np.arange(n - 1, 0, -1)[:, None] if n > 1 else 0.0
         self.zr, self.z0 = _nonzero_roots([p.num, nc])
         self.pr, self.p0 = _nonzero_roots([p.den, dc])
         self.integrators = self.p0 - self.z0  # net poles at s = 0
@@ -84,14 +103,52 @@ class OpenLoop:
         self.l_inf = abs(self.num[0] / self.den[0]) if self.num.size == self.den.size and not self.zero else 0.0
         self.zparts, self.pparts = self._split(self.zr), self._split(self.pr)
         self.offset = 0.0
-        raw0 = float(self.phase(np.zeros(1))[0])
+        # the phase at w = 0 without the offset: each real root right of the axis gives pi (atan2(0, -a)), the
+        # other factors 0
+        raw0 = ((self.z0 - self.p0) * math.pi / 2 + self.k_term
+                + math.pi * (int(np.sum(self.zparts[0] > 0)) - int(np.sum(self.pparts[0] > 0))))
         self.offset = TWO_PI * round((-self.integrators * math.pi / 2 - raw0) / TWO_PI)
 
     # -- values -------------------------------------------------------------------------------------
+    def _polys(self, s: np.ndarray, cols: slice) -> np.ndarray:
+        """Columns ``cols`` of ``[N, D, N', D']`` at the points ``s`` (one row a point)."""
+        return np.vander(s.ravel(), self.K.shape[0]) @ self.K[:, cols]
+
     def value(self, w: np.ndarray) -> np.ndarray:
-        s = 1j * np.asarray(w, float)
+        w = np.asarray(w, float)
+        s = 1j * w
         with np.errstate(all="ignore"):
-            return np.polyval(self.num, s) / np.polyval(self.den, s) * np.exp(-s * self.T)
+            if s.size > 64:  # (on many points Horner's rule is the faster)
+                return horner(self.cn, s) / horner(self.cd, s) * np.exp(-s * self.T)
+            nd = self._polys(s, slice(0, 2))
+            return (nd[:, 0] / nd[:, 1]).reshape(w.shape) * np.exp(-s * self.T)
+
+    def sensitivity_slope(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Half the first and second derivatives of ``|1 + L(jw)|^2`` in ``w``: ``Re(conj(1 + L) L_w)`` and
+        ``|L_w|^2 + Re(conj(1 + L) L_ww)`` (``L_w = j L_s``, ``L_ww = -L_ss``), for Newton's method on the first."""
+        w = np.asarray(w, float).ravel()
+        s = 1j * w
+        with np.errstate(all="ignore"):
+            n, d, dn, dd, ddn, ddd = self._polys(s, slice(0, 6)).T
+            e = np.exp(-s * self.T)
+            r, r1 = n / d, (dn * d - n * dd) / (d * d)
+            r2 = (ddn * d - n * ddd) / (d * d) - 2.0 * dd * r1 / d
+            T = self.T
+            one = 1.0 + r * e
+            lw = 1j * (r1 - T * r) * e
+            lww = -(r2 - 2.0 * T * r1 + T * T * r) * e
+        return (one.conj() * lw).real, (np.abs(lw) ** 2 + (one.conj() * lww).real)
+
+    def slope(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``L(jw)`` and ``dL/dw`` (``j dL/ds``), without dividing by ``N`` (finite at a zero of ``L``)."""
+        w = np.asarray(w, float).ravel()
+        s = 1j * w
+        with np.errstate(all="ignore"):
+            n, d, dn, dd = self._polys(s, slice(0, 4)).T
+            e = np.exp(-s * self.T)
+            L = n / d * e
+            dL = ((dn * d - n * dd) / (d * d) * e - self.T * L) * 1j
+        return L, dL
 
     @staticmethod
     def _split(r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -161,7 +218,7 @@ class OpenLoop:
         """``|p(jw)|^2`` as a polynomial in ``x = w^2``, highest power first."""
         n = p.size - 1
         pj = p * (1j) ** np.arange(n, -1, -1)
-        return np.polymul(pj, np.conj(pj)).real[::2]
+        return np.convolve(pj, np.conj(pj)).real[::2]
 
     def squares(self) -> tuple[np.ndarray, np.ndarray]:
         a, b = self._sq(self.num), self._sq(self.den)
@@ -183,31 +240,41 @@ def positive_real_roots(p: np.ndarray, scale: float) -> np.ndarray:
     return np.sort(r.real[keep])
 
 
-def gain_crossovers(ol: OpenLoop, grid: np.ndarray | None = None) -> np.ndarray:
-    """Frequencies ``w > 0`` with ``|L(jw)| = 1``: roots of ``|N|^2 - |D|^2`` in ``w^2``, polished."""
+def gain_crossovers(ol: OpenLoop, grid: np.ndarray | None = None, known: np.ndarray | None = None) -> np.ndarray:
+    """Frequencies ``w > 0`` with ``|L(jw)| = 1``: roots of ``|N|^2 - |D|^2`` in ``w^2``, polished.
+
+    With ``grid``, sign changes of ``log|L|`` between its points are candidates too (a net under the polynomial);
+    with ``known`` (this function's earlier result), those are taken as found and only grid intervals that hold
+    none of them are searched."""
     if ol.zero:
         return np.zeros(0)
-    a, b = ol.squares()
-    scale = max(np.abs(a).max(), np.abs(b).max())
-    if np.abs(a - b).max() <= 1e-13 * scale:
-        raise InvalidValueError("the margins are undefined: |L(jw)| = 1 at every frequency (an all-pass loop with "
-                                "unit gain), so every frequency is a gain crossover")
-    cands = list(np.sqrt(positive_real_roots(a - b, scale)))
+    if known is None:
+        a, b = ol.squares()
+        scale = max(np.abs(a).max(), np.abs(b).max())
+        if np.abs(a - b).max() <= 1e-13 * scale:
+            raise InvalidValueError("the margins are undefined: |L(jw)| = 1 at every frequency (an all-pass loop "
+                                    "with unit gain), so every frequency is a gain crossover")
+        cands = list(np.sqrt(positive_real_roots(a - b, scale)))
+    else:
+        cands = []
     if grid is not None and grid.size > 1:  # a net under the polynomial: sign changes of log|L| on the grid
         with np.errstate(all="ignore"):
             g = np.log(np.abs(ol.value(grid)))
         k = np.flatnonzero(np.isfinite(g[:-1]) & np.isfinite(g[1:]) & (np.sign(g[:-1]) * np.sign(g[1:]) < 0))
+        if known is not None and known.size:
+            k = k[~np.any((known[None, :] >= grid[k, None]) & (known[None, :] <= grid[k + 1, None]), axis=1)]
         cands += [0.5 * (grid[i] + grid[i + 1]) for i in k]
-    dn, dd = np.polyder(ol.num), np.polyder(ol.den)
-    found: list[float] = []
-    for w in cands:
+    if known is not None and not cands:
+        return known
+    found: list[float] = [] if known is None else [float(x) for x in known]
+    for w in map(float, cands):
         for _ in range(60):
             s = 1j * w
-            n, d = np.polyval(ol.num, s), np.polyval(ol.den, s)
+            n, d = horner(ol.cn, s), horner(ol.cd, s)
             if n == 0 or d == 0:
                 break
             g = math.log(abs(n)) - math.log(abs(d))
-            gp = -(np.polyval(dn, s) / n).imag + (np.polyval(dd, s) / d).imag
+            gp = -(horner(ol.cdn, s) / n).imag + (horner(ol.cdd, s) / d).imag
             if gp == 0 or not math.isfinite(gp):
                 break
             step = g / gp
@@ -215,27 +282,88 @@ def gain_crossovers(ol: OpenLoop, grid: np.ndarray | None = None) -> np.ndarray:
             w = w_new if w_new > 0 else 0.5 * w
             if abs(step) <= 1e-15 * w:
                 break
-        n, d = np.polyval(ol.num, 1j * w), np.polyval(ol.den, 1j * w)
+        n, d = horner(ol.cn, 1j * w), horner(ol.cd, 1j * w)
         if w > 0 and d != 0 and abs(math.log(abs(n) / abs(d))) < 1e-9 and \
                 not any(abs(w - f) <= 1e-9 * w for f in found):
             found.append(float(w))
     return np.array(sorted(found))
 
 
-def _bisect(f: Any, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Roots of the vectorised ``f`` bracketed by ``[a, b]`` (sign change or zero at an end), to rounding."""
+def newton_bracketed(fdf: Any, a: np.ndarray, b: np.ndarray, x0: np.ndarray, f: Any) -> np.ndarray:
+    """Roots in the brackets ``[a, b]`` by Newton's method from ``x0`` (``fdf(x)`` gives ``f`` and ``f'`` at every
+    point), to rounding; where a step leaves its bracket or Newton has not converged in 8 steps,
+    :func:`solve_bracketed` (with ``f``, on those brackets only) takes over.  Quadratic from a good first guess:
+    two or three steps."""
+    a, b = a.astype(float), b.astype(float)
+    x = np.minimum(np.maximum(x0.astype(float), a), b)
+    done = np.zeros(x.size, bool)
+    close = np.zeros(x.size, bool)  # the last step was below 1e-8 relative: one more reaches rounding
+    bad = np.zeros(x.size, bool)
+    with np.errstate(all="ignore"):
+        for _ in range(8):
+            live = ~(done | bad)
+            if not live.any():
+                break
+            fx, dx = fdf(x)
+            xn = x - fx / dx
+            step = np.abs(xn - x)
+            out = live & ~(np.isfinite(xn) & (xn >= a) & (xn <= b))
+            bad |= out
+            go = live & ~out
+            done |= go & (close | (fx == 0) | (step <= 4e-16 * np.abs(xn)))
+            close = go & (step <= 1e-8 * np.abs(xn))
+            x = np.where(go, xn, x)
+    rest = ~done
+    if rest.any():
+        idx = np.flatnonzero(rest)
+        x[idx] = solve_bracketed(lambda y: f(y, idx), a[idx], b[idx])
+    return x
+
+
+def solve_bracketed(f: Any, a: np.ndarray, b: np.ndarray, rtol: float = 4e-16, x0: np.ndarray | None = None
+                    ) -> np.ndarray:
+    """Roots of the vectorised ``f`` bracketed by ``[a, b]`` (a sign change, or a zero at an end), to rounding.
+
+    The Illinois form of false position (the end that stays is given half its weight), with a bisection step
+    whenever an end has stayed four times in a row and every step at least ``rtol / 2.5`` from the ends (so a
+    root at an end is closed in on at once): superlinear on smooth functions, and never much slower than
+    bisection.  Each bracket is kept, so the result is where ``f`` changes sign, to ``rtol`` relative (by default
+    to rounding).  ``x0``, inside the brackets, replaces the first false-position point (a better first guess).
+    """
     a, b = a.astype(float).copy(), b.astype(float).copy()
     if a.size == 0:
         return a
-    fa = np.sign(f(a))
-    for _ in range(200):
-        m = 0.5 * (a + b)
-        if np.all((b - a) <= 4e-16 * np.abs(b)):
-            break
-        fm = np.sign(f(m))
-        right = (fm == fa) & (fm != 0)
-        a, fa, b = np.where(right, m, a), np.where(right, fm, fa), np.where(right, b, m)
-    return 0.5 * (a + b)
+    with np.errstate(all="ignore"):
+        fa, fb = f(a).astype(float), f(b).astype(float)
+        wa, wb = np.ones(a.size), np.ones(a.size)  # Illinois weights of the two ends
+        stay = np.zeros(a.size, int)  # > 0: the left end stayed that many steps, < 0: the right end
+        for _ in range(200):
+            scale = np.maximum(np.abs(a), np.abs(b))
+            live = ((b - a) > rtol * scale) & (fa != 0) & (fb != 0)
+            if not live.any():
+                break
+            ga, gb = wa * fa, wb * fb
+            m = (a * gb - b * ga) / (gb - ga) if x0 is None else x0.astype(float)
+            x0 = None
+            mid = 0.5 * (a + b)
+            bis = ~np.isfinite(m) | (np.abs(stay) >= 4)
+            m[bis] = mid[bis]
+            tol = 0.4 * rtol * scale  # a step at least this far in from each end
+            m = np.minimum(np.maximum(m, a + tol), b - tol)
+            out = (m <= a) | (m >= b)
+            m[out] = mid[out]
+            fm = f(m).astype(float)
+            left = live & (np.sign(fm) == np.sign(fa)) & (fm != 0)  # the root is right of m: a moves
+            right = live & ~left  # (a zero at m closes the bracket there)
+            zero = right & (fm == 0)
+            a[left], fa[left] = m[left], fm[left]
+            b[right], fb[right] = m[right], fm[right]
+            a[zero], fa[zero] = m[zero], 0.0
+            stay[left] = np.minimum(stay[left], 0) - 1
+            stay[right] = np.maximum(stay[right], 0) + 1
+            wa = np.where(stay >= 2, 0.5 * wa, np.where(stay < 0, 1.0, wa))  # halve a stale end's weight
+            wb = np.where(stay <= -2, 0.5 * wb, np.where(stay > 0, 1.0, wb))
+    return np.where(fa == 0, a, np.where(fb == 0, b, 0.5 * (a + b)))
 
 
 @dataclass(frozen=True)
@@ -276,7 +404,7 @@ def scan_phase(ol: OpenLoop, grid: np.ndarray, w_hi: float) -> PhaseScan:
         d = ol.dphase(pts)
         k = np.flatnonzero(np.sign(d[:-1]) * np.sign(d[1:]) < 0)
         if k.size:
-            inner = np.sort(np.concatenate([inner, _bisect(ol.dphase, pts[k], pts[k + 1])]))
+            inner = np.sort(np.concatenate([inner, solve_bracketed(ol.dphase, pts[k], pts[k + 1])]))
             pts = np.concatenate([[lo], inner, [hi]])
         phi = np.concatenate([ol.phase(pts[:1], side=1.0), ol.phase(inner), ol.phase(pts[-1:], side=-1.0)])
         pts_all.append(pts)
@@ -298,7 +426,10 @@ def scan_phase(ol: OpenLoop, grid: np.ndarray, w_hi: float) -> PhaseScan:
         wx = np.where(at_a, wa, wb)
         if interior.any():
             lev = m[interior] * math.pi
-            wx[interior] = _bisect(lambda x, lev=lev: ol.phase(x) - lev, wa[interior], wb[interior])
+            ga, gb = fa[interior] * math.pi - lev, fb[interior] * math.pi - lev
+            w0 = wa[interior] - ga * (wb[interior] - wa[interior]) / (gb - ga)  # the phase taken as linear
+            wx[interior] = newton_bracketed(lambda x, lev=lev: (ol.phase(x) - lev, ol.dphase(x)), wa[interior],
+                                            wb[interior], w0, lambda x, i, lev=lev: ol.phase(x) - lev[i])
         direction = np.sign(fb - fa).astype(int)
         rule_a = (m > np.minimum(fa, fb)) & (m <= np.maximum(fa, fb))
         rule_b = (m >= np.minimum(fa, fb)) & (m < np.maximum(fa, fb))
@@ -374,7 +505,7 @@ def cutoff_frequency(ol: OpenLoop, gains: np.ndarray) -> tuple[float, float]:
             x3 = positive_real_roots(a - 1e-6 * b, scale)
             if x3.size:
                 w_hi = max(w_hi, 1.01 * math.sqrt(x3[-1]))
-        c = np.polysub(np.polymul(np.polyder(a), b), np.polymul(a, np.polyder(b)))
+        c = np.polysub(np.convolve(np.polyder(a), b), np.convolve(a, np.polyder(b))) if a.size > 1 else np.zeros(1)
         xs = positive_real_roots(c, max(1e-300, np.abs(c).max()))
         if xs.size:
             w_m = math.sqrt(xs[-1])

@@ -53,7 +53,7 @@ from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop, as_loop
 from ..models.loop import Loop
 from ._openloop import (TWO_PI, OpenLoop, PhaseScan, cutoff_frequency, dense_grid, gain_crossovers, scan_phase,
-                        snap_half_turns)
+                        newton_bracketed, snap_half_turns)
 
 __all__ = ["FrequencyResponse", "Crossover", "Margins", "frequency_response", "frequency_grid", "margins"]
 
@@ -329,22 +329,40 @@ class Margins:
 
 
 def _peak_sensitivity(ol: OpenLoop, pts: np.ndarray) -> tuple[float, float | None]:
-    """``max |1 / (1 + L(jw))|`` over ``w >= 0`` and where it is (``None`` for a limit at w = 0 or infinity)."""
-    from scipy.optimize import minimize_scalar
+    """``max |1 / (1 + L(jw))|`` over ``w >= 0`` and where it is (``None`` for a limit at w = 0 or infinity).
 
+    The smallest ``|1 + L|`` on the points, then at each local minimum on them (the eight smallest) the root of
+    ``d|1 + L|^2/dw = 2 Re(conj(1 + L) dL/dw)`` between the neighbouring points: Newton's method (with the exact
+    second derivative) from the vertex of the parabola through the three points, safeguarded by the bracket
+    (vectorised).
+    """
     with np.errstate(all="ignore"):
         d = np.abs(1.0 + ol.value(pts))
     d = np.where(np.isfinite(d), d, np.inf)
     best, where = np.inf, None
     if d.size >= 3:
         k = 1 + np.flatnonzero((d[1:-1] <= d[:-2]) & (d[1:-1] <= d[2:]))
-        for i in k[np.argsort(d[k])][:8]:
-            f = lambda w: float(np.abs(1.0 + ol.value(np.array([w]))[0]))  # noqa: E731
-            res = minimize_scalar(f, bounds=(pts[i - 1], pts[i + 1]), method="bounded",
-                                  options={"xatol": 1e-12 * pts[i]})
-            val, at = (res.fun, res.x) if res.fun <= d[i] else (d[i], pts[i])
-            if val < best:
-                best, where = float(val), float(at)
+        k = k[np.argsort(d[k])][:8]
+
+        def slope(w: np.ndarray) -> np.ndarray:
+            L, dL = ol.slope(w)
+            return ((1.0 + L).conj() * dL).real
+
+        lo, mid, hi = pts[k - 1], pts[k], pts[k + 1]
+        with np.errstate(all="ignore"):
+            ok = (slope(lo) <= 0) & (slope(hi) >= 0)
+            # first guess: the vertex of the parabola through the three points' |1 + L|^2
+            y0, y1, y2 = d[k - 1] ** 2, d[k] ** 2, d[k + 1] ** 2
+            num = (mid - lo) ** 2 * (y1 - y2) - (mid - hi) ** 2 * (y1 - y0)
+            den = (mid - lo) * (y1 - y2) - (mid - hi) * (y1 - y0)
+            v = mid - 0.5 * num / den
+            v = np.where(np.isfinite(v) & (v > lo) & (v < hi), v, mid)
+        at = newton_bracketed(ol.sensitivity_slope, lo[ok], hi[ok], v[ok], lambda x, i: slope(x))
+        with np.errstate(all="ignore"):
+            val = np.abs(1.0 + ol.value(at))
+        for v, w in zip(val, at):
+            if v < best:
+                best, where = float(v), float(w)
     i = int(np.argmin(d))
     if d[i] < best:
         best, where = float(d[i]), float(pts[i])
@@ -361,8 +379,10 @@ def _peak_sensitivity(ol: OpenLoop, pts: np.ndarray) -> tuple[float, float | Non
 def _closed_loop_stable(loop: Loop) -> bool:
     """Stability from the exact characteristic roots: none in the closed right half-plane.
 
-    The roots with ``Re s >= 0`` lie in ``[0, R] x [0, R]`` (``R`` from :func:`~delaykit.spectrum.roots.root_bound`;
-    the coefficients are real, so ``Im s >= 0`` suffices) and the certified root finder counts them.  It runs
+    The roots with ``Re s >= 0`` lie in ``[0, R] x [-R, R]`` (``R`` a root bound) and the argument principle counts
+    them (:func:`~delaykit.spectrum.stability.right_half_plane_count`); where that cannot count (a root on the
+    imaginary axis), the certified root finder searches ``[0, R] x [0, R]`` (the coefficients are real, so
+    ``Im s >= 0`` suffices).  It runs
     in the time unit of the delay: ``Q(s)`` and ``Q(z / T)`` have the same roots up to the factor ``T > 0``, and
     with the delay scaled to 1 the region fits the loop's own time scale (a 12 s delay on a 150 s lag is
     searched in milliseconds, not seconds).  The caller has ruled out neutral chains at or right of the axis.
@@ -370,10 +390,19 @@ def _closed_loop_stable(loop: Loop) -> bool:
     """
     from ..models.quasipolynomial import QuasiPolynomial
     from .roots import find_roots, root_bound
-    from .stability import rightmost
+    from .stability import _rhp_count, rightmost
 
+    num, den = loop.open_loop()
+    t = loop.total_delay
+    n1 = max(num.size, den.size)
+    C = np.zeros((2, n1), complex)
+    C[0, n1 - den.size:], C[1, n1 - num.size:] = den, num
+    if t > 0:
+        C *= t ** -np.arange(n1 - 1, -1, -1.0)
+    n = _rhp_count(C, np.array([0.0, 1.0 if t > 0 else 0.0]))  # one boundary integral, usually
+    if n is not None:
+        return n == 0
     q = loop.characteristic()
-    t = max(q.delays)
     if t > 0:
         polys = [[c * t ** -(len(p) - 1 - k) for k, c in enumerate(p)] for p in q.polys]
         q = QuasiPolynomial(polys, [d / t for d in q.delays])
@@ -399,8 +428,9 @@ def margins(loop: Loop | AltitudeLoop) -> Margins:
     * ``delay_margin`` (s): the extra delay that first puts a root on the imaginary axis, the minimum over the
       gain crossovers ``wc`` of ``PM / wc`` with ``PM`` the phase lag to -180 degrees in [0, 2 pi);
       ``crossover`` is that ``wc``, and ``critical_delay = loop.total_delay + delay_margin``.
-    * ``ms``: the peak of ``|S(jw)| = 1/|1 + L(jw)|``, refined with a bounded scalar optimiser around the best
-      grid points (``ms_frequency``; ``None`` when the peak is a limit at ``w = 0`` or ``w -> inf``).
+    * ``ms``: the peak of ``|S(jw)| = 1/|1 + L(jw)|``, refined around the best grid points by solving
+      ``d|1 + L|/dw = 0`` between their neighbours (``ms_frequency``; ``None`` when the peak is a limit at
+      ``w = 0`` or ``w -> inf``).
 
     Stability comes from the exact characteristic roots of ``loop.characteristic()``, which also see modes that
     cancel in ``L``: none may lie in the closed right half-plane, where the certified root finder counts them
@@ -458,7 +488,7 @@ def margins(loop: Loop | AltitudeLoop) -> Margins:
     w_hi, w_m = cutoff_frequency(ol, gains)
     for _ in range(20):
         grid = dense_grid(ol, gains, w_hi)
-        extra = gain_crossovers(ol, grid)  # the grid's net may add crossovers the polynomial missed
+        extra = gain_crossovers(ol, grid, gains)  # the grid's net may add crossovers the polynomial missed
         if extra.size > gains.size:
             gains = extra
             grid = dense_grid(ol, gains, w_hi)

@@ -61,13 +61,13 @@ from ..errors import InvalidTypeError, InvalidValueError
 from ..models.altitude import AltitudeLoop, as_loop
 from ..models.hold import hold_matrices, split_delay
 from ..models.loop import Loop
-from .frequency import _jsonable
+from .frequency import FrequencyResponse, _jsonable
 from .stability import delay_margin as _continuous_delay_margin
 from .stability import rightmost
 
 __all__ = ["SampledModel", "SampledSpectrum", "SampledCrossover", "SampledMargins", "SamplingComparison",
-           "sampled_model", "sampled_spectrum", "sampled_frequency_response", "sampled_margins", "compare_sampling",
-           "MAX_ORDER"]
+           "sampled_model", "sampled_spectrum", "sampled_frequency_response", "sampled_response", "sampled_margins",
+           "compare_sampling", "MAX_ORDER"]
 
 MAX_ORDER = 2000
 """The largest lifted state (plant + controller + held commands) built; a longer delay-to-period ratio is refused."""
@@ -390,6 +390,29 @@ def sampled_frequency_response(loop: Loop | AltitudeLoop, w: Any) -> Any:
     return complex(out) if out.ndim == 0 else out
 
 
+def sampled_response(loop: Loop | AltitudeLoop, w: Any = None) -> FrequencyResponse:
+    """:func:`sampled_frequency_response` as a :class:`~delaykit.spectrum.frequency.FrequencyResponse`, for
+    :func:`~delaykit.plotting.frequency.plot_bode` and ``plot_nyquist``.
+
+    ``w`` in ``(0, pi/h]`` (default: 1000 frequencies, logarithmic from ``1e-3 pi/h`` to ``pi/h``); the phase is
+    unwrapped along increasing ``w`` (so the grid must be fine enough that it turns by less than pi between
+    neighbours, as the default is for delays under about a hundred periods).
+
+    Examples
+    --------
+    >>> from delaykit import AltitudeLoop
+    >>> r = sampled_response(AltitudeLoop(kp=1.31, delay=0.368, period=0.065))
+    >>> r.w.size, round(float(r.phase_deg[-1]), 6)   # at pi/h: z = -1, L real and negative, 3.5 turns down
+    (1000, -1260.0)
+    """
+    h = sampled_model(loop).period
+    w = np.geomspace(1e-3 * math.pi / h, math.pi / h, 1000) if w is None else np.sort(np.ravel(w))
+    L = np.atleast_1d(sampled_frequency_response(loop, w))
+    with np.errstate(divide="ignore"):
+        db = 20.0 * np.log10(np.abs(L))
+    return FrequencyResponse(w=w, L=L, magnitude_db=db, phase_deg=np.degrees(np.unwrap(np.angle(L))))
+
+
 # -- margins ---------------------------------------------------------------------------------------------------
 @dataclass(frozen=True, repr=False)
 class SampledCrossover:
@@ -438,7 +461,9 @@ class SampledMargins:
     """Stability margins of a sampled loop (see :func:`sampled_margins` for how each is found).
 
     ``gain_margin``: the factor above 1 on the loop gain that puts a pole on the unit circle (``inf`` if none
-    up to 1e6); ``phase_margin`` (degrees) at the gain crossover ``crossover`` (rad/s) where it is smallest;
+    up to 1e6); ``lower_gain_margin``: the factor below 1 that does (``0`` if lowering the gain never
+    destabilises the loop; positive when the open loop is unstable, or the loop only conditionally stable);
+    ``phase_margin`` (degrees) at the gain crossover ``crossover`` (rad/s) where it is smallest;
     ``delay_margin``: the extra continuous delay that reaches instability, ``critical_delay`` the total delay
     there; ``ms``: the largest sensitivity ``max |1 / (1 + L)|``; ``crossovers``: the gain and phase
     crossovers in ``(0, pi/h]``.  As for continuous loops, margins are ``inf`` when nothing crosses and
@@ -454,27 +479,45 @@ class SampledMargins:
     ms: float
     crossovers: tuple[SampledCrossover, ...]
     stable: bool
+    lower_gain_margin: float = 0.0
 
     @property
     def gain_crossovers(self) -> tuple[float, ...]:
         """Frequencies (rad/s) where ``|L| = 1``."""
         return tuple(c.frequency for c in self.crossovers if c.kind == "gain")
 
+    @property
+    def gain_margin_db(self) -> float:
+        """The gain margin in dB, ``20 log10(gain_margin)``."""
+        g = self.gain_margin
+        return g if not (math.isfinite(g) and g > 0) else 20.0 * math.log10(g)
+
+    @property
+    def phase_crossover(self) -> float | None:
+        """The phase crossover (rad/s) whose factor ``1 / |L|`` is the gain margin (``None`` if none is)."""
+        return next((c.frequency for c in self.crossovers if c.kind == "phase" and c.gain_margin is not None
+                     and abs(c.gain_margin - self.gain_margin) <= 1e-6 * self.gain_margin), None)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form: keys ``gain_margin``, ``phase_margin``, ``delay_margin``, ``critical_delay``,
-        ``crossover``, ``ms``, ``crossovers`` (a list of :meth:`SampledCrossover.to_dict`) and ``stable``;
-        infinite and NaN values are ``None``."""
+        ``crossover``, ``ms``, ``crossovers`` (a list of :meth:`SampledCrossover.to_dict`), ``stable``,
+        ``lower_gain_margin``, ``gain_margin_db`` and ``phase_crossover`` (the keys of the continuous
+        :meth:`~delaykit.spectrum.frequency.Margins.to_dict` that a sampled loop has); infinite and NaN values are
+        ``None``."""
         return _jsonable({"gain_margin": self.gain_margin, "phase_margin": self.phase_margin,
                           "delay_margin": self.delay_margin, "critical_delay": self.critical_delay,
                           "crossover": self.crossover, "ms": self.ms,
-                          "crossovers": [c.to_dict() for c in self.crossovers], "stable": self.stable})
+                          "crossovers": [c.to_dict() for c in self.crossovers], "stable": self.stable,
+                          "lower_gain_margin": self.lower_gain_margin, "gain_margin_db": self.gain_margin_db,
+                          "phase_crossover": self.phase_crossover})
 
     def __repr__(self) -> str:
         if not self.stable:
             return (f"SampledMargins(closed loop UNSTABLE, {len(self.gain_crossovers)} gain and "
                     f"{len(self.crossovers) - len(self.gain_crossovers)} phase crossovers)")
         w = "" if self.crossover is None else f" at {self.crossover:.4f} rad/s"
-        return (f"SampledMargins(gain {self.gain_margin:.4f}, phase {self.phase_margin:.2f} deg{w}, delay "
+        low = f" (lower {self.lower_gain_margin:.4f})" if self.lower_gain_margin > 0 else ""
+        return (f"SampledMargins(gain {self.gain_margin:.4f}{low}, phase {self.phase_margin:.2f} deg{w}, delay "
                 f"{self.delay_margin:.4f} s (critical {self.critical_delay:.4f} s), Ms {self.ms:.4f}, stable)")
 
 
@@ -511,6 +554,8 @@ def sampled_margins(loop: Loop | AltitudeLoop) -> SampledMargins:
       ``A + g B K`` is scanned upwards from ``g = 1`` (a geometric grid up to 1e6, plus the factors ``-1/L``
       at every crossing of the negative real axis by the discrete Nyquist curve, where a pole can reach the
       unit circle), the first crossing of 1 refined by Brent's method;
+    * lower gain margin: the same scan downwards from ``g = 1`` to ``1e-6`` (then to 0, when the open loop is
+      unstable and the radius has not yet crossed 1), ``0`` when the radius stays below 1;
     * phase margin: ``180 + arg L`` in degrees at each gain crossover ``|L(e^{j w h})| = 1``, the smallest;
     * delay margin: extra continuous delay on the loop, scanned from 0 in steps of ``0.1 / w_max`` up to
       ``2 (2 pi / w_min) + 4 h`` (``w_min``, ``w_max`` the lowest and highest gain crossovers), the first
@@ -579,9 +624,32 @@ def sampled_margins(loop: Loop | AltitudeLoop) -> SampledMargins:
     gs = np.unique(np.r_[np.geomspace(1.0, _GAIN_SCAN_MAX, 121)[1:], [g * (1 + 1e-9) for g in cands],
                          [g * (1 - 1e-9) for g in cands]])
     gm = _first_crossing(lambda g: _radius(mdl.closed(g)) - 1.0, gs, 1.0)
+    with np.errstate(all="ignore"):  # (infinite at an integrator)
+        at_one = complex(_response(mdl, np.zeros(1))[0])  # L at z = 1, where a real pole can cross
+    low = _lower_gain_margin(mdl, [-1.0 / v.real for v in [resp(x) for x in phases] + [at_one]
+                                   if math.isfinite(v.real) and v.real < 0.0])
     # delay margin: the radius as extra delay is added
     dm = _delay_margin(lp, h, tuple(gains), mdl)
-    return SampledMargins(gm, pm, dm, mdl.total_delay + dm, wc, ms, tuple(crossings), True)
+    return SampledMargins(gm, pm, dm, mdl.total_delay + dm, wc, ms, tuple(crossings), True, low)
+
+
+def _lower_gain_margin(mdl: SampledModel, factors: list[float]) -> float:
+    """The largest gain factor below 1 at which a pole reaches the unit circle (0 if none), scanning ``1 / g``
+    upwards from 1 (a geometric grid to 1e6 and the factors ``-1/L`` of the phase crossings and ``z = 1``), then
+    down to ``g = 0`` when the open loop itself is unstable."""
+    def fun(t: float) -> float:
+        return _radius(mdl.closed(1.0 / t)) - 1.0
+
+    cands = [1.0 / g for g in factors if math.isfinite(g) and 0.0 < g < 1.0]
+    ts = np.unique(np.r_[np.geomspace(1.0, _GAIN_SCAN_MAX, 121)[1:], [t * (1 + 1e-9) for t in cands],
+                         [t * (1 - 1e-9) for t in cands]])
+    t = _first_crossing(fun, ts[ts > 1.0], 1.0)
+    if math.isfinite(t):
+        return 1.0 / t
+    g_min = 1.0 / _GAIN_SCAN_MAX
+    if _radius(mdl.a_open) > 1.0 + 1e-12 and _radius(mdl.closed(g_min)) < 1.0:
+        return float(brentq(lambda g: _radius(mdl.closed(g)) - 1.0, 0.0, g_min, xtol=1e-300, rtol=1e-14))
+    return 0.0
 
 
 def _delay_margin(lp: Loop, h: float, crossovers: tuple[float, ...], mdl: SampledModel) -> float:
