@@ -25,8 +25,10 @@ run: $(VENV)/.installed
 	$(BIN)/delaykit reproduce --out $(OUT)/paper
 	$(BIN)/delaykit demo --out $(OUT)/demo
 
+# the real-time flights measure timing: they run alone, after the rest, with no other worker taking the CPU
 test: $(VENV)/.test-installed
-	$(BIN)/python -m pytest -n 2 -q
+	$(BIN)/python -m pytest -n 2 -q -m "not realtime"
+	$(BIN)/python -m pytest -q -m realtime
 
 bench: $(VENV)/.test-installed
 	$(BIN)/python benchmarks/bench_simulate.py

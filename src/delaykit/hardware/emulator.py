@@ -56,6 +56,7 @@ from typing import Any
 
 from ..errors import InvalidValueError, PortError, PortNumberError, check_real
 from .ardrone import CtrlState, Demo, NavState, ProtocolError, REF_EMERGENCY, REF_TAKEOFF, encode_navdata, parse_at
+from .stamps import enable_stamps, recv_stamped
 
 __all__ = ["EmulatorConfig", "DroneEmulator", "PortError", "PortNumberError"]
 
@@ -171,6 +172,7 @@ class DroneEmulator:
                        "stale": 0}
         self._t0 = time.monotonic()  # the schedule's clock: reset by start()
         self._last_error = ""
+        self.kernel_stamps = False  # whether command arrivals carry the kernel's stamp (set by start())
         self._control_conn: socket.socket | None = None
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
@@ -283,6 +285,7 @@ class DroneEmulator:
             raise
         for s in (self._at, self._nav):
             s.settimeout(0.05)
+        self.kernel_stamps = enable_stamps(self._at)  # a command's arrival is when the kernel got it
         for s in (self._video, self._control):
             s.listen(4)
             s.settimeout(0.1)
@@ -350,7 +353,7 @@ class DroneEmulator:
         p = self._phys
         while p.pending and p.pending[0][0] <= t:
             ta, v = p.pending.popleft()
-            self._integrate(ta - p.t)
+            self._integrate(max(ta - p.t, 0.0))  # (a command stamped late by a busy thread: apply it now)
             if p.mode in (CtrlState.FLYING, CtrlState.HOVERING):
                 p.v_in = v
                 p.mode = CtrlState.FLYING if v != 0 else CtrlState.HOVERING
@@ -388,7 +391,7 @@ class DroneEmulator:
         c = self.config
         with self._lock:
             self._stats["datagrams"] += 1
-            self._advance(t)
+            self._advance(max(t, self._phys.t))  # t is the kernel's arrival stamp: the physics may be past it
             self._last_cmd = t
             for cmd in cmds:
                 self._stats["commands"] += 1
@@ -447,10 +450,10 @@ class DroneEmulator:
     def _at_loop(self) -> None:
         while not self._stop.is_set():
             try:
-                data, _ = self._at.recvfrom(4096)
+                data, _, t = recv_stamped(self._at, 4096)
             except (socket.timeout, OSError):
                 continue
-            self._handle(data, time.monotonic())
+            self._handle(data, t)
 
     def _wake_loop(self) -> None:
         """Datagrams to the navdata port: any of them makes the sender the navdata client."""
@@ -487,8 +490,8 @@ class DroneEmulator:
             delay = t_send - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
-            now = time.monotonic()
             with self._lock:
+                now = time.monotonic()  # (read under the lock: the state sent is the state at this time)
                 if now - self._last_cmd > c.watchdog:
                     self._watchdog = True
                 self._advance(now)

@@ -35,6 +35,7 @@ import numpy as np
 from ..errors import DelaykitError, InvalidValueError, check_real
 from .ardrone import ATEncoder, CtrlState, NavState, Navdata, ProtocolError, decode_navdata
 from .emulator import _check_port
+from .stamps import enable_stamps, recv_stamped
 
 __all__ = ["LinkError", "DroneLink", "FlightPlan", "FlightResult", "fly"]
 
@@ -64,6 +65,8 @@ class DroneLink:
         self.at = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.nav = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.nav.bind(("127.0.0.1" if ipaddress.ip_address(host).is_loopback else "0.0.0.0", 0))
+        # a packet's time is its arrival in the kernel, not when this thread woke to read it
+        self.kernel_stamps = enable_stamps(self.nav)
         self.enc = ATEncoder()
         self.rejected = 0
         self.rejections: list[str] = []
@@ -86,10 +89,9 @@ class DroneLink:
                 return None
             self.nav.settimeout(left)
             try:
-                data, addr = self.nav.recvfrom(4096)
+                data, addr, t = recv_stamped(self.nav, 4096)
             except socket.timeout:
                 return None
-            t = time.monotonic()
             if addr[0] != self.host:
                 continue
             try:
