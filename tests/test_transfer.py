@@ -15,7 +15,7 @@ import scipy.signal
 from hypothesis import example, given
 from hypothesis import strategies as st
 
-from delaykit.errors import InvalidTypeError, InvalidValueError
+from delaykit.errors import InvalidTypeError, InvalidValueError, MissingDependencyError
 from delaykit.models.transfer import MAX_ORDER, TransferFunction
 
 POINTS = [0.3 + 2.1j, -0.7 + 0.4j, 1.5, 5j, -3.2 - 11j]
@@ -386,7 +386,7 @@ def test_to_control_and_back():
 
 def test_to_control_without_python_control(monkeypatch):
     monkeypatch.setitem(sys.modules, "control", None)  # makes `import control` fail
-    with pytest.raises(InvalidValueError, match=r"python-control"):
+    with pytest.raises(MissingDependencyError, match=r"python-control"):
         TransferFunction.parse("1/s").to_control()
 
 

@@ -1,6 +1,6 @@
 """The simulator with a time-varying command delay (delaykit.simulate.varying): against the exact sampled simulator
 for constant delays, against a brute-force ODE integration written here for switching delays, the delay models,
-the packet-order rules, Monte Carlo, and bad input."""
+the packet-order rules and bad input (Monte Carlo, moved to delaykit.simulate.montecarlo, is in test_montecarlo.py)."""
 
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ from scipy.signal import tf2ss
 
 from delaykit import InvalidTypeError, InvalidValueError, simulate
 from delaykit.models import Controller, Loop
-from delaykit.simulate.varying import (Burst, CombinedDelay, DelaySchedule, DelayTrace, Jitter, MonteCarlo,
-                                       VaryingResponse, arrival_plan, as_delay_model, monte_carlo, simulate_varying)
+from delaykit.simulate.varying import (Burst, CombinedDelay, DelaySchedule, DelayTrace, Jitter, VaryingResponse,
+                                       arrival_plan, as_delay_model, simulate_varying)
 
 CONSTANT_LOOPS = [
     Loop("1/s", Controller.p(1.31), delay=0.368, umin=-1, umax=1, period=0.065),
@@ -240,28 +240,3 @@ def test_a_continuous_loop_takes_a_period_and_the_result_reports_itself():
     d = r.to_dict(arrays=True)
     assert d["packets"] == 93 and len(d["t"]) == r.t.size and d["delay"]["kind"] == "jitter"
     assert 0.3 <= d["delay_min"] <= d["delay_max"] <= 0.35
-
-
-def test_monte_carlo_percentiles_and_reproducibility():
-    loop = Loop("1/s", Controller.p(1.31), umin=-1, umax=1, period=0.065)
-    # a jitter of zero spread: every run is the constant-delay loop, whose exact metrics come from simulate()
-    flat = monte_carlo(loop, Jitter(0.3, spread=0.0), n=5, seed=1, t_end=8.0)
-    exact = simulate(loop.replace(delay=0.3), t_end=8.0).metrics
-    assert np.allclose(flat.overshoot, exact.overshoot, atol=1e-4)
-    assert np.allclose(flat.settling_time, exact.settling_time, atol=1e-4)
-    jit = Jitter(0.3, "exponential", scale=0.08)
-    a = monte_carlo(loop, jit, n=24, seed=11, t_end=10.0, dt=0.02)
-    b = monte_carlo(loop, jit, n=24, seed=11, t_end=10.0, dt=0.02)
-    c = monte_carlo(loop, jit, n=24, seed=12, t_end=10.0, dt=0.02)
-    assert isinstance(a, MonteCarlo) and np.array_equal(a.overshoot, b.overshoot)
-    assert not np.array_equal(a.overshoot, c.overshoot)
-    p = a.percentiles("overshoot")
-    assert p[50.0] == pytest.approx(float(np.percentile(a.overshoot, 50)))
-    assert p[5.0] <= p[50.0] <= p[95.0]
-    # extra random delay on top of 0.3 s: the median overshoot exceeds the constant 0.3 s loop's (exact)
-    assert p[50.0] > exact.overshoot
-    d = a.to_dict()
-    assert d["runs"] == 24 and set(d["percentiles"]) == {"overshoot", "peak_time", "rise_time", "settling_time"}
-    assert repr(a).startswith("MonteCarlo(24 runs, percentiles 5/50/95: overshoot ")
-    with pytest.raises(InvalidValueError, match="positive integer"):
-        monte_carlo(loop, jit, n=0)

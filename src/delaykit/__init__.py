@@ -35,7 +35,8 @@ __all__ = [
     # identification
     "Experiment", "read_experiment", "identify", "predict", "load_model", "IdentifiedModel",
     # delay compensation and delays that vary
-    "Compensator", "design_compensator", "delay_ratio_range", "simulate_varying", "monte_carlo", "DelaySchedule",
+    "Compensator", "design_compensator", "delay_ratio_range", "simulate_varying", "monte_carlo", "DelayDistribution",
+    "DelaySchedule",
     "Jitter", "Burst", "DelayTrace", "jitter_margin", "stable_for",
 ]
 __version__ = "0.1.0"
@@ -62,7 +63,8 @@ _LAZY = {
     "IdentifiedModel": ".identify.identification",
     "Compensator": ".models.compensators", "design_compensator": ".design.compensators",
     "delay_ratio_range": ".design.compensators", "simulate_varying": ".simulate.varying",
-    "monte_carlo": ".simulate.varying", "DelaySchedule": ".simulate.varying", "Jitter": ".simulate.varying",
+    "monte_carlo": ".simulate.montecarlo", "DelayDistribution": ".simulate.montecarlo",
+    "DelaySchedule": ".simulate.varying", "Jitter": ".simulate.varying",
     "Burst": ".simulate.varying", "DelayTrace": ".simulate.varying", "jitter_margin": ".spectrum.jitter",
     "stable_for": ".spectrum.jitter",
 }

@@ -50,7 +50,7 @@ from typing import Any, NamedTuple, NoReturn
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, MissingDependencyError, check_real
 
 __all__ = ["TransferFunction", "MAX_ORDER"]
 
@@ -719,6 +719,11 @@ class TransferFunction:
     def to_control(self) -> Any:
         """The same system as a python-control ``TransferFunction`` (python-control must be installed).
 
+        Raises
+        ------
+        MissingDependencyError
+            When python-control is not installed (an ``ImportError`` too).
+
         Examples
         --------
         >>> float(TransferFunction.parse("2/(s+1)").to_control().dcgain())
@@ -727,6 +732,6 @@ class TransferFunction:
         try:
             import control
         except ImportError as exc:
-            raise InvalidValueError("to_control() needs python-control, which is not installed "
-                                    "(pip install control)") from exc
+            raise MissingDependencyError("to_control() needs python-control, which is not installed "
+                                         "(pip install control)") from exc
         return control.tf(self.num.copy(), self.den.copy())

@@ -12,12 +12,13 @@ compatibility); import this layer's modules by their full names, ``from delaykit
 
 from .metrics import SecondOrder, StepMetrics, noise_level, step_metrics
 from .simulation import SWEEPABLE, BatchMetrics, Response, Sampler, as_loop, simulate, simulate_many
-from .varying import (Burst, CombinedDelay, DelayModel, DelaySchedule, DelayTrace, Jitter, MonteCarlo, VaryingResponse,
-                      arrival_plan, as_delay_model, monte_carlo, simulate_varying)
+from .montecarlo import DelayDistribution, MonteCarlo, monte_carlo
+from .varying import (Burst, CombinedDelay, DelayModel, DelaySchedule, DelayTrace, Jitter, VaryingResponse,
+                      arrival_plan, as_delay_model, simulate_varying)
 
 __all__ = [
     "StepMetrics", "SecondOrder", "step_metrics", "noise_level",
     "Response", "BatchMetrics", "Sampler", "simulate", "simulate_many", "as_loop", "SWEEPABLE",
     "DelayModel", "DelaySchedule", "Jitter", "Burst", "DelayTrace", "CombinedDelay", "as_delay_model", "arrival_plan",
-    "VaryingResponse", "simulate_varying", "MonteCarlo", "monte_carlo",
+    "VaryingResponse", "simulate_varying", "MonteCarlo", "monte_carlo", "DelayDistribution",
 ]

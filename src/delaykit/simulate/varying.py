@@ -53,7 +53,7 @@ from .discrete import _expm
 from .metrics import StepMetrics, step_metrics
 
 __all__ = ["DelayModel", "DelaySchedule", "Jitter", "Burst", "DelayTrace", "CombinedDelay", "as_delay_model",
-           "arrival_plan", "VaryingResponse", "simulate_varying", "MonteCarlo", "monte_carlo", "JITTER_DISTRIBUTIONS"]
+           "arrival_plan", "VaryingResponse", "simulate_varying", "JITTER_DISTRIBUTIONS"]
 
 JITTER_DISTRIBUTIONS = ("uniform", "exponential", "gamma")
 
@@ -729,72 +729,3 @@ def simulate_varying(loop: Any, delay: Any = None, *, step: float = 1.0, z0: flo
     return VaryingResponse(loop=gen, delay=model, step=step, z0=z0, t_end=t_end, t=rec_c - To, output=z,
                            applied_input=rec[:, 1], send_times=send, commands=u_cmd, delays=d, arrival_times=arrival,
                            used=used, metrics=metrics)
-
-
-# ----------------------------------------------------------------------------------------------- Monte Carlo
-_METRICS = ("overshoot", "peak_time", "rise_time", "settling_time")
-
-
-@dataclass(frozen=True, repr=False, eq=False)
-class MonteCarlo:
-    """Step metrics over random delay realisations: one per run (NaN where absent, e.g. not settled)."""
-
-    runs: int
-    seed: int | None
-    overshoot: np.ndarray = field(repr=False)
-    peak_time: np.ndarray = field(repr=False)
-    rise_time: np.ndarray = field(repr=False)
-    settling_time: np.ndarray = field(repr=False)
-    levels: tuple[float, ...] = (5.0, 50.0, 95.0)
-
-    @property
-    def unsettled(self) -> int:
-        """Runs that did not settle by the end."""
-        return int(np.count_nonzero(np.isnan(self.settling_time)))
-
-    def percentiles(self, name: str) -> dict[float, float | None]:
-        """The percentiles (at ``levels``) of one metric over the runs that have it."""
-        if name not in _METRICS:
-            raise InvalidValueError(f"metric must be one of {', '.join(_METRICS)}; got {name!r}")
-        a = getattr(self, name)[np.isfinite(getattr(self, name))]
-        return {p: (float(np.percentile(a, p)) if a.size else None) for p in self.levels}
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready form: the percentiles of each metric (keys like ``"p50"``) and the counts."""
-        return {"runs": self.runs, "seed": self.seed, "unsettled": self.unsettled, "percentiles": {
-            m: {f"p{p:g}": v for p, v in self.percentiles(m).items()} for m in _METRICS}}
-
-    def __repr__(self) -> str:
-        f = lambda m: "/".join("-" if v is None else f"{v:.4g}" for v in self.percentiles(m).values())  # noqa: E731
-        return (f"MonteCarlo({self.runs} runs, percentiles {'/'.join(f'{p:g}' for p in self.levels)}: overshoot "
-                f"{f('overshoot')} %, settling {f('settling_time')} s, {self.unsettled} unsettled)")
-
-
-def monte_carlo(loop: Any, jitter: Any, *, n: int = 200, seed: int | None = None, step: float = 1.0,
-                t_end: float = 15.0, period: float | None = None, dt: float | None = None, band: float = 0.02,
-                levels: Sequence[float] = (5.0, 50.0, 95.0)) -> MonteCarlo:
-    """The distribution of the step metrics over ``n`` random realisations of a delay model.
-
-    Run ``i`` draws its delays from an independent stream of ``numpy.random.SeedSequence(seed)`` (the model's own
-    seed is not used), so the result is reproducible for a given ``seed``.
-
-    Examples
-    --------
-    >>> from delaykit.models import Controller, Loop
-    >>> loop = Loop("1/s", Controller.p(1.31), umin=-1, umax=1, period=0.065)
-    >>> mc = monte_carlo(loop, Jitter(0.3, "exponential", scale=0.05), n=20, seed=4, t_end=8.0, dt=0.02)
-    >>> mc.runs, mc.unsettled
-    (20, 0)
-    """
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise InvalidValueError(f"n (number of runs) must be a positive integer, got {n!r}")
-    _check_seed(seed)
-    lv = tuple(check_real("percentile level", p, minimum=0.0, maximum=100.0) for p in levels)
-    model, streams = as_delay_model(jitter), np.random.SeedSequence(seed).spawn(int(n))
-    out = {m: np.full(int(n), np.nan) for m in _METRICS}
-    for i, ss in enumerate(streams):
-        r = simulate_varying(loop, model, step=step, t_end=t_end, period=period, dt=dt, band=band,
-                             rng=np.random.default_rng(ss))
-        for m in _METRICS if r.metrics is not None else ():
-            out[m][i] = np.nan if getattr(r.metrics, m) is None else getattr(r.metrics, m)
-    return MonteCarlo(runs=int(n), seed=seed, levels=lv, **out)
