@@ -187,8 +187,8 @@ def test_demo_command_with_no_interval(tmp_path, monkeypatch):
 
     est = _no_interval_estimate()
     rep = SimpleNamespace(estimate=est, true_delay=0.37, error=est.delay - 0.37, kv=0.3, pv_kp=2.0, kv_source="design",
-                          p_metrics=[{"settling_time": 4.0}], pv_metrics=[{"settling_time": 2.5}],
-                          to_dict=lambda: {"estimate": est.to_dict()})
+                          p_metrics=[{"settling_time": 4.0}], pv_metrics=[{"settling_time": 2.5}], comp_metrics=None,
+                          varying_flight=None, to_dict=lambda: {"estimate": est.to_dict()})
     monkeypatch.setattr(demo, "run_demo", lambda *a, **k: rep)
     res = run("demo", "--out", str(tmp_path))
     assert res.exit_code == 0, res.output

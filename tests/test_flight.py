@@ -254,7 +254,7 @@ def test_flight_log_columns_flushing_and_bounds(tmp_path):
     log = FlightLog.from_csv(res.logs[0])
     assert set(log.extra) == {"vz", "seq", "recv_time", "latency_ms"} and log.step == pytest.approx(0.6)
     assert np.all(np.abs(log.u) <= 1.0 + 1e-12)
-    # every command after the step is the saturated P law on the logged altitude (to the log's 6 decimals)
+    # every command after the step is the saturated P law on the logged altitude (to the 6 decimals of the reference of old logs; now 9)
     after = log.z_ref == log.z_ref[-1]
     assert after.sum() > 40
     assert np.max(np.abs(log.u[after] - np.clip(1.31 * (log.z_ref[after] - log.z[after]), -1, 1))) < 5e-6
@@ -407,8 +407,29 @@ def test_fly_then_estimate_recovers_the_loop_delay(tmp_path):
 def test_demo_pipeline_against_a_hidden_delay(tmp_path):
     from delaykit.paper.demo import run_demo
 
-    rep = run_demo(tmp_path, seed=11, p_steps=2, pv_steps=1, step_duration=5.0)
+    rep = run_demo(tmp_path, seed=11, p_steps=2, pv_steps=1, step_duration=5.0, varying_steps=6,
+                   varying_duration=3.5)
     assert rep.true_delay is not None and abs(rep.error) < 0.015
+    # the compensator flown is the design whose simulated 1 m step settles soonest, and it settled in flight
+    comp = rep.compensator
+    assert comp["chosen"] == min(comp["designs"], key=lambda k: comp["designs"][k]["settling_1m"])
+    assert rep.comp_flight.controller["controller"]["kind"] == comp["chosen"]
+    assert rep.comp_metrics and all(m["settled"] for m in rep.comp_metrics)
+    # the delay that moves: estimates before the change near the old loop delay plus the lag (the integrator model
+    # counts the lag as delay: 0.05 s here, within 0.02), after it near the new; the alarm goes off and the law is
+    # re-designed; the later steps are within the new design range
+    vt, online = rep.varying_truth, rep.varying_flight.online
+    assert len(online) == 6
+    spans = [(o.estimate.t_from - vt["t0"], o.estimate.t_to - vt["t0"]) for o in online]
+    before = [o for o, (a, b) in zip(online, spans) if b < vt["change_time"]]
+    after = [o for o, (a, b) in zip(online, spans) if a > vt["change_time"]]
+    assert before and after
+    assert all(abs(o.delay - (vt["before"] + 0.05)) < 0.02 and not o.alarm for o in before)
+    assert all(abs(o.delay - (vt["after"] + 0.05)) < 0.02 for o in after)
+    alarms = [o for o in online if o.alarm]
+    assert alarms and alarms[0].action == "redesigned" and alarms[0].step <= after[0].step
+    assert all(not o.alarm for o in online if o.step > alarms[0].step)
+    assert (tmp_path / "online_delay.png").stat().st_size > 10_000 and "A delay that moves" in (tmp_path / "demo.md").read_text()
     assert (tmp_path / "demo.md").exists() and (tmp_path / "pv_flights.png").stat().st_size > 10_000
     assert rep.pv_metrics and rep.p_metrics
     # the gains flown are the ones reported: read back from the logged commands (to the log's rounding)
@@ -448,7 +469,7 @@ def test_demo_falls_back_to_the_papers_kv_explicitly(tmp_path, monkeypatch):
     monkeypatch.setattr(demo, "design_sweep",
                         lambda *_a, **_k: Design(rows=(), criterion="settling", best=None, reason=reason, loop=None))
     said = []
-    rep = demo.run_demo(tmp_path, host="127.0.0.1", p_steps=1, pv_steps=1, status=said.append)
+    rep = demo.run_demo(tmp_path, host="127.0.0.1", p_steps=1, pv_steps=1, compensate=False, status=said.append)
     assert rep.kv == demo.FALLBACK_KV == 0.3 and rep.kv_source.startswith("fallback") and reason in rep.kv_source
     assert [(p.kp, p.kv) for p in plans] == [(demo.P_KP, 0.0), (demo.PV_KP, 0.3)]
     assert (demo.P_KP, demo.PV_KP) == (1.31, 2.0)

@@ -72,6 +72,27 @@ def parse_delays(spec: str) -> list[float]:
                              "list, or 'table1'") from None
 
 
+def parse_schedule(spec: str) -> list[tuple[float, float]]:
+    """A delay schedule from ``T:DELAY`` pairs separated by commas (times and delays in seconds).
+
+    Examples
+    --------
+    >>> parse_schedule("20:0.40, 40:0.25")
+    [(20.0, 0.4), (40.0, 0.25)]
+    """
+    pairs = []
+    for k, item in enumerate(x for x in spec.split(",")):
+        parts = item.split(":")
+        try:
+            if len(parts) != 2:
+                raise ValueError
+            pairs.append((float(parts[0]), float(parts[1])))
+        except ValueError:
+            raise InvalidValueError(f"--delay-schedule item {k + 1} {item.strip()!r} is not T:DELAY (seconds since "
+                                    "start, delay in seconds), e.g. 20:0.40") from None
+    return pairs
+
+
 def _fmt(x: Optional[float], digits: int = 4) -> str:
     return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}f}"
 
@@ -301,7 +322,7 @@ def design(
     delays_range: Optional[str] = typer.Option(None, "--delays", help="A delay range for a robust 2-D search (START:STOP:N)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address for large searches."),
     compensator: Optional[str] = typer.Option(None, "--compensator", help="Design a delay compensator instead: smith | filtered-smith | predictor."),
-    delay_uncertainty: float = typer.Option(0.2, "--delay-uncertainty", help="Compensators: the relative delay error the design must survive."),
+    delay_uncertainty: float = typer.Option(0.2, "--delay-uncertainty", help="The relative delay error the law is designed for (compensators: must survive; --monitor: the design range)."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Responses (sweep), the gain maps (with --delays), or the robustness map (--compensator)."),
     loop_options: Any = None,
@@ -390,7 +411,8 @@ def roots(
     region: tuple[float, float, float, float] = typer.Option(
         (-10.0, 2.0, 0.0, 100.0), "--region", help="RE_MIN RE_MAX IM_MIN IM_MAX."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
-    plot: Optional[Path] = typer.Option(None, "--plot", help="Draw the spectrum (as the paper's Fig. 8) here."),
+    plot: Optional[Path] = typer.Option(
+        None, "--plot", help="Draw the spectrum (as the paper's Fig. 8) here; a sampled loop's poles in the z-plane."),
     loop: Any = None,
     delays: Any = None,
 ) -> None:
@@ -399,6 +421,7 @@ def roots(
     Any continuous loop (the loop options or --loop); saturation is ignored (the linearised loop).  A sampled loop
     (--period) gets its exact discrete-time poles instead (z-plane, every one: --region does not apply), with the
     spectral radius and stability; "abscissa" and "rightmost" are then the equivalent continuous rate log(z)/h.
+    --plot then draws them in the z-plane, with the unit circle.
     """
     from ..spectrum.roots import find_roots
     from ..spectrum.stability import rightmost as rightmost_root
@@ -407,8 +430,10 @@ def roots(
         raise InvalidValueError("roots takes one --delay, not a sweep")
     if loop.sampled:
         if plot is not None:
-            raise InvalidValueError("--plot draws the s-plane spectrum of a continuous loop; this loop is sampled "
-                                    f"(--period {loop.period:g}): its poles are in the z-plane (see --json)")
+            from ..plotting.figures import plot_z_spectrum
+            from ..spectrum.sampled import sampled_spectrum
+
+            plot_z_spectrum(sampled_spectrum(loop), plot, title=repr(loop))
         _sampled_roots(loop, as_json)
         return
     q = loop.characteristic()
@@ -855,6 +880,7 @@ def emulate(
     loss: float = typer.Option(0.0, "--loss", help="Navdata packet loss, fraction."),
     jitter: float = typer.Option(0.0, "--jitter", help="Navdata send jitter, s."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed."),
+    delay_schedule: Optional[str] = typer.Option(None, "--delay-schedule", help="The actuator delay changing mid-run: T:DELAY pairs, e.g. 20:0.40,40:0.25 (s since start, s)."),
     duration: float = typer.Option(0.0, "--duration", help="Run this long, s (0 = until Ctrl-C)."),
 ) -> None:
     """Run the built-in AR.Drone 2.0 emulator (loopback by default) until Ctrl-C, SIGTERM or --duration; then
@@ -868,7 +894,8 @@ def emulate(
     check_real("--duration", duration, minimum=0.0)
     cfg = EmulatorConfig(host=host, at_port=at_port, navdata_port=navdata_port, video_port=video_port,
                          control_port=control_port, delay=delay, lag=lag, link_delay=link_delay, noise=noise,
-                         rate=rate, loss=loss, jitter=jitter, seed=seed)
+                         rate=rate, loss=loss, jitter=jitter, seed=seed,
+                         delay_schedule=None if delay_schedule is None else parse_schedule(delay_schedule))
     terminated = threading.Event()  # SIGTERM ends the run like Ctrl-C: the same summary, exit status 0
     main_thread = threading.current_thread() is threading.main_thread()  # (signal handlers only go there)
     old_term = signal.signal(signal.SIGTERM, lambda *_: terminated.set()) if main_thread else None
@@ -908,28 +935,78 @@ def fly(
     host: str = typer.Option("192.168.1.1", "--host", help="The drone (the emulator: 127.0.0.1)."),
     at_port: int = typer.Option(5556, "--at-port", help="The drone's AT command port."),
     navdata_port: int = typer.Option(5554, "--navdata-port", help="The drone's navdata port."),
-    kp: float = typer.Option(..., "--kp", help="Proportional gain."),
-    kv: float = typer.Option(0.0, "--kv", help="Velocity gain."),
+    controller: str = typer.Option("p", "--controller", help="p | pv (the paper's laws, --kp/--kv) | smith | filtered-smith | predictor (designed for --model-delay)."),
+    kp: Optional[float] = typer.Option(None, "--kp", help="Proportional gain (p, pv)."),
+    kv: float = typer.Option(0.0, "--kv", help="Velocity gain (pv)."),
     velocity: str = typer.Option("true", "--velocity", help="true (navdata vz) | filtered (derivative filter)."),
+    model_delay: Optional[float] = typer.Option(None, "--model-delay", help="Compensators: the delay of the integrator model 1/s they are designed for, s."),
+    closed_loop_time: Optional[float] = typer.Option(None, "--closed-loop-time", help="Compensators: Tc, s (default: the fastest surviving --delay-uncertainty)."),
+    delay_uncertainty: float = typer.Option(0.2, "--delay-uncertainty", help="The relative delay error the law is designed for (compensators: must survive; --monitor: the design range)."),
     vmax: float = typer.Option(1.0, "--vmax", help="Command limit, m/s (at most 2)."),
     step: float = typer.Option(1.0, "--step", help="Reference step, m."),
     steps: Optional[str] = typer.Option(None, "--steps", help="Several steps, e.g. 1,-1,1 (one log each)."),
     duration: float = typer.Option(12.0, "--duration", help="Seconds flown after each step."),
     hover: float = typer.Option(2.0, "--hover", help="Seconds of steady hover before the first step."),
+    monitor: bool = typer.Option(False, "--monitor", help="Re-estimate the delay after each step; alarm when it leaves the design range."),
+    design_range: Optional[str] = typer.Option(None, "--design-range", help="The delays the law was designed for, LO,HI in s (default: the design delay ± --delay-uncertainty; p/pv without --design-delay: where the loop on 1/s is stable)."),
+    design_delay: Optional[float] = typer.Option(None, "--design-delay", help="p/pv with --monitor: the delay the gains were designed for, s."),
+    schedule: bool = typer.Option(False, "--schedule", help="With --monitor: re-design the law for the new estimate after an alarm (p and compensators)."),
+    est_lag: float = typer.Option(0.0, "--estimate-lag", help="With --monitor: the vehicle's speed lag the estimator assumes, s (0: the delay absorbs it)."),
     log: Path = typer.Option(Path("flight.csv"), "--log", help="The flight log (CSV, flushed every line)."),
     yes: bool = typer.Option(False, "--yes", help="Do not ask before taking off a real drone."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
 ) -> None:
     """Fly step tests: navdata start-up, take-off, hover, the steps, land; log every packet.
 
+    The law is the paper's P or PV (--kp, --kv) or a delay compensator designed for --model-delay on the
+    integrator model 1/s.  With --monitor the delay is re-estimated after each step (the drone hovers for the
+    fraction of a second it takes) and compared with the law's design range; --schedule re-designs the law
+    when the alarm goes off.
+
     Exits with status 1 (saying why) if the flight did not complete: a navdata gap, an altitude out of
     bounds, Ctrl-C, or a declined take-off."""
     from ..hardware.flight import FlightPlan, fly as run
+    from ..models.compensators import COMPENSATOR_KINDS
 
+    kind = controller.lower().replace("_", "-")
+    law = None
+    if kind in COMPENSATOR_KINDS:
+        if model_delay is None:
+            raise InvalidValueError(f"--controller {kind} needs --model-delay (the delay it is designed for, s)")
+        if kp is not None or kv:
+            raise InvalidValueError(f"--controller {kind} is designed from --model-delay; --kp/--kv are for p and pv")
+        from ..design.compensators import tune_compensator
+
+        check_real("--model-delay (s)", model_delay, minimum=0.0, strict=True)
+        law = tune_compensator(kind, "1/s", model_delay, closed_loop_time=closed_loop_time,
+                               delay_uncertainty=delay_uncertainty)
+    elif kind in ("p", "pv"):
+        if kp is None:
+            raise InvalidValueError(f"--controller {kind} needs --kp")
+        if kind == "p" and kv:
+            raise InvalidValueError("--controller p has no --kv; use --controller pv")
+        if model_delay is not None or closed_loop_time is not None:
+            raise InvalidValueError("--model-delay and --closed-loop-time are for the compensators "
+                                    f"({' | '.join(COMPENSATOR_KINDS)})")
+    else:
+        raise InvalidValueError(f"--controller must be p, pv or one of {', '.join(COMPENSATOR_KINDS)}; got "
+                                f"{controller!r}")
+    if not monitor and (design_range or schedule or design_delay is not None or est_lag):
+        raise InvalidValueError("--design-range, --design-delay, --schedule and --estimate-lag need --monitor")
     sts = tuple(float(x) for x in steps.split(",")) if steps else (step,)
-    plan = FlightPlan(kp=kp, kv=kv, velocity=velocity, vmax=vmax, steps=sts, step_duration=duration, hover_time=hover)
+    plan = FlightPlan(kp=kp if kp is not None else 0.0, kv=kv, velocity=velocity, vmax=vmax, steps=sts,
+                      step_duration=duration, hover_time=hover, controller=law)
+    mon = None
+    if monitor:
+        from ..hardware.monitor import DelayMonitor
+
+        from ..models.ranges import parse_range
+
+        rng = tuple(parse_range(design_range, "--design-range")) if design_range else None
+        mon = DelayMonitor(plan.law(), design_delay=design_delay, design_range=rng, lag=est_lag, schedule=schedule,
+                           delay_uncertainty=delay_uncertainty)
     res = run(plan, log, host=host, at_port=at_port, navdata_port=navdata_port, confirm=_confirm_real(host, yes),
-              status=lambda m: err.print(m, highlight=False))
+              status=lambda m: err.print(m, highlight=False), monitor=mon)
     if as_json:
         print(json.dumps(res.to_dict(), indent=2))
         if not res.completed:  # a flight that ended early (or never took off) is a failure: status 1
@@ -941,6 +1018,14 @@ def fly(
     if res.latency_median_ms is not None:
         out.print(f"Loop latency (navdata received to command sent): median {res.latency_median_ms:.3f} ms, "
                   f"99th percentile {res.latency_p99_ms:.3f} ms.", highlight=False)
+    if res.online:
+        from rich.table import Table
+
+        tab = Table("step", "delay (s)", "95 % interval", "design range", "stable range", "alarm", "action")
+        for o in res.online:
+            tab.add_row(str(o.step), f"{o.delay:.4f}", _fmt_ci(o.estimate.ci), _fmt_ci(o.design_range, 3),
+                        _fmt_ci(o.stable_range, 3), "ALARM" if o.alarm else "", o.action)
+        out.print(tab)
     out.print("Logs: " + ", ".join(str(p) for p in res.logs), highlight=False)
     if not res.completed:  # the reason is printed above
         raise typer.Exit(1)
@@ -954,16 +1039,24 @@ def demo(
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed of the emulator (its hidden delay and noise)."),
     p_steps: int = typer.Option(5, "--p-steps", help="P-control step tests."),
     step_duration: float = typer.Option(8.0, "--step-duration", help="Seconds after each step."),
+    compensate: bool = typer.Option(True, "--compensate/--no-compensate", help="Also design the delay compensators and fly the best."),
+    varying_steps: int = typer.Option(6, "--varying-steps", help="Emulator only: steps of the flight whose delay grows mid-flight (0: none)."),
+    delay_jump: float = typer.Option(0.15, "--delay-jump", help="Emulator only: how much that flight's delay grows, s."),
     yes: bool = typer.Option(False, "--yes", help="Do not ask before taking off a real drone."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
 ) -> None:
-    """The whole pipeline: fly P step tests, estimate the delay, design PV gains, fly them, and report."""
+    """The whole pipeline: fly P step tests, estimate the delay, design PV gains and the delay compensators, fly
+    them, fly once more while the emulator's delay grows (the delay monitor's alarm), and report."""
     from ..paper.demo import run_demo
 
     if p_steps < 1:
         raise InvalidValueError(f"--p-steps must be at least 1, got {p_steps}")
+    if varying_steps < 0:
+        raise InvalidValueError(f"--varying-steps must be at least 0, got {varying_steps}")
+    check_real("--delay-jump (s)", delay_jump, minimum=0.0, maximum=2.0)
     with err.status("starting") as st:
         rep = run_demo(out_dir, host=host, seed=seed, p_steps=p_steps, step_duration=step_duration,
+                       compensate=compensate, varying_steps=varying_steps, delay_jump=delay_jump,
                        confirm=_confirm_real(host, yes) if host else None, status=lambda m: st.update(m))
     if as_json:
         print(json.dumps(rep.to_dict(), indent=2, default=str))
@@ -980,6 +1073,15 @@ def demo(
     vm = np.mean([m["settling_time"] or np.nan for m in rep.pv_metrics])
     out.print(f"PV design: Kp = {rep.pv_kp:g}, Kv = {rep.kv:g} ({rep.kv_source}). Mean settling time: P {pm:.2f} s, "
               f"PV {vm:.2f} s.", highlight=False)
+    if rep.comp_metrics:
+        cm = np.mean([m["settling_time"] or np.nan for m in rep.comp_metrics])
+        out.print(f"Compensator flown: {rep.compensator['chosen']} (model delay {rep.compensator['model_delay']:.4f} s); "
+                  f"mean settling time {cm:.2f} s.", highlight=False)
+    if rep.varying_flight is not None:
+        v = rep.varying_flight
+        out.print(f"Delay moving from {rep.varying_truth['before']:.3f} to {rep.varying_truth['after']:.3f} s: "
+                  f"{len(v.online)} online estimates, {v.alarms} alarm(s), "
+                  f"{sum(o.action == 'redesigned' for o in v.online)} re-design(s).", highlight=False)
     out.print(f"Report: {out_dir / 'demo.md'}", highlight=False)
 
 

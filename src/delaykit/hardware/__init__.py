@@ -1,8 +1,10 @@
 """Hardware: fly a designed loop on an AR.Drone 2.0, or on an emulator that speaks its protocol.
 
 :mod:`.ardrone` encodes and decodes the drone's AT commands and navdata, :mod:`.emulator` is a drone on UDP
-(simulated altitude dynamics with a delay) for testing without one, and :mod:`.flight` is the real-time loop that
-flies a plan and logs what it saw. It sits above design and identification: its logs feed :mod:`delaykit.identify`.
+(simulated altitude dynamics with a delay) for testing without one, :mod:`.stamps` gives datagrams the kernel's
+arrival time, :mod:`.laws` runs any controller or compensator on packets, :mod:`.monitor` re-estimates the delay
+during a flight (alarm, gain scheduling), and :mod:`.flight` is the real-time loop that flies a plan and logs what
+it saw. It sits above design and identification: its logs feed :mod:`delaykit.identify`.
 """
 
 from .ardrone import (ARITY, DEMO_SIZE, HEADER, REF_BASE, REF_EMERGENCY, REF_TAKEOFF, ATCommand, ATEncoder, ATError,
@@ -10,11 +12,15 @@ from .ardrone import (ARITY, DEMO_SIZE, HEADER, REF_BASE, REF_EMERGENCY, REF_TAK
                       decode_navdata, encode_navdata, float_to_int, int_to_float, parse_at)
 from .emulator import DroneEmulator, EmulatorConfig, PortError
 from .flight import DroneLink, FlightPlan, FlightResult, LinkError, fly
+from .laws import FlightLaw
+from .monitor import DelayMonitor, OnlineEstimate, stable_range
+from .stamps import enable_stamps, recv_stamped
 
 __all__ = [
     "ProtocolError", "ATError", "NavdataError", "ATCommand", "ATEncoder", "parse_at", "float_to_int", "int_to_float",
     "NavState", "CtrlState", "Demo", "Navdata", "encode_navdata", "decode_navdata", "bootstrap_packet", "HEADER",
     "REF_BASE", "REF_TAKEOFF", "REF_EMERGENCY", "DEMO_SIZE", "ARITY",
     "EmulatorConfig", "DroneEmulator", "PortError",
-    "LinkError", "DroneLink", "FlightPlan", "FlightResult", "fly",
+    "LinkError", "DroneLink", "FlightPlan", "FlightResult", "fly", "FlightLaw", "DelayMonitor", "OnlineEstimate",
+    "stable_range", "enable_stamps", "recv_stamped",
 ]

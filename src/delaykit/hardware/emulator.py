@@ -217,6 +217,11 @@ class DroneEmulator:
         return self.config.delay + 2 * self.config.link_delay
 
     @property
+    def start_time(self) -> float:
+        """The monotonic time of :meth:`start`: the origin of ``delay_schedule``'s times."""
+        return self._t0
+
+    @property
     def elapsed(self) -> float:
         """Seconds since :meth:`start` (the clock of ``delay_schedule``)."""
         return time.monotonic() - self._t0

@@ -5,13 +5,20 @@
 1. navdata start-up: wake the navdata stream, ask for demo packets, acknowledge, set
    ``control:control_vz_max`` so that ``gaz`` is the command in m/s;
 2. flat trim, take-off, and a steady hover (its mean altitude is the first reference);
-3. the steps in ``z_ref``; for each navdata packet the command
-   ``u = sat(Kp (z_ref - z) - Kv w, vmax)`` (``w`` the navdata vertical speed, or the derivative filter of
-   the altitude) is sent at once as a progressive PCMD; a watchdog reset goes out every 0.5 s;
-4. hover and land.
+3. the steps in ``z_ref``; for each navdata packet the command is computed and sent at once as a progressive
+   PCMD: the paper's ``u = sat(Kp (z_ref - z) - Kv w, vmax)`` (``w`` the navdata vertical speed, or the
+   derivative filter of the altitude), or any controller or compensator of delaykit
+   (:class:`~delaykit.hardware.laws.FlightLaw`: exact between packets, whatever their spacing); a watchdog
+   reset goes out every 0.5 s;
+4. with a :class:`~delaykit.hardware.monitor.DelayMonitor`, after each step: hover, re-estimate the delay from
+   the step's packets and commands, raise the alarm when it left the controller's design range, and with
+   scheduling fly the re-designed law from the next step;
+5. hover and land.
 
 Each step is logged to its own CSV (``t, z, z_ref, u, vz, seq, recv_time, latency_ms``; from one second
 before the step), flushed every line so a crash loses nothing; ``delaykit estimate`` reads them as they are.
+Arrival times are the kernel's (:mod:`~delaykit.hardware.stamps`).  Packets that arrive while the loop hovers
+to estimate are logged with the hover's command and ``latency_ms`` nan (they were not answered).
 Ctrl-C, a navdata gap longer than ``gap_timeout``, or an altitude outside ``[z_min, z_max]`` makes it hover and
 land at once, and the result says why.  The command never leaves ``±vmax``.  The loop's own latency (packet
 received to command sent) is measured and reported (median and 99th percentile).
@@ -22,20 +29,25 @@ The link binds to an ephemeral local port and talks to ``host``; for the emulato
 from __future__ import annotations
 
 import ipaddress
-import math
 import socket
 import time
 from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
-from ..errors import DelaykitError, InvalidValueError, check_real
+from ..errors import DelaykitError, InvalidTypeError, InvalidValueError, check_real
+from ..models.compensators import Compensator
+from ..models.controllers import Controller
 from .ardrone import ATEncoder, CtrlState, NavState, Navdata, ProtocolError, decode_navdata
 from .emulator import _check_port
+from .laws import FlightLaw
 from .stamps import enable_stamps, recv_stamped
+
+if TYPE_CHECKING:  # (the monitor pulls in the estimator and the design: imported when a flight uses one)
+    from .monitor import DelayMonitor, OnlineEstimate
 
 __all__ = ["LinkError", "DroneLink", "FlightPlan", "FlightResult", "fly"]
 
@@ -113,9 +125,12 @@ class FlightPlan:
     Parameters
     ----------
     kp, kv : float
-        Gains (m/s per m, and dimensionless).
+        Gains (m/s per m, and dimensionless) of the paper's P or PV law.
     velocity : {"true", "filtered"}
         The Kv term's velocity: the navdata vertical speed, or the derivative filter of the altitude.
+    controller : Controller or Compensator, optional
+        Any other law (PI, PID, a Smith predictor, predictor feedback...), run by
+        :class:`~delaykit.hardware.laws.FlightLaw`; when given, ``kp``, ``kv`` and ``velocity`` are not used.
     vmax : float
         Command limit, m/s (at most 2.0, the drone's control_vz_max limit).
     steps : tuple of float
@@ -142,8 +157,12 @@ class FlightPlan:
     z_min: float = 0.15
     z_max: float = 3.5
     gap_timeout: float = 0.5
+    controller: Controller | Compensator | None = None
 
     def __post_init__(self) -> None:
+        if self.controller is not None and not isinstance(self.controller, (Controller, Compensator)):
+            raise InvalidTypeError(f"controller must be a Controller or a Compensator, got "
+                                   f"{type(self.controller).__name__}")
         check_real("kp", self.kp, minimum=0.0)
         check_real("kv", self.kv, minimum=0.0)
         if self.velocity not in ("true", "filtered"):
@@ -160,6 +179,21 @@ class FlightPlan:
         if not self.z_min < self.z_max:
             raise InvalidValueError(f"z_min must be below z_max, got {self.z_min:g} and {self.z_max:g}")
 
+    def law(self) -> Controller | Compensator:
+        """The controller flown: :attr:`controller`, or the P/PV law of ``kp``, ``kv`` and ``velocity``.
+
+        Examples
+        --------
+        >>> FlightPlan(kp=2.0, kv=0.3).law()
+        Controller(pv: kp=2, kv=0.3, true velocity)
+        """
+        if self.controller is not None:
+            return self.controller
+        if self.kv == 0.0:
+            return Controller.p(self.kp)
+        return Controller.pv(self.kp, self.kv, velocity=self.velocity, filter_wn=self.filter_wn,
+                             filter_zeta=self.filter_zeta)
+
 
 @dataclass(frozen=True, repr=False)
 class FlightResult:
@@ -174,55 +208,25 @@ class FlightResult:
     latency_p99_ms: float | None
     packet_interval: float | None
     events: tuple[str, ...] = field(default_factory=tuple)
+    controller: dict[str, Any] | None = None
+    online: tuple[OnlineEstimate, ...] = field(default_factory=tuple)
+
+    @property
+    def alarms(self) -> int:
+        """How many steps' delay estimates raised the alarm."""
+        return sum(o.alarm for o in self.online)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
         return {"logs": [str(p) for p in self.logs], "reason": self.reason, "completed": self.completed,
                 "packets": self.packets, "rejected": self.rejected, "latency_median_ms": self.latency_median_ms,
                 "latency_p99_ms": self.latency_p99_ms, "packet_interval": self.packet_interval,
-                "events": list(self.events)}
+                "events": list(self.events), "controller": self.controller,
+                "online": [o.to_dict() for o in self.online], "alarms": self.alarms}
 
     def __repr__(self) -> str:
         lat = "" if self.latency_median_ms is None else f", latency {self.latency_median_ms:.3f} ms median"
         return f"FlightResult({self.reason}, {len(self.logs)} logs, {self.packets} packets{lat})"
-
-
-class _Filter:
-    """The derivative filter wf^2 s / (s^2 + 2 zf wf s + wf^2) on the altitude, advanced exactly per packet over the
-    time since the previous one, with the newest altitude held over that interval (its first output, when it
-    starts at rest on the first altitude, is 0).
-
-    The step uses the closed form of ``exp(A dt)`` for a 2 x 2 matrix (by Cayley-Hamilton,
-    ``e^{m dt} [(cosh(d dt) - m sinh(d dt) / d) I + sinh(d dt) / d A]`` with ``m`` half the trace and
-    ``d^2 = m^2 - det A``), so every interval is exact, whatever its length, at a few microseconds a packet."""
-
-    def __init__(self, wn: float, zeta: float) -> None:
-        self.A = np.array([[0.0, 1.0], [-wn * wn, -2 * zeta * wn]])
-        self.wn2 = wn * wn
-        self.m = -zeta * wn
-        self.d = complex(self.m * self.m - self.wn2) ** 0.5  # imaginary when underdamped, 0 when critical
-        self.x: np.ndarray | None = None
-
-    def _step(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """``(Ad, Bd)``: the state transition over ``dt`` and the response to a unit input held over it."""
-        dd = self.d * dt
-        if abs(dd) < 1e-6:  # sinh(dd) / d and cosh(dd) to O(dd^4)
-            sh, ch = dt * (1.0 + dd * dd / 6.0), 1.0 + dd * dd / 2.0
-        else:
-            sh, ch = np.sinh(dd) / self.d, np.cosh(dd)
-        e = math.exp(self.m * dt)
-        Ad = e * ((ch - self.m * sh).real * np.eye(2) + sh.real * self.A)
-        # B = (0, 1): the held input's response is A^-1 (Ad - I) B
-        Bd = np.linalg.solve(self.A, Ad[:, 1] - np.array([0.0, 1.0]))
-        return Ad, Bd
-
-    def update(self, z: float, dt: float) -> float:
-        if self.x is None:
-            self.x = np.array([z / self.wn2, 0.0])
-            return 0.0
-        Ad, Bd = self._step(dt)
-        self.x = Ad @ self.x + Bd * z
-        return float(self.wn2 * self.x[1])
 
 
 _COLUMNS = ("t", "z", "z_ref", "u", "vz", "seq", "recv_time", "latency_ms")
@@ -242,8 +246,27 @@ def fly(
     connect_timeout: float = 3.0,
     confirm: Callable[[], bool] | None = None,
     status: Callable[[str], None] | None = None,
+    monitor: DelayMonitor | None = None,
 ) -> FlightResult:
     """Fly the plan against the drone at ``host`` and log every navdata packet (see the module docstring).
+
+    Parameters
+    ----------
+    plan : FlightPlan
+        The law and the steps.
+    log : str or Path
+        The log's path (``name-1.csv``, ``name-2.csv``... with several steps).
+    host, at_port, navdata_port : str, int, int
+        The drone (or the emulator).
+    connect_timeout : float
+        How long to wait for navdata before giving up (s).
+    confirm : callable, optional
+        Asked once the link works, before the take-off; False: nothing flies.
+    status : callable, optional
+        Called with a short message at each stage.
+    monitor : DelayMonitor, optional
+        Re-estimate the delay after each step (the vehicle hovers meanwhile), raise the alarm, and with its
+        ``schedule`` fly the re-designed law from the next step (warmed up on the last packets).
 
     Raises
     ------
@@ -252,6 +275,19 @@ def fly(
     """
     say = status or (lambda _m: None)
     check_real("connect_timeout (s)", connect_timeout, minimum=0.0, strict=True)
+    if monitor is not None:
+        from .monitor import DelayMonitor
+        if not isinstance(monitor, DelayMonitor):
+            raise InvalidTypeError(f"monitor must be a DelayMonitor, got {type(monitor).__name__}")
+    law = FlightLaw(plan.law(), umin=-plan.vmax, umax=plan.vmax)
+    flown = law.describe()
+    online: list[OnlineEstimate] = []
+    # every packet of the steps (arrival, altitude, reference, speed) and every command (sent, value): the
+    # monitor's data, and the warm-up of a re-designed law
+    pk: list[tuple[float, float, float, float, float]] = []  # arrival, altitude, reference, speed, command sent
+    holds: list[tuple[float, float]] = []  # commands sent between packets (the hovers while estimating)
+    cmd_t: list[float] = []
+    cmd_u: list[float] = []
     base = Path(log)
     base.parent.mkdir(parents=True, exist_ok=True)
     link = DroneLink(host, at_port, navdata_port)
@@ -315,12 +351,10 @@ def fly(
         half = [z for t, z, _, _ in hover if t >= t_start + plan.hover_time / 2] or [z for _, z, _, _ in hover]
         z_ref = float(np.mean(half)) if half else (nd.demo.altitude_mm / 1000.0 if nd and nd.demo else 0.8)
         # 3. the steps; the log of each starts a second before its step (the hover, for the first)
-        flt = _Filter(plan.filter_wn, plan.filter_zeta) if plan.velocity == "filtered" else None
         # (arrival time, row) of the last second, for the next log's start
-        recent: deque = deque((t, f"{t - t_start:.6f},{z:.3f},{z_ref:.6f},0.000000,{vz:.6f},{sq},{t:.6f},0.0000\n")
+        recent: deque = deque((t, f"{t - t_start:.6f},{z:.3f},{z_ref:.9f},0.000000,{vz:.6f},{sq},{t:.9f},0.0000\n")
                               for t, z, vz, sq in hover if t >= hover[-1][0] - 1.0) if hover else deque()
         last_wdg = 0.0
-        t_prev = None
         for k, step in enumerate(plan.steps):
             path = _log_path(base, k, len(plan.steps))
             logs.append(path)
@@ -343,11 +377,8 @@ def fly(
                     z = nd.demo.altitude_mm / 1000.0
                     if not plan.z_min <= z <= plan.z_max:
                         raise _Abort(f"altitude {z:.3f} m outside the bounds [{plan.z_min:g}, {plan.z_max:g}] m")
-                    dt = (t_recv - t_prev) if t_prev is not None else 1.0 / 15
-                    t_prev = t_recv
-                    w = flt.update(z, dt) if flt else nd.demo.vz / 1000.0
-                    u = plan.kp * (z_ref - z) - plan.kv * w
-                    u = min(max(u, -plan.vmax), plan.vmax)
+                    vz = nd.demo.vz / 1000.0
+                    u = law.update(t_recv, r=z_ref, y=z, vm=vz)
                     cmds = [enc.pcmd(gaz=u / vz_max)]
                     if t_recv - last_wdg > 0.5:
                         cmds.append(enc.comwdg())
@@ -357,12 +388,28 @@ def fly(
                     latencies.append(lat)
                     arrivals.append(t_recv)
                     packets += 1
-                    row = (f"{t_recv - t_start:.6f},{z:.3f},{z_ref:.6f},{u:.6f},{nd.demo.vz / 1000.0:.6f},"
-                           f"{nd.sequence},{t_recv:.6f},{lat:.4f}\n")
+                    pk.append((t_recv, z, z_ref, vz, u))
+                    cmd_t.append(t_sent)
+                    cmd_u.append(u)
+                    row = (f"{t_recv - t_start:.6f},{z:.3f},{z_ref:.9f},{u:.9f},{vz:.6f},"
+                           f"{nd.sequence},{t_recv:.9f},{lat:.4f}\n")
                     fh.write(row)
                     recent.append((t_recv, row))
                     while recent and t_recv - recent[0][0] > 1.0:
                         recent.popleft()
+                if monitor is not None:
+                    law = _watch(monitor, law, link, k, t_step, t_start, pk, holds, cmd_t, cmd_u, online, events,
+                                 say)
+                    # the packets that queued up meanwhile (answered by the hover): logged, not answered late
+                    while (r := link.recv(0.005)) is not None:
+                        nd, t_recv = r
+                        if nd.demo is None:
+                            continue
+                        z, vz = nd.demo.altitude_mm / 1000.0, nd.demo.vz / 1000.0
+                        row = (f"{t_recv - t_start:.6f},{z:.3f},{z_ref:.9f},0.000000,{vz:.6f},{nd.sequence},"
+                               f"{t_recv:.9f},nan\n")
+                        fh.write(row)
+                        recent.append((t_recv, row))
             finally:
                 fh.close()
     except _Abort as exc:
@@ -388,7 +435,48 @@ def fly(
     iv = float(np.median(np.diff(arrivals))) if len(arrivals) > 2 else None
     return FlightResult(tuple(logs), reason, completed, packets, link.rejected,
                         float(np.median(lat)) if lat.size else None,
-                        float(np.percentile(lat, 99)) if lat.size else None, iv, tuple(events + link.rejections[:5]))
+                        float(np.percentile(lat, 99)) if lat.size else None, iv, tuple(events + link.rejections[:5]),
+                        flown, tuple(online))
+
+
+def _watch(monitor: DelayMonitor, law: FlightLaw, link: DroneLink, k: int, t_step: float, t_start: float,
+           pk: list, holds: list, cmd_t: list, cmd_u: list, online: list, events: list,
+           say: Callable[[str], None]) -> FlightLaw:
+    """After step ``k``: hover, estimate the delay on the step's packets, judge it, maybe switch laws."""
+    t_hover = link.send(link.enc.pcmd(progressive=False), link.enc.comwdg())  # hold still while computing
+    cmd_t.append(t_hover)
+    cmd_u.append(0.0)
+    holds.append((t_hover, 0.0))
+    law.record(t_hover, 0.0)
+    t, z = np.array([p[0] for p in pk]), np.array([p[1] for p in pk])
+    try:
+        rec = monitor.check(k + 1, t_hover - t_start, t, z, cmd_t, cmd_u, t_from=t_step, t_to=t_hover)
+    except InvalidValueError as exc:  # (too few packets, a step that never moved the command)
+        events.append(f"step {k + 1}: no delay estimate ({exc})")
+        return law
+    online.append(rec)
+    lo, hi = rec.design_range
+    say(f"step {k + 1}: delay {rec.delay:.4f} s [{rec.estimate.ci[0]:.4f}, {rec.estimate.ci[1]:.4f}], design range "
+        f"[{lo:.3f}, {hi:.3f}] s" + (": ALARM" if rec.alarm else ""))
+    if rec.alarm:
+        events.append(f"step {k + 1}: alarm, delay {rec.delay:.4f} s outside the design range [{lo:.4f}, {hi:.4f}] s")
+    if rec.action == "redesigned":
+        new = FlightLaw(monitor.controller, umin=law.umin, umax=law.umax)
+        # warm up on the last two model delays and a second of packets, with the commands that were sent
+        since = t_hover - 2 * new.model_delay - 1.0
+        events_in = sorted([(p[0], 0, p) for p in pk if p[0] >= since] + [(h[0], 1, h) for h in holds if h[0] >= since],
+                           key=lambda e: (e[0], e[1]))
+        for tt, kind, item in events_in:
+            if kind == 0:
+                new.update(tt, r=item[2], y=item[1], vm=item[3], sent=item[4])
+            else:
+                new.record(tt, item[1])
+        events.append(f"step {k + 1}: re-designed for {rec.delay:.4f} s: {monitor.controller!r}")
+        say(f"re-designed for {rec.delay:.4f} s")
+        law = new
+    elif rec.action != "none":
+        events.append(f"step {k + 1}: {rec.action}")
+    return law
 
 
 class _Abort(Exception):

@@ -4,7 +4,8 @@
 the paper's loop delay from them: from the overshoot, with the paper's Lambert-W iteration, or by fitting the whole
 trajectory.  :mod:`.iodata` reads any log (input or reference, outputs), :mod:`.structures` names the plant families,
 :mod:`.identification` fits them open or closed loop with honest errors and chooses among them, :mod:`.noise` models
-coloured residuals, and :mod:`.experiment` predicts the errors of a planned test.  It uses the models, simulations
+coloured residuals, :mod:`.experiment` predicts the errors of a planned test, and :mod:`.online` re-estimates the
+delay on a window of a flight from the commands sent (whatever the controller).  It uses the models, simulations
 and spectra of the layers below.
 """
 
@@ -16,6 +17,7 @@ from .identification import (Candidate, IdentificationError, IdentifiedModel, Lo
                              predict, simulate_experiment)
 from .iodata import Experiment, read_experiment
 from .noise import ARNoise, fit_ar, ljung_box
+from .online import WindowEstimate, estimate_window
 from .structures import STRUCTURES, Structure, structure
 
 __all__ = [
@@ -25,5 +27,5 @@ __all__ = [
     "Experiment", "read_experiment", "Structure", "STRUCTURES", "structure",
     "IdentifiedModel", "Candidate", "LogFit", "Prediction", "IdentificationError", "identify", "predict",
     "simulate_experiment", "load_model", "ARNoise", "fit_ar", "ljung_box",
-    "ExpectedErrors", "expected_errors", "planned_signal", "SIGNALS",
+    "ExpectedErrors", "expected_errors", "planned_signal", "SIGNALS", "WindowEstimate", "estimate_window",
 ]

@@ -8,10 +8,10 @@ Importing this package imports matplotlib, which is why nothing below it (models
 paper layer and the command line do, and the command line only when a figure is asked for.
 """
 
-from .compensation import plot_robustness_map
-from .figures import plot_filter_bode, plot_fit, plot_responses, plot_spectrum, plot_stability_map
+from .compensation import plot_online, plot_robustness_map
+from .figures import plot_filter_bode, plot_fit, plot_responses, plot_spectrum, plot_stability_map, plot_z_spectrum
 from .frequency import plot_bode, plot_nyquist
 from .identification import plot_predictions
 
-__all__ = ["plot_responses", "plot_spectrum", "plot_stability_map", "plot_fit", "plot_filter_bode", "plot_bode",
-           "plot_nyquist", "plot_predictions", "plot_robustness_map"]
+__all__ = ["plot_responses", "plot_spectrum", "plot_z_spectrum", "plot_stability_map", "plot_fit", "plot_filter_bode",
+           "plot_bode", "plot_nyquist", "plot_predictions", "plot_robustness_map", "plot_online"]

@@ -17,6 +17,7 @@ Examples
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -27,8 +28,8 @@ from matplotlib.figure import Figure
 from ..errors import InvalidTypeError, InvalidValueError
 from ..simulate.simulation import Response
 
-__all__ = ["plot_responses", "plot_spectrum", "plot_stability_map", "plot_fit", "plot_filter_bode",
-           "plot_iterations", "save_figure"]
+__all__ = ["plot_responses", "plot_spectrum", "plot_z_spectrum", "plot_stability_map", "plot_fit",
+           "plot_filter_bode", "plot_iterations", "save_figure"]
 
 DPI = 120
 
@@ -225,6 +226,83 @@ def plot_spectrum(
     ax.legend(fontsize=8, loc="best")
     if title:
         ax.set_title(title)
+    return save_figure(fig, path)
+
+
+def plot_z_spectrum(
+    result: Any,
+    path: str | Path | None = None,
+    *,
+    ax: Axes | None = None,
+    label: str | None = None,
+    title: str | None = None,
+) -> Figure:
+    """The poles of a sampled loop in the z-plane: the unit circle (the stability boundary, its inside shaded),
+    every pole as a marker at its modulus and angle, the pole(s) of largest modulus circled, and a title that
+    gives the spectral radius and says whether the loop is stable.
+
+    Parameters
+    ----------
+    result : SampledSpectrum
+        From :func:`delaykit.spectrum.sampled.sampled_spectrum` (every pole of the loop, conjugates included).
+    path : str or Path, optional
+        Write the figure there.
+    ax : Axes, optional
+        Where to draw.
+    label : str, optional
+        Legend entry of the poles (default: their number).
+    title : str, optional
+        A first title line (the loop, say); the spectral radius and the verdict follow it.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    See Also
+    --------
+    plot_spectrum : the roots of a continuous loop in the s-plane.
+
+    Examples
+    --------
+    >>> from delaykit import AltitudeLoop
+    >>> from delaykit.spectrum.sampled import sampled_spectrum
+    >>> sp = sampled_spectrum(AltitudeLoop(kp=5.0, delay=0.1, period=0.1))   # z^2 - z + Kp h: z = (1 ± j) / 2
+    >>> fig = plot_z_spectrum(sp, label="poles")
+    >>> pts = [line for line in fig.axes[0].lines if line.get_label() == "poles"][0]
+    >>> sorted(np.round(pts.get_xdata() + 1j * pts.get_ydata(), 12).tolist(), key=lambda z: z.imag)
+    [(0.5-0.5j), (0.5+0.5j)]
+    >>> fig.axes[0].get_title()
+    'spectral radius 0.707107 < 1: stable (h = 0.1 s)'
+    """
+    from ..spectrum.sampled import SampledSpectrum
+
+    if not isinstance(result, SampledSpectrum):
+        raise InvalidTypeError(f"result must be a SampledSpectrum (from sampled_spectrum), got {type(result).__name__}")
+    fig, (ax,), _ = _axes(ax, 1, (6.5, 6))
+    poles = np.asarray(result.poles).astype(complex).ravel()
+    radius = float(result.radius)
+    theta = np.linspace(0.0, 2.0 * np.pi, 721)
+    ax.fill(np.cos(theta), np.sin(theta), color="#e8f4e8", zorder=0, label="stable region |z| < 1")
+    ax.plot(np.cos(theta), np.sin(theta), color="k", lw=0.9, label="unit circle")
+    ax.axhline(0.0, color="0.6", lw=0.6)
+    ax.axvline(0.0, color="0.6", lw=0.6)
+    lab = label if label is not None else f"{poles.size} pole{'s' if poles.size != 1 else ''}"
+    pts = ax.plot(poles.real, poles.imag, "x", ms=7, mew=1.4, label=lab)
+    if poles.size:
+        top = poles[np.abs(poles) >= radius * (1.0 - 1e-9)]
+        ax.plot(top.real, top.imag, "o", ms=13, mfc="none", color=pts[0].get_color(), label=f"|z| = {radius:.6g}")
+    lim = 1.15 * max(1.0, float(np.max(np.abs(poles))) if poles.size else 1.0)
+    ax.set_xlim(-lim, lim)
+    ax.set_ylim(-lim, lim)
+    ax.set_aspect("equal")
+    ax.set_xlabel("Re z")
+    ax.set_ylabel("Im z")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2)
+    verdict = (f"spectral radius {radius:.6f} < 1: stable" if result.stable
+               else f"spectral radius {radius:.6f} >= 1: UNSTABLE")
+    verdict += f" (h = {result.period:g} s)"
+    ax.set_title(f"{textwrap.fill(title, 64)}\n{verdict}" if title else verdict, fontsize=10)
     return save_figure(fig, path)
 
 
