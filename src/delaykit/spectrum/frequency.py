@@ -67,6 +67,12 @@ def _continuous(loop: Any) -> Loop:
             f"the loop is sampled (period {loop.period:g} s): its frequency response and margins are those of a "
             "discrete-time loop and come from delaykit.spectrum.sampled; this module analyses continuous loops "
             "(period=None)")
+    if not hasattr(loop.controller, "feedback_polynomials"):  # a compensator: its law reads its own command too
+        raise InvalidValueError(
+            f"the loop's controller is a {loop.controller.kind} compensator, whose law reads its own (delayed) "
+            "command: its open loop is not one controller times the plant, and its frequency response and margins "
+            "are not implemented; its stability is exact from `delaykit roots` and its delay robustness from "
+            "`delaykit design --compensator`")
     return loop
 
 

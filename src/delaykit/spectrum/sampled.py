@@ -81,6 +81,11 @@ def _sampled_loop(loop: Any, what: str) -> Loop:
         raise InvalidValueError(
             f"{what} needs a sampled loop (period set, in s); this loop is continuous (period=None): use "
             "delaykit.spectrum.stability.rightmost for its roots, or give it a period")
+    if lp.controller.realisation().reads_command:
+        raise InvalidValueError(
+            f"{what} of a loop with a {lp.controller.kind} compensator is not implemented: its law reads its own "
+            "command one model delay ago, which the sampled model here does not hold; simulate the sampled loop "
+            "(delaykit simulate --period ...) or analyse it continuous")
     return lp
 
 
