@@ -10,33 +10,12 @@ import subprocess
 
 import numpy as np
 import pytest
+from argument_principle import zeros_in_box
 
 from delaykit import AltitudeLoop, simulate
 from delaykit.design.tuning import design_sweep, filter_analysis, gain_search, parse_range
 from delaykit.errors import InvalidValueError
 from delaykit.spectrum.stability import rightmost
-
-
-def _zeros_in_box(f, x0: float, x1: float, y0: float, y1: float) -> int:
-    """Zeros of an analytic f in the rectangle, by the argument principle: the change of arg f along the boundary,
-    sampled until no step turns by more than 0.3 rad (independent of delaykit's root finder)."""
-    corners = [complex(x0, y0), complex(x1, y0), complex(x1, y1), complex(x0, y1), complex(x0, y0)]
-    total = 0.0
-    for a, b in zip(corners[:-1], corners[1:]):
-        t = np.linspace(0.0, 1.0, 4001)
-        for _ in range(80):
-            v = f(a + (b - a) * t)
-            d = np.angle(v[1:] / v[:-1])
-            coarse = np.abs(d) > 0.3
-            if not coarse.any():
-                break
-            t = np.sort(np.concatenate([t, 0.5 * (t[:-1] + t[1:])[coarse]]))
-        else:
-            raise AssertionError("the contour passes through a zero")
-        total += float(d.sum())
-    n = total / (2 * math.pi)
-    assert abs(n - round(n)) < 1e-6
-    return round(n)
 
 
 def test_design_sweep_rows_against_an_independent_solver_and_the_argument_principle():
@@ -68,8 +47,8 @@ def test_design_sweep_rows_against_an_independent_solver_and_the_argument_princi
         g = math.exp(-a * td)
         H = kp * g / (1 - kv * g) + 1.0
         f = lambda z, kv=kv: z + (kv * z + kp) * np.exp(-z * td)  # noqa: E731
-        assert _zeros_in_box(f, a, H, -H, H) == 0  # nothing to the right of the reported rightmost root
-        assert _zeros_in_box(f, s.real - 1e-6, H, -H, H) >= 1
+        assert zeros_in_box(f, a, H, -H, H) == 0  # nothing to the right of the reported rightmost root
+        assert zeros_in_box(f, s.real - 1e-6, H, -H, H) >= 1
         if kv == 0.0:
             w = complex(mpmath.lambertw(-kp * td, 0)) / td
             assert abs(s - w) < 1e-12

@@ -4,14 +4,15 @@ before and after it moves from 0.25 s to 0.40 s.  No packet leaves 127.0.0.1."""
 
 from __future__ import annotations
 
-import socket
 import time
 
 import numpy as np
 import pytest
 
+from test_flight import Client
+
 from delaykit import InvalidValueError
-from delaykit.hardware.ardrone import ATEncoder, CtrlState, decode_navdata
+from delaykit.hardware.ardrone import ATEncoder, CtrlState
 from delaykit.hardware.emulator import DroneEmulator, EmulatorConfig
 from delaykit.simulate.varying import DelaySchedule
 
@@ -95,20 +96,8 @@ def test_when_the_delay_falls_the_newest_command_wins():
     assert z[1] - z[0] == pytest.approx(-0.35 * 0.20, abs=1e-9) and z[2] - z[1] == pytest.approx(-0.35 * 0.25, abs=1e-9)
 
 
-class _Client:
-    def __init__(self, emu: DroneEmulator) -> None:
-        self.emu = emu
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", 0))
-        self.sock.settimeout(1.0)
-        self.enc = ATEncoder()
-        self.sock.sendto(b"\x01\x00\x00\x00", ("127.0.0.1", emu.ports["navdata"]))
-
-    def send(self, data: bytes) -> None:
-        self.sock.sendto(data, ("127.0.0.1", self.emu.ports["at"]))
-
-    def packet(self):
-        return decode_navdata(self.sock.recvfrom(4096)[0])
+class _Client(Client):
+    """test_flight's loopback client, with a hover that feeds the watchdog until the emulator's clock says."""
 
     def hover_until(self, elapsed: float) -> None:
         while self.emu.elapsed < elapsed:  # the watchdog fed, no motion

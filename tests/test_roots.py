@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from argument_principle import zeros_in_box
 
 from delaykit import AltitudeLoop, InvalidValueError, QuasiPolynomial
 from delaykit.spectrum.lambert import lambert_roots
@@ -287,28 +288,6 @@ def test_no_control_flow_reads_message_text():
     assert not hits, "control flow reads message text:\n" + "\n".join(hits)
 
 
-def _zeros_in_box(f, x0: float, x1: float, y0: float, y1: float) -> int:
-    """Zeros of an analytic f in the rectangle by the argument principle, written for these tests (plain NumPy
-    sampling of arg f along the boundary, refined until no step turns by more than 0.3 rad)."""
-    corners = [complex(x0, y0), complex(x1, y0), complex(x1, y1), complex(x0, y1), complex(x0, y0)]
-    total = 0.0
-    for a, b in zip(corners[:-1], corners[1:]):
-        t = np.linspace(0.0, 1.0, 4001)
-        for _ in range(80):
-            v = f(a + (b - a) * t)
-            d = np.angle(v[1:] / v[:-1])
-            coarse = np.abs(d) > 0.3
-            if not coarse.any():
-                break
-            t = np.sort(np.concatenate([t, 0.5 * (t[:-1] + t[1:])[coarse]]))
-        else:
-            raise AssertionError("the contour passes through a zero")
-        total += float(d.sum())
-    n = total / (2 * math.pi)
-    assert abs(n - round(n)) < 1e-6
-    return round(n)
-
-
 def test_rightmost_of_a_long_delay_on_a_slow_lag():
     """A 12 s delay on a 150 s lag under PI (issue 12): the old search started at Re s = -1, where the root bound
     is ~2700 with a delay of 12 s (a grid of ~1e8 points, gigabytes); now it starts at -1/T and finds the root in a
@@ -334,8 +313,8 @@ def test_rightmost_of_a_long_delay_on_a_slow_lag():
     a = r.root.real + 1e-6
     g = math.exp(-T * a)
     H = 1.01 * ((c1 + b1 * g) + math.sqrt((c1 + b1 * g) ** 2 + 4 * b0 * g)) / 2
-    assert _zeros_in_box(q, a, H, -H, H) == 0
-    assert _zeros_in_box(q, r.root.real - 1e-6, H, -H, H) == 2  # the pair itself
+    assert zeros_in_box(q, a, H, -H, H) == 0
+    assert zeros_in_box(q, r.root.real - 1e-6, H, -H, H) == 2  # the pair itself
     m = margins(loop)
     assert m.stable and m.nyquist_rhp_roots == 0
 
@@ -357,7 +336,7 @@ def test_rightmost_moves_left_until_it_finds_a_root():
     assert r.certified and abs(r.root - ref) < 1e-9 * abs(ref)
     a = ref + 1e-6
     H = 2.0 * (1 + 0.5 * math.exp(-0.001 * a)) / 0.01  # |0.01 s| <= 1 + 0.5 e^(-0.001 a) there
-    assert _zeros_in_box(q, a, H, -H, H) == 0
+    assert zeros_in_box(q, a, H, -H, H) == 0
 
 
 def test_stability_map_of_a_general_loop():

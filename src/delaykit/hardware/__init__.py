@@ -13,8 +13,21 @@ from .ardrone import (ARITY, DEMO_SIZE, HEADER, REF_BASE, REF_EMERGENCY, REF_TAK
 from .emulator import DroneEmulator, EmulatorConfig, PortError
 from .flight import DroneLink, FlightPlan, FlightResult, LinkError, fly
 from .laws import FlightLaw
-from .monitor import DelayMonitor, OnlineEstimate, stable_range
 from .stamps import enable_stamps, recv_stamped
+
+# the monitor pulls in the estimator, the design and the simulator (numba): loaded on first use, so that the
+# emulator and the flight loop start without them
+_LAZY = {"DelayMonitor": ".monitor", "OnlineEstimate": ".monitor", "stable_range": ".monitor"}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
+
+        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = [
     "ProtocolError", "ATError", "NavdataError", "ATCommand", "ATEncoder", "parse_at", "float_to_int", "int_to_float",

@@ -224,10 +224,10 @@ class FlightLaw:
         self._last = (t, u, v)
         self._hist_t.append(t)
         self._hist_u.append(u)
-        if self.model_delay > 0:  # keep the history one model delay (and a margin) long
-            cut = bisect.bisect_left(self._hist_t, t - 2 * self.model_delay - 1.0)
-            if cut > 64:
-                del self._hist_t[:cut - 1], self._hist_u[:cut - 1]
+        # keep the history two model delays and a second long (what the next intervals can read), not the flight
+        cut = bisect.bisect_left(self._hist_t, t - 2 * self.model_delay - 1.0)
+        if cut > 64:
+            del self._hist_t[:cut - 1], self._hist_u[:cut - 1]
         return u
 
     def record(self, t: float, u: float) -> None:

@@ -188,7 +188,7 @@ class DelayMonitor:
                                            minimum=0.0)
         self._fixed = None if design_range is None else self._check_range(design_range)
         self.controller = controller
-        self.stable_range = _range(controller, self.plant, self.design_delay)
+        self.stable_range = stable_range(controller, self.plant, self.design_delay)
         self.design_range = self._fixed or self._band(self.design_delay) or self.stable_range
         self.history: list[OnlineEstimate] = []
 
@@ -255,7 +255,7 @@ class DelayMonitor:
                 new = Controller.p(c.kp * self.design_delay / delay)
             else:
                 return f"not re-designed: scheduling supports P laws and compensators, not {c.kind}", None
-            stable = _range(new, self.plant, delay)
+            stable = stable_range(new, self.plant, delay)
         except InvalidValueError as exc:  # no design for this delay: keep flying the old law, and say why
             return f"not re-designed: {exc}", None
         if self._fixed is not None:
@@ -266,8 +266,3 @@ class DelayMonitor:
             rng = self._band(delay) or stable
         self.controller, self.design_range, self.stable_range, self.design_delay = new, rng, stable, delay
         return "redesigned", new
-
-
-def _range(controller: Controller | Compensator, plant: TransferFunction, delay: float) -> tuple[float, float]:
-    lo, hi = stable_range(controller, plant, delay)
-    return float(lo), float(hi) if math.isfinite(hi) else math.inf
