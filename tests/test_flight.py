@@ -18,6 +18,7 @@ from delaykit import AltitudeLoop
 from delaykit.hardware.ardrone import ATEncoder, CtrlState, NavState, decode_navdata
 from delaykit.hardware.emulator import DroneEmulator, EmulatorConfig, PortError
 from delaykit.hardware.flight import FlightPlan, LinkError, fly
+from delaykit.hardware.stamps import enable_stamps, recv_stamped
 from delaykit.identify.flightlog import FlightLog
 
 FREE = dict(at_port=0, navdata_port=0, video_port=0, control_port=0)
@@ -35,6 +36,7 @@ class Client:
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
         self.sock.settimeout(1.0)
+        enable_stamps(self.sock)  # arrival times from the kernel: a test thread woken late does not move them
         self.enc = ATEncoder()
         self.sock.sendto(b"\x01\x00\x00\x00", ("127.0.0.1", emu.ports["navdata"]))
 
@@ -42,9 +44,13 @@ class Client:
         self.sock.sendto(data, ("127.0.0.1", self.emu.ports["at"]))
 
     def packet(self):
-        data, addr = self.sock.recvfrom(4096)
+        return self.stamped()[0]
+
+    def stamped(self):
+        """The next navdata and the monotonic time the kernel received it."""
+        data, addr, t = recv_stamped(self.sock, 4096)
         assert addr == ("127.0.0.1", self.emu.ports["navdata"])
-        return decode_navdata(data)
+        return decode_navdata(data), t
 
     def until(self, pred, timeout=5.0):
         t0 = time.monotonic()
@@ -148,8 +154,9 @@ def test_emulator_jitter_shows_in_the_arrival_times():
                 c = Client(emu)
                 arrivals, seqs = [], []
                 while len(arrivals) < 120:
-                    seqs.append(c.packet().sequence)
-                    arrivals.append(time.monotonic())
+                    nd, t_arrival = c.stamped()
+                    seqs.append(nd.sequence)
+                    arrivals.append(t_arrival)
             off = np.array(arrivals) - np.array(seqs) / rate
             q5, q95 = np.percentile(off, [5, 95])
             return np.array(arrivals), q95 - q5
@@ -185,8 +192,8 @@ def test_emulator_delay_link_delay_and_lag_show_in_the_navdata():
             c.send(c.enc.comwdg() + c.enc.pcmd(gaz=0.5))
             rows = []
             while time.monotonic() - t_cmd < 1.3:
-                nd = c.packet()
-                rows.append((time.monotonic() - t_cmd, nd.demo.vz / 1000.0, nd.demo.altitude_mm / 1000.0))
+                nd, t_arrival = c.stamped()
+                rows.append((t_arrival - t_cmd, nd.demo.vz / 1000.0, nd.demo.altitude_mm / 1000.0))
             c.send(c.enc.ref())
         t, vz, z = np.array(rows).T
         return t, (t, vz, z, z_hover)
