@@ -203,21 +203,6 @@ def test_cli_design_and_simulate():
     assert res.exit_code == 2 and "--model-delay" in res.output
 
 
-def test_margins_of_a_compensated_loop_are_refused_clearly_not_with_a_traceback():
-    # the frequency-domain margins assume one controller times the plant; a compensator reads its own command
-    from typer.testing import CliRunner
-
-    from delaykit.cli import app
-    from delaykit.models import Loop
-    from delaykit.spectrum.frequency import margins
-
-    with pytest.raises(InvalidValueError, match="smith compensator.*not implemented"):
-        margins(Loop("1/s", Compensator.smith("1/s", 0.37), delay=0.42))
-    res = CliRunner().invoke(app, ["margins", "--controller", "smith", "--delay", "0.42", "--model-delay", "0.37"])
-    said = " ".join(res.output.split())
-    assert res.exit_code == 2 and "not implemented" in said and "Traceback" not in said
-
-
 def test_the_sampled_analysis_of_a_compensated_loop_is_refused_not_silently_wrong():
     # the sampled model holds the plant and the controller's states, not a compensator's delayed command input:
     # its poles would be those of another loop, so it refuses (the sampled loop itself simulates exactly)

@@ -195,6 +195,25 @@ class Loop:
     def _compensated_characteristic(self) -> QuasiPolynomial:
         """``Dc Dp - Nu Dp - Nm Dp exp(-s Tm) - Ny Np exp(-s T)``: the law ``u = Gy ym + Gu u + Gm u(t - Tm)``
         (each ``N / Dc``) closed around the plant, with the structural roots at 0 divided out."""
+        polys = self.compensated_polynomials()
+        return QuasiPolynomial(list(polys), [0.0, self.controller.model_delay, self.total_delay])
+
+    def compensated_polynomials(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The three polynomials ``(A0, A1, A2)`` of a compensated loop's characteristic function
+        ``A0(s) + A1(s) exp(-s Tm) + A2(s) exp(-s T)`` (``Tm`` the model's delay, ``T`` the loop's), kept apart
+        even when ``Tm = T``; the loop transfer function broken at the plant input, after the branch where the
+        compensator reads the command, is ``A2 exp(-s T) / (A0 + A1 exp(-s Tm))``.
+
+        Examples
+        --------
+        >>> from delaykit.models.compensators import Compensator
+        >>> c = Compensator.smith("1/s", 0.37, closed_loop_time=0.2)
+        >>> [p.round(12).tolist() for p in Loop("1/s", c, delay=0.37).compensated_polynomials()]
+        [[1.0, 5.0], [-5.0], [5.0]]
+        """
+        if not isinstance(self.controller, Compensator):
+            raise InvalidValueError("compensated_polynomials() is for a loop whose controller is a Compensator; "
+                                    f"this one has a {self.controller.kind} controller (see open_loop())")
         rz = self.controller.realisation()
         dc = np.poly(rz.Ac) if rz.order else np.ones(1)
 
@@ -213,7 +232,7 @@ class Loop:
             if any(abs(p[-1]) > 1e-9 * scale for p in polys if p.size):
                 break  # not a root here (a plant without the model's integrator): keep it
             polys = [p[:-1] if p.size > 1 else np.zeros(1) for p in polys]
-        return QuasiPolynomial(polys, [0.0, self.controller.model_delay, self.total_delay])
+        return polys[0], polys[1], polys[2]
 
     def open_loop(self) -> tuple[np.ndarray, np.ndarray]:
         """Numerator and denominator of the loop transfer function without its delay, broken at the plant

@@ -15,7 +15,11 @@ Everything here is evaluated exactly, with the delay: no Padé approximation and
   closed loop's stability from its exact characteristic roots (the certified count of roots in the right
   half-plane, :func:`~delaykit.spectrum.roots.find_roots`), with the Nyquist count beside it.
 
-Sampled loops are refused: their margins come from :mod:`delaykit.spectrum.sampled`.  The numerical machinery
+A loop whose controller compensates the delay (a Smith predictor, predictor feedback) has two delays and no
+rational ``L`` times one delay: :func:`frequency_response`, :func:`frequency_grid` and :func:`margins` hand it
+to :mod:`delaykit.spectrum.compensated`, which breaks the loop after the compensator's own command and evaluates
+the exact ``L`` on a refined grid.  Sampled loops are refused: their margins come from
+:mod:`delaykit.spectrum.sampled`.  The numerical machinery
 (roots of ``L``, the phase, the crossings) is the private :mod:`._openloop`.
 
 How the crossovers are found: ``|L(jw)|^2`` is a rational function of ``w^2``, so the gain crossovers are the
@@ -67,13 +71,13 @@ def _continuous(loop: Any) -> Loop:
             f"the loop is sampled (period {loop.period:g} s): its frequency response and margins are those of a "
             "discrete-time loop and come from delaykit.spectrum.sampled; this module analyses continuous loops "
             "(period=None)")
-    if not hasattr(loop.controller, "feedback_polynomials"):  # a compensator: its law reads its own command too
-        raise InvalidValueError(
-            f"the loop's controller is a {loop.controller.kind} compensator, whose law reads its own (delayed) "
-            "command: its open loop is not one controller times the plant, and its frequency response and margins "
-            "are not implemented; its stability is exact from `delaykit roots` and its delay robustness from "
-            "`delaykit design --compensator`")
     return loop
+
+
+def _compensated(loop: Loop) -> bool:
+    """True for a loop whose controller reads its own command (a compensator: see
+    :mod:`delaykit.spectrum.compensated`, which analyses it)."""
+    return not hasattr(loop.controller, "feedback_polynomials")
 
 
 # ------------------------------------------------------------------------------------ frequency response
@@ -162,6 +166,12 @@ def frequency_grid(loop: Loop | AltitudeLoop, n: int = 500, *, wmin: float | Non
     loop = _continuous(loop)
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
         raise InvalidValueError(f"n (number of frequencies) must be an integer of at least 2, got {n!r}")
+    if _compensated(loop):
+        from .compensated import compensated_grid
+
+        lo = None if wmin is None else check_real("wmin (rad/s)", wmin, minimum=0.0, strict=True)
+        hi = None if wmax is None else check_real("wmax (rad/s)", wmax, minimum=0.0, strict=True)
+        return compensated_grid(loop, int(n), wmin=lo, wmax=hi)
     ol = OpenLoop(loop)
     feats = [abs(r) for r in np.concatenate([ol.zr, ol.pr]) if abs(r) > 0]
     if ol.T > 0:
@@ -207,6 +217,10 @@ def frequency_response(loop: Loop | AltitudeLoop, w: Any = None) -> FrequencyRes
     """
     loop = _continuous(loop)
     w = frequency_grid(loop) if w is None else _frequencies(w)
+    if _compensated(loop):
+        from .compensated import compensated_response
+
+        return compensated_response(loop, w)
     ol = OpenLoop(loop)
     L = ol.value(w)
     phi = ol.phase(w)
@@ -489,6 +503,10 @@ def margins(loop: Loop | AltitudeLoop) -> Margins:
     (True, 1, 1, 0.5)
     """
     loop = _continuous(loop)
+    if _compensated(loop):
+        from .compensated import compensated_margins
+
+        return compensated_margins(loop)
     ol = OpenLoop(loop)
     gains = gain_crossovers(ol)
     w_hi, w_m = cutoff_frequency(ol, gains)

@@ -116,6 +116,13 @@ def jitter_bound(loop: Loop | AltitudeLoop, w: Any) -> np.ndarray:
     w = np.asarray(w, dtype=float)
     if w.ndim > 1 or not np.all(np.isfinite(w)) or np.any(w <= 0):
         raise InvalidValueError("w must be finite frequencies above 0 rad/s")
+    if not isinstance(loop.controller, Controller):  # a compensator: L from its own module
+        from .compensated import CompensatedOpenLoop
+
+        with np.errstate(all="ignore"):
+            L = CompensatedOpenLoop(loop).value(w)
+            g = np.abs(1.0 + 1.0 / L) / w
+        return np.where(np.isfinite(g), g, np.inf)
     return _g(OpenLoop(loop), w)
 
 
@@ -156,8 +163,9 @@ def jitter_margin(loop: Loop | AltitudeLoop) -> JitterMargin:
     Raises
     ------
     InvalidValueError
-        For a sampled loop, a controller that is not a plain :class:`~delaykit.models.controllers.Controller`,
-        and a nominal loop that is unstable (there is no stability to keep).
+        For a sampled loop, and a nominal loop that is unstable (there is no stability to keep).  A loop with a
+        compensator is analysed with ``L`` broken after the compensator's own command
+        (:mod:`delaykit.spectrum.compensated`): the varying delay is the one on the way to the plant.
 
     References
     ----------
@@ -172,9 +180,12 @@ def jitter_margin(loop: Loop | AltitudeLoop) -> JitterMargin:
     (0.5, inf)
     """
     loop = _continuous(loop)
-    if not isinstance(loop.controller, Controller):
-        raise InvalidValueError(f"the jitter margin takes a loop with a Controller (p, pv, pi, pd, pid, tf); "
-                                f"got {type(loop.controller).__name__}")
+    if not isinstance(loop.controller, Controller):  # a compensator: L broken after its own command
+        from .compensated import compensated_jitter
+
+        j, w, mc = compensated_jitter(loop)
+        return JitterMargin(margin=float(j), frequency=float(w), delay_margin=float(mc.delay_margin),
+                            nominal_delay=float(loop.total_delay))
     m = margins(loop)
     T = loop.total_delay
     if not m.stable:
