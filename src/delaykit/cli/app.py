@@ -123,7 +123,15 @@ def simulate(
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Write a figure of the response(s) here."),
     csv_path: Optional[Path] = typer.Option(None, "--csv", help="Write t, z, z_ref, u samples here."),
-    dt: float = typer.Option(0.01, "--dt", help="Sample interval of --csv, s."),
+    dt: float = typer.Option(0.01, "--dt", help="Sample interval of --csv, s (with a varying delay, --csv writes the simulation's own record instead)."),
+    delay_schedule: Optional[str] = typer.Option(None, "--delay-schedule", help="A delay that changes at given times: T:DELAY pairs, e.g. 5:0.45,10:0.30 (s after the step, s); before the first T the delay is --delay. Needs --period."),
+    jitter: Optional[float] = typer.Option(None, "--jitter", help="A random extra delay per packet, at most MAX s: uniform in [0, MAX], or capped at MAX for exponential and gamma. Needs --period."),
+    jitter_dist: Optional[str] = typer.Option(None, "--jitter-dist", help="The law of the --jitter extra: uniform (default) | exponential | gamma."),
+    jitter_scale: Optional[float] = typer.Option(None, "--jitter-scale", help="--jitter-dist exponential: the mean extra delay; gamma: its scale, s (required for both)."),
+    jitter_shape: Optional[float] = typer.Option(None, "--jitter-shape", help="--jitter-dist gamma: the shape (required)."),
+    delay_trace: Optional[Path] = typer.Option(None, "--delay-trace", help="Replay a recorded delay, added to --delay: a CSV with a header t,delay (s), or a flight log of `delaykit fly` (its latency_ms column). Give --delay 0 for a trace of whole delays. Needs --period."),
+    keep_order: Optional[bool] = typer.Option(None, "--keep-order/--no-keep-order", help="With a varying delay: packets reach the plant in the order sent (a late one holds back the ones behind it), or (the default) a packet may overtake and one arriving after a newer one is dropped."),
+    seed: Optional[int] = typer.Option(None, "--seed", help="Seed of the --jitter draws (default: new draws every run)."),
     loop: Any = None,
     delays: Any = None,
 ) -> None:
@@ -133,6 +141,12 @@ def simulate(
     the delays, the limits and the sampling, or --loop FILE.toml.  Without --plant it is the paper's loop
     (the integrator 1/s, limits +-1).  With a sweep of delays it prints one row per delay; for the delays of
     the paper's Table 1 (--delay table1 --kp 1.31) the paper's overshoot is shown beside delaykit's.
+
+    A delay that varies from packet to packet (a sampled loop, --period, and one --delay): --delay-schedule,
+    --jitter and --delay-trace, which add up packet by packet.  The controller sends a command every period; each
+    packet arrives after its own delay and the plant holds the newest one that has arrived.  The response is
+    exact between these events; the output adds the smallest and largest delay drawn, the number of packets and
+    how many were dropped (overtaken).  A step reference only, with no anti-windup and no compensator.
     """
     from ..models.altitude import AltitudeLoop
     from ..models.signals import LoadStep, Ramp, Step
@@ -140,6 +154,26 @@ def simulate(
     from ..simulate.simulation import simulate as sim
 
     check_real("--dt", dt, minimum=0.0, strict=True)
+    if delay_schedule is not None or jitter is not None or delay_trace is not None:
+        if ramp is not None or reference_csv is not None or disturbance is not None:
+            raise InvalidValueError("a varying delay (--delay-schedule, --jitter, --delay-trace) is simulated for a "
+                                    "step reference: --ramp, --reference and --disturbance are not available with it")
+        if len(delays) > 1:
+            raise InvalidValueError("a varying delay takes one --delay (the delay before the schedule), not a sweep")
+        if not loop.sampled:
+            raise InvalidValueError("a varying delay (--delay-schedule, --jitter, --delay-trace) acts packet by packet "
+                                    "on a sampled controller: give --period (s)")
+        model = _varying_delay(loop.delay, delay_schedule, jitter, jitter_dist, jitter_scale, jitter_shape,
+                               delay_trace, seed)
+        _simulate_varying(loop, model, keep_order, step=step, z0=z0, t_end=t_end, band=band, as_json=as_json,
+                          plot=plot, csv_path=csv_path)
+        return
+    extra = [flag for flag, v in (("--jitter-dist", jitter_dist), ("--jitter-scale", jitter_scale),
+                                  ("--jitter-shape", jitter_shape), ("--keep-order", keep_order), ("--seed", seed))
+             if v is not None]
+    if extra:
+        raise InvalidValueError(f"{extra[0]} goes with a varying delay: add --delay-schedule, --jitter or "
+                                "--delay-trace")
     ref: Any = Step(step)
     if ramp is not None and reference_csv is not None:
         raise InvalidValueError("give --ramp or --reference, not both")
@@ -197,6 +231,162 @@ def simulate(
                   _fmt(r["settling_time"]) if r["settled"] else "never"]
         table.add_row(*cells)
     out.print(table)
+
+
+def _varying_delay(base: float, schedule: Optional[str], jitter: Optional[float], dist: Optional[str],
+                   scale: Optional[float], shape: Optional[float], trace: Optional[Path], seed: Optional[int]) -> Any:
+    """The delay model of simulate's varying-delay options: the schedule (or the constant ``base``), plus the
+    jitter, plus the trace, added packet by packet."""
+    from ..simulate.varying import JITTER_DISTRIBUTIONS, DelaySchedule, Jitter
+
+    parts: list[Any] = []
+    if schedule is not None:
+        pairs = parse_schedule(schedule)
+        items = [x.strip() for x in schedule.split(",")]
+        for k, (t, d) in enumerate(pairs):
+            if not (math.isfinite(t) and math.isfinite(d)):
+                raise InvalidValueError(f"--delay-schedule item {k + 1} {items[k]!r}: the time and the delay must be "
+                                        "finite numbers")
+            if d < 0:
+                raise InvalidValueError(f"--delay-schedule item {k + 1} {items[k]!r}: the delay {d:g} s is negative "
+                                        "(a delay is at least 0 s)")
+            if k and not t > pairs[k - 1][0]:
+                raise InvalidValueError(f"--delay-schedule times must increase: item {k + 1} {items[k]!r} (t = {t:g} s) "
+                                        f"is not after item {k} {items[k - 1]!r} (t = {pairs[k - 1][0]:g} s)")
+        if pairs[0][0] > 0:  # before the first time: --delay
+            pairs = [(0.0, base), *pairs]
+        parts.append(DelaySchedule.from_pairs(pairs))
+    else:
+        parts.append(DelaySchedule.constant(base))
+    given = [f for f, v in (("--jitter-dist", dist), ("--jitter-scale", scale), ("--jitter-shape", shape),
+                            ("--seed", seed)) if v is not None]
+    if jitter is None and given:
+        raise InvalidValueError(f"{given[0]} goes with --jitter MAX (the largest extra delay per packet, s)")
+    if jitter is not None:
+        cap = check_real("--jitter (the largest extra delay per packet, s)", jitter, minimum=0.0)
+        law = (dist or "uniform").strip().lower()
+        if law not in JITTER_DISTRIBUTIONS:
+            raise InvalidValueError(f"--jitter-dist must be one of {' | '.join(JITTER_DISTRIBUTIONS)}, got {dist!r}")
+        if law == "uniform":
+            if scale is not None or shape is not None:
+                raise InvalidValueError("--jitter-scale and --jitter-shape are for --jitter-dist exponential or gamma; "
+                                        "the uniform extra is in [0, --jitter]")
+            parts.append(Jitter(0.0, "uniform", spread=cap, seed=seed))
+        else:
+            if scale is None:
+                raise InvalidValueError(f"--jitter-dist {law} needs --jitter-scale (s: "
+                                        f"{'the mean extra delay' if law == 'exponential' else 'the scale'})")
+            sc = check_real("--jitter-scale (s)", scale, minimum=0.0, strict=True)
+            if law == "exponential" and shape is not None:
+                raise InvalidValueError("--jitter-shape is for --jitter-dist gamma")
+            if law == "gamma" and shape is None:
+                raise InvalidValueError("--jitter-dist gamma needs --jitter-shape (the gamma law's shape, > 0)")
+            sh = 1.0 if shape is None else check_real("--jitter-shape", shape, minimum=0.0, strict=True)
+            parts.append(Jitter(0.0, law, scale=sc, shape=sh, cap=cap, seed=seed))
+    if trace is not None:
+        parts.append(_read_delay_trace(trace))
+    model = parts[0]
+    for p in parts[1:]:
+        model = model + p
+    return model
+
+
+def _read_delay_trace(path: Path) -> Any:
+    """``--delay-trace``: a CSV of ``t,delay`` (s), or a flight log with ``latency_ms``, chosen by the header."""
+    from ..simulate.varying import DelayTrace
+
+    header: list[str] = []
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            header = [c.strip() for c in next(csv.reader(fh), [])]
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return DelayTrace.from_csv(path)  # it says what is wrong with the file
+    if not any(header):
+        raise InvalidValueError(f"--delay-trace {str(path)!r} is empty: expected a header row t,delay (seconds) or "
+                                "a flight log with t and latency_ms")
+    if "delay" not in header and "latency_ms" in header:
+        return DelayTrace.from_flight_log(path)
+    if "delay" not in header:
+        raise InvalidValueError(f"--delay-trace {str(path)!r} has no column 'delay' (s) or 'latency_ms' (a flight "
+                                f"log); its header is {','.join(header)!r}")
+    return DelayTrace.from_csv(path)
+
+
+class _Record:
+    """A :class:`~delaykit.simulate.varying.VaryingResponse` seen as a response :func:`plot_responses` draws: the
+    output between records joined linearly (records are at most 0.01 s apart and at every switch), the input the
+    plant applies held between its switches."""
+
+    def __init__(self, r: Any) -> None:
+        self.r, self.loop, self.metrics, self.step, self.z0 = r, r.loop, r.metrics, r.step, r.z0
+
+    def sample(self, dt: float = 0.01) -> dict[str, Any]:
+        import numpy as np
+
+        r = self.r
+        t = np.union1d(np.arange(0.0, r.t_end, dt), r.t)
+        held = r.applied_input[np.clip(np.searchsorted(r.t, t, side="right") - 1, 0, r.t.size - 1)]
+        return {"t": t, "z": np.interp(t, r.t, r.output), "z_ref": np.full(t.shape, r.z0 + r.step), "u": held}
+
+
+def _simulate_varying(loop: Any, model: Any, keep_order: Optional[bool], *, step: float, z0: float, t_end: float,
+                      band: float, as_json: bool, plot: Optional[Path], csv_path: Optional[Path]) -> None:
+    """``simulate`` with a delay that varies from packet to packet (:func:`simulate_varying`)."""
+    from ..models.signals import Step
+    from ..simulate.varying import simulate_varying
+
+    with err.status("simulating the varying delay (the first run compiles the solver, a few seconds)…"):
+        r = simulate_varying(loop, model, step=step, z0=z0, t_end=t_end, band=band, keep_order=keep_order)
+    d = r.to_dict()
+    order = model.keep_order if keep_order is None else keep_order
+    row = {"delay": loop.delay, "delay_model": d.pop("delay"), "keep_order": order, "varying": True,
+           "reference": Step(step).to_dict(), "disturbance": None, **d}
+    if csv_path is not None:
+        with open(csv_path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["t", "z", "z_ref", "u"])
+            for i in range(r.t.size):
+                w.writerow([f"{x:.9g}" for x in (r.t[i], r.output[i], z0 + step, r.applied_input[i])])
+    if plot is not None:
+        import textwrap
+
+        import numpy as np
+        from matplotlib.figure import Figure
+
+        from ..plotting.figures import plot_responses, save_figure
+
+        fig = Figure(figsize=(8, 8), layout="tight")
+        ax = fig.subplots(3, 1, sharex=True, height_ratios=[3, 1.4, 1.4])
+        plot_responses([_Record(r)], ax=ax[:2], labels=["varying delay"], title=repr(loop))  # type: ignore[list-item]
+        ax[1].set_ylabel("plant input u (m/s)")
+        ax[1].set_xlabel("")
+        ax[2].set_title(textwrap.shorten(repr(model), 140), fontsize=8)
+        ax[2].step(r.send_times, r.delays, where="post", lw=1.0, label="delay of the packet sent")
+        if r.dropped:
+            ax[2].plot(r.send_times[~r.used], r.delays[~r.used], "x", color="C3", ms=4, label="dropped (overtaken)")
+        ax[2].set_ylabel("packet delay (s)")
+        ax[2].set_xlabel("time after the step (s)")
+        ax[2].set_ylim(bottom=min(0.0, float(np.min(r.delays))))
+        ax[2].grid(alpha=0.3)
+        ax[2].legend(fontsize=8)
+        save_figure(fig, plot)
+    if as_json:
+        print(json.dumps(row, indent=2))
+        return
+    table = Table(title=repr(loop))
+    for col in ("delay s", "Mo %", "peak s", "rise s", "settle s", "packets", "dropped"):
+        table.add_column(col, justify="right")
+    span = f"{row['delay_min']:.5f}" if row["delay_min"] == row["delay_max"] else \
+        f"{row['delay_min']:.5f} to {row['delay_max']:.5f}"
+    if "overshoot" in row:
+        cells = [_fmt(row["overshoot"]), _fmt(row["peak_time"]), _fmt(row["rise_time"]),
+                 _fmt(row["settling_time"]) if row["settled"] else "never"]
+    else:
+        cells = ["–"] * 4
+    table.add_row(span, *cells, str(row["packets"]), str(row["dropped"]))
+    out.print(table)
+    out.print(f"Delay per packet: {model!r}; "
+              f"{'kept in order' if order else 'packets may overtake (a stale one is dropped)'}.", highlight=False)
 
 
 def _read_reference(path: Path, hold: str) -> Any:
@@ -512,6 +702,14 @@ def margins(
     stability comes from its exact characteristic roots; a sampled loop's (--period) margins and stability are
     those of its exact discrete-time model (its poles, and L(e^{jwh}) broken at the held command, on (0, pi/h]),
     with the same JSON keys where they exist.  An unstable closed loop gets no margins.
+
+    The jitter margin (Kao & Lincoln 2004; JSON key jitter_margin, s) is the largest extra delay, varying
+    arbitrarily fast anywhere between 0 and it on top of the loop's own delay, that is still guaranteed stable.
+    It is sufficient only, and never above the delay margin.  Continuous loops only: it is null for a sampled
+    loop, whose held command turns a packet delay into a continuous delay up to one period longer (the criterion
+    covers the continuous law; for P, or PV with the true velocity, check the loop without --period with the
+    range widened by the period).  Also null for an unstable loop, a loop the library's criterion does not take
+    (the text output says why), or a margin without bound (no feedback at all).
     """
     from ..spectrum.frequency import frequency_grid, frequency_response
     from ..spectrum.frequency import margins as loop_margins
@@ -532,6 +730,15 @@ def margins(
                 raise InvalidValueError(f"{flag} {v:g} rad/s is above pi/h = {wn:.6g} rad/s, the highest frequency "
                                         f"of the loop sampled every {loop.period:g} s")
     m = sampled_margins(loop) if sampled else loop_margins(loop)
+    jm: Any = None
+    jm_why = "a sampled loop (see --help)" if sampled else "the closed loop is unstable"
+    if not sampled and m.stable:
+        from ..spectrum.jitter import jitter_margin
+
+        try:
+            jm = jitter_margin(loop)
+        except DelaykitError as exc:  # a loop the criterion does not take (e.g. a compensator): no margin
+            jm_why = str(exc)
     if not sampled and (plot is not None or lo is not None or hi is not None):
         w = frequency_grid(loop, 1000, wmin=lo, wmax=hi)  # checks a range given at one end against the other
     if plot is not None:
@@ -560,6 +767,7 @@ def margins(
         if sampled:
             data.update(sampled=True, period=loop.period, radius=sampled_spectrum(loop).radius,
                         stability_from="sampled poles")
+        data["jitter_margin"] = None if jm is None or not math.isfinite(jm.margin) else jm.margin
         print(json.dumps(data, indent=2))
         return
 
@@ -584,11 +792,15 @@ def margins(
         table.add_row("delay margin (extra)", "∞" if math.isinf(m.delay_margin) else
                       f"{m.delay_margin:.6g} s{at(m.crossover)}")
         table.add_row("critical delay (total)", "∞" if math.isinf(m.critical_delay) else f"{m.critical_delay:.6g} s")
+        table.add_row("jitter margin (any variation)", "–" if jm is None else "∞" if math.isinf(jm.margin) else
+                      f"{jm.margin:.6g} s{at(jm.frequency)}")
         table.add_row("peak sensitivity Ms", f"{m.ms:.6g}{at(getattr(m, 'ms_frequency', None))}")
     if not sampled:
         table.add_row("open-loop RHP poles P", str(m.open_loop_rhp_poles))
         table.add_row("encirclements of -1 (ccw)", "–" if m.encirclements is None else str(m.encirclements))
     out.print(table)
+    if m.stable and jm is None:
+        out.print(f"No jitter margin: {jm_why.rstrip('.')}.", highlight=False)
     cross = Table(title=f"crossovers up to {math.pi / loop.period if sampled else m.cutoff:.6g} rad/s")
     for col in ("kind", "ω (rad/s)", "|L|", "phase (deg)", "gives"):
         cross.add_column(col, justify="right")
