@@ -203,21 +203,6 @@ def test_cli_design_and_simulate():
     assert res.exit_code == 2 and "--model-delay" in res.output
 
 
-def test_the_sampled_analysis_of_a_compensated_loop_is_refused_not_silently_wrong():
-    # the sampled model holds the plant and the controller's states, not a compensator's delayed command input:
-    # its poles would be those of another loop, so it refuses (the sampled loop itself simulates exactly)
-    from delaykit.models import Loop
-    from delaykit.spectrum.sampled import sampled_margins, sampled_spectrum
-
-    loop = Loop("1/s", Compensator.smith("1/s", 0.37), delay=0.42, period=0.065)
-    for f in (sampled_spectrum, sampled_margins):
-        with pytest.raises(InvalidValueError, match="smith compensator is not implemented"):
-            f(loop)
-    res = CliRunner().invoke(app_cli(), ["roots", "--controller", "smith", "--delay", "0.42", "--model-delay", "0.37",
-                                         "--period", "0.065"])
-    assert res.exit_code == 2 and "not implemented" in " ".join(res.output.split())
-
-
 def app_cli():
     from delaykit.cli import app
 

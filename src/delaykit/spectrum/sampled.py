@@ -27,6 +27,15 @@ with the integrals from the exponential of an augmented matrix (Van Loan, 1978),
 poles in the z-plane; ``|z| < 1`` for all of them is asymptotic stability.  ``det(zI - Phi)`` is, up to
 factors ``z``, the characteristic polynomial of the modified z-transform (Åström & Wittenmark, ch. 2).
 
+**A compensator** (a Smith predictor, predictor feedback) also reads the held command ``u_k`` and the command
+one model delay ``Tm = mm h + fm`` ago: its states run on ``u_k`` over the whole period and on ``u_{k-mm-1}``
+then ``u_{k-mm}`` (switching at ``fm``), so the period is cut at both ``f`` and ``fm`` and enough commands are
+held for the longer delay.  Its history states (``p = int_{t-Tm}^t u`` and, for predictor feedback, its weighted
+form) make invariants that no history of commands excites: one eigenvalue 1 each, removed from the poles as the
+continuous loop's structural roots at ``s = 0`` are.  The poles and stability of a sampled compensated loop come
+from this model; its margins are not computed (the compensator reads the held command itself, so breaking the
+loop at the command is not breaking it at the plant).
+
 The **sampling offset does not change stability**: moving the first sample only shifts the sampling grid in
 time, and what happens before the first sample is an initial condition, so ``Phi`` is the same for every offset.
 
@@ -75,18 +84,45 @@ MAX_ORDER = 2000
 _GAIN_SCAN_MAX = 1e6
 
 
-def _sampled_loop(loop: Any, what: str) -> Loop:
+def _sampled_loop(loop: Any, what: str, compensators: bool = False) -> Loop:
     lp = as_loop(loop)
     if not lp.sampled:
         raise InvalidValueError(
             f"{what} needs a sampled loop (period set, in s); this loop is continuous (period=None): use "
             "delaykit.spectrum.stability.rightmost for its roots, or give it a period")
-    if lp.controller.realisation().reads_command:
+    if not compensators and lp.controller.realisation().reads_command:
         raise InvalidValueError(
-            f"{what} of a loop with a {lp.controller.kind} compensator is not implemented: its law reads its own "
-            "command one model delay ago, which the sampled model here does not hold; simulate the sampled loop "
-            "(delaykit simulate --period ...) or analyse it continuous")
+            f"{what} of a loop with a {lp.controller.kind} compensator is not implemented: the compensator reads "
+            "the held command itself, so the loop broken at the command is not the loop broken at the plant; "
+            "its poles and stability are exact from sampled_spectrum (`delaykit roots --period ...`), and the "
+            "continuous loop's margins from `delaykit margins` without --period")
     return lp
+
+
+def _compensated_transition(F: np.ndarray, G: np.ndarray, Gu: np.ndarray, Gm: np.ndarray, Gr: np.ndarray,
+                            h: float, m: int, f: float, mm: int, fm: float, N: int) -> tuple[np.ndarray, np.ndarray]:
+    """``[xi_{k+1}] = X [z_k; u_k] + xr r`` over one period for a compensator's loop: the period is cut at ``f``
+    (the plant's input switches from ``u_{k-m-1}`` to ``u_{k-m}``) and at ``fm`` (the model's delayed command
+    switches from ``u_{k-mm-1}`` to ``u_{k-mm}``); the compensator reads ``u_k`` throughout."""
+    nx = F.shape[0]
+    X = np.zeros((nx, N + 1))
+    X[:, :nx] = np.eye(nx)
+    xr = np.zeros(nx)
+
+    def sel(j: int) -> np.ndarray:  # the command u_{k-j} as a row over [z_k; u_k]
+        e = np.zeros(N + 1)
+        e[N if j == 0 else nx + j - 1] = 1.0
+        return e
+
+    edges = sorted({0.0, f, fm, h})
+    GG = np.column_stack([G, Gu, Gm, Gr])
+    for a, b in zip(edges[:-1], edges[1:]):
+        E, J = hold_matrices(F, GG, b - a)
+        jp = m + 1 if a < f else m
+        jm = mm + 1 if a < fm else mm
+        X = E @ X + np.outer(J[:, 0], sel(jp)) + np.outer(J[:, 1], sel(0)) + np.outer(J[:, 2], sel(jm))
+        xr = E @ xr + J[:, 3]
+    return X, xr
 
 
 # -- the exact discrete-time model -----------------------------------------------------------------------
@@ -112,6 +148,7 @@ class SampledModel:
     b_open: np.ndarray
     k_row: np.ndarray
     b_ref: np.ndarray
+    structural: int = 0
 
     @property
     def order(self) -> int:
@@ -165,7 +202,7 @@ def sampled_model(loop: Loop | AltitudeLoop) -> SampledModel:
     >>> np.round(np.poly(m.phi), 12).tolist()   # z^3 - z^2 + Kp h
     [1.0, -1.0, 0.0, 0.1]
     """
-    lp = _sampled_loop(loop, "sampled_model")
+    lp = _sampled_loop(loop, "sampled_model", compensators=True)
     h = float(lp.period)
     A, B, C, D = lp.plant.state_space()
     n = A.shape[0]
@@ -188,11 +225,34 @@ def sampled_model(loop: Loop | AltitudeLoop) -> SampledModel:
     kl = rz.dvy * D + rz.dvv * CB  # the sample's dependence on the plant input at the left limit
     m, f = split_delay(lp.total_delay, h)
     p = m + 1 if (f > 0.0 or kl != 0.0) else m
+    comp = rz.reads_command
+    if comp:  # a compensator also reads u_k and u(t - Tm): hold enough commands for its model's delay too
+        mm, fm = split_delay(rz.model_delay, h)
+        p = max(p, mm + 1 if fm > 0.0 else mm)
     N = nx + p
     if N > MAX_ORDER:
         raise InvalidValueError(
             f"the total delay {lp.total_delay:g} s is {m} periods of {h:g} s: the lifted state would have {N} "
             f"entries, more than {MAX_ORDER}; use a longer period or the continuous loop")
+    if comp:
+        zc = np.zeros(n)
+        X, xr = _compensated_transition(F, G, np.r_[zc, rz.Bcu], np.r_[zc, rz.Bcm], Gr, h, m, f, mm, fm, N)
+        Ao = np.zeros((N, N))
+        Bo = np.zeros(N)
+        K = np.zeros(N)
+        Ao[:nx, :] = X[:, :N]
+        Bo[:nx] = X[:, N]
+        if p >= 1:
+            Bo[nx] += 1.0
+            for i in range(1, p):
+                Ao[nx + i, nx + i - 1] = 1.0
+        K[:nx] = kx
+        if kl != 0.0:
+            K[nx + m] += kl
+        b_ref = Bo * rz.dvr + np.r_[xr, np.zeros(p)]
+        return SampledModel(period=h, total_delay=lp.total_delay, whole_periods=m, fraction=f, n_plant=n,
+                            n_controller=nc, n_held=p, phi=Ao + np.outer(Bo, K), a_open=Ao, b_open=Bo, k_row=K,
+                            b_ref=b_ref, structural=lp.controller.structural_zeros())
     GG = np.column_stack([G, Gr]) if nx else np.zeros((0, 2))
     Ef, Jf = hold_matrices(F, GG, f)
     Eg, Jg = hold_matrices(F, GG, h - f)
@@ -221,6 +281,22 @@ def sampled_model(loop: Loop | AltitudeLoop) -> SampledModel:
     return SampledModel(period=h, total_delay=lp.total_delay, whole_periods=m, fraction=f, n_plant=n,
                         n_controller=nc, n_held=p, phi=Ao + np.outer(Bo, K), a_open=Ao, b_open=Bo, k_row=K,
                         b_ref=b_ref)
+
+
+def _drop_structural(z: np.ndarray, k: int) -> np.ndarray:
+    """The poles without the ``k`` at ``z = 1`` that a compensator's history states carry: ``p - int u`` over the
+    model's window (and, for predictor feedback, its weighted form) is the same at every sample, so each such
+    invariant is an eigenvalue 1 of the transition matrix that no history of commands excites (the sampled
+    image of the continuous loop's structural roots at ``s = 0``,
+    :meth:`~delaykit.models.compensators.Compensator.structural_zeros`)."""
+    d = np.abs(z - 1.0)
+    idx = np.argsort(d)[:k]
+    # a Jordan block at 1 splits by about eps^(1/size) in floating point
+    if idx.size < k or np.max(d[idx]) > 1e-5:
+        raise InvalidValueError(
+            f"the compensated loop's transition matrix should have {k} eigenvalue(s) at 1 from the compensator's "
+            f"history states, but the nearest are {np.round(z[idx], 9).tolist()}: not separable from the loop's poles")
+    return np.delete(z, idx)
 
 
 def _radius(M: np.ndarray) -> float:
@@ -297,6 +373,8 @@ def sampled_spectrum(loop: Loop | AltitudeLoop) -> SampledSpectrum:
     mdl = sampled_model(loop)
     h = mdl.period
     z = np.linalg.eigvals(mdl.phi) if mdl.order else np.zeros(0, complex)
+    if mdl.structural:
+        z = _drop_structural(z, mdl.structural)
     z = z[np.lexsort((-z.imag, -np.abs(z)))] if z.size else z
     radius = float(np.abs(z[0])) if z.size else 0.0
     if z.size:
@@ -305,7 +383,7 @@ def sampled_spectrum(loop: Loop | AltitudeLoop) -> SampledSpectrum:
     else:
         dom = 0j
     rate = complex(-math.inf, 0.0) if dom == 0 else cmath.log(dom) / h
-    coef = np.real_if_close(np.poly(mdl.phi)) if mdl.order else np.ones(1)
+    coef = np.real_if_close(np.poly(z if mdl.structural else mdl.phi)) if mdl.order else np.ones(1)
     if np.iscomplexobj(coef):
         coef = coef.real
     if np.all(np.abs(z.imag) < 1e-300):
@@ -389,7 +467,7 @@ def sampled_frequency_response(loop: Loop | AltitudeLoop, w: Any) -> Any:
     >>> round(L.real, 12), abs(L.imag) < 1e-15     # Kp h / (z - 1) at z = -1
     (-0.05, True)
     """
-    mdl = sampled_model(loop)
+    mdl = sampled_model(_sampled_loop(loop, "sampled_frequency_response"))
     arr = _check_frequencies(w, mdl.period)
     out = _response(mdl, arr.ravel()).reshape(arr.shape)
     return complex(out) if out.ndim == 0 else out
@@ -410,7 +488,7 @@ def sampled_response(loop: Loop | AltitudeLoop, w: Any = None) -> FrequencyRespo
     >>> r.w.size, round(float(r.phase_deg[-1]), 6)   # at pi/h: z = -1, L real and negative, 3.5 turns down
     (1000, -1260.0)
     """
-    h = sampled_model(loop).period
+    h = sampled_model(_sampled_loop(loop, "sampled_response")).period
     w = np.geomspace(1e-3 * math.pi / h, math.pi / h, 1000) if w is None else np.sort(np.ravel(w))
     L = np.atleast_1d(sampled_frequency_response(loop, w))
     with np.errstate(divide="ignore"):
