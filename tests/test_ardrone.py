@@ -268,12 +268,24 @@ def _unused_names(path: Path) -> list[str]:
 
 
 def test_hardware_code_has_no_unused_parameters_or_dead_assignments(tmp_path):
+    import importlib
+
     import delaykit.hardware
 
     folder = Path(delaykit.hardware.__file__).parent
     assert [f for p in sorted(folder.glob("*.py")) for f in _unused_names(p)] == []
+    # the compiled kernels too (numba functions are read from their source, as any other function), and the
+    # modules around them that were cleaned of the same
+    modules = ("delaykit.simulate._kernel", "delaykit.spectrum._rootkernel", "delaykit.simulate.simulation",
+               "delaykit.spectrum.roots", "delaykit.identify.identification", "delaykit.identify.estimation",
+               "delaykit.paper.report", "delaykit.plotting.compensation", "delaykit.plotting.identification")
+    assert [f for m in modules for f in _unused_names(Path(importlib.import_module(m).__file__))] == []
     # the check finds what it is for: a parameter and an assignment nobody reads (and not the throwaways)
     sample = tmp_path / "sample.py"
     sample.write_text("def f(a, b, _c):\n    x = 1\n    y, _z = a, 2\n    return y\n")
     assert _unused_names(sample) == ["sample.py:1 f: parameter 'b' is never used",
                                      "sample.py:2 f: 'x' is assigned but never read"]
+    # and in a compiled function, whose decorator does not hide it
+    jitted = tmp_path / "jitted.py"
+    jitted.write_text("from numba import njit\n\n\n@njit(cache=True)\ndef g(C, A, tau):\n    return C * tau\n")
+    assert _unused_names(jitted) == ["jitted.py:5 g: parameter 'A' is never used"]

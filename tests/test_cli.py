@@ -52,6 +52,23 @@ def test_table1_sweep_shows_the_paper_beside_delaykit():
     assert "paper Mo" in table.stdout and "2.300" in table.stdout
 
 
+@pytest.mark.parametrize("extra", [["--vmax", "none"], ["--period", "0.065"], ["--kv", "0.3"], ["--step", "2"],
+                                   ["--output-delay", "0.1"]])
+def test_table1_sweep_of_another_loop_has_no_paper_column(extra):
+    """Kp = 1.31 and the Table 1 delays, but not the paper's loop (no saturation, a sampled controller, a velocity
+    term, another step, a delayed measurement): the paper's overshoots do not apply and must not be shown.  A check
+    of ``kp == 1.31`` alone would have shown them."""
+    res = run("simulate", "--kp", "1.31", "--delay", "table1", *extra, "--json")
+    assert res.exit_code == 0, res.output
+    rows = json.loads(res.stdout)
+    assert len(rows) == len(TABLE1)
+    assert all(math.isclose(r["delay"], k * 0.065, abs_tol=1e-12) for r, (k, _, _) in zip(rows, TABLE1))
+    assert not any("paper_overshoot" in r for r in rows)
+    table = run("simulate", "--kp", "1.31", "--delay", "table1", *extra)
+    assert table.exit_code == 0, table.output
+    assert "Mo %" in table.stdout and "paper Mo" not in table.stdout and "paper−ours" not in table.stdout
+
+
 def test_sweep_csv_and_plot(tmp_path):
     csv_path, png = tmp_path / "r.csv", tmp_path / "r.png"
     res = run("simulate", "--kp", "1.31", "--delay", "0.2:0.4:3", "--csv", str(csv_path), "--plot", str(png),

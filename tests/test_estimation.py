@@ -369,6 +369,36 @@ def test_params_and_diagnostics_are_typed_records_with_the_former_json():
         fitted_altitude(logs[0], est, 1.31)
 
 
+def test_records_read_as_the_former_dicts():
+    """``diag["spread"]`` and the other dict reads keep working, read-only, with the keys the dicts had (the
+    fields that are set); an unset field or an unknown name is a KeyError that says which."""
+    from delaykit.identify.estimation import Diagnostics, EstimateParams
+
+    diag = Diagnostics(warnings=("w",), spread=0.04, per_flight_delays=(0.33, 0.37, 0.41))
+    assert diag["spread"] == 0.04 and diag["per_flight_delays"] == (0.33, 0.37, 0.41) and diag["warnings"] == ("w",)
+    assert "spread" in diag and "heterogeneity_p" not in diag and "nonsense" not in diag and 3 not in diag
+    assert diag.get("spread") == 0.04 and diag.get("heterogeneity_p") is None and diag.get("zeta", 7) == 7
+    assert list(diag) == list(diag.keys()) == ["warnings", "spread", "per_flight_delays"]
+    # a dict built from the record equals the JSON form here (no value needs converting)
+    assert dict(diag) == {"warnings": ("w",), "spread": 0.04, "per_flight_delays": (0.33, 0.37, 0.41)}
+    with pytest.raises(KeyError, match="'heterogeneity_p' is not set"):
+        diag["heterogeneity_p"]
+    with pytest.raises(KeyError, match="no field 'sprad'.*spread"):
+        diag["sprad"]
+    with pytest.raises(TypeError):  # read-only
+        diag["spread"] = 1.0  # type: ignore[index]
+    params = EstimateParams(kp=1.31)
+    assert params["kp"] == 1.31 and list(params) == ["kp"]
+    with pytest.raises(KeyError, match="'lag' is not set"):
+        params["lag"]
+    # on real estimates: the keys are the JSON's, the values the fields'
+    est = estimate_overshoot(2.300, kp=1.31)
+    assert set(est.diagnostics) == set(est.to_dict()["diagnostics"])
+    assert est.diagnostics["slope_percent_per_second"] == est.diagnostics.slope_percent_per_second
+    assert est.diagnostics["model_peak_time"] == est.diagnostics.model_peak_time  # always reported, even None
+    assert est.params["overshoot"] == 2.3
+
+
 def test_cli_estimate_with_no_interval_says_so(tmp_path, monkeypatch):
     from typer.testing import CliRunner
 

@@ -10,6 +10,7 @@ import math
 import os
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +22,7 @@ from delaykit import AltitudeLoop, Controller, InvalidTypeError, InvalidValueErr
 from delaykit.models.signals import Ramp
 from delaykit.plotting.figures import (plot_filter_bode, plot_fit, plot_iterations, plot_responses, plot_spectrum,
                                        plot_stability_map, save_figure)
+from delaykit.plotting.compensation import plot_robustness_map
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 
@@ -255,6 +257,191 @@ def test_plot_iterations_shows_both_parts():
     assert np.array_equal(_lines(ax, "Re Td")[0].get_ydata(), np.real(it))
     assert np.array_equal(_lines(ax, "Im Td")[0].get_ydata(), np.imag(it))
     assert _lines(ax, "paper: 0.374 s")[0].get_ydata()[0] == 0.374
+
+
+# ---- compensation: the robustness map and the delay watched in flight; identification: predictions ----------------
+
+def _robustness_map():
+    """A map whose abscissa is a plane, 4 (d - g) + 0.2: zero on the line d = g - 0.05 (closed form; a contour of a
+    linear function interpolated linearly is exact), and beyond +-5 in two corners (to see the clipping)."""
+    from delaykit.design.compensators import RobustnessMap
+
+    d, g = np.linspace(0.5, 2.0, 7), np.linspace(0.5, 2.0, 4)
+    return RobustnessMap(d, g, 4.0 * (d[:, None] - g[None, :]) + 0.2, "smith")
+
+
+def test_plot_robustness_map_shows_the_clipped_abscissa_the_boundary_and_the_design_point():
+    rmap = _robustness_map()
+    fig = plot_robustness_map(rmap)
+    assert isinstance(fig, Figure) and len(fig.axes) == 2  # the map and its colour bar
+    ax, bar = fig.axes
+    mesh, boundary = ax.collections
+    assert np.abs(rmap.abscissa).max() > 5  # the clipping is exercised
+    assert np.array_equal(np.asarray(mesh.get_array()).reshape(rmap.abscissa.shape), np.clip(rmap.abscissa, -5, 5))
+    # each cell is centred on its (gain ratio, delay ratio): the mean of its four corners
+    corners = mesh.get_coordinates()
+    centres = 0.25 * (corners[:-1, :-1] + corners[1:, :-1] + corners[:-1, 1:] + corners[1:, 1:])
+    g, d = np.meshgrid(rmap.gain_ratios, rmap.delay_ratios)
+    assert np.allclose(centres[..., 0], g) and np.allclose(centres[..., 1], d)
+    assert list(boundary.levels) == [0.0]
+    vertices = np.concatenate([p.vertices for p in boundary.get_paths()])
+    assert len(vertices) >= 2 and np.allclose(vertices[:, 1], vertices[:, 0] - 0.05)
+    (star,) = _lines(ax, "design point")
+    assert (star.get_xdata().tolist(), star.get_ydata().tolist(), star.get_marker()) == ([1.0], [1.0], "*")
+    assert len(ax.lines) == 1
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("true / model gain", "true / model delay")
+    assert ax.get_title().startswith("smith:") and bar.get_ylabel().startswith("rightmost root real part")
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["design point"]
+
+
+def test_plot_robustness_map_into_given_axes_and_without_a_boundary():
+    from delaykit.design.compensators import RobustnessMap
+
+    host = Figure()
+    ax = host.subplots()
+    fig = plot_robustness_map(_robustness_map(), ax=ax, title="Smith predictor")
+    assert fig is host and ax.get_title() == "Smith predictor" and len(host.axes) == 2  # ax and its colour bar
+    # stable everywhere: the map, no boundary
+    d, g = np.array([0.9, 1.0, 1.1]), np.array([0.9, 1.1])
+    stable = RobustnessMap(d, g, -np.ones((3, 2)), "smith")
+    one = Figure().subplots()
+    plot_robustness_map(stable, ax=one)
+    assert len(one.collections) == 1 and np.array_equal(np.asarray(one.collections[0].get_array()).ravel(),
+                                                        -np.ones(6))
+    # a real map, small (the module's example): what is drawn is its own abscissa
+    from delaykit.design.compensators import robustness_map
+    from delaykit.models.compensators import Compensator
+
+    real = robustness_map(Compensator.smith("1/s", 0.37), [0.8, 1.0, 1.2], [0.9, 1.1])
+    fig = plot_robustness_map(real)
+    assert np.array_equal(np.asarray(fig.axes[0].collections[0].get_array()).reshape(3, 2),
+                          np.clip(real.abscissa, -5, 5))
+
+
+def _online():
+    """Three steps of a flight (the monitor's own records): in range, an alarm, and a design range open upwards."""
+    from delaykit.hardware.monitor import OnlineEstimate
+    from delaykit.identify.online import WindowEstimate
+
+    def window(delay, ci, t_from, t_to):
+        return WindowEstimate(delay=delay, stderr=0.01, ci=ci, lag=0.0, gain=1.0, samples=100, rms=0.01,
+                              t_from=t_from, t_to=t_to)
+
+    return [OnlineEstimate(1, 14.0, window(0.30, (0.28, 0.33), 110.0, 114.0), (0.2, 0.35), (0.0, 1.0), False),
+            OnlineEstimate(2, 19.0, window(0.50, (0.45, 0.56), 115.0, 119.0), (0.2, 0.35), (0.0, 1.0), True),
+            OnlineEstimate(3, 24.0, window(0.31, (0.29, 0.34), 120.0, 124.0), (0.2, 9.0), (0.0, 1.0), False)]
+
+
+def test_plot_online_shows_each_estimate_its_interval_window_and_design_range():
+    from delaykit.plotting.compensation import plot_online
+
+    online = _online()
+    fig = plot_online(online, t0=100.0, truth=[(0.0, 0.3), (16.0, 0.5)])
+    assert isinstance(fig, Figure) and len(fig.axes) == 1
+    ax = fig.axes[0]
+    bars = ax.containers
+    assert len(bars) == len(online)  # one estimate with its interval per step
+    fills = [c for c in ax.collections if type(c).__name__ != "LineCollection"]
+    assert len(fills) == len(online)
+    for o, bar, fill in zip(online, bars, fills):
+        a, b = o.estimate.t_from - 100.0, o.estimate.t_to - 100.0
+        colour = "tab:red" if o.alarm else "tab:blue"
+        point, _, (segment,) = bar
+        assert point.get_xdata().tolist() == [0.5 * (a + b)] and point.get_ydata().tolist() == [o.delay]
+        assert point.get_color() == colour
+        assert np.allclose(segment.get_segments()[0], [[0.5 * (a + b), o.estimate.ci[0]],
+                                                       [0.5 * (a + b), o.estimate.ci[1]]])
+        # the window: a level line over [t_from, t_to] at the estimate
+        (level,) = [ln for ln in ax.lines if ln.get_xdata().tolist() == [a, b]]
+        assert level.get_ydata().tolist() == [o.delay, o.delay] and level.get_color() == colour
+        # the design range shaded over the window, cut at 5 s when open upwards
+        box = fill.get_paths()[0].vertices
+        assert box[:, 0].min() == a and box[:, 0].max() == b
+        assert box[:, 1].min() == o.design_range[0] and box[:, 1].max() == min(o.design_range[1], 5.0)
+    # the truth, a step function held to the last window's end (24 s > 16 s + 1 s)
+    (truth,) = _lines(ax, "true delay")
+    assert truth.get_xdata().tolist() == [0.0, 16.0, 24.0] and truth.get_ydata().tolist() == [0.3, 0.5, 0.5]
+    assert truth.get_drawstyle() == "steps-post"
+    # each kind labelled once in the legend
+    assert sorted(t.get_text() for t in ax.get_legend().get_texts()) == sorted(
+        ["design range", "true delay", "estimate, 95 % interval", "estimate (alarm)"])
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("time (s)", "loop delay (s)")
+
+
+def test_plot_online_into_given_axes_without_truth_or_alarm():
+    from delaykit.plotting.compensation import plot_online
+
+    online = [o for o in _online() if not o.alarm]
+    host = Figure()
+    ax = host.subplots()
+    fig = plot_online(online, ax=ax, title="flight 3")
+    assert fig is host and len(host.axes) == 1 and ax.get_title() == "flight 3"
+    assert len(ax.containers) == 2 and not _lines(ax, "true delay")
+    # t0 = 0: the windows at their own times
+    assert [c[0].get_xdata()[0] for c in ax.containers] == [112.0, 122.0]
+    assert sorted(t.get_text() for t in ax.get_legend().get_texts()) == ["design range", "estimate, 95 % interval"]
+
+
+def _predictions():
+    """Two logs' predictions (first output "z", a second output "u" that must not be drawn), built by hand."""
+    from delaykit.identify.identification import Prediction
+
+    out = []
+    for k, name in enumerate(("a.csv", "b.csv")):
+        t = 5.0 + np.arange(0.0, 10.0, 0.5)
+        measured = {"z": np.sin(t + k), "u": np.cos(t)}
+        predicted = {"z": np.sin(t + k) + 0.01, "u": np.cos(t) + 1.0}
+        out.append(Prediction(file=name, t=t, measured=measured, predicted=predicted,
+                              rms={"z": 0.01 * (k + 1), "u": 1.0}, wander={"z": 0.0, "u": 0.0}))
+    return out
+
+
+def test_plot_predictions_shows_measured_and_predicted_first_outputs():
+    from delaykit.plotting.identification import plot_predictions
+
+    preds = _predictions()
+    fig = plot_predictions(preds, title="fopdt")
+    assert isinstance(fig, Figure) and len(fig.axes) == 1
+    ax = fig.axes[0]
+    assert len(ax.lines) == 2 * len(preds)  # a measured and a predicted line per log, the first output only
+    assert [ln.get_label() for ln in ax.lines] == ["a.csv measured", "predicted (rms 0.01)",
+                                                    "b.csv measured", "predicted (rms 0.02)"]
+    for i, p in enumerate(preds):
+        measured, predicted = ax.lines[2 * i], ax.lines[2 * i + 1]
+        assert np.array_equal(measured.get_xdata(), p.t - 5.0) and np.array_equal(predicted.get_xdata(), p.t - 5.0)
+        assert np.array_equal(measured.get_ydata(), p.measured["z"])
+        assert np.array_equal(predicted.get_ydata(), p.predicted["z"])
+        assert predicted.get_color() == measured.get_color() and predicted.get_linestyle() == "--"
+    assert ax.lines[0].get_color() != ax.lines[2].get_color()
+    assert (ax.get_xlabel(), ax.get_ylabel(), ax.get_title()) == ("time from the log's start (s)", "z", "fopdt")
+    assert len(ax.get_legend().get_texts()) == 4
+
+
+def test_plot_predictions_into_given_axes_and_of_a_real_fit(tmp_path):
+    from delaykit.identify import Experiment, identify, predict
+    from delaykit.plotting.identification import plot_predictions
+
+    host = Figure()
+    ax = host.subplots()
+    fig = plot_predictions(_predictions()[:1], ax=ax)
+    assert fig is host and len(host.axes) == 1 and len(ax.lines) == 2 and ax.get_title() == ""
+    # more than six logs: no legend; none at all: an empty axes without a y label
+    many = plot_predictions(_predictions() * 4).axes[0]
+    assert len(many.lines) == 16 and many.get_legend() is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "no artists with labels" warning from an empty legend
+        empty = plot_predictions([]).axes[0]
+    assert len(empty.lines) == 0 and empty.get_ylabel() == "" and empty.get_legend() is None
+    # a first-order-plus-dead-time fit of its own model's output (the module's example): the lines are the
+    # prediction's arrays
+    t = np.arange(0, 60.0, 0.5)
+    e = Experiment.from_arrays(t, {"y": 2 * (1 - np.exp(-np.maximum(t - 8, 0) / 10))}, u=np.where(t >= 5, 1.0, 0.0))
+    pred = predict(identify(e, model="fopdt"), e)
+    fig = plot_predictions([pred], path=tmp_path / "p.svg")
+    assert "<svg" in (tmp_path / "p.svg").read_text()
+    measured, predicted = fig.axes[0].lines
+    assert np.array_equal(measured.get_ydata(), pred.measured["y"])
+    assert np.array_equal(predicted.get_ydata(), pred.predicted["y"])
 
 
 # ---- callers: the command line and the paper write their figures through these ----------------------------------

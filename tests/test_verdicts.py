@@ -7,6 +7,7 @@ from __future__ import annotations
 import pytest
 
 from delaykit.design.tuning import filter_analysis, filter_cutoff_verdict
+from delaykit.errors import InvalidTypeError, InvalidValueError
 from delaykit.paper.data import Table1Row, Table3Row
 from delaykit.paper.report import TABLE1_MODEL, Verdict, table1_check, variants_check
 from delaykit.paper.reproduce import (PAPER_511_DELAY, Item, design_text_check, fig5_check, section511_check,
@@ -36,10 +37,18 @@ FIG5 = ([1.0, 1.31, 1.6, 2.0], [0.0, 2.300000000000235, 6.745614719395188, 12.05
 
 
 def test_verdict_text_must_start_with_status():
-    with pytest.raises(ValueError):
+    # delaykit's own errors (still ValueError / TypeError), naming the bad value and what was expected
+    with pytest.raises(InvalidValueError, match="must start with its status 'reproduced': 'not reproduced: x'"):
         Verdict("reproduced", "not reproduced: x")
-    with pytest.raises(ValueError):
+    with pytest.raises(InvalidValueError, match="'reproduced qualitatively' is not one of 'reproduced', "
+                                                "'not reproduced', 'not checked'"):
         Verdict("reproduced qualitatively", "reproduced qualitatively")  # type: ignore[arg-type]
+    with pytest.raises(InvalidTypeError, match="text must be a str, got NoneType None"):
+        Verdict("reproduced", None)  # type: ignore[arg-type]
+    with pytest.raises(InvalidTypeError, match="status must be a str, got int 1"):
+        Verdict(1, "1")  # type: ignore[arg-type]
+    assert issubclass(InvalidValueError, ValueError) and issubclass(InvalidTypeError, TypeError)
+    assert Verdict("not checked", "not checked: no data").status == "not checked"
 
 
 def test_section511_printed_value_reproduced():

@@ -29,7 +29,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 from scipy import stats
@@ -56,7 +56,33 @@ class EstimationError(InvalidValueError):
 
 class _Record:
     """Shared behaviour of the small result records: ``to_dict`` writes the fields that are set (not None), as
-    the dicts they replace did; reading them as a mapping (``diag["spread"]``) is kept for older code."""
+    the dicts they replace did.  Reading them as a mapping (``diag["spread"]``, ``"spread" in diag``,
+    ``diag.get("spread")``, ``diag.keys()``, ``dict(diag)``) is kept, read-only, for older code; its keys are
+    the dict's: the fields that are set.  Reading a field that is not set, or a name that is not a field,
+    raises :class:`KeyError` (whose message lists the fields)."""
+
+    def __getitem__(self, name: str) -> Any:
+        if name not in self._present():
+            names = [f.name for f in dataclasses.fields(self)]  # type: ignore[arg-type]
+            if name in names:
+                raise KeyError(f"{name!r} is not set in this {type(self).__name__} (the method does not "
+                               f"compute it); the set fields are {', '.join(self._present()) or 'none'}")
+            raise KeyError(f"{type(self).__name__} has no field {name!r}; the fields are {', '.join(names)}")
+        return getattr(self, name)
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and name in self._present()
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._present())
+
+    def keys(self) -> list[str]:
+        """The names of the fields that are set (the keys of the dict this record replaces)."""
+        return self._present()
+
+    def get(self, name: str, default: Any = None) -> Any:
+        """The field ``name`` if it is set, else ``default`` (as ``dict.get``)."""
+        return self[name] if name in self else default
 
     def _present(self) -> list[str]:
         return [f.name for f in dataclasses.fields(self)  # type: ignore[arg-type]

@@ -327,7 +327,7 @@ class _Problem:
                 for o in names:
                     cols[o].append((unit.dy if o == prep.rate else unit.y)[prep.keep[o]])
             if self.fit_offset:
-                for j, o in enumerate(names):
+                for o in names:
                     for q in names:
                         if o != prep.rate:
                             cols[q].append(np.full(res[q].size, 1.0 if q == o else 0.0))
@@ -456,9 +456,10 @@ def _with_best_gain(prob: _Problem, p: np.ndarray) -> tuple[np.ndarray, float]:
     return p, float(np.dot(r, r))
 
 
-def _fit(prob: _Problem, starts: list[np.ndarray], explore: bool = True) -> tuple[np.ndarray, Any]:
+def _fit(prob: _Problem, starts: list[np.ndarray], explore: bool = True) -> np.ndarray:
     """Least squares from the most promising starts; then the delay hops across sample boundaries, where the
-    cost is only piecewise smooth (a held input's edge crossing a sample), until no neighbour is better."""
+    cost is only piecewise smooth (a held input's edge crossing a sample), until no neighbour is better.  Returns
+    the physical parameters."""
     hi_delay = _delay_bound(prob.preps)
     h = prob.preps[0].exp.period
     lb = np.full(prob.st.size, -np.inf)
@@ -516,7 +517,7 @@ def _fit(prob: _Problem, starts: list[np.ndarray], explore: bool = True) -> tupl
             if fit is None or fit.cost >= best.cost * (1 - 1e-9):
                 break
             best = fit
-    return prob.to_phys(best.x), best
+    return prob.to_phys(best.x)
 
 
 @dataclass(frozen=True)
@@ -538,21 +539,21 @@ def _fit_structure(st: Structure, preps: list[_Prepared], law: _Law | None, fit_
     names = {o for p in preps for o in p.outputs + ((p.rate,) if p.rate else ())}
     weights = {o: 1.0 for o in names}
     prob = _Problem(st, preps, law, weights, fit_offset)
-    p, fit = _fit(prob, starts, explore)
+    p = _fit(prob, starts, explore)
     if len(names) > 1:  # weight each output by its own residual level, then refit
         sq: dict[str, list[float]] = {o: [] for o in names}
         for _, o, r in prob.blocks(p):
             sq[o].extend((r * r).tolist())
         weights = {o: math.sqrt(max(float(np.mean(v)), 1e-300)) for o, v in sq.items()}
         prob = _Problem(st, preps, law, weights, fit_offset)
-        p, fit = _fit(prob, [p] + starts[:1], explore=False)
-    p, perm = st.canonical(p)
+        p = _fit(prob, [p] + starts[:1], explore=False)
+    p = st.canonical(p)[0]
     blocks = prob.blocks(p)
     # Jacobian in physical parameters, by central differences
     with np.errstate(all="ignore"):
         J = _jacobian(prob, p)
     noise, jb, loglik, row = [], [], 0.0, 0
-    for prep, o, r in blocks:
+    for _, o, r in blocks:
         rw = r / prob.w[o]
         ar = fit_ar(rw)
         noise.append(ar)
@@ -599,7 +600,7 @@ def _criteria(o: _Outcome) -> tuple[float, float]:
 def _combinations(st: Structure, p: np.ndarray, cov: np.ndarray) -> tuple[list[dict[str, Any]], list[str]]:
     """Pairs of time parameters traded against each other: their sum's interval and a plain warning."""
     out, warns = [], []
-    timey = [i for i, (name, u) in enumerate(zip(st.params, st.units)) if u == "s"]
+    timey = [i for i, u in enumerate(st.units) if u == "s"]
     for a_i, i in enumerate(timey):
         for j in timey[a_i + 1:]:
             d = math.sqrt(max(cov[i, i] * cov[j, j], 0.0))
@@ -752,7 +753,7 @@ def _leave_one_out(o: _Outcome, preps: list[_Prepared], law: _Law | None, fit_of
     for i, held in enumerate(preps):
         rest = preps[:i] + preps[i + 1:]
         sub = _Problem(o.st, rest, law, o.prob.w, fit_offset)
-        p, _ = _fit(sub, [o.p], explore=False)
+        p = _fit(sub, [o.p], explore=False)
         sim = _simulate(held, o.st.plant(p), float(p[-1]), law)
         first = held.outputs[0]
         k = held.keep[first]
@@ -800,7 +801,7 @@ def _assemble(o: _Outcome, preps: list[_Prepared], law: _Law | None, crit: tuple
     lb_bad, xc_bad = [], []
     for (pp, out, r), ar in zip(o.blocks, o.noise):
         e = ar.whiten(r / o.prob.w[out])
-        q, pval = ljung_box(e)
+        pval = ljung_box(e)[1]
         if pval < 0.01:
             lb_bad.append(f"{pp.exp.name}:{out}")
         if out == pp.outputs[0] and pp.keep[out].size == pp.exp.t.size:

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Literal, Mapping
 
+from ..errors import InvalidTypeError, InvalidValueError
 from ..models.altitude import PAPER_PERIOD
 from ..plotting.figures import plot_responses
 from ..simulate.simulation import simulate
@@ -55,10 +56,14 @@ class Verdict:
     text: str
 
     def __post_init__(self) -> None:
+        for name in ("status", "text"):
+            if not isinstance(getattr(self, name), str):
+                raise InvalidTypeError(f"a verdict's {name} must be a str, got {type(getattr(self, name)).__name__} "
+                                       f"{getattr(self, name)!r}")
         if self.status not in STATUSES:
-            raise ValueError(f"status {self.status!r} is not one of {STATUSES}")
+            raise InvalidValueError(f"status {self.status!r} is not one of {', '.join(map(repr, STATUSES))}")
         if not self.text.startswith(self.status):
-            raise ValueError(f"the verdict text must start with its status {self.status!r}: {self.text!r}")
+            raise InvalidValueError(f"the verdict text must start with its status {self.status!r}: {self.text!r}")
 
     def __str__(self) -> str:
         return self.text

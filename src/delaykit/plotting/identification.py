@@ -43,7 +43,7 @@ def plot_predictions(predictions: Sequence[Any], *, ax: Any = None, path: str | 
     matplotlib.figure.Figure
     """
     fig, (ax,), _ = _axes(ax, 1, (8, 4.5))
-    for i, p in enumerate(predictions):
+    for p in predictions:
         out = next(iter(p.rms))
         t = p.t - p.t[0]
         line, = ax.plot(t, p.measured[out], lw=1.0, alpha=0.8, label=f"{p.file} measured")
@@ -54,6 +54,6 @@ def plot_predictions(predictions: Sequence[Any], *, ax: Any = None, path: str | 
         ax.set_ylabel(next(iter(predictions[0].rms)))
     if title:
         ax.set_title(title)
-    if len(predictions) <= 6:
+    if 0 < len(predictions) <= 6:  # a legend of nothing would only warn
         ax.legend(fontsize=7)
     return save_figure(fig, path)

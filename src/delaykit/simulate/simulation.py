@@ -95,7 +95,7 @@ def _put(row: np.ndarray, off: int, vec: np.ndarray) -> None:
     row[off:off + vec.size] = vec
 
 
-def _rate(lay: _Layout, dvr: float, dvy: float, dvv: float, cv: np.ndarray, delay_free: bool) -> float:
+def _rate(lay: _Layout, dvy: float, dvv: float, cv: np.ndarray, delay_free: bool) -> float:
     """The loop's fastest rate, whose reciprocal caps a piece's length (Taylor terms decay like 1/j!)."""
     rate = float(np.max(np.abs(np.linalg.eigvals(lay.M)))) if lay.M.size else 0.0
     rate = max(rate, abs(dvy * lay.dyd))
@@ -139,7 +139,7 @@ def _row(loop: Loop, lay: _Layout, *, step: float, slope: float, norm: float, t_
     p[K.HEAD["integ"]] = lay.integ
     p[K.HEAD["aw"]] = K.AW[c.antiwindup]
     delay_free = loop.total_delay == 0.0 and not loop.sampled
-    p[K.HEAD["hmax"]] = 1.0 / max(_rate(lay, rz.dvr, rz.dvy, rz.dvv, lay.cv, delay_free), 1e-9)
+    p[K.HEAD["hmax"]] = 1.0 / max(_rate(lay, rz.dvy, rz.dvv, lay.cv, delay_free), 1e-9)
     p[K.HEAD["scale"]] = max(1.0, abs(rz.dvr * step), abs(norm))
     p[K.HEAD["step"]] = step
     p[K.HEAD["slope"]] = slope
@@ -629,7 +629,7 @@ def _sweep_rows(gen: Loop, m: int, flat: dict[str, np.ndarray], t_end: float, ba
     if not gen.sampled:
         for i in np.flatnonzero((pars[:, H["ti"]] + pars[:, H["to"]]) == 0):
             cv = pars[i, K.OFF_CV:K.OFF_CV + lay.M.shape[0]]
-            rate = _rate(lay, pars[i, H["dvr"]], pars[i, H["dvy"]], pars[i, H["dvv"]], cv, True)
+            rate = _rate(lay, pars[i, H["dvy"]], pars[i, H["dvv"]], cv, True)
             pars[i, H["hmax"]] = 1.0 / max(rate, 1e-9)
     return pars
 

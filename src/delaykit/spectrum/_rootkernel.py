@@ -180,7 +180,7 @@ def newton(C, A, tau, s0, maxit, box):
 
 
 @njit(cache=True)
-def grid_minima(C, A, tau, xs, ys):
+def grid_minima(C, tau, xs, ys):
     """Grid nodes (interior) where |Q| is not larger than at any of the 8 neighbours."""
     nx = xs.shape[0]
     ny = ys.shape[0]

@@ -208,7 +208,7 @@ def _grid_candidates(ev: _Eval, box: tuple[float, float, float, float], ds: tupl
     xs = np.arange(x0 - dx, x1 + 1.5 * dx, dx)
     ys = np.arange(y0 - dy, y1 + 1.5 * dy, dy)
     ev.evals += xs.size * ys.size
-    return RK.grid_minima(ev.C, ev.A, ev.tau, xs, ys)
+    return RK.grid_minima(ev.C, ev.tau, xs, ys)
 
 
 def root_bound(q: QuasiPolynomial, re_min: float = 0.0) -> float:
@@ -488,7 +488,7 @@ def _absorb(q: QuasiPolynomial, ev: _Eval, known: np.ndarray, kmult: np.ndarray,
                         known = np.append(known, cl[0])
                         kmult = np.append(kmult, cl[1])
                 elif cnt.n == 1:
-                    s1, conv1, clean1 = _newton(ev, np.array([_moments(cnt, 1)[1]]))
+                    s1, conv1, _ = _newton(ev, np.array([_moments(cnt, 1)[1]]))  # the count says simple
                     if conv1[0]:
                         known = np.append(known, s1[0])
                         kmult = np.append(kmult, 1)
