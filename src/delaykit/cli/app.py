@@ -1093,6 +1093,8 @@ def emulate(
     jitter: float = typer.Option(0.0, "--jitter", help="Navdata send jitter, s."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed."),
     delay_schedule: Optional[str] = typer.Option(None, "--delay-schedule", help="The actuator delay changing mid-run: T:DELAY pairs, e.g. 20:0.40,40:0.25 (s since start, s)."),
+    delay_trace: Optional[Path] = typer.Option(None, "--delay-trace", help="Replay a recorded delay, added to --delay (as `simulate --delay-trace`): a CSV with a header t,delay (s), or a flight log of `delaykit fly` (its latency_ms column); each record held until the next, from the first at start. Give --delay 0 for a trace of whole delays. Not with --delay-schedule."),
+    burst: Optional[list[str]] = typer.Option(None, "--burst", help="The navdata rate falls (a Wi-Fi scan): START:DURATION[:RATE] (s since start, s, Hz below --rate; RATE 0 by default: no navdata). Repeat it, or separate several by commas."),
     duration: float = typer.Option(0.0, "--duration", help="Run this long, s (0 = until Ctrl-C)."),
 ) -> None:
     """Run the built-in AR.Drone 2.0 emulator (loopback by default) until Ctrl-C, SIGTERM or --duration; then
@@ -1104,10 +1106,15 @@ def emulate(
     from ..hardware.emulator import DroneEmulator, EmulatorConfig
 
     check_real("--duration", duration, minimum=0.0)
+    if delay_schedule is not None and delay_trace is not None:
+        raise InvalidValueError("give --delay-schedule or --delay-trace, not both: the schedule replaces --delay and "
+                                "the trace is added to it")
     cfg = EmulatorConfig(host=host, at_port=at_port, navdata_port=navdata_port, video_port=video_port,
                          control_port=control_port, delay=delay, lag=lag, link_delay=link_delay, noise=noise,
                          rate=rate, loss=loss, jitter=jitter, seed=seed,
-                         delay_schedule=None if delay_schedule is None else parse_schedule(delay_schedule))
+                         delay_schedule=None if delay_schedule is None else parse_schedule(delay_schedule),
+                         delay_trace=None if delay_trace is None else _read_delay_trace(delay_trace),
+                         bursts=_parse_bursts(burst or [], rate))
     terminated = threading.Event()  # SIGTERM ends the run like Ctrl-C: the same summary, exit status 0
     main_thread = threading.current_thread() is threading.main_thread()  # (signal handlers only go there)
     old_term = signal.signal(signal.SIGTERM, lambda *_: terminated.set()) if main_thread else None
@@ -1127,6 +1134,32 @@ def emulate(
         if main_thread:
             signal.signal(signal.SIGTERM, old_term)
     print(json.dumps(summary))
+
+
+def _parse_bursts(specs: list[str], rate: float) -> tuple[tuple[float, float, float], ...]:
+    """``--burst`` values (``START:DURATION[:RATE]``, repeated or comma-separated) as checked bursts; an error names
+    the item.
+
+    Examples
+    --------
+    >>> _parse_bursts(["5:1", "8:0.5:2,2:1:5"], 15.0)
+    ((2.0, 1.0, 5.0), (5.0, 1.0, 0.0), (8.0, 0.5, 2.0))
+    """
+    from ..hardware.emulator import check_bursts
+
+    rate = check_real("--rate (Hz)", rate, minimum=1.0, maximum=1000.0)
+    items = [x.strip() for spec in specs for x in spec.split(",")]
+    bursts = []
+    for item in items:
+        parts = item.split(":")
+        try:
+            if len(parts) not in (2, 3):
+                raise ValueError
+            bursts.append(tuple(float(x) for x in parts))
+        except ValueError:
+            raise InvalidValueError(f"--burst {item!r} is not START:DURATION[:RATE] (s since start, s, Hz), e.g. 5:1 "
+                                    "(no navdata for 1 s from 5 s) or 5:1:2") from None
+    return check_bursts(bursts, rate, labels=[f"--burst {x!r}" for x in items])
 
 
 def _confirm_real(host: str, yes: bool) -> Optional[Callable[[], bool]]:

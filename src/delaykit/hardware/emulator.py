@@ -27,9 +27,29 @@ stale, are dropped (counted in ``stats["stale"]``), as :mod:`delaykit.simulate.v
 ``keep_order=False``.  The controller's
 sampling (one command per navdata packet) is not a delay but a sample-and-hold, which the estimator models.
 
+**A recorded delay replayed**: ``delay_trace``, a :class:`~delaykit.simulate.varying.DelayTrace` (from a CSV of
+``t,delay`` or the ``latency_ms`` column of a flight log) or its ``(t, delay)`` records, is *added* to ``delay``
+(as ``delaykit simulate --delay-trace`` adds it; give ``delay=0`` for a trace of whole delays).  The trace is
+replayed from its ``start`` (by default its first record) at :meth:`DroneEmulator.start`, each record held until
+the next (the trace's ``interpolation="previous"``; a linear one is refused), the first before it and the last
+after it: exactly ``delay + trace.packet_delays([t])`` at ``t`` seconds since start.  It is a schedule with many
+steps and takes the same path as ``delay_schedule`` (the delay in force when a command arrives, stale commands
+dropped); the two cannot be given together.
+
+**Bursts** (a Wi-Fi scan): ``bursts``, ``(start, duration, rate)`` triples (seconds since start, seconds, Hz;
+``rate`` 0 by default: no navdata at all), lower the navdata rate: during ``[start, start + duration)`` packets
+go out at ``start + j / rate`` (``j = 0, 1, ...``) instead of on the normal grid ``k / rate``, which resumes at
+its first point from ``start + duration``.  Only the sending slows: the emulator still wakes on the normal grid
+to run the physics and the watchdog.  The sequence number counts the packets sent, so a burst shows as a slower
+rate, not as lost packets.  :class:`~delaykit.simulate.varying.Burst` models the same event in the simulator
+from the other side, as extra command *delay*: a controller that acts on each navdata packet sends its commands
+at the navdata rate, so a burst at ``rate`` Hz makes each command's measurement up to ``1 / rate`` s old instead
+of ``1 / config.rate`` (with ``rate`` 0, up to ``duration``): about ``Burst(start, start + duration, extra)``
+with ``extra`` between 0 and ``1 / rate - 1 / config.rate`` (a sample-and-hold, not a fixed delay).
+
 Every datagram that fails to parse is counted (``stats["bad"]``) and ignored; the emulator never stops on one.
 
-**Threads and shared state.**  Four threads (AT commands, navdata wake-ups, navdata sending, TCP) share the
+**Threads and shared state.**  Four threads (AT commands, navdata-port datagrams, navdata sending, TCP) share the
 emulator's state; one lock, ``_lock``, guards all of it: the physics, the counters, the configuration, the
 navdata client, and the control connection (``_control_conn``, None until a client connects).  Sockets are
 used outside the lock.  :attr:`DroneEmulator.stats` and :meth:`DroneEmulator.summary` are snapshots taken
@@ -44,21 +64,23 @@ True
 
 from __future__ import annotations
 
+import bisect
 import errno
 import math
 import random
 import socket
+import sys
 import threading
 import time
 from collections import deque
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from ..errors import InvalidValueError, PortError, PortNumberError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, PortError, PortNumberError, check_real
 from .ardrone import CtrlState, Demo, NavState, ProtocolError, REF_EMERGENCY, REF_TAKEOFF, encode_navdata, parse_at
 from .stamps import enable_stamps, recv_stamped
 
-__all__ = ["EmulatorConfig", "DroneEmulator", "PortError", "PortNumberError"]
+__all__ = ["EmulatorConfig", "DroneEmulator", "PortError", "PortNumberError", "check_bursts"]
 
 # PortError (a port that cannot be bound: an OSError, not a bad value) and PortNumberError (a port number out
 # of range: a bad value) are defined in delaykit.errors and re-exported here
@@ -89,6 +111,151 @@ def _check_schedule(value: Any) -> tuple[tuple[float, float], ...] | None:
     return tuple(pairs)
 
 
+_VARYING = __name__.rsplit(".", 2)[0] + ".simulate.varying"  # its classes, recognised without importing it
+_MAX_DELAY = 5.0  # the largest actuator delay (s)
+
+
+def check_bursts(bursts: Any, rate: float, *, labels: Any = None) -> tuple[tuple[float, float, float], ...]:
+    """Navdata bursts as ``(start, duration, rate)`` floats sorted by start, or a delaykit error naming the bad one.
+
+    Parameters
+    ----------
+    bursts : iterable of (start, duration[, rate]) or None
+        ``start`` (s since the emulator started, at least 0), ``duration`` (s, more than 0) and the navdata
+        ``rate`` during the burst (Hz, at least 0 and below ``rate``; 0 if left out: no navdata at all).  Bursts
+        may touch but not overlap.
+    rate : float
+        The normal navdata rate (Hz).
+    labels : sequence of str, optional
+        How the errors name each burst (default ``bursts[i]``; the command line passes its ``--burst`` texts).
+
+    Returns
+    -------
+    tuple of (float, float, float)
+
+    Raises
+    ------
+    InvalidValueError, InvalidTypeError
+        Naming the burst and the value at fault.
+
+    Examples
+    --------
+    >>> check_bursts([(5.0, 1.0, 2.0), (2, 0.5)], 15.0)
+    ((2.0, 0.5, 0.0), (5.0, 1.0, 2.0))
+    """
+    if bursts is None:
+        return ()
+    varying = sys.modules.get(_VARYING)
+    if isinstance(bursts, (str, bytes)) or not hasattr(bursts, "__iter__") or (
+            varying is not None and isinstance(bursts, varying.DelayModel)):
+        raise InvalidTypeError(f"bursts must be a list of (start, duration, rate) triples, got {bursts!r}")
+    items = list(bursts)
+    name = (lambda i: f"bursts[{i}]") if labels is None else (lambda i: str(labels[i]))
+    checked: list[tuple[int, float, float, float]] = []
+    for i, item in enumerate(items):
+        if varying is not None and isinstance(item, varying.Burst):
+            raise InvalidTypeError(f"{name(i)} is a simulator Burst ({item!r}), which adds command delay; the "
+                                   "emulator's bursts lower the navdata rate: give (start, duration, rate)")
+        parts = tuple(item) if hasattr(item, "__iter__") and not isinstance(item, (str, bytes)) else None
+        if parts is None or len(parts) not in (2, 3):
+            raise InvalidValueError(f"{name(i)} must be (start, duration) or (start, duration, rate), got {item!r}")
+        start = check_real(f"{name(i)} start (s since start)", parts[0], minimum=0.0)
+        duration = check_real(f"{name(i)} duration (s)", parts[1], minimum=0.0, strict=True)
+        if not math.isfinite(start + duration):
+            raise InvalidValueError(f"{name(i)} must end at a finite time, got start {start:g} s, duration "
+                                    f"{duration:g} s")
+        r = check_real(f"{name(i)} rate (Hz)", parts[2] if len(parts) == 3 else 0.0, minimum=0.0)
+        if not r < rate:
+            raise InvalidValueError(f"{name(i)} rate {r:g} Hz must be below the normal navdata rate {rate:g} Hz "
+                                    "(a burst lowers the rate)")
+        checked.append((i, start, duration, r))
+    checked.sort(key=lambda b: b[1])
+    for (i, s0, d0, _), (j, s1, _, _) in zip(checked, checked[1:]):
+        if s1 < s0 + d0:
+            raise InvalidValueError(f"{name(j)} (from {s1:g} s) overlaps {name(i)} ({s0:g} to {s0 + d0:g} s): "
+                                    "bursts must not overlap")
+    return tuple((s0, d0, r) for _, s0, d0, r in checked)
+
+
+def _check_trace(value: Any, delay: float) -> tuple[tuple[float, float], ...] | None:
+    """``delay_trace`` as ``(t, extra delay)`` steps in emulator time, the first at 0 (see the module docstring)."""
+    if value is None:
+        return None
+    varying = sys.modules.get(_VARYING)
+    if varying is not None and isinstance(value, varying.DelayModel):
+        if not isinstance(value, varying.DelayTrace):
+            raise InvalidTypeError(f"delay_trace must be a DelayTrace or (t, delay) records, got {value!r} (a "
+                                   "DelaySchedule goes to delay_schedule)")
+        if value.interpolation != "previous":
+            raise InvalidValueError(f"the emulator holds each record of delay_trace until the next "
+                                    f"(interpolation='previous'); {value.source} has interpolation="
+                                    f"{value.interpolation!r}")
+        times, delays, start, where = value.times, value.delays, value.start, f" of {value.source}"
+    else:
+        if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
+            raise InvalidValueError(f"delay_trace must be a DelayTrace or a list of (t, delay) records, got "
+                                    f"{value!r}")
+        times, delays = [], []
+        for i, pair in enumerate(value):
+            try:
+                t, d = pair
+            except (TypeError, ValueError):
+                raise InvalidValueError(f"delay_trace[{i}] must be a (t, delay) record, got {pair!r}") from None
+            t = check_real(f"delay_trace[{i}] time (s)", t)
+            d = check_real(f"delay_trace[{i}] delay (s)", d, minimum=0.0)
+            if times and not t > times[-1]:
+                raise InvalidValueError(f"delay_trace times must increase: delay_trace[{i}] time {t:g} s is not "
+                                        f"after {times[-1]:g} s")
+            times.append(t)
+            delays.append(d)
+        if not times:
+            raise InvalidValueError("delay_trace must hold at least one (t, delay) record (or be None)")
+        start, where = times[0], ""
+    first = max(bisect.bisect_right(times, start) - 1, 0)  # the record in force at the start
+    steps = [(0.0, float(delays[first]))] + [(float(t) - start, float(d)) for t, d in
+                                            zip(times[first + 1:], delays[first + 1:])]
+    worst = max(range(first, len(delays)), key=lambda i: delays[i])  # (records before the start are not replayed)
+    if delay + delays[worst] > _MAX_DELAY:
+        raise InvalidValueError(f"delay_trace record {worst}{where} (t = {times[worst]:g} s): delay {delay:g} s + "
+                                f"{delays[worst]:g} s = {delay + delays[worst]:g} s is above the emulator's largest "
+                                f"actuator delay, {_MAX_DELAY:g} s")
+    return tuple(steps)
+
+
+def _wakeups(rate: float, bursts: tuple[tuple[float, float, float], ...]) -> Any:
+    """The navdata thread's wake-up times (s since start) and whether it sends then, in order, without end.
+
+    The normal grid ``k / rate`` (``k = 1, 2, ...``) always wakes it (physics and watchdog), sending unless the
+    time falls in a burst; a burst ``(s, d, r)`` adds the sends ``s + j / r`` (``j = 0, 1, ...``) before ``s + d``.
+
+    Examples
+    --------
+    >>> import itertools
+    >>> [(round(t, 3), send) for t, send in itertools.islice(_wakeups(10.0, ((0.25, 0.3, 5.0),)), 7)]
+    [(0.1, True), (0.2, True), (0.25, True), (0.3, False), (0.4, False), (0.45, True), (0.5, False)]
+    """
+    def burst_sends() -> Any:
+        for s, d, r in bursts:
+            j = 0
+            while r > 0 and s + j / r < s + d:
+                yield s + j / r
+                j += 1
+
+    sends = burst_sends()
+    nb = next(sends, math.inf)
+    b, k = 0, 1
+    while True:
+        tn = k / rate
+        if nb <= tn:
+            yield nb, True
+            nb = next(sends, math.inf)
+            continue
+        while b < len(bursts) and tn >= bursts[b][0] + bursts[b][1]:
+            b += 1
+        yield tn, not (b < len(bursts) and tn >= bursts[b][0])
+        k += 1
+
+
 def _check_port(name: str, p: Any) -> int:
     if isinstance(p, bool) or not isinstance(p, int) or not 0 <= p <= 65535:
         raise PortNumberError(f"{name} must be a port number from 0 to 65535 (0 = any free one), got {p!r}")
@@ -102,10 +269,21 @@ class EmulatorConfig:
     ``delay_schedule``: ``(t, delay)`` pairs, ``t`` in seconds since the emulator started, that change the
     actuator delay mid-flight (None: ``delay`` throughout).
 
+    ``delay_trace``: a recorded delay replayed, added to ``delay``: a
+    :class:`~delaykit.simulate.varying.DelayTrace` or its ``(t, delay)`` records (replayed from the first); kept as
+    ``(t, extra delay)`` steps in seconds since start, the first at 0.  Not with ``delay_schedule``.
+
+    ``bursts``: ``(start, duration, rate)`` triples (s since start, s, Hz below ``rate``; a pair means rate 0)
+    during which the navdata rate falls; kept sorted by start (:func:`check_bursts`).
+
     Examples
     --------
     >>> EmulatorConfig(delay=0.25, delay_schedule=[(20.0, 0.40)]).delay_schedule
     ((20.0, 0.4),)
+    >>> EmulatorConfig(delay=0.2, delay_trace=[(100.0, 0.05), (101.5, 0.1)]).delay_trace
+    ((0.0, 0.05), (1.5, 0.1))
+    >>> EmulatorConfig(bursts=[(5.0, 1.0)]).bursts
+    ((5.0, 1.0, 0.0),)
     """
 
     host: str = "127.0.0.1"
@@ -126,6 +304,8 @@ class EmulatorConfig:
     landing_speed: float = 0.6
     watchdog: float = 2.0
     delay_schedule: Any = None
+    delay_trace: Any = None
+    bursts: Any = ()
 
     def __post_init__(self) -> None:
         for name in ("at_port", "navdata_port", "video_port", "control_port"):
@@ -138,6 +318,12 @@ class EmulatorConfig:
         check_real("loss", self.loss, minimum=0.0, maximum=0.9)
         check_real("jitter (s)", self.jitter, minimum=0.0, maximum=0.5)
         object.__setattr__(self, "delay_schedule", _check_schedule(self.delay_schedule))
+        if self.delay_schedule is not None and self.delay_trace is not None:
+            raise InvalidValueError("give delay_schedule or delay_trace, not both: a schedule replaces the actuator "
+                                    "delay and a trace is added to it, so together they are ambiguous (merge them "
+                                    "into one schedule)")
+        object.__setattr__(self, "delay_trace", _check_trace(self.delay_trace, float(self.delay)))
+        object.__setattr__(self, "bursts", check_bursts(self.bursts, float(self.rate)))
 
 
 @dataclass
@@ -165,6 +351,10 @@ class DroneEmulator:
     def __init__(self, config: EmulatorConfig | None = None, **overrides: Any) -> None:
         self.config = replace(config or EmulatorConfig(), **overrides) if overrides else (config or EmulatorConfig())
         self.rng = random.Random(self.config.seed)
+        c = self.config  # the actuator delay's steps (s since start, s): the schedule's, or delay + the trace's
+        steps = c.delay_schedule or tuple((t, c.delay + d) for t, d in c.delay_trace or ())
+        self._delay_times = [t for t, _ in steps]
+        self._delay_values = [d for _, d in steps]
         self.ports: dict[str, int] = {}
         # everything below that the threads share is guarded by this one lock (see the module docstring)
         self._lock = threading.Lock()
@@ -205,16 +395,23 @@ class DroneEmulator:
 
     def summary(self) -> dict[str, Any]:
         """What it counted and rejected: ports, counts, the last rejection, and the loop delay (JSON-ready)."""
+        c = self.config
+        trace = None if c.delay_trace is None else {
+            "records": len(c.delay_trace), "actuator_delay_min": min(self._delay_values),
+            "actuator_delay_max": max(self._delay_values)}
         with self._lock:
             return {"ports": dict(self.ports), "stats": dict(self._stats), "last_error": self._last_error,
                     "true_delay": self.true_delay,
-                    "delay_schedule": [list(p) for p in self.config.delay_schedule or ()]}
+                    "delay_schedule": [list(p) for p in c.delay_schedule or ()],
+                    "delay_trace": trace, "bursts": [list(b) for b in c.bursts]}
 
     @property
     def true_delay(self) -> float:
         """The loop delay a controller sees: actuator delay plus the link delay both ways (with a
-        ``delay_schedule``, the one before its first change; see :meth:`true_delay_at`)."""
-        return self.config.delay + 2 * self.config.link_delay
+        ``delay_schedule``, the one before its first change; with a ``delay_trace``, the one at the start; see
+        :meth:`true_delay_at`)."""
+        c = self.config
+        return c.delay + (c.delay_trace[0][1] if c.delay_trace else 0.0) + 2 * c.link_delay
 
     @property
     def start_time(self) -> float:
@@ -235,14 +432,9 @@ class DroneEmulator:
         >>> emu.actuator_delay(emu._t0 + 19.9), emu.actuator_delay(emu._t0 + 20.0)
         (0.25, 0.4)
         """
-        c = self.config
         since = (time.monotonic() if t is None else t) - self._t0
-        d = c.delay
-        for ts, ds in c.delay_schedule or ():
-            if since < ts:
-                break
-            d = ds
-        return d
+        i = bisect.bisect_right(self._delay_times, since) - 1  # the last step at or before `since`
+        return self._delay_values[i] if i >= 0 else self.config.delay
 
     def true_delay_at(self, t: float | None = None) -> float:
         """The loop delay a command sent at the monotonic time ``t`` (default: now) sees."""
@@ -484,14 +676,13 @@ class DroneEmulator:
 
     def _nav_loop(self) -> None:
         c = self.config
-        period = 1.0 / c.rate
-        t_next = time.monotonic()
-        while not self._stop.is_set():
-            t_next += period
-            if c.jitter:
-                t_send = t_next + self.rng.uniform(0.0, c.jitter)
-            else:
-                t_send = t_next
+        # wake on the normal grid (physics, watchdog) and send on it except in a burst, plus a burst's own sends
+        for t_wake, send in _wakeups(c.rate, c.bursts):
+            if self._stop.is_set():
+                break
+            t_send = self._t0 + t_wake
+            if send and c.jitter:
+                t_send += self.rng.uniform(0.0, c.jitter)
             delay = t_send - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
@@ -500,6 +691,8 @@ class DroneEmulator:
                 if now - self._last_cmd > c.watchdog:
                     self._watchdog = True
                 self._advance(now)
+                if not send:
+                    continue
                 z_true, v = self._state_at(now - c.link_delay) if c.link_delay else (self._phys.z, self._phys.v)
                 mode = self._phys.mode
                 state = self._state_bits()
