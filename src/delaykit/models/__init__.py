@@ -6,18 +6,33 @@ families of :mod:`.plants` and the inputs of :mod:`.signals`; :class:`AltitudeLo
 delay on the command (gains, delay, velocity filter, sample period), and :class:`QuasiPolynomial` is the
 characteristic function ``sum_k p_k(s) exp(-tau_k s)`` that such a loop (or any linear loop with delays) has. Every
 later layer (simulate, spectrum, identify, design, ...) takes these as its input; nothing here imports them.
+
+The names are imported on first use (``from delaykit.models import Loop`` works as ever), so that a command that
+needs only :mod:`.ranges` does not load NumPy, and none of this package loads SciPy until :mod:`.hold` computes.
+
+Examples
+--------
+>>> from delaykit.models import Loop, parse_range
+>>> Loop.__module__, parse_range("1:2:3")
+('delaykit.models.loop', [1.0, 1.5, 2.0])
 """
 
-from .altitude import PAPER_PERIOD, VELOCITY_CHOICES, AltitudeLoop
-from .compensators import COMPENSATOR_KINDS, Compensator
-from .controllers import ANTIWINDUP_CHOICES, CONTROLLER_KINDS, Controller, Realisation
-from .loop import LOOP_KEYS, Loop, load_loop, loop_from_dict
-from .plants import (PLANT_FAMILIES, first_order, integrator, integrator_lag, integrator_speed_loop, second_order,
-                     second_order_wn)
-from .quasipolynomial import QuasiPolynomial
-from .ranges import parse_range
-from .signals import LoadStep, Ramp, Samples, Step, as_reference
-from .transfer import MAX_ORDER, TransferFunction
+from importlib import import_module
+from typing import Any
+
+_SOURCES = {
+    "altitude": ["AltitudeLoop", "VELOCITY_CHOICES", "PAPER_PERIOD"],
+    "quasipolynomial": ["QuasiPolynomial"],
+    "controllers": ["Controller", "Realisation", "CONTROLLER_KINDS", "ANTIWINDUP_CHOICES"],
+    "compensators": ["Compensator", "COMPENSATOR_KINDS"],
+    "loop": ["Loop", "LOOP_KEYS", "load_loop", "loop_from_dict"],
+    "plants": ["PLANT_FAMILIES", "integrator", "integrator_lag", "integrator_speed_loop", "first_order", "second_order",
+               "second_order_wn"],
+    "signals": ["Step", "Ramp", "Samples", "LoadStep", "as_reference"],
+    "transfer": ["TransferFunction", "MAX_ORDER"],
+    "ranges": ["parse_range"],
+}
+_MODULE_OF = {name: mod for mod, names in _SOURCES.items() for name in names}
 
 __all__ = [
     "AltitudeLoop", "VELOCITY_CHOICES", "PAPER_PERIOD", "QuasiPolynomial",
@@ -28,3 +43,16 @@ __all__ = [
     "Step", "Ramp", "Samples", "LoadStep", "as_reference",
     "TransferFunction", "MAX_ORDER", "parse_range",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    mod = _MODULE_OF.get(name)
+    if mod is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(f".{mod}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -23,7 +23,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.linalg import expm
 
 __all__ = ["SNAP", "split_delay", "hold_matrices"]
 
@@ -57,6 +56,8 @@ def hold_matrices(F: np.ndarray, G: np.ndarray, tau: float) -> tuple[np.ndarray,
     >>> round(float(J[0, 0]), 12) == round(1 - math.exp(-1), 12)
     True
     """
+    from scipy.linalg import expm  # here, not at the top: importing scipy.linalg costs ~0.2 s at start-up
+
     n, k = F.shape[0], G.shape[1]
     if tau == 0.0:
         return np.eye(n), np.zeros((n, k))

@@ -6,15 +6,31 @@ delay varies packet by packet (schedules, jitter, bursts, recorded traces); :mod
 (overshoot, peak, rise and settling times, a fitted second-order model, noise level). This layer reads models only;
 it is a peer of :mod:`delaykit.spectrum` and neither imports the other.
 
+The names are imported on first use: ``from delaykit.simulate.simulation import simulate`` (what the command line
+does) loads the continuous kernel only, not the sampled and varying-delay kernels of :mod:`.varying` and
+:mod:`.discrete` nor SciPy, which they need.
+
 Note that ``delaykit.simulate`` as an attribute of the package root is the :func:`simulate` function (kept for
 compatibility); import this layer's modules by their full names, ``from delaykit.simulate.simulation import ...``.
+
+Examples
+--------
+>>> from delaykit.simulate import StepMetrics, simulate_varying
+>>> StepMetrics.__module__, simulate_varying.__module__
+('delaykit.simulate.metrics', 'delaykit.simulate.varying')
 """
 
-from .metrics import SecondOrder, StepMetrics, noise_level, step_metrics
-from .simulation import SWEEPABLE, BatchMetrics, Response, Sampler, as_loop, simulate, simulate_many
-from .montecarlo import DelayDistribution, MonteCarlo, monte_carlo
-from .varying import (Burst, CombinedDelay, DelayModel, DelaySchedule, DelayTrace, Jitter, VaryingResponse,
-                      arrival_plan, as_delay_model, simulate_varying)
+from importlib import import_module
+from typing import Any
+
+_SOURCES = {
+    "metrics": ["StepMetrics", "SecondOrder", "step_metrics", "noise_level"],
+    "simulation": ["Response", "BatchMetrics", "Sampler", "simulate", "simulate_many", "as_loop", "SWEEPABLE"],
+    "varying": ["DelayModel", "DelaySchedule", "Jitter", "Burst", "DelayTrace", "CombinedDelay", "as_delay_model",
+                "arrival_plan", "VaryingResponse", "simulate_varying"],
+    "montecarlo": ["MonteCarlo", "monte_carlo", "DelayDistribution"],
+}
+_MODULE_OF = {name: mod for mod, names in _SOURCES.items() for name in names}
 
 __all__ = [
     "StepMetrics", "SecondOrder", "step_metrics", "noise_level",
@@ -22,3 +38,16 @@ __all__ = [
     "DelayModel", "DelaySchedule", "Jitter", "Burst", "DelayTrace", "CombinedDelay", "as_delay_model", "arrival_plan",
     "VaryingResponse", "simulate_varying", "MonteCarlo", "monte_carlo", "DelayDistribution",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    mod = _MODULE_OF.get(name)
+    if mod is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(f".{mod}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
