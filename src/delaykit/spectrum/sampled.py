@@ -99,11 +99,13 @@ def _sampled_loop(loop: Any, what: str, compensators: bool = False) -> Loop:
     return lp
 
 
-def _compensated_transition(F: np.ndarray, G: np.ndarray, Gu: np.ndarray, Gm: np.ndarray, Gr: np.ndarray,
-                            h: float, m: int, f: float, mm: int, fm: float, N: int) -> tuple[np.ndarray, np.ndarray]:
-    """``[xi_{k+1}] = X [z_k; u_k] + xr r`` over one period for a compensator's loop: the period is cut at ``f``
-    (the plant's input switches from ``u_{k-m-1}`` to ``u_{k-m}``) and at ``fm`` (the model's delayed command
-    switches from ``u_{k-mm-1}`` to ``u_{k-mm}``); the compensator reads ``u_k`` throughout."""
+def _period_transition(F: np.ndarray, G: np.ndarray, Gr: np.ndarray, h: float, m: int, f: float, N: int,
+                       model: tuple[np.ndarray, np.ndarray, int, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``xi_{k+1} = X [z_k; u_k] + xr r`` over one period, piece by piece with the inputs held on each piece.
+
+    The plant's input is ``u_{k-m-1}`` before ``f`` and ``u_{k-m}`` after it.  With ``model = (Gu, Gm, mm, fm)``
+    (a compensator) the controller's states also read ``u_k`` throughout and the model's delayed command,
+    ``u_{k-mm-1}`` before ``fm`` and ``u_{k-mm}`` after it, so the period is cut at ``fm`` too."""
     nx = F.shape[0]
     X = np.zeros((nx, N + 1))
     X[:, :nx] = np.eye(nx)
@@ -114,14 +116,16 @@ def _compensated_transition(F: np.ndarray, G: np.ndarray, Gu: np.ndarray, Gm: np
         e[N if j == 0 else nx + j - 1] = 1.0
         return e
 
-    edges = sorted({0.0, f, fm, h})
-    GG = np.column_stack([G, Gu, Gm, Gr])
+    cols = [G, Gr] if model is None else [G, Gr, model[0], model[1]]
+    GG = np.column_stack(cols) if nx else np.zeros((0, len(cols)))
+    edges = sorted({0.0, f, h} | (set() if model is None else {model[3]}))
     for a, b in zip(edges[:-1], edges[1:]):
         E, J = hold_matrices(F, GG, b - a)
-        jp = m + 1 if a < f else m
-        jm = mm + 1 if a < fm else mm
-        X = E @ X + np.outer(J[:, 0], sel(jp)) + np.outer(J[:, 1], sel(0)) + np.outer(J[:, 2], sel(jm))
-        xr = E @ xr + J[:, 3]
+        X = E @ X + np.outer(J[:, 0], sel(m + 1 if a < f else m))
+        xr = E @ xr + J[:, 1]
+        if model is not None:
+            mm, fm = model[2], model[3]
+            X += np.outer(J[:, 2], sel(0)) + np.outer(J[:, 3], sel(mm + 1 if a < fm else mm))
     return X, xr
 
 
@@ -234,53 +238,25 @@ def sampled_model(loop: Loop | AltitudeLoop) -> SampledModel:
         raise InvalidValueError(
             f"the total delay {lp.total_delay:g} s is {m} periods of {h:g} s: the lifted state would have {N} "
             f"entries, more than {MAX_ORDER}; use a longer period or the continuous loop")
-    if comp:
-        zc = np.zeros(n)
-        X, xr = _compensated_transition(F, G, np.r_[zc, rz.Bcu], np.r_[zc, rz.Bcm], Gr, h, m, f, mm, fm, N)
-        Ao = np.zeros((N, N))
-        Bo = np.zeros(N)
-        K = np.zeros(N)
-        Ao[:nx, :] = X[:, :N]
-        Bo[:nx] = X[:, N]
-        if p >= 1:
-            Bo[nx] += 1.0
-            for i in range(1, p):
-                Ao[nx + i, nx + i - 1] = 1.0
-        K[:nx] = kx
-        if kl != 0.0:
-            K[nx + m] += kl
-        b_ref = Bo * rz.dvr + np.r_[xr, np.zeros(p)]
-        return SampledModel(period=h, total_delay=lp.total_delay, whole_periods=m, fraction=f, n_plant=n,
-                            n_controller=nc, n_held=p, phi=Ao + np.outer(Bo, K), a_open=Ao, b_open=Bo, k_row=K,
-                            b_ref=b_ref, structural=lp.controller.structural_zeros())
-    GG = np.column_stack([G, Gr]) if nx else np.zeros((0, 2))
-    Ef, Jf = hold_matrices(F, GG, f)
-    Eg, Jg = hold_matrices(F, GG, h - f)
-    E = Eg @ Ef
-    G1 = Eg @ Jf[:, 0]
-    G2 = Jg[:, 0]
-    GR = Eg @ Jf[:, 1] + Jg[:, 1]
+    zc = np.zeros(n)
+    X, xr = _period_transition(F, G, Gr, h, m, f, N,
+                               model=(np.r_[zc, rz.Bcu], np.r_[zc, rz.Bcm], mm, fm) if comp else None)
     Ao = np.zeros((N, N))
     Bo = np.zeros(N)
     K = np.zeros(N)
-    Ao[:nx, :nx] = E
-    if f > 0.0:
-        Ao[:nx, nx + m] += G1          # slot m + 1 holds u_{k-m-1}
-    if m >= 1:
-        Ao[:nx, nx + m - 1] += G2      # slot m holds u_{k-m}
-    else:
-        Bo[:nx] += G2                  # u_k itself acts after the fraction f
+    Ao[:nx, :] = X[:, :N]   # the plant's and model's held inputs sit in the command slots: slot j holds u_{k-j}
+    Bo[:nx] = X[:, N]       # u_k itself (before any fraction has passed, or read by a compensator)
     if p >= 1:
-        Bo[nx] = 1.0
+        Bo[nx] += 1.0
         for i in range(1, p):
             Ao[nx + i, nx + i - 1] = 1.0
     K[:nx] = kx
     if kl != 0.0:
         K[nx + m] += kl
-    b_ref = Bo * rz.dvr + np.r_[GR, np.zeros(p)]
+    b_ref = Bo * rz.dvr + np.r_[xr, np.zeros(p)]
     return SampledModel(period=h, total_delay=lp.total_delay, whole_periods=m, fraction=f, n_plant=n,
                         n_controller=nc, n_held=p, phi=Ao + np.outer(Bo, K), a_open=Ao, b_open=Bo, k_row=K,
-                        b_ref=b_ref)
+                        b_ref=b_ref, structural=lp.controller.structural_zeros() if comp else 0)
 
 
 def _drop_structural(z: np.ndarray, k: int) -> np.ndarray:
