@@ -19,7 +19,8 @@ from ..errors import InvalidValueError
 from ..models.loop import Loop
 
 __all__ = ["OpenLoop", "PhaseScan", "gain_crossovers", "scan_phase", "cutoff_frequency", "dense_grid",
-           "positive_real_roots", "snap_half_turns", "horner", "solve_bracketed", "newton_bracketed", "TWO_PI"]
+           "positive_real_roots", "snap_half_turns", "horner", "solve_bracketed", "newton_bracketed",
+           "refine_minimum", "TWO_PI"]
 
 _AXIS_TOL = 1e-9  # a root with |Re r| <= _AXIS_TOL |r| is taken to lie on the imaginary axis
 _LEVEL_TOL = 1e-11  # phases within this many (relative) half-turns of an odd multiple of pi are on it
@@ -364,6 +365,24 @@ def solve_bracketed(f: Any, a: np.ndarray, b: np.ndarray, rtol: float = 4e-16, x
             wa = np.where(stay >= 2, 0.5 * wa, np.where(stay < 0, 1.0, wa))  # halve a stale end's weight
             wb = np.where(stay <= -2, 0.5 * wb, np.where(stay > 0, 1.0, wb))
     return np.where(fa == 0, a, np.where(fb == 0, b, 0.5 * (a + b)))
+
+
+def refine_minimum(fun: Any, grid: np.ndarray, values: np.ndarray, keep: int = 12) -> tuple[float, float]:
+    """The smallest of ``values`` (``fun`` on ``grid``), with each of the ``keep`` lowest local minima refined by a
+    bounded scalar search between its neighbours: ``(value, where)``."""
+    from scipy.optimize import minimize_scalar
+
+    i = int(np.argmin(values))
+    best, where = float(values[i]), float(grid[i])
+    if grid.size < 3:
+        return best, where
+    k = 1 + np.flatnonzero((values[1:-1] <= values[:-2]) & (values[1:-1] <= values[2:]))
+    for j in k[np.argsort(values[k])][:keep]:
+        res = minimize_scalar(lambda x: float(fun(np.array([x]))[0]), bounds=(grid[j - 1], grid[j + 1]),
+                              method="bounded", options={"xatol": 1e-13 * grid[j]})
+        if res.fun < best:
+            best, where = float(res.fun), float(res.x)
+    return best, where
 
 
 @dataclass(frozen=True)

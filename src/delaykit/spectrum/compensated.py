@@ -57,8 +57,8 @@ from ..errors import InvalidValueError
 from ..models.compensators import Compensator
 from ..models.loop import Loop
 from ..models.quasipolynomial import QuasiPolynomial
-from ._openloop import TWO_PI, OpenLoop, positive_real_roots, snap_half_turns, solve_bracketed
-from .frequency import Crossover, FrequencyResponse, Margins
+from ._openloop import TWO_PI, OpenLoop, positive_real_roots, refine_minimum, snap_half_turns, solve_bracketed
+from .frequency import Crossover, FrequencyResponse, Margins, _assemble, _closed_loop_stable
 
 __all__ = ["CompensatedOpenLoop", "compensated_response", "compensated_margins", "compensated_jitter",
            "compensated_grid"]
@@ -350,34 +350,6 @@ def _open_loop_rhp_poles(ol: CompensatedOpenLoop) -> int | None:
     return int(np.sum(sp.multiplicities))
 
 
-def _stable(loop: Loop) -> bool:
-    from .stability import right_half_plane_count, rightmost
-
-    q = loop.characteristic()
-    n = right_half_plane_count(q)
-    if n is not None:
-        return n == 0
-    return bool(rightmost(q).stable)
-
-
-def _peak(fun: Any, g: np.ndarray, values: np.ndarray, keep: int = 8) -> tuple[float, float]:
-    """The smallest of ``values`` (``fun`` on the grid ``g``), each of the lowest local minima refined by a
-    bounded scalar search between its neighbours."""
-    from scipy.optimize import minimize_scalar
-
-    i = int(np.argmin(values))
-    best, where = float(values[i]), float(g[i])
-    if g.size < 3:
-        return best, where
-    k = 1 + np.flatnonzero((values[1:-1] <= values[:-2]) & (values[1:-1] <= values[2:]))
-    for j in k[np.argsort(values[k])][:keep]:
-        res = minimize_scalar(lambda x: float(fun(np.array([x]))[0]), bounds=(g[j - 1], g[j + 1]),
-                              method="bounded", options={"xatol": 1e-13 * g[j]})
-        if res.fun < best:
-            best, where = float(res.fun), float(res.x)
-    return best, where
-
-
 def compensated_margins(loop: Loop) -> Margins:
     """Gain, phase, delay margins, peak sensitivity, crossovers and the Nyquist count of a compensated loop.
 
@@ -448,42 +420,24 @@ def compensated_margins(loop: Loop) -> Margins:
 
         u0 = snap_half_turns(np.array([ol.phase0 / math.pi]))[0]
         ccw -= _odd_between(u0, u0 + ol.integrators, True)
-    crossovers.sort(key=lambda c: (c.frequency, c.kind))
     on_curve = any(abs(abs(c.magnitude) - 1.0) < 1e-9 for c in crossovers if c.kind == "phase")
     p_rhp = _open_loop_rhp_poles(ol)
-    encirclements: int | None = None if (on_curve or p_rhp is None) else ccw
-    stable = _stable(loop)
-    nan = math.nan
-    if not stable:
-        return Margins(nan, nan, nan, nan, nan, None, None, nan, None, False, p_rhp if p_rhp is not None else -1,
-                       encirclements, hi, tuple(crossovers), "roots")
-    up = [c for c in crossovers if c.kind == "phase" and c.gain_margin >= 1.0]
-    gm = min((c.gain_margin for c in up), default=math.inf)
-    gm_c = next((c for c in up if c.gain_margin <= gm * (1 + 1e-9)), None)
-    low = [c.gain_margin for c in crossovers if c.kind == "phase" and c.gain_margin < 1.0]
-    g_cross = [c for c in crossovers if c.kind == "gain"]
-    if g_cross:
-        dm_c = min(g_cross, key=lambda c: c.delay_margin)
-        pm = min((c.phase_margin for c in g_cross), key=abs)
-        dm, wc = dm_c.delay_margin, dm_c.frequency
-    else:
-        pm, dm, wc = math.inf, math.inf, None
-    with np.errstate(all="ignore"):
-        d = np.abs(1.0 + L)
-    d = np.where(np.isfinite(d), d, np.inf)
-    best, where = _peak(lambda x: np.abs(1.0 + ol.value(x)), g, d)
-    w_ms: float | None = where
-    if ol.integrators <= 0:  # the limit at w = 0
-        d0 = abs(1.0 + complex(ol.value(np.zeros(1))[0]))
-        if d0 < best:
-            best, w_ms = d0, None
-    ms = 1.0 / best if best > 0 else math.inf
-    return Margins(gain_margin=gm, lower_gain_margin=max(low, default=0.0), phase_margin=pm, delay_margin=dm,
-                   critical_delay=loop.total_delay + dm, crossover=wc,
-                   phase_crossover=gm_c.frequency if gm_c else None, ms=ms, ms_frequency=w_ms, stable=True,
-                   open_loop_rhp_poles=p_rhp if p_rhp is not None else -1, encirclements=encirclements, cutoff=hi,
-                   crossovers=tuple(crossovers), stability_from="roots")
 
+    def peak() -> tuple[float, float | None]:
+        with np.errstate(all="ignore"):
+            d = np.abs(1.0 + L)
+        best, where = refine_minimum(lambda x: np.abs(1.0 + ol.value(x)), g, np.where(np.isfinite(d), d, np.inf),
+                                     keep=8)
+        w_ms: float | None = where
+        if ol.integrators <= 0:  # the limit at w = 0
+            d0 = abs(1.0 + complex(ol.value(np.zeros(1))[0]))
+            if d0 < best:
+                best, w_ms = d0, None
+        return (1.0 / best if best > 0 else math.inf), w_ms
+
+    return _assemble(loop, crossovers, stable=_closed_loop_stable(loop), source="roots",
+                     open_loop_rhp_poles=p_rhp if p_rhp is not None else -1,
+                     encirclements=None if (on_curve or p_rhp is None) else ccw, cutoff=hi, peak=peak)
 
 def compensated_jitter(loop: Loop) -> tuple[float, float, Margins]:
     """``(margin, frequency, margins)``: the Kao-Lincoln jitter margin ``inf |1 + L| / (w |L|)`` of a compensated
@@ -515,7 +469,7 @@ def compensated_jitter(loop: Loop) -> tuple[float, float, Margins]:
             v = np.abs(1.0 + 1.0 / L) / w
         return np.where(np.isfinite(v), v, np.inf)
 
-    best, where = _peak(fun, g, fun(g), keep=12)
+    best, where = refine_minimum(fun, g, fun(g), keep=12)
     if ol.a0.size - ol.a2.size == 1:  # relative degree one: w |L| -> |a2/a0| at infinity, g -> |a0/a2|
         g_inf = float(abs(ol.a0[0] / ol.a2[0]))
         if g_inf <= best:

@@ -410,19 +410,28 @@ def _closed_loop_stable(loop: Loop) -> bool:
     """
     from ..models.quasipolynomial import QuasiPolynomial
     from .roots import find_roots, root_bound
-    from .stability import _rhp_count, rightmost
+    from .stability import _arrays, _rhp_count, rightmost
 
-    num, den = loop.open_loop()
-    t = loop.total_delay
-    n1 = max(num.size, den.size)
-    C = np.zeros((2, n1), complex)
-    C[0, n1 - den.size:], C[1, n1 - num.size:] = den, num
+    q = None
+    if _compensated(loop):  # two delays (the plant's and the model's): the characteristic function's own arrays
+        q = loop.characteristic()
+        C, tau = _arrays(q)
+        t = float(tau.max()) if tau.size else 0.0
+    else:  # (built from L directly: no quasi-polynomial object on this fast path)
+        num, den = loop.open_loop()
+        t = loop.total_delay
+        n1 = max(num.size, den.size)
+        C = np.zeros((2, n1), complex)
+        C[0, n1 - den.size:], C[1, n1 - num.size:] = den, num
+        tau = np.array([0.0, t])
     if t > 0:
-        C *= t ** -np.arange(n1 - 1, -1, -1.0)
-    n = _rhp_count(C, np.array([0.0, 1.0 if t > 0 else 0.0]))  # one boundary integral, usually
+        C = C * t ** -np.arange(C.shape[1] - 1, -1, -1.0)
+        tau = tau / t
+    n = _rhp_count(C, tau)  # one boundary integral, usually
     if n is not None:
         return n == 0
-    q = loop.characteristic()
+    if q is None:
+        q = loop.characteristic()
     if t > 0:
         polys = [[c * t ** -(len(p) - 1 - k) for k, c in enumerate(p)] for p in q.polys]
         q = QuasiPolynomial(polys, [d / t for d in q.delays])
@@ -555,26 +564,34 @@ def margins(loop: Loop | AltitudeLoop) -> Margins:
             if ccw is None:
                 raise
             stable, source = p_rhp - ccw == 0, "nyquist"
-    factors = [c.gain_margin for c in crossovers if c.kind == "phase"]
-    g_cross = [c for c in crossovers if c.kind == "gain"]
-    nan = math.nan
+    return _assemble(loop, crossovers, stable=stable, source=source, open_loop_rhp_poles=p_rhp, encirclements=ccw,
+                     cutoff=w_hi, peak=lambda: _peak_sensitivity(ol, np.unique(np.concatenate(
+                         [scan.grid, gains, [c[0] for c in scan.crossings]]))))
+
+
+def _assemble(loop: Loop, crossovers: list[Crossover], *, stable: bool, source: str, open_loop_rhp_poles: int,
+              encirclements: int | None, cutoff: float, peak: Any) -> Margins:
+    """The :class:`Margins` from the crossovers (see :func:`margins` for the definitions); ``peak()`` gives
+    ``(Ms, where)`` and is called only for a stable loop.  Shared with :mod:`delaykit.spectrum.compensated`."""
+    crossovers = sorted(crossovers, key=lambda c: (c.frequency, c.kind))
     if not stable:
-        return Margins(nan, nan, nan, nan, nan, None, None, nan, None, False, p_rhp, ccw, w_hi,
-                       tuple(crossovers), source)
+        nan = math.nan
+        return Margins(nan, nan, nan, nan, nan, None, None, nan, None, False, open_loop_rhp_poles, encirclements,
+                       cutoff, tuple(crossovers), source)
     up = [c for c in crossovers if c.kind == "phase" and c.gain_margin >= 1.0]
     gm = min((c.gain_margin for c in up), default=math.inf)
     gm_c = next((c for c in up if c.gain_margin <= gm * (1 + 1e-9)), None)  # the lowest frequency of a tie
-    low = [f for f in factors if f < 1.0]
+    low = [c.gain_margin for c in crossovers if c.kind == "phase" and c.gain_margin < 1.0]
+    g_cross = [c for c in crossovers if c.kind == "gain"]
     if g_cross:
         dm_c = min(g_cross, key=lambda c: c.delay_margin)
         pm = min((c.phase_margin for c in g_cross), key=abs)
         dm, wc = dm_c.delay_margin, dm_c.frequency
     else:
         pm, dm, wc = math.inf, math.inf, None
-    ms, ms_w = _peak_sensitivity(ol, np.unique(np.concatenate(
-        [scan.grid, gains, [c[0] for c in scan.crossings]])))
+    ms, ms_w = peak()
     return Margins(gain_margin=gm, lower_gain_margin=max(low, default=0.0),
                    phase_margin=pm, delay_margin=dm, critical_delay=loop.total_delay + dm, crossover=wc,
                    phase_crossover=gm_c.frequency if gm_c else None, ms=ms, ms_frequency=ms_w, stable=True,
-                   open_loop_rhp_poles=p_rhp, encirclements=ccw, cutoff=w_hi, crossovers=tuple(crossovers),
-                   stability_from=source)
+                   open_loop_rhp_poles=open_loop_rhp_poles, encirclements=encirclements, cutoff=cutoff,
+                   crossovers=tuple(crossovers), stability_from=source)

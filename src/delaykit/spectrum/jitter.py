@@ -55,7 +55,7 @@ from ..errors import InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop
 from ..models.controllers import Controller
 from ..models.loop import Loop
-from ._openloop import OpenLoop, cutoff_frequency, dense_grid, gain_crossovers
+from ._openloop import OpenLoop, cutoff_frequency, dense_grid, gain_crossovers, refine_minimum
 from .frequency import _continuous, margins
 
 __all__ = ["JitterMargin", "jitter_margin", "stable_for", "jitter_bound"]
@@ -134,24 +134,6 @@ def _g(ol: OpenLoop, w: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(g), g, np.inf)
 
 
-def _refine(ol: OpenLoop, grid: np.ndarray, g: np.ndarray, keep: int = 12) -> tuple[float, float]:
-    """The smallest ``g`` near the grid's lowest local minima, each refined by a bounded scalar search."""
-    from scipy.optimize import minimize_scalar
-
-    i = int(np.argmin(g))
-    best, where = float(g[i]), float(grid[i])
-    if g.size < 3:
-        return best, where
-    k = 1 + np.flatnonzero((g[1:-1] <= g[:-2]) & (g[1:-1] <= g[2:]))
-    for j in k[np.argsort(g[k])][:keep]:
-        f = lambda x: float(_g(ol, np.array([x]))[0])  # noqa: E731
-        res = minimize_scalar(f, bounds=(grid[j - 1], grid[j + 1]), method="bounded",
-                              options={"xatol": 1e-13 * grid[j]})
-        if res.fun < best:
-            best, where = float(res.fun), float(res.x)
-    return best, where
-
-
 def jitter_margin(loop: Loop | AltitudeLoop) -> JitterMargin:
     """The jitter margin of a continuous loop (the criterion of Kao and Lincoln, see the module docstring).
 
@@ -206,7 +188,7 @@ def jitter_margin(loop: Loop | AltitudeLoop) -> JitterMargin:
         n = min(int(w_top * T * _PER_TURN / (2 * math.pi)) + 2, _MAX_POINTS)
         parts.append(np.linspace(w_top / n, w_top, n))
     grid = np.unique(np.concatenate(parts))
-    best, where = _refine(ol, grid, _g(ol, grid))
+    best, where = refine_minimum(lambda w: _g(ol, w), grid, _g(ol, grid))
     if g_inf <= best:
         best, where = g_inf, math.inf
     return JitterMargin(margin=float(best), frequency=float(where), delay_margin=float(m.delay_margin),
