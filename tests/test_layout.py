@@ -14,7 +14,7 @@ from pathlib import Path
 SRC = Path(__file__).resolve().parents[1] / "src" / "delaykit"
 
 LAYERS = {
-    "errors": 0,
+    "errors": 0, "_lazy": 0,
     "models": 1,
     "simulate": 2, "spectrum": 2,  # peers: neither imports the other
     "identify": 3,

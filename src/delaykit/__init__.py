@@ -12,11 +12,11 @@ True
 
 from __future__ import annotations
 
-import importlib
 import sys
 import types
 from typing import Any
 
+from ._lazy import lazy_exports
 from .errors import (DelaykitError, FlightError, InvalidTypeError, InvalidValueError, MissingDependencyError,
                      PortError, PortNumberError, RangeSpecError)
 
@@ -70,16 +70,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'delaykit' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())
 
 
 class _Package(types.ModuleType):

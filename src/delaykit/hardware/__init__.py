@@ -7,6 +7,7 @@ during a flight (alarm, gain scheduling), and :mod:`.flight` is the real-time lo
 it saw. It sits above design and identification: its logs feed :mod:`delaykit.identify`.
 """
 
+from .._lazy import lazy_exports
 from .ardrone import (ARITY, DEMO_SIZE, HEADER, REF_BASE, REF_EMERGENCY, REF_TAKEOFF, ATCommand, ATEncoder, ATError,
                       CtrlState, Demo, Navdata, NavdataError, NavState, ProtocolError, bootstrap_packet,
                       decode_navdata, encode_navdata, float_to_int, int_to_float, parse_at)
@@ -20,14 +21,7 @@ from .stamps import enable_stamps, recv_stamped
 _LAZY = {"DelayMonitor": ".monitor", "OnlineEstimate": ".monitor", "stable_range": ".monitor"}
 
 
-def __getattr__(name: str):
-    if name in _LAZY:
-        import importlib
-
-        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())
 
 __all__ = [
     "ProtocolError", "ATError", "NavdataError", "ATCommand", "ATEncoder", "parse_at", "float_to_int", "int_to_float",

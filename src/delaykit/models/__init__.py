@@ -17,8 +17,7 @@ Examples
 ('delaykit.models.loop', [1.0, 1.5, 2.0])
 """
 
-from importlib import import_module
-from typing import Any
+from .._lazy import by_module, lazy_exports
 
 _SOURCES = {
     "altitude": ["AltitudeLoop", "VELOCITY_CHOICES", "PAPER_PERIOD"],
@@ -32,7 +31,6 @@ _SOURCES = {
     "transfer": ["TransferFunction", "MAX_ORDER"],
     "ranges": ["parse_range"],
 }
-_MODULE_OF = {name: mod for mod, names in _SOURCES.items() for name in names}
 
 __all__ = [
     "AltitudeLoop", "VELOCITY_CHOICES", "PAPER_PERIOD", "QuasiPolynomial",
@@ -45,14 +43,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    mod = _MODULE_OF.get(name)
-    if mod is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(f".{mod}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, by_module(_SOURCES), globals())

@@ -7,8 +7,7 @@ those below it. The names are re-exported lazily, on first use, so that importin
 does) does not import matplotlib or the hardware layer.
 """
 
-from importlib import import_module
-from typing import Any
+from .._lazy import by_module, lazy_exports
 
 _SOURCES = {
     "data": ["TABLE1", "TABLE2", "TABLE3", "TABLE1_KP", "Table1Row", "Table3Row", "table1", "table3", "paper_loop"],
@@ -16,19 +15,8 @@ _SOURCES = {
     "reproduce": ["Item", "Reproduction", "reproduce", "TABLE4"],
     "demo": ["DemoReport", "run_demo"],
 }
-_MODULE_OF = {name: mod for mod, names in _SOURCES.items() for name in names}
 
 __all__ = [name for names in _SOURCES.values() for name in names]
 
 
-def __getattr__(name: str) -> Any:
-    mod = _MODULE_OF.get(name)
-    if mod is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(f".{mod}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, by_module(_SOURCES), globals())

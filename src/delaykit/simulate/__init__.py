@@ -20,8 +20,7 @@ Examples
 ('delaykit.simulate.metrics', 'delaykit.simulate.varying')
 """
 
-from importlib import import_module
-from typing import Any
+from .._lazy import by_module, lazy_exports
 
 _SOURCES = {
     "metrics": ["StepMetrics", "SecondOrder", "step_metrics", "noise_level"],
@@ -30,7 +29,6 @@ _SOURCES = {
                 "arrival_plan", "VaryingResponse", "simulate_varying"],
     "montecarlo": ["MonteCarlo", "monte_carlo", "DelayDistribution"],
 }
-_MODULE_OF = {name: mod for mod, names in _SOURCES.items() for name in names}
 
 __all__ = [
     "StepMetrics", "SecondOrder", "step_metrics", "noise_level",
@@ -40,14 +38,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    mod = _MODULE_OF.get(name)
-    if mod is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(f".{mod}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, by_module(_SOURCES), globals())
