@@ -7,17 +7,17 @@ from __future__ import annotations
 
 import itertools
 import json
-import time
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from test_emulator_varying import _altitude, _drive, ramp_start
 from test_flight import Client
 
 from delaykit import InvalidTypeError, InvalidValueError
 from delaykit.cli import app
-from delaykit.hardware.ardrone import ATEncoder, CtrlState, NavState
+from delaykit.hardware.ardrone import NavState
 from delaykit.hardware.emulator import DroneEmulator, EmulatorConfig, _wakeups, check_bursts
 from delaykit.simulate.varying import Burst, DelaySchedule, DelayTrace
 
@@ -155,23 +155,6 @@ def test_trace_forms_files_and_summary(tmp_path):
     assert s["true_delay"] == pytest.approx(0.3) and s["delay_schedule"] == [] and s["bursts"] == []
 
 
-def _drive(**cfg):
-    """An emulator that is not started (no threads), its clock set by hand: take off, and return it."""
-    emu = DroneEmulator(EmulatorConfig(**FREE, lag=0.0, noise=0.0, **cfg))
-    emu._phys.t = emu._t0
-    enc = ATEncoder()
-    emu._handle(enc.ref(takeoff=True), emu._t0 + 0.01)
-    emu._advance(emu._t0 + 1.4)  # 0.8 m at 0.7 m/s: 1.15 s
-    assert emu.mode == CtrlState.HOVERING
-    return emu, enc
-
-
-def _altitude(emu, t):
-    with emu._lock:
-        emu._advance(t)
-        return emu._phys.z
-
-
 def test_a_command_gets_the_traced_delay_in_force_when_it_arrives():
     # the ramp method of test_emulator_varying: with no lag a 0.35 m/s command makes the altitude a ramp from the
     # moment it takes effect; that moment minus the arrival is the delay: delay 0.05 s plus the record in force
@@ -239,24 +222,11 @@ def test_emulate_with_bursts_and_a_trace_reports_them(tmp_path):
 
 # ---------------------------------------------------------------------------------------------- loopback
 class _Client(Client):
-    """test_flight's loopback client, patient through a silent burst, with a hover that feeds the watchdog."""
+    """test_flight's loopback client, patient through a silent burst."""
 
     def __init__(self, emu: DroneEmulator) -> None:
         super().__init__(emu)
         self.sock.settimeout(3.0)  # (a burst without navdata is a silence of a second or more)
-
-    def hover_until(self, elapsed: float) -> None:
-        while self.emu.elapsed < elapsed:  # the watchdog fed, no motion
-            self.send(self.enc.comwdg() + self.enc.pcmd(progressive=False))
-            self.packet()
-
-    def take_off(self) -> None:
-        self.send(self.enc.config("general:navdata_demo", "TRUE"))
-        self.send(self.enc.config("control:control_vz_max", "1000"))
-        self.send(self.enc.ref(takeoff=True))
-        nd = self.packet()
-        while nd.demo is None or nd.demo.major != CtrlState.HOVERING:
-            nd = self.packet()
 
 
 @pytest.mark.realtime
@@ -354,22 +324,6 @@ def test_loopback_actuator_delay_follows_a_replayed_trace(tmp_path):
     # rounding: 2 ms).  The tolerance is the loopback's scheduling; a run where the machine stalled is repeated.
     trace_file = tmp_path / "trace.csv"
     trace_file.write_text("t,delay\n50,0.20\n53,0.35\n56,0.15\n")
-    v = 0.5
-
-    def step(c: _Client) -> tuple[float, float, bool]:
-        z_hover = c.packet().demo.altitude_mm / 1000.0
-        t_cmd = time.monotonic()
-        c.send(c.enc.comwdg() + c.enc.pcmd(gaz=v))
-        rows = []
-        while time.monotonic() - t_cmd < 0.8:
-            nd, t_arrival = c.stamped()
-            rows.append((t_arrival - t_cmd, nd.demo.altitude_mm / 1000.0, nd.demo.vz / 1000.0))
-        c.send(c.enc.comwdg() + c.enc.pcmd(progressive=False))
-        t, z, vz = np.array(rows).T
-        moving = z > z_hover + 0.02
-        start = float(np.median(t[moving] - (z[moving] - z_hover) / v))
-        return start, float(np.diff(np.r_[0.0, t]).max()), bool(np.all(vz[t < start - 0.01] == 0.0))
-
     for _ in range(3):
         with DroneEmulator(EmulatorConfig(**FREE, seed=1, delay=0.05, lag=0.0, noise=0.0, rate=100.0,
                                           delay_trace=DelayTrace.from_csv(trace_file))) as emu:
@@ -378,7 +332,7 @@ def test_loopback_actuator_delay_follows_a_replayed_trace(tmp_path):
             results = []
             for at in (1.8, 3.6, 6.6):
                 c.hover_until(at)
-                results.append(step(c))
+                results.append(ramp_start(c))
             c.send(c.enc.ref())
         if max(r[1] for r in results) < 0.03:  # packets every 10 ms: a longer gap is the machine stalling a thread
             break

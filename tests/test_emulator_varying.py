@@ -46,9 +46,10 @@ def test_default_behaviour_and_accepted_forms():
     assert [emu.actuator_delay(t0 + x) for x in (0.0, 9.99, 10.0, 19.0, 25.0)] == [0.25, 0.25, 0.4, 0.4, 0.3]
 
 
-def _drive(delay_schedule):
+def _drive(delay_schedule=None, *, delay=0.25, **cfg):
     """An emulator that is not started (no threads), its clock set by hand: take off, and return it."""
-    emu = DroneEmulator(EmulatorConfig(**FREE, delay=0.25, lag=0.0, noise=0.0, delay_schedule=delay_schedule))
+    emu = DroneEmulator(EmulatorConfig(**FREE, delay=delay, lag=0.0, noise=0.0, delay_schedule=delay_schedule,
+                                       **cfg))
     emu._phys.t = emu._t0
     enc = ATEncoder()
     emu._handle(enc.ref(takeoff=True), emu._t0 + 0.01)
@@ -96,13 +97,24 @@ def test_when_the_delay_falls_the_newest_command_wins():
     assert z[1] - z[0] == pytest.approx(-0.35 * 0.20, abs=1e-9) and z[2] - z[1] == pytest.approx(-0.35 * 0.25, abs=1e-9)
 
 
-class _Client(Client):
-    """test_flight's loopback client, with a hover that feeds the watchdog until the emulator's clock says."""
+def ramp_start(c: Client, v: float = 0.5) -> tuple[float, float, bool]:
+    """Send a climb at ``v`` m/s from a hover and read off the navdata when it took effect, after the send.
 
-    def hover_until(self, elapsed: float) -> None:
-        while self.emu.elapsed < elapsed:  # the watchdog fed, no motion
-            self.send(self.enc.comwdg() + self.enc.pcmd(progressive=False))
-            self.packet()
+    With no lag and no noise the altitude is a ramp from the moment the command takes effect, so
+    ``t - (z - z_hover) / v`` over the packets after it is that moment (1 mm rounding: 2 ms).  Returns that
+    delay, the longest gap between packets (a stalled machine) and whether the navdata speed was 0 before it."""
+    z_hover = c.packet().demo.altitude_mm / 1000.0
+    t_cmd = time.monotonic()
+    c.send(c.enc.comwdg() + c.enc.pcmd(gaz=v))
+    rows = []
+    while time.monotonic() - t_cmd < 0.8:
+        nd, t_arrival = c.stamped()  # the kernel's arrival time: a test thread woken late does not move it
+        rows.append((t_arrival - t_cmd, nd.demo.altitude_mm / 1000.0, nd.demo.vz / 1000.0))
+    c.send(c.enc.comwdg() + c.enc.pcmd(progressive=False))
+    t, z, vz = np.array(rows).T
+    moving = z > z_hover + 0.02
+    start = float(np.median(t[moving] - (z[moving] - z_hover) / v))
+    return start, float(np.diff(np.r_[0.0, t]).max()), bool(np.all(vz[t < start - 0.01] == 0.0))
 
 
 @pytest.mark.realtime
@@ -112,36 +124,16 @@ def test_loopback_flight_measures_the_delay_moving_from_025_to_040():
     # from the moment the command takes effect, so (t - (z - z_hover) / 0.5) over the packets after it is that
     # moment (1 mm rounding: 2 ms).  The reference values are the configured 0.25 and 0.40 s; the tolerance is
     # the loopback's scheduling (a few ms), and a run where the machine stalled the packets is repeated.
-    switch, v = 4.0, 0.5
-
-    def step(c: _Client) -> tuple[float, float, bool]:
-        z_hover = c.packet().demo.altitude_mm / 1000.0
-        t_cmd = time.monotonic()
-        c.send(c.enc.comwdg() + c.enc.pcmd(gaz=v))
-        rows = []
-        while time.monotonic() - t_cmd < 0.8:
-            nd, t_arrival = c.stamped()  # the kernel's arrival time: a test thread woken late does not move it
-            rows.append((t_arrival - t_cmd, nd.demo.altitude_mm / 1000.0, nd.demo.vz / 1000.0))
-        c.send(c.enc.comwdg() + c.enc.pcmd(progressive=False))
-        t, z, vz = np.array(rows).T
-        moving = z > z_hover + 0.02
-        start = float(np.median(t[moving] - (z[moving] - z_hover) / v))
-        return start, float(np.diff(np.r_[0.0, t]).max()), bool(np.all(vz[t < start - 0.01] == 0.0))
-
+    switch = 4.0
     for _ in range(3):
         with DroneEmulator(EmulatorConfig(**FREE, seed=1, delay=0.25, lag=0.0, noise=0.0, rate=100.0,
                                           delay_schedule=[(switch, 0.40)])) as emu:
-            c = _Client(emu)
-            c.send(c.enc.config("general:navdata_demo", "TRUE"))
-            c.send(c.enc.config("control:control_vz_max", "1000"))
-            c.send(c.enc.ref(takeoff=True))
-            nd = c.packet()
-            while nd.demo is None or nd.demo.major != CtrlState.HOVERING:
-                nd = c.packet()
+            c = Client(emu)
+            c.take_off()
             c.hover_until(2.0)
-            before, gap1, quiet1 = step(c)
+            before, gap1, quiet1 = ramp_start(c)
             c.hover_until(switch + 0.5)
-            after, gap2, quiet2 = step(c)
+            after, gap2, quiet2 = ramp_start(c)
             c.send(c.enc.ref())
         if max(gap1, gap2) < 0.03:  # packets every 10 ms: a longer gap is the shared machine stalling a thread
             break

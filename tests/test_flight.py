@@ -52,6 +52,21 @@ class Client:
         assert addr == ("127.0.0.1", self.emu.ports["navdata"])
         return decode_navdata(data), t
 
+    def take_off(self) -> None:
+        """Demo navdata, a speed limit of 1 m/s at gaz 1, take off, and wait until hovering."""
+        self.send(self.enc.config("general:navdata_demo", "TRUE"))
+        self.send(self.enc.config("control:control_vz_max", "1000"))
+        self.send(self.enc.ref(takeoff=True))
+        nd = self.packet()
+        while nd.demo is None or nd.demo.major != CtrlState.HOVERING:
+            nd = self.packet()
+
+    def hover_until(self, elapsed: float) -> None:
+        """Hover (the watchdog fed, no motion) until the emulator's clock says ``elapsed`` s since its start."""
+        while self.emu.elapsed < elapsed:
+            self.send(self.enc.comwdg() + self.enc.pcmd(progressive=False))
+            self.packet()
+
     def until(self, pred, timeout=5.0):
         t0 = time.monotonic()
         while time.monotonic() - t0 < timeout:
