@@ -73,23 +73,35 @@ def parse_delays(spec: str) -> list[float]:
 
 
 def parse_schedule(spec: str) -> list[tuple[float, float]]:
-    """A delay schedule from ``T:DELAY`` pairs separated by commas (times and delays in seconds).
+    """A delay schedule from ``T:DELAY`` pairs separated by commas (times and delays in seconds): finite, the
+    delays at least 0, the times increasing; an error names the bad item as the user wrote it.
 
     Examples
     --------
     >>> parse_schedule("20:0.40, 40:0.25")
     [(20.0, 0.4), (40.0, 0.25)]
     """
-    pairs = []
-    for k, item in enumerate(x for x in spec.split(",")):
+    pairs: list[tuple[float, float]] = []
+    items = [x.strip() for x in spec.split(",")]
+    for k, item in enumerate(items):
         parts = item.split(":")
         try:
             if len(parts) != 2:
                 raise ValueError
-            pairs.append((float(parts[0]), float(parts[1])))
+            t, d = float(parts[0]), float(parts[1])
         except ValueError:
-            raise InvalidValueError(f"--delay-schedule item {k + 1} {item.strip()!r} is not T:DELAY (seconds since "
+            raise InvalidValueError(f"--delay-schedule item {k + 1} {item!r} is not T:DELAY (seconds since "
                                     "start, delay in seconds), e.g. 20:0.40") from None
+        if not (math.isfinite(t) and math.isfinite(d)):
+            raise InvalidValueError(f"--delay-schedule item {k + 1} {item!r}: the time and the delay must be "
+                                    "finite numbers")
+        if d < 0:
+            raise InvalidValueError(f"--delay-schedule item {k + 1} {item!r}: the delay {d:g} s is negative "
+                                    "(a delay is at least 0 s)")
+        if pairs and not t > pairs[-1][0]:
+            raise InvalidValueError(f"--delay-schedule times must increase: item {k + 1} {item!r} (t = {t:g} s) "
+                                    f"is not after item {k} {items[k - 1]!r} (t = {pairs[-1][0]:g} s)")
+        pairs.append((t, d))
     return pairs
 
 
@@ -242,17 +254,6 @@ def _varying_delay(base: float, schedule: Optional[str], jitter: Optional[float]
     parts: list[Any] = []
     if schedule is not None:
         pairs = parse_schedule(schedule)
-        items = [x.strip() for x in schedule.split(",")]
-        for k, (t, d) in enumerate(pairs):
-            if not (math.isfinite(t) and math.isfinite(d)):
-                raise InvalidValueError(f"--delay-schedule item {k + 1} {items[k]!r}: the time and the delay must be "
-                                        "finite numbers")
-            if d < 0:
-                raise InvalidValueError(f"--delay-schedule item {k + 1} {items[k]!r}: the delay {d:g} s is negative "
-                                        "(a delay is at least 0 s)")
-            if k and not t > pairs[k - 1][0]:
-                raise InvalidValueError(f"--delay-schedule times must increase: item {k + 1} {items[k]!r} (t = {t:g} s) "
-                                        f"is not after item {k} {items[k - 1]!r} (t = {pairs[k - 1][0]:g} s)")
         if pairs[0][0] > 0:  # before the first time: --delay
             pairs = [(0.0, base), *pairs]
         parts.append(DelaySchedule.from_pairs(pairs))
