@@ -65,7 +65,7 @@ def test_port_errors_are_os_errors_not_bad_values():
 def test_cli_prints_a_port_error_in_one_line_with_status_2():
     import typer
 
-    from delaykit.cli.app import _friendly
+    from delaykit.cli.common import friendly as _friendly
 
     @_friendly
     def busy() -> None:

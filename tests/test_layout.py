@@ -165,4 +165,4 @@ def test_the_real_tree_is_checked():
     mods = {_module_name(SRC, p) for p in SRC.rglob("*.py")}
     assert {"delaykit.errors", "delaykit.models.altitude", "delaykit.cli.app"} <= mods
     assert "delaykit.models.altitude" in _imports(SRC, SRC / "spectrum" / "stability.py")
-    assert "delaykit.plotting.figures" in _imports(SRC, SRC / "cli" / "app.py")  # imported inside functions
+    assert "delaykit.plotting.figures" in _imports(SRC, SRC / "cli" / "cmd_simulate.py")  # imported inside functions

@@ -19,10 +19,10 @@ import typer
 
 from ..errors import InvalidValueError
 
-__all__ = ["with_loop", "build_loop", "LOOP_OPTION_NAMES", "parse_limit"]
+__all__ = ["LOOP_OPTION_NAMES", "build_loop", "parse_limit", "with_loop"]
 
 
-def _opt(default: Any, flag: str, help: str) -> Any:  # noqa: A002 (typer's name)
+def _opt(default: Any, flag: str, help: str) -> Any:
     return typer.Option(default, flag, help=help)
 
 

@@ -1,0 +1,221 @@
+"""``delaykit estimate``, ``identify`` and ``predict``: the delay and the plant from logs, and free-run prediction."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Optional
+
+import typer
+from rich.table import Table
+
+from ..errors import InvalidValueError
+from .common import ci_list, err, fmt, fmt_ci, friendly, out, parse_delays, print_rms
+from .loopopts import parse_limit, with_loop
+
+__all__ = ["estimate", "identify", "predict"]
+
+
+@friendly
+def estimate(
+    flights: Optional[list[Path]] = typer.Argument(None, help="Flight logs (CSV: t, z, z_ref[, u])."),
+    kp: float = typer.Option(..., "--kp", help="Proportional gain the flights used."),
+    kv: float = typer.Option(0.0, "--kv", help="Velocity gain the flights used."),
+    vmax: str = typer.Option("1.0", "--vmax", help="Command saturation, m/s, or 'none'."),
+    period: Optional[str] = typer.Option(None, "--period", help="Controller period, s (it ran at the log's samples)."),
+    method: str = typer.Option("trajectory", "--method", help="trajectory | overshoot | lambert."),
+    variant: str = typer.Option("paper", "--variant", help="For lambert: paper | damping."),
+    free: str = typer.Option("", "--free", help="Extra fitted parameters for trajectory: gain,lag."),
+    step_time: Optional[float] = typer.Option(None, "--step-time", help="Step time in the logs' clock, if not at a sample."),
+    skip_bad: bool = typer.Option(False, "--skip-bad", help="Skip (and count) unreadable rows instead of failing."),
+    overshoot: Optional[float] = typer.Option(None, "--overshoot", help="Measured overshoot, % (no files needed)."),
+    peak_time: Optional[float] = typer.Option(None, "--peak-time", help="Measured peak time, s."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Overlay data, fit and residuals here (trajectory)."),
+) -> None:
+    """Estimate the loop delay from flight logs, or from a measured overshoot and peak time."""
+    from ..identify import estimation as E
+    from ..identify.flightlog import FlightLog
+    from ..simulate.metrics import step_metrics
+
+    methods = ("trajectory", "overshoot", "lambert")
+    if method not in methods:
+        raise InvalidValueError(f"--method must be one of {', '.join(methods)}; got {method!r}")
+    vm = parse_limit("--vmax", vmax)
+    per = parse_limit("--period", period)
+    free_t = tuple(x.strip() for x in free.split(",") if x.strip())
+    if not flights:
+        if overshoot is None:
+            raise InvalidValueError("give flight logs, or --overshoot (and --peak-time) for the paper's methods")
+        if method == "lambert":
+            if peak_time is None:
+                raise InvalidValueError("--method lambert needs --peak-time as well as --overshoot")
+            est = E.estimate_lambert(overshoot, peak_time, kp, variant=variant)
+        elif method == "overshoot":
+            est = E.estimate_overshoot(overshoot, kp, peak_time=peak_time, kv=kv, vmax=vm, period=per)
+        else:
+            raise InvalidValueError("the trajectory method needs flight logs")
+        if as_json:
+            print(json.dumps(est.to_dict(), indent=2))
+            return
+        out.print(repr(est), highlight=False)
+        out.print("no interval" if est.ci is None else f"95 % interval: {fmt_ci(est.ci)}", highlight=False)
+        if est.delay_imag is not None:
+            out.print(f"complex delay: {est.delay:.4f} {est.delay_imag:+.4f}j s", highlight=False)
+        for w in est.warnings:
+            out.print(f"[yellow]warning:[/] {w}", highlight=False)
+        return
+    kw = {"step_time": step_time} if step_time is not None else {}
+    logs = [FlightLog.from_csv(f, skip_bad=skip_bad, **kw) for f in flights]
+    loopkw = dict(kv=kv, vmax=vm, period=per)
+    if method == "trajectory":
+        with err.status(f"fitting {len(logs)} flight(s)…"):
+            pooled, each = E.estimate_flights(logs, kp, free=free_t, **loopkw)
+    else:
+        each = []
+        for log in logs:
+            m = step_metrics(log.t, log.z, step=log.step, z0=log.z0, step_time=log.step_time)
+            if method == "overshoot":
+                each.append(E.estimate_overshoot(m.overshoot, kp, peak_time=m.peak_time, step=abs(log.step), **loopkw))
+            else:
+                if m.peak_time is None:
+                    raise E.EstimationError(f"{log.name}: no overshoot, so no damping ratio for the Lambert method")
+                each.append(E.estimate_lambert(m.overshoot, m.peak_time, kp, variant=variant))
+        import numpy as np
+
+        d = np.array([e.delay for e in each])
+        se = float(np.std(d, ddof=1) / np.sqrt(d.size)) if d.size > 1 else None
+        ci = (float(d.mean() - 1.96 * se), float(d.mean() + 1.96 * se)) if se else None
+        pooled = E.DelayEstimate(delay=float(d.mean()), stderr=se, ci=ci, method=method, flights=d.size,
+                                 diagnostics=E.Diagnostics(note="mean of the flights; error from their spread"))
+    rows = [{"file": log.name, "delay": e.delay, "stderr": e.stderr, "ci": ci_list(e.ci),
+             "skipped_rows": log.skipped, "warnings": e.warnings} for log, e in zip(logs, each)]
+    result = {"flights": rows, "pooled": {"delay": pooled.delay, "stderr": pooled.stderr, "ci": ci_list(pooled.ci),
+                                          "spread": pooled.diagnostics.spread,
+                                          "warnings": pooled.warnings}, "method": method}
+    if plot is not None and method == "trajectory":
+        from ..plotting.figures import plot_fit
+
+        fits = [(log.t, E.fitted_altitude(log, pooled, kp, i, **loopkw)) for i, log in enumerate(logs)]
+        plot_fit(logs, fits, plot, title=f"pooled delay {pooled.delay:.4f} s")
+    if as_json:
+        print(json.dumps(result, indent=2))
+        return
+    table = Table(title=f"Delay by the {method} method (Kp = {kp:g})")
+    for col in ("flight", "delay (s)", "± stderr", "95 % interval", "skipped rows"):
+        table.add_column(col, justify="right")
+    for r in rows:
+        table.add_row(Path(r["file"]).name, f"{r['delay']:.4f}", fmt(r["stderr"]), fmt_ci(r["ci"]), str(r["skipped_rows"]))
+    if len(rows) > 1:
+        table.add_row("pooled", f"{pooled.delay:.4f}", fmt(pooled.stderr), fmt_ci(pooled.ci), "")
+    out.print(table)
+    for w in pooled.warnings + [w for r in rows for w in r["warnings"]]:
+        out.print(f"[yellow]warning:[/] {w}", highlight=False)
+
+
+@friendly
+@with_loop(omit=("plant",))
+def identify(
+    logs: list[Path] = typer.Argument(..., help="Logs (CSV with a header: time, the input or reference, outputs)."),
+    closed_loop: bool = typer.Option(False, "--closed-loop", help="Closed-loop fit from the reference through the controller given by the loop options (P or PV, its limits, --period = the log's)."),
+    input_col: str = typer.Option("u", "--input", help="The plant's command column (open-loop fit)."),
+    reference: str = typer.Option("z_ref", "--reference", help="The reference column (with --closed-loop)."),
+    output: str = typer.Option("z", "--output", help="The output column."),
+    rate: Optional[str] = typer.Option(None, "--rate", help="A column holding the output's rate (e.g. vz), fitted jointly."),
+    time_col: str = typer.Option("t", "--time", help="The time column (s)."),
+    model: str = typer.Option("auto", "--model", help="auto | ipdt | ipdt_lag | ipdt_speed | fopdt | sopdt."),
+    baseline: str = typer.Option("initial", "--baseline", help="initial (mean before the drive moves) | fit (an offset per log)."),
+    u_before: Optional[float] = typer.Option(None, "--u-before", help="The input before the log, when the log starts with the step (default 0)."),
+    fresh_only: bool = typer.Option(False, "--fresh-only", help="Count only output samples that changed (a sensor slower than the log repeats its values)."),
+    save: Optional[Path] = typer.Option(None, "--save", help="Write the model here (JSON), for `delaykit predict`."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Overlay each log and the model's free-run prediction here."),
+    loop_options: Any = None,
+) -> None:
+    """Identify a plant and its dead time from logs, open loop (from the command) or closed loop (from the reference).
+
+    With --model auto every structure is fitted and one is chosen: by leave-one-log-out prediction error with
+    two logs or more, by BIC with one. Standard errors allow for coloured residuals (an autoregressive noise model).
+    """
+    from ..identify.identification import identify as run_identify
+    from ..identify.identification import predict as run_predict
+    from ..identify.iodata import read_experiment
+    from .loopopts import build_loop
+
+    given = {k: v for k, v in loop_options.items() if v is not None}
+    loop = None
+    if closed_loop:
+        if given.get("delay") not in (None, "0", "0.0"):
+            raise InvalidValueError("identify finds the delay: do not give --delay")
+        loop, _ = build_loop(loop_options, parse_delays)
+    elif given:
+        raise InvalidValueError(f"the loop options ({', '.join('--' + k.replace('_', '-') for k in given)}) describe "
+                                "the controller of a closed-loop fit: add --closed-loop, or drop them")
+    drive = {"reference": reference} if closed_loop else {"input": input_col, "u_before": u_before}
+    exps = [read_experiment(f, outputs=[output] + ([rate] if rate else []), time=time_col, **drive) for f in logs]
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=err,
+                  transient=True) as bar:
+        task = bar.add_task("identifying…", total=None)
+        m = run_identify(exps, model=model, loop=loop, outputs=[output], rate=rate,
+                         baseline=baseline, fresh_only=fresh_only,
+                         progress=lambda msg: bar.update(task, description=msg))
+    if save is not None:
+        m.save(save)
+    if plot is not None:
+        from ..plotting.identification import plot_predictions
+
+        plot_predictions([run_predict(m, e) for e in exps], path=plot, title=repr(m))
+    if as_json:
+        print(json.dumps(m.to_dict(), indent=2))
+        return
+    table = Table(title=f"{m.structure.title} ({m.model}), {'closed' if closed_loop else 'open'} loop, {len(exps)} log(s)")
+    for col in ("parameter", "value", "± stderr", "95 % interval"):
+        table.add_column(col, justify="right")
+    for p in m.structure.params:
+        table.add_row(p, f"{m.params[p]:.5g}", f"{m.stderr[p]:.2g}", fmt_ci(m.ci[p]))
+    out.print(table)
+    if m.candidates:
+        ct = Table(title=f"candidates (chosen by {m.criterion})")
+        for col in ("model", "rms", "BIC", "leave-one-out rms"):
+            ct.add_column(col, justify="right")
+        for c in m.candidates:
+            ct.add_row(c.model, f"{c.rms:.4g}", f"{c.bic:.1f}", fmt(c.lolo_rms))
+        out.print(ct)
+    print_rms("logs", [(d["file"], d["rms"], d["wander"]) for d in (g.to_dict() for g in m.logs)])
+    for w in m.warnings:
+        out.print(f"[yellow]warning:[/] {w}", highlight=False)
+    if save is not None:
+        out.print(f"model written to {save}", highlight=False)
+
+
+@friendly
+def predict(
+    model_file: Path = typer.Argument(..., help="A model written by `delaykit identify --save`."),
+    logs: list[Path] = typer.Argument(..., help="Logs to predict (same columns as the model was fitted on)."),
+    time_col: str = typer.Option("t", "--time", help="The time column (s)."),
+    u_before: Optional[float] = typer.Option(None, "--u-before", help="The input before the log, when it starts with the step."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Overlay each log and the prediction here."),
+) -> None:
+    """Predict logs with an identified model, free-run from each log's input or reference (not one step ahead)."""
+    from ..identify.identification import load_model
+    from ..identify.identification import predict as run_predict
+    from ..identify.iodata import read_experiment
+
+    m = load_model(model_file)
+    outs = list(m.outputs) + ([m.rate] if m.rate else [])
+    drive = ({"reference": m.drive_column} if m.closed_loop is not None
+             else {"input": m.drive_column, "u_before": u_before})
+    exps = [read_experiment(f, outputs=outs, time=time_col, **drive) for f in logs]
+    preds = [run_predict(m, e) for e in exps]
+    if plot is not None:
+        from ..plotting.identification import plot_predictions
+
+        plot_predictions(preds, path=plot, title=f"{m.model} predicting {len(preds)} log(s)")
+    rows = [p.to_dict() for p in preds]
+    if as_json:
+        print(json.dumps(rows[0] if len(rows) == 1 else {"logs": rows}, indent=2))
+        return
+    print_rms(f"free-run prediction by {m!r}", [(r["file"], r["rms"], r["wander"][m.outputs[0]]) for r in rows])
