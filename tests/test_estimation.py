@@ -427,3 +427,101 @@ def test_cli_estimate_with_no_interval_says_so(tmp_path, monkeypatch):
     assert json.loads(res.stdout)["pooled"]["ci"] is None
     res = runner.invoke(app, ["estimate", "--overshoot", "2.3", "--kp", "1.31", "--method", "overshoot"])
     assert res.exit_code == 0 and "no interval" in res.stdout
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# the estimators take the loop object (issue 9): AltitudeLoop.from_loop, and `delaykit estimate --loop`
+
+
+@pytest.mark.parametrize("lp", [
+    AltitudeLoop(kp=1.31, delay=0.368),
+    AltitudeLoop(kp=2.0, delay=0.2, kv=0.3, vmax=None, period=0.065, sample_offset=0.01),
+    AltitudeLoop(kp=0.9, delay=0.1, kv=0.25, velocity="filtered", filter_wn=20.0, filter_zeta=0.8, gain=0.8, lag=0.12),
+])
+def test_from_loop_inverts_to_loop(lp):
+    # the general loop of a paper loop maps back to the same paper loop, field for field (the gain and lag to
+    # rounding: the plant's coefficients are normalised to a monic denominator)
+    import dataclasses
+
+    back = AltitudeLoop.from_loop(lp.to_loop())
+    for f in dataclasses.fields(lp):
+        want, got = getattr(lp, f.name), getattr(back, f.name)
+        assert got == pytest.approx(want, rel=1e-14) if isinstance(want, float) else got == want, f.name
+    assert AltitudeLoop.from_loop(lp) is lp
+
+
+@pytest.mark.parametrize(("changes", "named"), [
+    ({"plant": "1/(s+1)"}, "plant"),
+    ({"plant": "1/(s*(s-2))"}, "plant"),  # a "lag" with an unstable pole is not a lag
+    ({"controller": "pi"}, "controller"),
+    ({"output_delay": 0.05}, "measurement delay"),
+    ({"umin": -1.0, "umax": 3.0}, "not symmetric"),
+])
+def test_from_loop_names_what_is_not_the_papers(changes, named):
+    from delaykit.errors import InvalidValueError
+    from delaykit.models import Controller
+
+    lp = AltitudeLoop(kp=1.31, delay=0.3).to_loop()
+    if changes.get("controller") == "pi":
+        lp = lp.replace(controller=Controller.pi(1.0, 0.5))
+    else:
+        lp = lp.replace(**changes)
+    with pytest.raises(InvalidValueError, match=named):
+        AltitudeLoop.from_loop(lp)
+
+
+def test_trajectory_with_a_loop_holds_its_known_lag():
+    # flights of a drone with a known 0.1 s speed-loop lag: the loop object carries the lag, so the fit (lag not
+    # free) recovers the true delay; the gain-only keywords (lag 0) put the lag into the delay instead. The truth
+    # is the simulator's input (the simulator is checked against the oracle elsewhere).
+    truth = AltitudeLoop(kp=1.31, delay=0.25, lag=0.1, period=0.065)
+    rng = np.random.default_rng(9)
+    logs = [synthetic_log(truth, 1.0, noise=0.002, rng=rng) for _ in range(2)]
+    with_loop, _ = estimate_flights(logs, truth.to_loop())
+    assert abs(with_loop.delay - 0.25) < 3 * with_loop.stderr + 1e-3
+    keywords, _ = estimate_flights(logs, 1.31, period=0.065)
+    assert keywords.delay > 0.25 + 0.04  # the lag shows up as extra delay
+    # the fitted altitude with the loop follows the flight to the noise level
+    fit = fitted_altitude(logs[0], with_loop, truth, 0)
+    assert np.sqrt(np.mean((fit - logs[0].z) ** 2)) < 0.004
+    # the keyword path and an equal loop object are one computation: the same estimate
+    a = estimate_overshoot(2.3, kp=1.31, kv=0.1, period=0.065)
+    b = estimate_overshoot(2.3, AltitudeLoop(kp=1.31, delay=0.0, kv=0.1, period=0.065))
+    assert a.delay == b.delay
+
+
+def test_a_loop_and_its_keywords_together_are_refused():
+    from delaykit.errors import InvalidValueError
+
+    lp = AltitudeLoop(kp=1.31, delay=0.3)
+    with pytest.raises(InvalidValueError, match="kv"):
+        estimate_overshoot(2.3, lp, kv=0.2)
+    with pytest.raises(InvalidValueError, match="Lambert"):
+        estimate_lambert(2.3, 3.055, lp.replace(kv=0.2))
+
+
+def test_cli_estimate_takes_the_loop_file(tmp_path):
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+
+    rng = np.random.default_rng(4)
+    truth = AltitudeLoop(kp=1.1, delay=0.3, kv=0.2, period=0.065)
+    paths = []
+    for i in range(2):
+        log = synthetic_log(truth, 1.0, noise=0.003, rng=rng)
+        p = tmp_path / f"f{i}.csv"
+        write_log(p, {"t": log.t, "z": log.z, "z_ref": log.z_ref})
+        paths.append(str(p))
+    (tmp_path / "loop.toml").write_text('plant = "1/s"\ncontroller = "pv"\nkp = 1.1\nkv = 0.2\ndelay = 5.0\n'
+                                        'umin = -1.0\numax = 1.0\nperiod = 0.065\n')
+    runner = CliRunner()
+    by_file = runner.invoke(app, ["estimate", *paths, "--loop", str(tmp_path / "loop.toml"), "--json"])
+    by_flags = runner.invoke(app, ["estimate", *paths, "--kp", "1.1", "--kv", "0.2", "--period", "0.065", "--json"])
+    assert by_file.exit_code == 0 and by_flags.exit_code == 0, (by_file.output, by_flags.output)
+    got, ref = json.loads(by_file.stdout), json.loads(by_flags.stdout)
+    assert got == ref  # the file's delay (5 s) is ignored: it is what is estimated
+    assert abs(got["pooled"]["delay"] - 0.3) < 0.01
+    # a loop of another family: exit 2, naming the plant, and pointing nowhere deep into numpy
+    res = runner.invoke(app, ["estimate", *paths, "--plant", "1/(s+1)", "--kp", "1.1"])
+    assert res.exit_code == 2 and "1/(s + 1)" in res.output and "Traceback" not in res.output

@@ -11,18 +11,18 @@ from rich.table import Table
 
 from ..errors import InvalidValueError
 from .common import ci_list, err, fmt, fmt_ci, friendly, out, parse_delays, print_rms
-from .loopopts import parse_limit, with_loop
+from .loopopts import build_loop, with_loop
 
 __all__ = ["estimate", "identify", "predict"]
 
+# the loop options `estimate` leaves out: the delay is what it finds, the controller runs at the logs' samples
+_ESTIMATE_OMITS = ("delay", "model_delay", "closed_loop_time", "sample_offset")
+
 
 @friendly
+@with_loop(omit=_ESTIMATE_OMITS)
 def estimate(
     flights: Optional[list[Path]] = typer.Argument(None, help="Flight logs (CSV: t, z, z_ref[, u])."),
-    kp: float = typer.Option(..., "--kp", help="Proportional gain the flights used."),
-    kv: float = typer.Option(0.0, "--kv", help="Velocity gain the flights used."),
-    vmax: str = typer.Option("1.0", "--vmax", help="Command saturation, m/s, or 'none'."),
-    period: Optional[str] = typer.Option(None, "--period", help="Controller period, s (it ran at the log's samples)."),
     method: str = typer.Option("trajectory", "--method", help="trajectory | overshoot | lambert."),
     variant: str = typer.Option("paper", "--variant", help="For lambert: paper | damping."),
     free: str = typer.Option("", "--free", help="Extra fitted parameters for trajectory: gain,lag."),
@@ -32,17 +32,24 @@ def estimate(
     peak_time: Optional[float] = typer.Option(None, "--peak-time", help="Measured peak time, s."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Overlay data, fit and residuals here (trajectory)."),
+    loop_options: Any = None,
 ) -> None:
-    """Estimate the loop delay from flight logs, or from a measured overshoot and peak time."""
+    """Estimate the loop delay from flight logs, or from a measured overshoot and peak time.
+
+    The loop the flights used comes from the loop options (--kp, --kv, --vmax, --period, or --loop FILE.toml).
+    It must be the paper's: the plant gain/s or gain/(s (lag s + 1)), P or PV control, symmetric limits.
+    `delaykit identify` fits any other plant.  A delay in the loop file is ignored: it is what is estimated."""
     from ..identify import estimation as E
     from ..identify.flightlog import FlightLog
+    from ..models.altitude import AltitudeLoop
     from ..simulate.metrics import step_metrics
 
     methods = ("trajectory", "overshoot", "lambert")
     if method not in methods:
         raise InvalidValueError(f"--method must be one of {', '.join(methods)}; got {method!r}")
-    vm = parse_limit("--vmax", vmax)
-    per = parse_limit("--period", period)
+    loop, _ = build_loop({**loop_options, "delay": "0"}, parse_delays)
+    base = AltitudeLoop.from_loop(loop)
+    kp = base.kp
     free_t = tuple(x.strip() for x in free.split(",") if x.strip())
     if not flights:
         if overshoot is None:
@@ -50,9 +57,9 @@ def estimate(
         if method == "lambert":
             if peak_time is None:
                 raise InvalidValueError("--method lambert needs --peak-time as well as --overshoot")
-            est = E.estimate_lambert(overshoot, peak_time, kp, variant=variant)
+            est = E.estimate_lambert(overshoot, peak_time, base, variant=variant)
         elif method == "overshoot":
-            est = E.estimate_overshoot(overshoot, kp, peak_time=peak_time, kv=kv, vmax=vm, period=per)
+            est = E.estimate_overshoot(overshoot, base, peak_time=peak_time)
         else:
             raise InvalidValueError("the trajectory method needs flight logs")
         if as_json:
@@ -67,20 +74,19 @@ def estimate(
         return
     kw = {"step_time": step_time} if step_time is not None else {}
     logs = [FlightLog.from_csv(f, skip_bad=skip_bad, **kw) for f in flights]
-    loopkw = dict(kv=kv, vmax=vm, period=per)
     if method == "trajectory":
         with err.status(f"fitting {len(logs)} flight(s)…"):
-            pooled, each = E.estimate_flights(logs, kp, free=free_t, **loopkw)
+            pooled, each = E.estimate_flights(logs, base, free=free_t)
     else:
         each = []
         for log in logs:
             m = step_metrics(log.t, log.z, step=log.step, z0=log.z0, step_time=log.step_time)
             if method == "overshoot":
-                each.append(E.estimate_overshoot(m.overshoot, kp, peak_time=m.peak_time, step=abs(log.step), **loopkw))
+                each.append(E.estimate_overshoot(m.overshoot, base, peak_time=m.peak_time, step=abs(log.step)))
             else:
                 if m.peak_time is None:
                     raise E.EstimationError(f"{log.name}: no overshoot, so no damping ratio for the Lambert method")
-                each.append(E.estimate_lambert(m.overshoot, m.peak_time, kp, variant=variant))
+                each.append(E.estimate_lambert(m.overshoot, m.peak_time, base, variant=variant))
         import numpy as np
 
         d = np.array([e.delay for e in each])
@@ -96,7 +102,7 @@ def estimate(
     if plot is not None and method == "trajectory":
         from ..plotting.figures import plot_fit
 
-        fits = [(log.t, E.fitted_altitude(log, pooled, kp, i, **loopkw)) for i, log in enumerate(logs)]
+        fits = [(log.t, E.fitted_altitude(log, pooled, base, i)) for i, log in enumerate(logs)]
         plot_fit(logs, fits, plot, title=f"pooled delay {pooled.delay:.4f} s")
     if as_json:
         print(json.dumps(result, indent=2))

@@ -37,6 +37,7 @@ from scipy.optimize import brentq, least_squares
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop
+from ..models.loop import Loop
 from ..simulate.metrics import SecondOrder, step_metrics
 from ..simulate.simulation import Sampler, simulate
 from ..spectrum.lambert import delay_for_damping, lambert_w
@@ -311,9 +312,31 @@ def _jsonable(x: Any) -> Any:
 # the paper's numerical method
 
 
+_LOOP_KEYWORDS = {"kv": 0.0, "vmax": 1.0, "period": None, "velocity": "true", "filter_wn": 38.0, "filter_zeta": 1.0}
+
+
+def _base_loop(kp: Any, **keywords: Any) -> AltitudeLoop:
+    """The loop the flights used, with its delay at 0: from a loop object, or from ``kp`` and the keywords.
+
+    A loop object (``Loop`` or ``AltitudeLoop``) must be of the paper's family (:meth:`AltitudeLoop.from_loop`
+    says why not); its known ``gain`` and ``lag`` are the fit's fixed values where they are not ``free``.  The
+    keywords then stay at their defaults: the loop gives them."""
+    if isinstance(kp, (int, float, np.integer, np.floating)) and not isinstance(kp, bool):
+        kp = check_real("kp", kp, minimum=0.0, strict=True)
+        return AltitudeLoop(kp=kp, delay=0.0, **keywords)
+    given = sorted(k for k, v in keywords.items() if v != _LOOP_KEYWORDS[k])
+    if given:
+        raise InvalidValueError(f"give the loop, or kp with {', '.join(given)}, not both: the loop object already "
+                                "sets its controller, limits and period")
+    base = AltitudeLoop.from_loop(kp)
+    if base.kp <= 0.0:
+        raise InvalidValueError(f"kp must be > 0 to estimate a delay from a closed loop; the loop has kp={base.kp:g}")
+    return base.replace(delay=0.0)
+
+
 def estimate_overshoot(
     overshoot: float,
-    kp: float,
+    kp: float | Loop | AltitudeLoop,
     *,
     peak_time: float | None = None,
     overshoot_stderr: float | None = None,
@@ -328,8 +351,12 @@ def estimate_overshoot(
     ----------
     overshoot : float
         Measured overshoot, percent (> 0).
-    kp, kv, vmax, period : float
-        The loop the flights used.
+    kp : float or Loop or AltitudeLoop
+        The proportional gain the flights used (with ``kv``, ``vmax`` and ``period``), or the whole loop they
+        used, of the paper's family (:meth:`~delaykit.models.altitude.AltitudeLoop.from_loop`); its delay is
+        ignored.
+    kv, vmax, period : float
+        The rest of the loop, when ``kp`` is a number.
     peak_time : float, optional
         Measured peak time (s): compared with the model's at the estimate (a diagnostic, not fitted).
     overshoot_stderr : float, optional
@@ -343,13 +370,13 @@ def estimate_overshoot(
     0.3686
     """
     mo = check_real("overshoot (%)", overshoot, minimum=0.0)
-    kp = check_real("kp", kp, minimum=0.0, strict=True)
+    base = _base_loop(kp, kv=kv, vmax=vmax, period=period)
+    kp = base.kp
     if mo == 0.0:
         raise EstimationError(
             "the measured overshoot is 0: the overshoot method needs an overshoot (for a P loop the delay is then "
             f"only known to be below about 1/(e Kp) = {1 / (math.e * kp):.3f} s); use the trajectory method"
         )
-    base = AltitudeLoop(kp=kp, delay=0.0, kv=kv, vmax=vmax, period=period)
     f = lambda td: simulate(base.replace(delay=td), step).metrics.overshoot - mo  # noqa: E731
     lo = 0.0
     hi = 0.05 / kp
@@ -409,7 +436,8 @@ def lambert_paper_iterations(root: complex, kp: float, start: float = 0.2, maxit
     return out
 
 
-def estimate_lambert(overshoot: float, peak_time: float, kp: float, *, variant: str = "paper") -> DelayEstimate:
+def estimate_lambert(overshoot: float, peak_time: float, kp: float | Loop | AltitudeLoop, *,
+                     variant: str = "paper") -> DelayEstimate:
     """The paper's analytical estimate: (Mo, tp) -> damping and frequency -> dominant root -> delay.
 
     ``variant="paper"`` reproduces the paper (Newton on the complex Lambert W relation from 0.2 s); its
@@ -417,13 +445,20 @@ def estimate_lambert(overshoot: float, peak_time: float, kp: float, *, variant: 
     finds the real delay whose dominant root has the measured damping ratio (the frequency is then not
     matched; the mismatch is reported).
 
+    ``kp`` is the proportional gain, or the loop (a continuous P loop on ``1/s``, its limits ignored: the method
+    models nothing else).
+
     Examples
     --------
     >>> round(estimate_lambert(2.300, 3.055, kp=1.31, variant="damping").delay, 4)
     0.3598
     """
     so = SecondOrder.from_step(overshoot, peak_time)
-    kp = check_real("kp", kp, minimum=0.0, strict=True)
+    base = _base_loop(kp)
+    if base.kv != 0.0 or base.sampled or base.gain != 1.0 or base.lag != 0.0:
+        raise InvalidValueError(f"the Lambert method models the continuous P loop on 1/s (linearised: the limits "
+                                f"are ignored); got {base!r}: use estimate_overshoot or estimate_trajectory")
+    kp = base.kp
     common = dict(zeta=so.zeta, omega_n=so.omega_n, root=so.root)
     if variant == "paper":
         it = lambert_paper_iterations(so.root, kp)
@@ -476,10 +511,11 @@ class _Flight:
         return self.sampler(self.base.replace(delay=delay, gain=gain, lag=lag), self.log.step, self.log.z0)
 
 
-def _unpack(theta: np.ndarray, free: tuple[str, ...], nf: int) -> tuple[float, list[float], list[float]]:
+def _unpack(theta: np.ndarray, free: tuple[str, ...], nf: int, gain: float = 1.0,
+            lag: float = 0.0) -> tuple[float, list[float], list[float]]:
     td = float(theta[0])
-    gains = [1.0] * nf
-    lags = [0.0] * nf
+    gains = [gain] * nf
+    lags = [lag] * nf
     k = 1
     if "gain" in free:
         gains = list(theta[k:k + nf])
@@ -490,7 +526,7 @@ def _unpack(theta: np.ndarray, free: tuple[str, ...], nf: int) -> tuple[float, l
 
 
 def _residuals(theta, flights, free, offsets_out=None):
-    td, gains, lags = _unpack(theta, free, len(flights))
+    td, gains, lags = _unpack(theta, free, len(flights), flights[0].base.gain, flights[0].base.lag)
     res = []
     for i, f in enumerate(flights):
         m = f.model(td, gains[i], lags[i])
@@ -518,7 +554,7 @@ def _ljung_box(r: np.ndarray, lags: int = 10) -> tuple[float, float]:
 
 def estimate_trajectory(
     logs: FlightLog | Sequence[FlightLog],
-    kp: float,
+    kp: float | Loop | AltitudeLoop,
     *,
     kv: float = 0.0,
     vmax: float | None = 1.0,
@@ -536,8 +572,13 @@ def estimate_trajectory(
     ----------
     logs : FlightLog or sequence of FlightLog
         The flights (each with its own step, start altitude and sample times).
-    kp, kv, vmax, period, velocity, filter_wn, filter_zeta
-        The controller the flights used (``period``: the controller ran at the log's samples).
+    kp : float or Loop or AltitudeLoop
+        The proportional gain the flights used, or the whole loop they used, of the paper's family
+        (:meth:`~delaykit.models.altitude.AltitudeLoop.from_loop`; its delay is ignored, and its ``gain`` and
+        ``lag`` are held where they are not ``free``).
+    kv, vmax, period, velocity, filter_wn, filter_zeta
+        The rest of the controller, when ``kp`` is a number (``period``: the controller ran at the log's
+        samples).
     free : iterable of {"gain", "lag"}
         Extra parameters fitted per flight: the drone's effective speed gain, and the time constant of its
         own speed loop (at least 4 ms: a shorter lag is indistinguishable from extra delay at navdata rates).
@@ -572,15 +613,14 @@ def estimate_trajectory(
     for name in free:
         if name not in FREE_CHOICES:
             raise InvalidValueError(f"free parameters must be among {', '.join(FREE_CHOICES)}; got {name!r}")
-    kp = check_real("kp", kp, minimum=0.0, strict=True)
-    base = AltitudeLoop(kp=kp, delay=0.0, kv=kv, vmax=vmax, period=period, velocity=velocity,
-                        filter_wn=filter_wn, filter_zeta=filter_zeta)
+    base = _base_loop(kp, kv=kv, vmax=vmax, period=period, velocity=velocity, filter_wn=filter_wn,
+                      filter_zeta=filter_zeta)
     flights = [_Flight(log, base) for log in logs]
     nf = len(flights)
     lo, hi = delay_range
     # a coarse scan of the delay (nuisance at their defaults) avoids local minima
     grid = np.linspace(max(lo, 0.0), hi, 31)
-    theta0 = [1.0] * nf * ("gain" in free) + [0.05] * nf * ("lag" in free)
+    theta0 = [base.gain] * nf * ("gain" in free) + [max(base.lag, 0.05)] * nf * ("lag" in free)
     costs = [float(np.sum(_residuals(np.array([g, *theta0]), flights, free) ** 2)) for g in grid]
     j = int(np.argmin(costs))
     td0 = float(grid[j])
@@ -619,7 +659,7 @@ def estimate_trajectory(
         se = se_white * inflation
     except np.linalg.LinAlgError:
         se = None
-    td, gains, lags = _unpack(theta, free, nf)
+    td, gains, lags = _unpack(theta, free, nf, base.gain, base.lag)
 
     ci = None
     if interval and se is not None and se > 0:
@@ -701,13 +741,23 @@ def estimate_trajectory(
                          residual_rms=float(math.sqrt(rss / n)), params=params, diagnostics=diag)
 
 
-def estimate_flights(logs: Sequence[FlightLog], kp: float, **kwargs: Any) -> tuple[DelayEstimate, list[DelayEstimate]]:
+def estimate_flights(logs: Sequence[FlightLog], kp: float | Loop | AltitudeLoop,
+                     **kwargs: Any) -> tuple[DelayEstimate, list[DelayEstimate]]:
     """Each flight's delay, and the pooled delay of all of them, with the spread between flights.
 
     The pooled fit shares the delay and keeps per-flight nuisance parameters (offset, scale, and the free
     gain or lag).  If the flights disagree more than their standard errors allow (a chi-squared
     heterogeneity test, p < 0.05) the delay itself varies between flights; the pooled standard error and
     interval are then widened by ``sqrt(chi2 / dof)`` and a warning says so.
+
+    Parameters
+    ----------
+    logs : sequence of FlightLog
+        The flights.
+    kp : float or Loop or AltitudeLoop
+        The proportional gain the flights used, or the whole loop (see :func:`estimate_trajectory`).
+    **kwargs
+        The other arguments of :func:`estimate_trajectory`.
 
     Returns
     -------
@@ -752,19 +802,29 @@ def estimate_flights(logs: Sequence[FlightLog], kp: float, **kwargs: Any) -> tup
     return pooled, each
 
 
-def fitted_altitude(log: FlightLog, est: DelayEstimate, kp: float, index: int = 0, **loop: Any) -> np.ndarray:
+def fitted_altitude(log: FlightLog, est: DelayEstimate, kp: float | Loop | AltitudeLoop, index: int = 0,
+                    **loop: Any) -> np.ndarray:
     """The fitted model's altitude at the log's sample times (for plots and checks).
 
-    ``index`` picks the flight's nuisance parameters in a pooled estimate; ``loop`` are the controller
-    settings given to the fit (``kv``, ``vmax``, ``period``, ...).
+    ``index`` picks the flight's nuisance parameters in a pooled estimate; ``kp`` and ``loop`` are what was
+    given to the fit: the gain and the controller settings (``kv``, ``vmax``, ``period``, ...), or the loop.
+
+    Examples
+    --------
+    >>> from delaykit.identify.flightlog import synthetic_log
+    >>> lp = AltitudeLoop(kp=1.31, delay=0.3)
+    >>> log = synthetic_log(lp, 1.0, noise=0.0)
+    >>> est = estimate_trajectory(log, lp, interval=False)
+    >>> float(np.max(np.abs(fitted_altitude(log, est, lp) - log.z))) < 1e-3
+    True
     """
-    base = AltitudeLoop(kp=kp, delay=0.0, **loop)
+    base = _base_loop(kp, **loop)
     f = _Flight(log, base)
     if est.params.offsets is None or est.params.scales is None:
         raise InvalidValueError(f"the estimate is not a trajectory fit (method {est.method!r}): it has no fitted "
                                 "offsets and scales")
-    gains = est.params.gain if est.params.gain is not None else (1.0,) * est.flights
-    lags = est.params.lag if est.params.lag is not None else (0.0,) * est.flights
+    gains = est.params.gain if est.params.gain is not None else (base.gain,) * est.flights
+    lags = est.params.lag if est.params.lag is not None else (base.lag,) * est.flights
     m = f.model(est.delay, gains[index], lags[index])
     off = est.params.offsets[index]
     scale = est.params.scales[index]

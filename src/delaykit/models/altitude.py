@@ -191,6 +191,75 @@ class AltitudeLoop:
         return Loop(plant, ctrl, delay=self.delay, umin=-v, umax=v, period=self.period,
                     sample_offset=self.sample_offset, name="paper")
 
+    @classmethod
+    def from_loop(cls, loop: Any) -> "AltitudeLoop":
+        """The paper's loop that a general loop is (the inverse of :meth:`to_loop`), or an error saying why not.
+
+        The paper's family: the plant ``gain / s`` or ``gain / (s (lag s + 1))`` with ``lag > 0``, P or PV
+        control, the command limited symmetrically (``umin = -umax``, or no limit), the whole delay on the
+        command (no ``output_delay``).  The estimators of :mod:`delaykit.identify.estimation` model this family
+        only; :func:`delaykit.identify.identification.identify` takes any plant.
+
+        Parameters
+        ----------
+        loop : Loop or AltitudeLoop
+            The loop (an ``AltitudeLoop`` is returned as it is).
+
+        Returns
+        -------
+        AltitudeLoop
+
+        Raises
+        ------
+        InvalidValueError
+            When the loop is outside the paper's family; the message names the part that is.
+        InvalidTypeError
+            When ``loop`` is not a loop object.
+
+        See Also
+        --------
+        to_loop, as_loop
+
+        Examples
+        --------
+        >>> from delaykit.models import Loop, Controller
+        >>> AltitudeLoop.from_loop(Loop("0.9/(s*(0.1*s+1))", Controller.p(1.2), delay=0.3, umin=-1, umax=1))
+        AltitudeLoop(kp=1.2, delay=0.3 s, vmax=±1 m/s, gain=0.9, lag=0.1 s, continuous)
+        >>> lp = AltitudeLoop(kp=2.0, delay=0.37, kv=0.3, period=0.065)
+        >>> AltitudeLoop.from_loop(lp.to_loop()) == lp
+        True
+        """
+        from .loop import Loop
+
+        if isinstance(loop, AltitudeLoop):
+            return loop
+        if not isinstance(loop, Loop):
+            raise InvalidTypeError(f"expected a Loop or an AltitudeLoop, got {type(loop).__name__}: {loop!r}")
+        where = f"the loop {loop!r} is not the paper's altitude loop"
+        num, den = loop.plant.num, loop.plant.den
+        order = den.size - 1
+        if not (num.size == 1 and 1 <= order <= 2 and den[-1] == 0.0 and den[-2] != 0.0
+                and (order == 1 or den[0] / den[1] > 0.0)):
+            raise InvalidValueError(f"{where}: its plant {loop.plant.to_string(times=' ')} is not gain/s or "
+                                    "gain/(s (lag s + 1)) with lag > 0")
+        gain = float(num[0] / den[-2])
+        lag = float(den[0] / den[-2]) if order == 2 else 0.0
+        c = loop.controller
+        if c.kind not in ("p", "pv"):
+            raise InvalidValueError(f"{where}: its controller is {c.kind!r}, not P or PV")
+        if loop.output_delay != 0.0:
+            raise InvalidValueError(f"{where}: it has a measurement delay ({loop.output_delay:g} s); give the "
+                                    "whole loop delay as the input delay")
+        if loop.umin != -loop.umax:
+            raise InvalidValueError(f"{where}: its command limits [{loop.umin:g}, {loop.umax:g}] are not "
+                                    "symmetric (the paper's +-vmax)")
+        pv = c.kind == "pv"
+        return cls(kp=c.kp, delay=loop.delay, kv=c.kv if pv else 0.0,
+                   vmax=None if math.isinf(loop.umax) else float(loop.umax),
+                   velocity=c.velocity if pv else "true", filter_wn=c.filter_wn if pv else 38.0,
+                   filter_zeta=c.filter_zeta if pv else 1.0, period=loop.period, sample_offset=loop.sample_offset,
+                   gain=gain, lag=lag)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (``vmax`` and ``period`` are ``null`` when absent)."""
         return dataclasses.asdict(self)
