@@ -132,6 +132,7 @@ def identify(
     model: str = typer.Option("auto", "--model", help="auto | ipdt | ipdt_lag | ipdt_speed | fopdt | sopdt."),
     baseline: str = typer.Option("initial", "--baseline", help="initial (mean before the drive moves) | fit (an offset per log)."),
     u_before: Optional[float] = typer.Option(None, "--u-before", help="The input before the log, when the log starts with the step (default 0)."),
+    resample: Optional[float] = typer.Option(None, "--resample", help="Put logs with an irregular clock on this uniform period, s (the drive held, the outputs interpolated; timing then known to this period)."),
     fresh_only: bool = typer.Option(False, "--fresh-only", help="Count only output samples that changed (a sensor slower than the log repeats its values)."),
     save: Optional[Path] = typer.Option(None, "--save", help="Write the model here (JSON), for `delaykit predict`."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
@@ -158,7 +159,8 @@ def identify(
         raise InvalidValueError(f"the loop options ({', '.join('--' + k.replace('_', '-') for k in given)}) describe "
                                 "the controller of a closed-loop fit: add --closed-loop, or drop them")
     drive = {"reference": reference} if closed_loop else {"input": input_col, "u_before": u_before}
-    exps = [read_experiment(f, outputs=[output] + ([rate] if rate else []), time=time_col, **drive) for f in logs]
+    exps = [read_experiment(f, outputs=[output] + ([rate] if rate else []), time=time_col, resample=resample, **drive)
+            for f in logs]
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=err,
@@ -202,6 +204,7 @@ def predict(
     logs: list[Path] = typer.Argument(..., help="Logs to predict (same columns as the model was fitted on)."),
     time_col: str = typer.Option("t", "--time", help="The time column (s)."),
     u_before: Optional[float] = typer.Option(None, "--u-before", help="The input before the log, when it starts with the step."),
+    resample: Optional[float] = typer.Option(None, "--resample", help="Put logs with an irregular clock on this uniform period, s (the drive held, the outputs interpolated; timing then known to this period)."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Overlay each log and the prediction here."),
 ) -> None:
@@ -214,7 +217,7 @@ def predict(
     outs = list(m.outputs) + ([m.rate] if m.rate else [])
     drive = ({"reference": m.drive_column} if m.closed_loop is not None
              else {"input": m.drive_column, "u_before": u_before})
-    exps = [read_experiment(f, outputs=outs, time=time_col, **drive) for f in logs]
+    exps = [read_experiment(f, outputs=outs, time=time_col, resample=resample, **drive) for f in logs]
     preds = [run_predict(m, e) for e in exps]
     if plot is not None:
         from ..plotting.identification import plot_predictions

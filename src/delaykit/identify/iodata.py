@@ -8,6 +8,13 @@ a header (UTF-8, a byte-order mark and ``\\r\\n`` line ends accepted, commas onl
 Deviation variables: the initial steady state is the mean of each signal before the drive first moves
 (:attr:`Experiment.onset`), or its first sample when the log starts with the move.
 
+A log whose clock is not uniform (a logger that writes when it can) is refused, unless it is put on a uniform
+clock with ``resample=h``: the drive is held (each logged command holds until the next, as a command does) and the
+outputs are interpolated linearly.  Each switch of the drive then moves to the next point of the new grid, so the
+timing of the log is known to within ``h`` only: choose ``h`` well below the delay's wanted precision (a tenth of
+the log's median interval, say).  Linear interpolation errs by at most ``dt^2 max|y''| / 8`` between samples
+``dt`` apart.
+
 Examples
 --------
 >>> import numpy as np
@@ -27,7 +34,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError
+from ..errors import InvalidTypeError, InvalidValueError, check_real
 from .flightlog import LogError, read_csv_rows
 
 __all__ = ["Experiment", "read_experiment", "CLOCK_TOLERANCE"]
@@ -61,6 +68,8 @@ class Experiment:
         The columns they came from.
     u_before : float or None
         The command before the log when the log starts with the move (default 0 then).
+    resampled_from : int or None
+        The number of samples on the log's own, non-uniform clock when it was resampled (``None``: as logged).
     """
 
     name: str
@@ -73,17 +82,32 @@ class Experiment:
     reference_name: str = "z_ref"
     u_before: float | None = None
     _onset: int = field(default=0)
+    resampled_from: int | None = None
 
     @classmethod
     def from_arrays(cls, t: Any, outputs: Mapping[str, Any], *, u: Any = None, r: Any = None, name: str = "data",
-                    input_name: str = "u", reference_name: str = "z_ref", u_before: float | None = None) -> "Experiment":
+                    input_name: str = "u", reference_name: str = "z_ref", u_before: float | None = None,
+                    resample: float | None = None) -> "Experiment":
         """Check and wrap arrays (see the class docstring for the fields).
+
+        ``resample``: put a log whose clock is not uniform on the uniform clock ``t[0] + k * resample`` (s), the
+        drive held and the outputs interpolated linearly (see the module docstring); ``None`` refuses such a log.
 
         Raises
         ------
         InvalidValueError
-            Non-finite values, times that are not increasing or not uniform, arrays of different lengths, no
-            drive or a drive that never moves (nothing to identify).
+            Non-finite values, times that are not increasing or not uniform (without ``resample``), arrays of
+            different lengths, no drive or a drive that never moves (nothing to identify), a ``resample`` period
+            that is not positive or leaves fewer than 10 samples.
+
+        Examples
+        --------
+        >>> t = np.array([0.0, 0.9, 2.1, 3.0, 3.8, 5.2, 6.0, 7.1, 7.9, 9.0, 10.1, 11.0])
+        >>> e = Experiment.from_arrays(t, {"y": 0.5 * t}, u=np.where(t >= 3.0, 1.0, 0.0), resample=0.5)
+        >>> e
+        Experiment('data': 23 samples every 0.5 s, input u, output y, moves at 3 s, resampled from 12)
+        >>> e.u[4:8], e.outputs["y"][:3]
+        (array([0., 0., 1., 1.]), array([0.  , 0.25, 0.5 ]))
         """
         if not isinstance(name, str):
             raise InvalidTypeError(f"name must be text, got {type(name).__name__}")
@@ -97,16 +121,29 @@ class Experiment:
                                     f"{tt[i]:g} s)")
         h = float(np.median(dt))
         bad = np.abs(dt - h) > CLOCK_TOLERANCE * h
-        if np.any(bad):
-            i = int(np.flatnonzero(bad)[0])
-            raise InvalidValueError(
-                f"{name}: the sample clock is not uniform (interval {dt[i]:.6g} s at t = {tt[i]:g} s, period "
-                f"{h:.6g} s, tolerance {CLOCK_TOLERANCE:.0%}); resample the log onto a uniform clock first")
         if not outputs:
             raise InvalidValueError(f"{name}: no output given")
         outs = {str(k): _array(name, str(k), v, tt.size) for k, v in outputs.items()}
         uu = None if u is None else _array(name, input_name, u, tt.size)
         rr = None if r is None else _array(name, reference_name, r, tt.size)
+        logged = None
+        if resample is not None:
+            hr = check_real("resample (s)", resample, minimum=0.0, strict=True)
+            grid = tt[0] + hr * np.arange(int(np.floor((tt[-1] - tt[0]) / hr * (1 + 1e-12))) + 1)
+            if grid.size < 10:
+                raise InvalidValueError(f"{name}: resample={hr:g} s leaves {grid.size} samples of the "
+                                        f"{tt[-1] - tt[0]:g} s log; identification needs at least 10")
+            held = np.searchsorted(tt, grid * (1 + 1e-15) + 1e-15, side="right") - 1  # the last sample at or before
+            outs = {k: np.interp(grid, tt, v) for k, v in outs.items()}
+            uu = None if uu is None else uu[held]
+            rr = None if rr is None else rr[held]
+            logged, tt, h = tt.size, grid, hr
+        elif np.any(bad):
+            i = int(np.flatnonzero(bad)[0])
+            raise InvalidValueError(
+                f"{name}: the sample clock is not uniform (interval {dt[i]:.6g} s at t = {tt[i]:g} s, period "
+                f"{h:.6g} s, tolerance {CLOCK_TOLERANCE:.0%}); put it on a uniform clock with resample=PERIOD "
+                f"(--resample PERIOD), e.g. {h / 10:.3g} s")
         if (uu is None) == (rr is None):
             raise InvalidValueError(f"{name}: give the input (open-loop fit) or the reference (closed-loop fit), "
                                     "exactly one")
@@ -123,7 +160,8 @@ class Experiment:
                                     f"nothing to identify{hint}")
         onset = int(np.flatnonzero(np.abs(drive - first) > MOVE_FRACTION * span)[0])
         return cls(name=name, t=tt, period=h, outputs=outs, u=uu, r=rr, input_name=input_name,
-                   reference_name=reference_name, u_before=None if u_before is None else float(u_before), _onset=onset)
+                   reference_name=reference_name, u_before=None if u_before is None else float(u_before), _onset=onset,
+                   resampled_from=logged)
 
     # -- baselines --------------------------------------------------------------------------------------
     @property
@@ -170,7 +208,8 @@ class Experiment:
         what = f"input {self.input_name}" if self.u is not None else f"reference {self.reference_name}"
         return (f"Experiment({self.name!r}: {self.t.size} samples every {self.period:.4g} s, {what}, output"
                 f"{'s' if len(self.outputs) > 1 else ''} {', '.join(self.outputs)}, moves at "
-                f"{self.t[self._onset] - self.t[0]:.4g} s)")
+                f"{self.t[self._onset] - self.t[0]:.4g} s"
+                f"{'' if self.resampled_from is None else f', resampled from {self.resampled_from}'})")
 
 
 def _array(name: str, col: str, values: Any, n: int | None = None) -> np.ndarray:
@@ -190,7 +229,8 @@ def _array(name: str, col: str, values: Any, n: int | None = None) -> np.ndarray
 
 
 def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input: str | None = None,  # noqa: A002
-                    reference: str | None = None, time: str = "t", u_before: float | None = None) -> Experiment:
+                    reference: str | None = None, time: str = "t", u_before: float | None = None,
+                    resample: float | None = None) -> Experiment:
     """Read one log from a CSV file with a header row.
 
     Parameters
@@ -207,6 +247,8 @@ def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input:
         The time column (s).
     u_before : float, optional
         The command before the log, when the log starts with the move (default 0).
+    resample : float, optional
+        A uniform period (s) to put a log with an irregular clock on (see :meth:`Experiment.from_arrays`).
 
     Raises
     ------
@@ -247,7 +289,7 @@ def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input:
         return Experiment.from_arrays(cols[time], {o: cols[o] for o in outputs},
                                       u=cols[input] if input else None, r=cols[reference] if reference else None,
                                       name=name, input_name=input or "u", reference_name=reference or "z_ref",
-                                      u_before=u_before)
+                                      u_before=u_before, resample=resample)
     except LogError:
         raise
     except InvalidValueError as exc:  # (its message starts with the file's name)
