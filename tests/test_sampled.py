@@ -218,6 +218,26 @@ def test_sampling_offset_does_not_change_the_model():
     assert np.array_equal(a.phi, b.phi)
 
 
+@pytest.mark.parametrize("plant, ctrl, delay, g", [
+    ("(s+1)/(s+2)", Controller.pi(0.5, 2.0), 0.22, 1.7),      # direct feedthrough: the sample reads the input
+    ("1/(s*(0.5*s+1))", Controller.pi(1.0, 0.3), 0.2, 0.6),
+])
+def test_plant_input_part_scales_like_a_plant_gain(plant, ctrl, delay, g):
+    # the parts of the model that come through the plant's input (a_plant, b_plant, k_plant), scaled by g, against
+    # the brute-force matrix of the loop whose plant is g times larger; and the poles are those of the command
+    # scaled by g (closed(g)), the same loop broken elsewhere
+    h = 0.05
+    loop = Loop(plant, ctrl, delay=delay, period=h)
+    mdl = sampled_model(loop)
+    d = g - 1.0
+    M = (mdl.a_open + d * mdl.a_plant) + np.outer(mdl.b_open + d * mdl.b_plant, mdl.k_row + d * mdl.k_plant)
+    tf = loop.plant
+    ref = brute_force_phi(loop.replace(plant=(g * tf.num, tf.den)), h)
+    assert_same_eigenvalues(M, ref, 1e-7)
+    assert_same_eigenvalues(mdl.closed(g), ref, 1e-7)
+    assert np.sort_complex(mdl.poles(g)).tolist() == np.sort_complex(np.linalg.eigvals(mdl.closed(g))).tolist()
+
+
 # -- closed forms -----------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("m", [0, 1, 2, 5, 11])
 def test_p_integrator_integer_delay_characteristic_polynomial(m):

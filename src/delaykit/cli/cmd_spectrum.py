@@ -121,8 +121,10 @@ def margins(
 
     Any loop (the loop options or --loop); saturation is ignored (the linearised loop).  A continuous loop's
     stability comes from its exact characteristic roots; a sampled loop's (--period) margins and stability are
-    those of its exact discrete-time model (its poles, and L(e^{jwh}) broken at the held command, on (0, pi/h]),
-    with the same JSON keys where they exist.  An unstable closed loop gets no margins.
+    those of its exact discrete-time model (its poles, and L(e^{jwh}) broken at the plant's input, on (0, pi/h];
+    without a compensator that is the held command), with the same JSON keys where they exist.  With a delay
+    compensator the gain margin is the factor on the plant's input (the compensator's model unchanged) and the
+    delay margin extra true delay.  An unstable closed loop gets no margins.
 
     The jitter margin (Kao & Lincoln 2004; JSON key jitter_margin, s) is the largest extra delay, varying
     arbitrarily fast anywhere between 0 and it on top of the loop's own delay, that is still guaranteed stable.

@@ -4,7 +4,8 @@
 of a retarded or neutral quasi-polynomial in a rectangle (the compiled inner loops are the private
 :mod:`._rootkernel`), :mod:`.stability` turns roots into the rightmost root, delay margins and stability maps,
 :mod:`.frequency` gives the exact frequency response and the gain, phase and delay margins of continuous loops, and
-:mod:`.sampled` gives the exact poles and margins of loops with a sampled (zero-order hold) controller, and
+:mod:`.sampled` gives the exact discrete-time model and poles of loops with a sampled (zero-order hold) controller
+and :mod:`.discrete_margins` their frequency response and margins, and
 :mod:`.jitter` the jitter margin: stability for a delay that varies arbitrarily fast within bounds.
 This layer reads models only; it is a peer of :mod:`delaykit.simulate` and neither imports the other.
 """

@@ -32,9 +32,10 @@ for other loops.  The Nyquist count uses ``P``, the zeros of ``A0 + A1 exp(-s Tm
 with the integrators' arcs as in :func:`~delaykit.spectrum.frequency.margins`; ``P - encirclements`` must be the
 closed loop's count of right-half-plane roots, which the tests check against the root finder.
 
-Not covered: a sampled compensated loop (a compensator's law with the held command and its own model delay is
-not analysed in discrete time here), and compensators whose ``L`` is not strictly proper in its delay-free part
-(none of delaykit's designs).
+Not covered here: a sampled compensated loop, whose margins (the loop broken at the same place, the plant's
+input, with the same meaning) come from its exact discrete-time model in
+:func:`delaykit.spectrum.sampled.sampled_margins`; and compensators whose ``L`` is not strictly proper in its
+delay-free part (none of delaykit's designs).
 
 Examples
 --------
@@ -250,8 +251,9 @@ def _loop(loop: Any) -> Loop:
     if loop.sampled:
         raise InvalidValueError(
             f"the loop is sampled (period {loop.period:g} s) and its controller is a {loop.controller.kind} "
-            "compensator: the frequency response and margins of a sampled compensated loop are not implemented; "
-            "analyse the continuous loop (period=None), or simulate the sampled one")
+            "compensator: this module analyses the continuous loop (period=None); the sampled loop's frequency "
+            "response and margins come from delaykit.spectrum.sampled (sampled_frequency_response, "
+            "sampled_margins)")
     return loop
 
 
