@@ -204,3 +204,27 @@ def test_margins_command_line_for_a_compensator_continuous_and_sampled():
     assert got["stable"] is sp.stable is False and got["gain_margin"] is None
     with pytest.raises(InvalidValueError, match="sampled"):
         margins(Loop("1/s", Compensator.smith("1/s", TM), delay=TM, period=0.065))
+
+
+def test_a_model_integrator_the_plant_lacks_leaves_a_structural_root_that_stability_ignores():
+    # A Smith predictor with an integrating model on a self-regulating plant: the characteristic quasi-polynomial
+    # keeps the window integral's root at 0 (the three polynomials do not vanish there, only their sum), which the
+    # loop never excites. The reference is independent of the quasi-polynomial: the exact sampled model's dominant
+    # rate (checked against a brute-force transition matrix in test_sampled_compensated.py) extrapolated to h = 0
+    # (Richardson: it converges at first order in h).
+    from delaykit.spectrum.sampled import sampled_spectrum
+    from delaykit.spectrum.stability import rightmost
+
+    law = Compensator.smith("1/s", 0.4, closed_loop_time=1.0)
+    lp = Loop("1/(s+0.1)", law, delay=0.4)
+    assert lp.structural_roots_kept() == 1 and Loop("1/s", law, delay=0.4).structural_roots_kept() == 0
+    assert abs(lp.characteristic()(0.0)) < 1e-12  # the structural root is in the quasi-polynomial
+    r1, r2 = (float(sampled_spectrum(lp.replace(period=h)).rates()[0].real) for h in (0.002, 0.001))
+    limit = 2.0 * r2 - r1
+    rm = rightmost(lp)
+    assert rm.stable and rm.abscissa == pytest.approx(limit, abs=2e-5)
+    m = margins(lp)
+    assert m.stable and math.isfinite(m.delay_margin)
+    # the delay margin brings the next root, not the structural one, to the axis
+    for f, stable in ((0.99, True), (1.01, False)):
+        assert rightmost(lp.replace(delay=0.4 + f * m.delay_margin)).stable is stable

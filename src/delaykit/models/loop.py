@@ -194,7 +194,8 @@ class Loop:
 
     def _compensated_characteristic(self) -> QuasiPolynomial:
         """``Dc Dp - Nu Dp - Nm Dp exp(-s Tm) - Ny Np exp(-s T)``: the law ``u = Gy ym + Gu u + Gm u(t - Tm)``
-        (each ``N / Dc``) closed around the plant, with the structural roots at 0 divided out."""
+        (each ``N / Dc``) closed around the plant, with the structural roots at 0 divided out where the three
+        polynomials share them (see :meth:`structural_roots_kept`)."""
         polys = self.compensated_polynomials()
         return QuasiPolynomial(list(polys), [0.0, self.controller.model_delay, self.total_delay])
 
@@ -211,6 +212,30 @@ class Loop:
         >>> [p.round(12).tolist() for p in Loop("1/s", c, delay=0.37).compensated_polynomials()]
         [[1.0, 5.0], [-5.0], [5.0]]
         """
+        return self._compensated_split()[0]
+
+    def structural_roots_kept(self) -> int:
+        """How many roots at ``s = 0`` of :meth:`characteristic` are the compensator's structural ones, left in.
+
+        A compensator with an integrating model fixes a window integral of the command by its history: a root
+        at 0 that the loop never excites (:meth:`Compensator.structural_zeros`).  It is divided out of the three
+        polynomials when they all vanish at 0; when the plant lacks the model's integrator (a model mismatch)
+        only their sum does, and the quotient is not a quasi-polynomial, so the root stays in
+        :meth:`characteristic` and this says how many stay. :func:`~delaykit.spectrum.stability.rightmost` and
+        the margins' stability leave them out; a root search of the quasi-polynomial lists them.
+
+        Examples
+        --------
+        >>> from delaykit.models.compensators import Compensator
+        >>> c = Compensator.smith("1/s", 0.4, closed_loop_time=1.0)
+        >>> Loop("1/s", c, delay=0.4).structural_roots_kept(), Loop("1/(s+0.1)", c, delay=0.4).structural_roots_kept()
+        (0, 1)
+        """
+        if not isinstance(self.controller, Compensator):
+            return 0
+        return self._compensated_split()[1]
+
+    def _compensated_split(self) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], int]:
         if not isinstance(self.controller, Compensator):
             raise InvalidValueError("compensated_polynomials() is for a loop whose controller is a Compensator; "
                                     f"this one has a {self.controller.kind} controller (see open_loop())")
@@ -228,11 +253,13 @@ class Loop:
         k = self.controller.structural_zeros()
         scale = max(float(np.max(np.abs(p))) for p in polys)
         polys = [np.where(np.abs(p) <= 1e-12 * scale, 0.0, p) for p in polys]  # cancellations' rounding
+        kept = k
         for _ in range(k):
             if any(abs(p[-1]) > 1e-9 * scale for p in polys if p.size):
-                break  # not a root here (a plant without the model's integrator): keep it
+                break  # not a root of each (a plant without the model's integrator): it stays, counted in `kept`
             polys = [p[:-1] if p.size > 1 else np.zeros(1) for p in polys]
-        return polys[0], polys[1], polys[2]
+            kept -= 1
+        return (polys[0], polys[1], polys[2]), kept
 
     def open_loop(self) -> tuple[np.ndarray, np.ndarray]:
         """Numerator and denominator of the loop transfer function without its delay, broken at the plant

@@ -412,6 +412,8 @@ def _closed_loop_stable(loop: Loop) -> bool:
     from .roots import find_roots, root_bound
     from .stability import _arrays, _rhp_count, rightmost
 
+    if loop.structural_roots_kept():  # structural roots at 0 left in the quasi-polynomial: rightmost leaves them out
+        return bool(rightmost(loop).stable)
     q = None
     if _compensated(loop):  # two delays (the plant's and the model's): the characteristic function's own arrays
         q = loop.characteristic()

@@ -17,6 +17,7 @@ import math
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
+import dataclasses
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -167,6 +168,23 @@ def _search(q: QuasiPolynomial, box: tuple[float, float, float, float], lines: t
     return _merge(q, box, parts, None, lines)
 
 
+def _without_zero_root(sp: Spectrum, k: int) -> Spectrum:
+    """``sp`` without ``k`` of the multiplicity of its root at ``s = 0`` (a compensator's structural roots that
+    :meth:`~delaykit.models.loop.Loop.characteristic` could not divide out), and its count reduced to match."""
+    if not sp.roots.size:
+        return sp
+    scale = max(1.0, float(np.max(np.abs(sp.roots))))
+    at = np.flatnonzero(np.abs(sp.roots) <= 1e-7 * scale)
+    if not at.size:
+        return sp
+    i = int(at[np.argmin(np.abs(sp.roots[at]))])
+    mult = sp.multiplicities.copy()
+    mult[i] -= min(k, int(mult[i]))
+    keep = mult > 0
+    count = None if sp.count is None else sp.count - (int(sp.multiplicities[i]) - int(mult[i]))
+    return dataclasses.replace(sp, roots=sp.roots[keep], multiplicities=mult[keep], count=count)
+
+
 def rightmost(q: QuasiPolynomial | AltitudeLoop | Loop, *, re_min: float | None = None) -> Rightmost:
     """The rightmost root (Im >= 0) and the spectral abscissa, from a region that provably holds it.
 
@@ -195,11 +213,16 @@ def rightmost(q: QuasiPolynomial | AltitudeLoop | Loop, *, re_min: float | None 
     >>> rightmost(Loop("0.62/(150*s+1)", Controller.pi(2.0, 0.02), delay=12.0))   # 12 s delay, 150 s lag
     Rightmost(root=-0.0077+0.0057j, abscissa=-0.0077, stable)
     """
+    kept = q.structural_roots_kept() if isinstance(q, Loop) else 0
     q = _as_qp(q)
     if q.kind == "advanced":
         raise InvalidValueError("an advanced quasi-polynomial has no rightmost root (its roots are unbounded to the "
                                 "right)")
     lines = neutral_lines(q) if q.kind == "neutral" else ()
+    if kept:  # a compensator's structural roots at 0 left in the quasi-polynomial: not the loop's
+        search = lambda q_, box, lines_: _without_zero_root(_search(q_, box, lines_), kept)  # noqa: E731
+    else:
+        search = _search
     tmax = max(q.delays)
     sym = all(c.imag == 0 for p in q.polys for c in p)
 
@@ -217,7 +240,7 @@ def rightmost(q: QuasiPolynomial | AltitudeLoop | Loop, *, re_min: float | None 
 
     if tmax == 0.0:  # a polynomial: every root lies in |s| <= R
         R = root_bound(q, 0.0)
-        return result(_search(q, (-R, R, lower(R), R), lines))
+        return result(search(q, (-R, R, lower(R), R), lines))
     unit = 1.0 / tmax
     line = max(lines) if lines else -math.inf
     closest = line + 2e-5 * unit
@@ -227,7 +250,7 @@ def rightmost(q: QuasiPolynomial | AltitudeLoop | Loop, *, re_min: float | None 
     R = root_bound(q, x)
     right = max(R, x + unit)  # no root lies right of R
     step = unit
-    sp = _search(q, (x, right, lower(R), R), lines)
+    sp = search(q, (x, right, lower(R), R), lines)
     for _ in range(_MAX_STRIPS):
         if sp.roots.size or not sp.certified:
             return result(sp, right)
@@ -245,7 +268,7 @@ def rightmost(q: QuasiPolynomial | AltitudeLoop | Loop, *, re_min: float | None 
         if R_new < 2.0 * R:
             step *= 2.0
         x, R = x_new, R_new
-        sp = _search(q, (x, right, lower(R), R), lines)
+        sp = search(q, (x, right, lower(R), R), lines)
     return result(_merge(q, sp.region, [], (RootStatus.SAMPLE_BUDGET,
                                              f"no root found in {_MAX_STRIPS} strips down to Re s = {x:.6g}"), lines),
                   x)
