@@ -43,7 +43,7 @@ _SCAN = 0.02
 
 
 def _abscissa(law: Compensator | Controller, plant: TransferFunction, delay: float) -> float:
-    return rightmost(Loop(plant, law, delay=delay).characteristic()).abscissa
+    return rightmost(Loop(plant, law, delay=delay)).abscissa  # (the loop: its structural roots at 0 left out)
 
 
 def _edge(law: Any, plant: TransferFunction, tm: float, inside: float, outside: float, tol: float) -> float:
