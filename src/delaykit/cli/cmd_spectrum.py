@@ -136,7 +136,6 @@ def margins(
     """
     from ..spectrum.frequency import frequency_grid, frequency_response
     from ..spectrum.frequency import margins as loop_margins
-    from ..spectrum.sampled import sampled_margins, sampled_response, sampled_spectrum
 
     if len(delays) > 1:
         raise InvalidValueError("margins takes one --delay, not a sweep")
@@ -146,7 +145,10 @@ def margins(
         raise InvalidValueError(f"--wmin {lo:g} must be below --wmax {hi:g} (rad/s): the frequency range is "
                                 f"{'empty' if lo == hi else 'reversed'}")
     sampled = loop.sampled
-    if sampled:
+    if sampled:  # (the discrete-time model's modules only where needed)
+        from ..spectrum.discrete_margins import sampled_margins
+        from ..spectrum.sampled import sampled_response, sampled_spectrum
+
         wn = math.pi / loop.period
         for flag, v in (("--wmin", lo), ("--wmax", hi)):
             if v is not None and v > wn:

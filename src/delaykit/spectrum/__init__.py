@@ -8,16 +8,25 @@ of a retarded or neutral quasi-polynomial in a rectangle (the compiled inner loo
 and :mod:`.discrete_margins` their frequency response and margins, and
 :mod:`.jitter` the jitter margin: stability for a delay that varies arbitrarily fast within bounds.
 This layer reads models only; it is a peer of :mod:`delaykit.simulate` and neither imports the other.
+
+The names are imported on first use (as in :mod:`delaykit.simulate`): ``from delaykit.spectrum import margins``
+loads the frequency-domain modules, not the sampled-loop ones nor the root finder's compiled kernels until a
+margin needs them.
 """
 
-from .frequency import Crossover, FrequencyResponse, Margins, frequency_grid, frequency_response, margins
-from .jitter import JitterMargin, jitter_bound, jitter_margin, stable_for
-from .lambert import (LambertRoots, complex_delays_for_root, delay_for_damping, dominant_root, kp_delay_for_damping,
-                      lambert_roots, lambert_w)
-from .roots import RootStatus, Spectrum, find_roots, neutral_lines, root_bound
-from .sampled import (SampledCrossover, SampledMargins, SampledModel, SampledSpectrum, SamplingComparison,
-                      compare_sampling, sampled_frequency_response, sampled_margins, sampled_model, sampled_spectrum)
-from .stability import DelayMargin, Rightmost, StabilityMap, delay_margin, rightmost, stability_map
+from .._lazy import by_module, lazy_exports
+
+_SOURCES = {
+    "lambert": ["LambertRoots", "lambert_w", "lambert_roots", "dominant_root", "kp_delay_for_damping",
+                "delay_for_damping", "complex_delays_for_root"],
+    "roots": ["RootStatus", "Spectrum", "find_roots", "neutral_lines", "root_bound"],
+    "stability": ["Rightmost", "DelayMargin", "StabilityMap", "rightmost", "delay_margin", "stability_map"],
+    "sampled": ["SampledModel", "SampledSpectrum", "sampled_model", "sampled_spectrum", "sampled_frequency_response"],
+    "discrete_margins": ["SampledCrossover", "SampledMargins", "SamplingComparison", "sampled_margins",
+                         "compare_sampling"],
+    "frequency": ["FrequencyResponse", "Margins", "Crossover", "frequency_response", "frequency_grid", "margins"],
+    "jitter": ["JitterMargin", "jitter_margin", "stable_for", "jitter_bound"],
+}
 
 __all__ = [
     "LambertRoots", "lambert_w", "lambert_roots", "dominant_root", "kp_delay_for_damping", "delay_for_damping",
@@ -29,3 +38,6 @@ __all__ = [
     "FrequencyResponse", "Margins", "Crossover", "frequency_response", "frequency_grid", "margins",
     "JitterMargin", "jitter_margin", "stable_for", "jitter_bound",
 ]
+
+
+__getattr__, __dir__ = lazy_exports(__name__, by_module(_SOURCES), globals())

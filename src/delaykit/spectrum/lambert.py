@@ -26,7 +26,6 @@ from dataclasses import dataclass
 from typing import Any, Iterable
 
 import numpy as np
-from scipy.optimize import brentq
 from scipy.special import lambertw
 
 from ..errors import InvalidValueError, check_real
@@ -244,6 +243,8 @@ def kp_delay_for_damping(zeta: float) -> float:
     z = check_real("zeta (damping ratio)", zeta, minimum=0.0, strict=True)
     if z >= 1.0:
         raise InvalidValueError(f"zeta must be below 1 (an oscillatory pair), got {z:g}; at zeta = 1, Kp Td = 1/e")
+    from scipy.optimize import brentq  # (here: importing scipy.optimize costs every command a good 0.3 s)
+
     lo, hi = 1.0 / _E + 1e-15, math.pi / 2
     return brentq(lambda k: _damping(k) - z, lo, hi, xtol=1e-15)
 
