@@ -36,13 +36,11 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 from scipy import stats
-from scipy.optimize import least_squares
 
-from ..errors import InvalidTypeError, InvalidValueError
-from ..models.altitude import as_loop
+from ..errors import InvalidTypeError
 from ..models.loop import Loop
 from ..models.transfer import TransferFunction
-from ..simulate.discrete import closed_loop_response, held_delay_model, held_response
+from ._fit import IdentificationError, _fit, _guesses, _jacobian, _Law, _law, _prepare, _Prepared, _Problem, _simulate
 from .iodata import Experiment
 from .noise import ar_covariance, cross_correlation, fit_ar, ljung_box
 from .structures import STRUCTURES, Structure, structure
@@ -53,108 +51,6 @@ __all__ = ["IdentifiedModel", "Candidate", "LogFit", "Prediction", "identify", "
 CORRELATION_WARNING = 0.9
 """Above this absolute correlation two time parameters are reported as traded against each other."""
 Z95 = float(stats.norm.ppf(0.975))
-
-
-class IdentificationError(InvalidValueError):
-    """The data or the settings do not allow an identification (the message says why)."""
-
-
-# -- the controller of a closed-loop fit --------------------------------------------------------------------
-@dataclass(frozen=True)
-class _Law:
-    kp: float
-    kv: float
-    umin: float
-    umax: float
-    period: float | None
-
-
-def _law(loop: Loop | None) -> _Law | None:
-    if loop is None:
-        return None
-    loop = as_loop(loop)
-    c = loop.controller
-    static = c.kind in ("p", "pv") and not c.filtered
-    if not static:
-        raise IdentificationError(
-            f"closed-loop identification takes a P or PV (true velocity) controller sampled at the log's rate; "
-            f"the loop's controller is {c!r} (identify open loop from the logged command instead)")
-    if loop.delay or loop.output_delay:
-        raise IdentificationError("the loop given for a closed-loop fit must have no delay: the delay is what is "
-                                  f"identified (got delay {loop.delay:g} s, output delay {loop.output_delay:g} s)")
-    return _Law(c.kp, c.kv if c.kind == "pv" else 0.0, loop.umin, loop.umax, loop.period)
-
-
-# -- one log, prepared ------------------------------------------------------------------------------------
-@dataclass(frozen=True, eq=False)
-class _Prepared:
-    exp: Experiment
-    outputs: tuple[str, ...]
-    rate: str | None
-    drive: np.ndarray          # deviation input (open) or reference (closed)
-    lo: float
-    hi: float
-    meas: dict[str, np.ndarray]  # deviation outputs
-    keep: dict[str, np.ndarray]  # indices of fresh samples per output
-    base: dict[str, float]
-    wander: dict[str, float]
-
-
-def _fresh(x: np.ndarray) -> np.ndarray:
-    keep = np.ones(x.size, bool)
-    keep[1:] = x[1:] != x[:-1]
-    return np.flatnonzero(keep)
-
-
-def _prepare(exp: Experiment, outputs: tuple[str, ...], rate: str | None, law: _Law | None,
-             fresh_only: bool) -> _Prepared:
-    for o in outputs + ((rate,) if rate else ()):
-        if o not in exp.outputs:
-            raise IdentificationError(f"{exp.name}: no output column {o!r} (it has {', '.join(exp.outputs)})")
-    if law is None and exp.closed:
-        raise IdentificationError(f"{exp.name}: a log with a reference needs the controller for a closed-loop fit "
-                                  "(give the loop), or give its input column for an open-loop fit")
-    if law is not None and not exp.closed:
-        raise IdentificationError(f"{exp.name}: a closed-loop fit needs the reference column; this log has an input")
-    names = outputs + ((rate,) if rate else ())
-    base = {o: exp.baseline(o) for o in names}
-    meas = {o: exp.outputs[o] - base[o] for o in names}
-    pre = exp.onset if not exp.starts_moving else 0
-    wander = {o: float(np.std(exp.outputs[o][:pre])) if pre >= 5 else math.nan for o in names}
-    keep = {o: (_fresh(exp.outputs[o]) if fresh_only else np.arange(exp.t.size)) for o in names}
-    if law is None:
-        drive = exp.u - exp.drive_baseline  # type: ignore[operator]
-        lo, hi = -math.inf, math.inf
-    else:
-        if law.period is None or abs(law.period - exp.period) > 1e-3 * exp.period:
-            raise IdentificationError(
-                f"{exp.name}: the controller's period ({law.period} s) must equal the log's sample period "
-                f"({exp.period:.6g} s): closed-loop fits simulate the controller at the log's samples")
-        r0 = exp.drive_baseline
-        y0 = base[outputs[0]]
-        u0 = min(max(law.kp * (r0 - y0), law.umin), law.umax)
-        # u - u0 = clip(kp (r - y), umin, umax) - u0 = clip(kp (r - y0 - u0 / kp - (y - y0)), umin - u0, umax - u0)
-        drive = exp.r - y0 - (u0 / law.kp if law.kp else 0.0)  # type: ignore[operator]
-        lo, hi = law.umin - u0, law.umax - u0
-    return _Prepared(exp, outputs, rate, np.ascontiguousarray(drive), lo, hi, meas, keep, base, wander)
-
-
-def _simulate(prep: _Prepared, plant: TransferFunction, delay: float, law: _Law | None,
-              cache: dict | None = None) -> dict[str, np.ndarray]:
-    key = (prep.exp.period, delay)
-    model = None if cache is None else cache.get(key)
-    if model is None:
-        model = held_delay_model(plant, prep.exp.period, delay)
-        if cache is not None:
-            cache[key] = model
-    if law is None:
-        res = held_response(model, prep.drive)
-    else:
-        res = closed_loop_response(model, prep.drive, kp=law.kp, kv=law.kv, umin=prep.lo, umax=prep.hi)
-    out = {prep.outputs[0]: res.y}
-    if prep.rate:
-        out[prep.rate] = res.dy
-    return out
 
 
 # -- results ----------------------------------------------------------------------------------------------
@@ -295,230 +191,6 @@ class IdentifiedModel:
                 f"{len(self.logs)} log{'s' if len(self.logs) != 1 else ''})")
 
 
-# -- the fit ----------------------------------------------------------------------------------------------
-class _Problem:
-    """Residuals of one structure on prepared logs, in fitting coordinates (log scale for positive values)."""
-
-    def __init__(self, st: Structure, preps: list[_Prepared], law: _Law | None, weights: dict[str, float],
-                 fit_offset: bool) -> None:
-        self.st, self.preps, self.law, self.w, self.fit_offset = st, preps, law, weights, fit_offset
-        self.pos = np.array(st.positive)
-        self.fit_bias = law is None and st.integrating
-
-    def to_phys(self, z: np.ndarray) -> np.ndarray:
-        return np.where(self.pos, np.exp(np.clip(z, -60.0, 60.0)), z)
-
-    def to_fit(self, p: np.ndarray) -> np.ndarray:
-        return np.where(self.pos, np.log(np.maximum(p, 1e-300)), p)
-
-    def blocks(self, p: np.ndarray) -> list[tuple[_Prepared, str, np.ndarray]]:
-        """Raw (unweighted) residual blocks ``(log, output, r)`` at the fresh samples, after the per-log linear
-        nuisance parameters (output offsets, the input's hover level) are projected out."""
-        plant = self.st.plant(p)
-        out = []
-        cache: dict = {}
-        for prep in self.preps:
-            sim = _simulate(prep, plant, float(p[-1]), self.law, cache)
-            names = list(sim)
-            res = {o: prep.meas[o][prep.keep[o]] - sim[o][prep.keep[o]] for o in names}
-            cols: dict[str, list[np.ndarray]] = {o: [] for o in names}
-            if self.fit_bias:  # the input that holds the output still differs from the logged baseline
-                unit = held_response(cache[(prep.exp.period, float(p[-1]))], np.ones(prep.exp.t.size))
-                for o in names:
-                    cols[o].append((unit.dy if o == prep.rate else unit.y)[prep.keep[o]])
-            if self.fit_offset:
-                for o in names:
-                    for q in names:
-                        if o != prep.rate:
-                            cols[q].append(np.full(res[q].size, 1.0 if q == o else 0.0))
-            if cols[names[0]]:
-                X = np.vstack([np.column_stack(cols[o]) / self.w[o] for o in names])
-                y = np.concatenate([res[o] / self.w[o] for o in names])
-                if np.all(np.isfinite(X)) and np.all(np.isfinite(y)):
-                    beta = np.linalg.lstsq(X, y, rcond=None)[0]
-                    for o in names:
-                        res[o] = res[o] - np.column_stack(cols[o]) @ beta
-                else:  # a trial point where the simulation overflowed: no projection, the cost rejects it
-                    res = {o: np.full(r.size, np.nan) for o, r in res.items()}
-            out.extend((prep, o, res[o]) for o in names)
-        return out
-
-    @property
-    def linear_count(self) -> int:
-        """Number of per-log linear nuisance parameters projected out."""
-        per = int(self.fit_bias) + (int(self.fit_offset) * len(self.preps[0].outputs))
-        return per * len(self.preps)
-
-    def weighted(self, p: np.ndarray) -> np.ndarray:
-        """All residual blocks, each divided by its output's weight, in one vector."""
-        return np.concatenate([r / self.w[o] for _, o, r in self.blocks(p)])
-
-    def residuals(self, z: np.ndarray) -> np.ndarray:
-        p = self.to_phys(z)
-        with np.errstate(all="ignore"):  # a trial point far out may overflow: it is rejected by its cost
-            try:
-                r = self.weighted(p) if np.all(np.isfinite(p)) else None
-            except (InvalidValueError, np.linalg.LinAlgError, ValueError):
-                r = None
-        if r is None or not np.all(np.isfinite(r)):
-            return np.full(self.size, 1e6)
-        return r
-
-    @property
-    def size(self) -> int:
-        return sum(prep.keep[o].size for prep in self.preps for o in prep.outputs + ((prep.rate,) if prep.rate else ()))
-
-
-def _guesses(st: Structure, preps: list[_Prepared], law: _Law | None) -> list[np.ndarray]:
-    """Starting points from the data: the response's onset for the delay, its slope or level for the gain."""
-    prep = preps[0]
-    e = prep.exp
-    o = prep.outputs[0]
-    y = prep.meas[o]
-    i0 = e.onset
-    span = float(np.ptp(y)) or 1.0
-    noise = prep.wander[o] if not math.isnan(prep.wander[o]) else 0.0
-    thr = max(4.0 * noise, 0.05 * span)
-    moved = np.flatnonzero(np.abs(y[i0:] - y[i0]) > thr)
-    t_resp = float(e.t[i0 + moved[0]] - e.t[i0]) if moved.size else 0.1 * e.duration
-    t_resp = max(t_resp, 2.0 * e.period)
-    h = e.period
-    d = prep.drive
-    if law is None:
-        du = float(d[-max(3, d.size // 20):].mean()) or float(d[np.argmax(np.abs(d))])
-        if st.integrating:
-            area = float(np.sum(d[:-1]) * h)
-            gain = (float(y[-1]) / area) if area else 1.0
-        else:
-            gain = float(y[-max(3, y.size // 20):].mean()) / du if du else 1.0
-    else:
-        gain = 1.0
-        if not st.integrating:  # the loop's steady state y = K kp (r - y): a small error means a large gain
-            ys = float(y[-max(3, y.size // 20):].mean())
-            rs = float(d[-1])
-            err_ss = abs(rs - ys)
-            gain = abs(ys) / (abs(law.kp) * err_ss) if law.kp and err_ss > 0.02 * abs(rs) else 50.0
-            gain = min(max(gain, 0.1), 100.0)
-    if not math.isfinite(gain) or gain == 0.0:
-        gain = 1.0
-    # time to 63 % of the final change after the onset, for non-integrating plants
-    yf = float(y[-max(3, y.size // 20):].mean())
-    cross = np.flatnonzero(np.abs(y[i0:]) >= 0.632 * abs(yf)) if yf else np.array([], int)
-    t63 = float(e.t[i0 + cross[0]] - e.t[i0]) if cross.size else 0.3 * e.duration
-    starts = []
-    for frac in (0.3, 0.7, 1.0):
-        td = frac * t_resp
-        tau = max(t63 - td, 2.0 * h)
-        lag = max(0.5 * t_resp, 2.0 * h)
-        if law is not None and not st.integrating:
-            tau = max(tau, gain)  # near an integrator of unit gain: K / (tau s + 1) ~ (K / tau) / s
-        vals = {"gain": gain, "delay": td, "lag": lag, "time_constant": tau, "time_constant2": max(0.2 * tau, h),
-                "wn": 2.0 / lag, "zeta": 0.7, "zero": lag}
-        if st.name == "sopdt":
-            vals["time_constant"] = max(0.8 * tau, 2.0 * h)
-        starts.append(np.array([vals[p] for p in st.params]))
-    return starts
-
-
-def _delay_bound(preps: list[_Prepared]) -> float:
-    return min(0.5 * p.exp.duration for p in preps)
-
-
-def _grid_starts(st: Structure, preps: list[_Prepared]) -> list[np.ndarray]:
-    """A coarse grid of delays and time scales (gain 1: it is solved for linearly in open loop)."""
-    dur = min(p.exp.duration for p in preps)
-    h = preps[0].exp.period
-    out = []
-    for td in np.linspace(0.0, 0.2 * dur, 6):
-        for ts in np.geomspace(2 * h, dur / 3.0, 5):
-            vals = {"gain": 1.0, "delay": td, "lag": ts, "time_constant": ts, "time_constant2": 0.25 * ts,
-                    "wn": 1.0 / ts, "zeta": 0.8, "zero": ts}
-            out.append(np.array([vals[p] for p in st.params]))
-    return out
-
-
-def _with_best_gain(prob: _Problem, p: np.ndarray) -> tuple[np.ndarray, float]:
-    """In open loop the output is linear in the gain (and the projection keeps it affine): solve it exactly."""
-    p = p.copy()
-    if prob.law is not None or prob.st.params[0] != "gain":
-        r = prob.residuals(prob.to_fit(p))
-        return p, float(np.dot(r, r))
-    p[0] = 0.0
-    with np.errstate(all="ignore"):
-        r0 = prob.weighted(p)
-        p[0] = 1.0
-        d = prob.weighted(p) - r0
-    dd = float(np.dot(d, d))
-    if not np.isfinite(dd) or dd == 0.0:
-        return p, math.inf
-    p[0] = -float(np.dot(r0, d)) / dd
-    r = r0 + p[0] * d
-    return p, float(np.dot(r, r))
-
-
-def _fit(prob: _Problem, starts: list[np.ndarray], explore: bool = True) -> np.ndarray:
-    """Least squares from the most promising starts; then the delay hops across sample boundaries, where the
-    cost is only piecewise smooth (a held input's edge crossing a sample), until no neighbour is better.  Returns
-    the physical parameters."""
-    hi_delay = _delay_bound(prob.preps)
-    h = prob.preps[0].exp.period
-    lb = np.full(prob.st.size, -np.inf)
-    ub = np.full(prob.st.size, np.inf)
-    lb[-1], ub[-1] = 0.0, hi_delay
-    cand = [np.array(p0, dtype=float) for p0 in starts] + (_grid_starts(prob.st, prob.preps) if explore else [])
-    scored = []
-    for p0 in cand:
-        p0[-1] = min(max(p0[-1], 0.0), hi_delay * 0.999)
-        p0 = np.where(prob.pos, np.maximum(p0, 1e-6), p0)
-        p0, c = _with_best_gain(prob, p0) if explore else (p0, float(np.sum(prob.residuals(prob.to_fit(p0)) ** 2)))
-        if math.isfinite(c) and (prob.st.params[0] != "gain" or not prob.pos[0] or p0[0] > 0):
-            scored.append((c, p0))
-    scored.sort(key=lambda x: x[0])
-
-    def run(p0: np.ndarray) -> Any:
-        p0 = p0.copy()
-        p0[-1] = min(max(p0[-1], 0.0), hi_delay * 0.999)
-        try:
-            with np.errstate(all="ignore"):
-                return least_squares(prob.residuals, prob.to_fit(p0), bounds=(lb, ub), method="trf", x_scale="jac",
-                                     diff_step=1e-6, xtol=1e-10, ftol=1e-10, max_nfev=300)
-        except (ValueError, np.linalg.LinAlgError):
-            return None
-
-    best = None
-    for _, p0 in scored[:2]:  # the two most promising starts
-        fit = run(p0)
-        if fit is not None and (best is None or fit.cost < best.cost):
-            best = fit
-    if best is None:
-        raise IdentificationError(f"the {prob.st.name} fit failed from every starting point")
-    # a fast lag and the delay trade against each other; a fit that lost the lag (or the delay) may sit in the
-    # other valley: try half the delay given to the lag
-    fast = {"ipdt_lag": "lag", "sopdt": "time_constant2", "fopdt": "time_constant"}.get(prob.st.name)
-    if fast is not None:
-        i = prob.st.params.index(fast)
-        p0 = prob.to_phys(best.x)
-        for share in (0.5, -0.5):
-            q = p0.copy()
-            move = share * (p0[-1] if share > 0 else p0[i])
-            q[-1] -= move
-            q[i] += move
-            if q[-1] >= 0 and q[i] > 0:
-                fit = run(q)
-                if fit is not None and fit.cost < best.cost * (1 - 1e-9):
-                    best = fit
-    for direction in (-1.0, 1.0):
-        while True:
-            p0 = prob.to_phys(best.x)
-            p0[-1] += direction * h
-            if not 0.0 <= p0[-1] < hi_delay:
-                break
-            fit = run(p0)
-            if fit is None or fit.cost >= best.cost * (1 - 1e-9):
-                break
-            best = fit
-    return prob.to_phys(best.x)
-
 
 @dataclass(frozen=True)
 class _Outcome:
@@ -571,26 +243,6 @@ def _fit_structure(st: Structure, preps: list[_Prepared], law: _Law | None, fit_
     rr = np.concatenate([r for _, o, r in blocks if o == first])
     rms = float(np.sqrt(np.mean(rr * rr)))
     return _Outcome(st, p, cov, loglik, k, row, rms, blocks, noise, prob)
-
-
-def _jacobian(prob: _Problem, p: np.ndarray) -> np.ndarray:
-    """Sensitivities of the weighted residuals to the physical parameters, by central differences (one-sided for
-    a delay at its bound 0)."""
-    cols = []
-    last = p.size - 1
-    for i in range(p.size):
-        h = 1e-6 * max(abs(p[i]), 1e-3)
-        if i == last:
-            h = max(h, 1e-7)
-        a, b = p.copy(), p.copy()
-        a[i] += h
-        b[i] -= h
-        width = 2 * h
-        if i == last and b[i] < 0:
-            b[i], width = p[i], h
-        cols.append((prob.weighted(a) - prob.weighted(b)) / width)
-    # residual = measured - model, so d(residual)/dp = -d(model)/dp; the sign does not matter for covariances
-    return np.column_stack(cols)
 
 
 def _criteria(o: _Outcome) -> tuple[float, float]:
@@ -709,13 +361,14 @@ def identify(
     fit_offset = baseline == "fit"
 
     say = progress or (lambda msg: None)
-    results: dict[str, _Outcome] = {}
-    for nm in names:
+    fitted: dict[str, _Outcome] = {}
+    for nm in sorted(names, key=_FIT_ORDER.index):  # simpler structures first: they start the richer ones
         st = STRUCTURES[nm]
         say(f"fitting {nm}")
         starts = _guesses(st, preps, law)
-        starts += _nested_starts(st, results)
-        results[nm] = _fit_structure(st, preps, law, fit_offset, starts)
+        starts += _nested_starts(st, fitted)
+        fitted[nm] = _fit_structure(st, preps, law, fit_offset, starts)
+    results = {nm: fitted[nm] for nm in names}
     crit = {nm: _criteria(o) for nm, o in results.items()}
     lolo: dict[str, float] = {}
     if len(names) > 1 and len(preps) >= 2:
@@ -731,6 +384,9 @@ def identify(
     return _assemble(best, preps, law, crit[chosen], cands, criterion, per_log, fit_offset, say)
 
 
+_FIT_ORDER = ("ipdt", "ipdt_lag", "fopdt", "sopdt", "ipdt_speed")
+
+
 def _nested_starts(st: Structure, done: dict[str, _Outcome]) -> list[np.ndarray]:
     """Start a richer structure from a simpler one already fitted (its delay and gain kept)."""
     out = []
@@ -741,6 +397,10 @@ def _nested_starts(st: Structure, done: dict[str, _Outcome]) -> list[np.ndarray]
         g, lag, d = done["ipdt_lag"].p
         out.append(np.array([g, 1.0 / max(lag, 1e-3), 1.0, 0.1 * lag, d]))
         out.append(np.array([g, 2.0 / max(lag, 1e-3), 0.5, lag, d]))
+    if st.name == "ipdt_speed" and "sopdt" in done:  # K wn^2 (Tz s + 1)/(s (...)) -> K Tz wn^2/(...) as Tz grows
+        g, t1, t2, d = done["sopdt"].p
+        tz = 1e3 * (t1 + t2 + d)
+        out.append(np.array([g / tz, 1.0 / math.sqrt(t1 * t2), 0.5 * (t1 + t2) / math.sqrt(t1 * t2), tz, d]))
     if st.name == "sopdt" and "fopdt" in done:
         g, tau, d = done["fopdt"].p
         out.append(np.array([g, 0.9 * tau, 0.1 * tau + 0.2 * d, 0.5 * d]))

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
+from numba import njit
 
 from ..errors import InvalidValueError
 from ..models.transfer import TransferFunction
@@ -57,6 +58,8 @@ class Structure:
         Which parameters must be positive (fitted on a log scale).
     integrating : bool
         Whether the plant has an integrator.
+    code : int
+        Which compiled realisation :meth:`realise` uses (-1: the companion form of :meth:`plant`).
     """
 
     name: str
@@ -66,6 +69,7 @@ class Structure:
     positive: tuple[bool, ...]
     integrating: bool
     _coeffs: Callable[[np.ndarray], tuple[list[float], list[float]]]
+    code: int = -1
 
     @property
     def size(self) -> int:
@@ -85,6 +89,25 @@ class Structure:
             raise InvalidValueError(f"{self.name} takes {self.size} values ({', '.join(self.params)}), got {v.size}")
         num, den = self._coeffs(v)
         return TransferFunction(num, den)
+
+    def realise(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A state-space realisation ``(A, B, C)`` of the plant (strictly proper: no ``D``), built directly from
+        the parameters in a well-scaled form (a cascade of the physical lags, not the companion form of
+        :meth:`plant`), for the fits that simulate thousands of trial plants.  Same transfer function as
+        :meth:`plant`; no checks.
+
+        Examples
+        --------
+        >>> A, B, C = STRUCTURES["sopdt"].realise(np.array([2.0, 0.5, 0.1, 0.0]))
+        >>> A.tolist(), B.tolist(), C.tolist()
+        ([[-2.0, 0.0], [10.0, -10.0]], [4.0, 0.0], [0.0, 1.0])
+        """
+        if self.code >= 0:
+            return _realise(self.code, np.asarray(values, dtype=float))
+        A, B, C, D = self.plant(values).state_space()
+        if D:
+            raise InvalidValueError(f"{self.name}: realise() is for strictly proper plants")
+        return np.atleast_2d(A), np.asarray(B, float), np.asarray(C, float)
 
     def canonical(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The values in a unique order (``sopdt``: ``T1 >= T2``), and the permutation applied."""
@@ -118,19 +141,41 @@ def _sopdt(v: np.ndarray) -> tuple[list[float], list[float]]:
     return [v[0]], [v[1] * v[2], v[1] + v[2], 1.0]
 
 
+@njit(cache=True)
+def _realise(code, v):  # pragma: no cover (compiled)
+    """``(A, B, C)`` of structure number ``code`` (:attr:`Structure.code`) at the values ``v``: the physical
+    cascade (a lag's output, then the next lag or the integrator), every entry of the size of a rate."""
+    if code == 0:  # ipdt: y' = K u
+        return np.array([[0.0]]), np.array([v[0]]), np.array([1.0])
+    if code == 1:  # ipdt_lag: w' = (K u - w) / T, y' = w
+        a = 1.0 / v[1]
+        return np.array([[-a, 0.0], [1.0, 0.0]]), np.array([v[0] * a, 0.0]), np.array([0.0, 1.0])
+    if code == 2:  # ipdt_speed: (s^2 + 2 zeta wn s + wn^2) z = u in q1 = wn^2 z, q2 = wn z'; speed K (q1 + wn Tz q2)
+        k, wn, zeta, tz = v[0], v[1], v[2], v[3]
+        return (np.array([[0.0, wn, 0.0], [-wn, -2.0 * zeta * wn, 0.0], [k, k * wn * tz, 0.0]]),
+                np.array([0.0, wn, 0.0]), np.array([0.0, 0.0, 1.0]))
+    if code == 3:  # fopdt
+        a = 1.0 / v[1]
+        return np.array([[-a]]), np.array([v[0] * a]), np.array([1.0])
+    # sopdt: two lags in cascade
+    a = 1.0 / v[1]
+    b = 1.0 / v[2]
+    return np.array([[-a, 0.0], [b, -b]]), np.array([v[0] * a, 0.0]), np.array([0.0, 1.0])
+
+
 STRUCTURES: dict[str, Structure] = {
     s.name: s for s in (
         Structure("ipdt", "integrating plus dead time", ("gain", "delay"), ("y/(u s)", "s"), (False, False), True,
-                  _ipdt),
+                  _ipdt, 0),
         Structure("ipdt_lag", "integrating with a first-order lag plus dead time", ("gain", "lag", "delay"),
-                  ("y/(u s)", "s", "s"), (False, True, False), True, _ipdt_lag),
+                  ("y/(u s)", "s", "s"), (False, True, False), True, _ipdt_lag, 1),
         Structure("ipdt_speed", "integrating behind a second-order speed loop with a zero, plus dead time",
                   ("gain", "wn", "zeta", "zero", "delay"), ("y/(u s)", "rad/s", "", "s", "s"),
-                  (False, True, True, True, False), True, _ipdt_speed),
+                  (False, True, True, True, False), True, _ipdt_speed, 2),
         Structure("fopdt", "first order plus dead time", ("gain", "time_constant", "delay"), ("y/u", "s", "s"),
-                  (False, True, False), False, _fopdt),
+                  (False, True, False), False, _fopdt, 3),
         Structure("sopdt", "second order plus dead time", ("gain", "time_constant", "time_constant2", "delay"),
-                  ("y/u", "s", "s", "s"), (False, True, True, False), False, _sopdt),
+                  ("y/u", "s", "s", "s"), (False, True, True, False), False, _sopdt, 4),
     )
 }
 """Every structure by name."""

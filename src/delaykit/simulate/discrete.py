@@ -40,7 +40,13 @@ from ..errors import InvalidValueError, check_real
 from ..models.hold import hold_matrices, split_delay
 from ..models.transfer import TransferFunction
 
-__all__ = ["HeldDelayModel", "HeldResponse", "held_delay_model", "held_response", "closed_loop_response"]
+__all__ = ["HeldDelayModel", "HeldResponse", "held_delay_model", "held_response", "closed_loop_response",
+           "held_matrices_of"]
+
+
+STIFF = 1e6
+"""Above this ``sum |A| h`` (a mode a million times faster than the period), :func:`held_matrices_of` leaves the
+compiled series (whose rounding grows with the squarings: 1e-13 to 1e-11 below it, as SciPy's) for SciPy's."""
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -166,14 +172,13 @@ def held_delay_model(plant: TransferFunction, period: float, delay: float = 0.0)
 
 
 @njit(cache=True)
-def _run(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive, closed, kp, kv, lo, hi):  # pragma: no cover
+def _run_into(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive, closed, kp, kv, lo, hi, y, dy, u,
+              x, xn):  # pragma: no cover (compiled)
+    """One log from rest into ``y``, ``dy`` and ``u`` (``x``, ``xn``: work vectors of the plant's order)."""
     n = phi.shape[0]
     N = drive.shape[0]
-    x = np.zeros(n)
-    xn = np.zeros(n)
-    u = np.zeros(N)
-    y = np.empty(N)
-    dy = np.empty(N)
+    for i in range(n):
+        x[i] = 0.0
     lag_now = m + 1 if fractional else m  # the command acting at a sample instant was issued lag_now samples ago
     for k in range(N):
         j = k - lag_now
@@ -208,7 +213,157 @@ def _run(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive, closed, kp, k
             xn[i] = s
         for i in range(n):
             x[i] = xn[i]
+
+
+@njit(cache=True)
+def _run(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive, closed, kp, kv, lo, hi):  # pragma: no cover
+    N = drive.shape[0]
+    n = phi.shape[0]
+    u = np.zeros(N)
+    y = np.empty(N)
+    dy = np.empty(N)
+    _run_into(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive, closed, kp, kv, lo, hi, y, dy, u,
+              np.zeros(n), np.zeros(n))
     return y, dy, u
+
+
+@njit(cache=True)
+def _run_logs(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive, starts, closed, kp, kv, lo, hi, unit,
+              y, dy, uy, udy):  # pragma: no cover (compiled)
+    """Several logs laid end to end (log ``i`` is ``drive[starts[i]:starts[i + 1]]``, each from rest, each with its
+    own limits ``lo[i]``, ``hi[i]``) into ``y`` and ``dy``; with ``unit``, also each log's response to a held unit
+    command (open loop) into ``uy`` and ``udy``."""
+    n = phi.shape[0]
+    x = np.zeros(n)
+    xn = np.zeros(n)
+    u = np.zeros(drive.shape[0])
+    for i in range(starts.shape[0] - 1):
+        a = starts[i]
+        b = starts[i + 1]
+        _run_into(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive[a:b], closed, kp, kv, lo[i], hi[i],
+                  y[a:b], dy[a:b], u[a:b], x, xn)
+        if unit:
+            for k in range(a, b):
+                u[k] = 1.0
+            _run_into(phi, g_early, g_late, c, d, ca, cb, m, fractional, u[a:b], False, 0.0, 0.0, lo[i], hi[i],
+                      uy[a:b], udy[a:b], u[a:b], x, xn)
+
+
+@njit(cache=True)
+def _mul_into(X, Y, Z):  # pragma: no cover (compiled)
+    """Z = X @ Y for small square matrices (explicit loops: no BLAS call overhead)."""
+    n = X.shape[0]
+    for i in range(n):
+        for j in range(n):
+            s = 0.0
+            for k in range(n):
+                s += X[i, k] * Y[k, j]
+            Z[i, j] = s
+
+
+@njit(cache=True)
+def _aug_expm(A, B, t, E):  # pragma: no cover (compiled)
+    """``E = exp([[A t, B t], [0, 0]])`` ((n+1) x (n+1)): ``E[:n, :n] = Phi(t)``, ``E[:n, n] = Gamma(t)``.
+
+    Scaling and squaring with a Taylor series on ``||M / 2^s||_1 <= 1/2``, summed until a term is below 1e-18 of
+    the sum (at most degree 18, as :func:`_expm`)."""
+    n = A.shape[0]
+    q = n + 1
+    X = np.zeros((q, q))
+    for i in range(n):
+        for j in range(n):
+            X[i, j] = A[i, j] * t
+        X[i, n] = B[i] * t
+    norm = 0.0
+    for j in range(q):
+        c = 0.0
+        for i in range(q):
+            c += abs(X[i, j])
+        norm = max(norm, c)
+    s = 0
+    while norm > 0.5:
+        norm *= 0.5
+        s += 1
+    sc = 0.5 ** s
+    for i in range(q):
+        for j in range(q):
+            X[i, j] *= sc
+    T = np.eye(q)
+    W = np.empty((q, q))
+    for i in range(q):
+        for j in range(q):
+            E[i, j] = 1.0 if i == j else 0.0
+    for k in range(1, 19):
+        _mul_into(T, X, W)
+        big = 0.0
+        for i in range(q):
+            for j in range(q):
+                T[i, j] = W[i, j] / k
+                E[i, j] += T[i, j]
+                big = max(big, abs(T[i, j]))
+        if big < 1e-18:
+            break
+    for _ in range(s):
+        _mul_into(E, E, W)
+        for i in range(q):
+            for j in range(q):
+                E[i, j] = W[i, j]
+
+
+@njit(cache=True)
+def _held_arrays(A, B, h, f):  # pragma: no cover (compiled)
+    """``phi``, ``g_early`` and ``g_late`` of a realisation ``(A, B)`` for the delay's fraction ``f`` of a period
+    (two exponentials: over ``f`` and over ``h - f``; ``phi = Phi(h - f) Phi(f)``)."""
+    n = A.shape[0]
+    phi = np.zeros((n, n))
+    ge = np.zeros(n)
+    gl = np.zeros(n)
+    Er = np.empty((n + 1, n + 1))
+    _aug_expm(A, B, h - f, Er)
+    for i in range(n):
+        gl[i] = Er[i, n]
+    if f > 0.0:
+        Ef = np.empty((n + 1, n + 1))
+        _aug_expm(A, B, f, Ef)
+        for i in range(n):
+            for j in range(n):
+                acc = 0.0
+                for k in range(n):
+                    acc += Er[i, k] * Ef[k, j]
+                phi[i, j] = acc
+            acc = 0.0
+            for k in range(n):
+                acc += Er[i, k] * Ef[k, n]
+            ge[i] = acc
+    else:
+        for i in range(n):
+            for j in range(n):
+                phi[i, j] = Er[i, j]
+    return phi, ge, gl
+
+
+def held_matrices_of(A: np.ndarray, B: np.ndarray, period: float, delay: float
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, bool]:
+    """``(phi, g_early, g_late, m, fractional)`` of :class:`HeldDelayModel` for a realisation ``(A, B)`` given as
+    arrays (no checks: the caller's realisation is proper and its period positive).  Identification calls this
+    for every trial plant; matrices far from what the compiled exponential is meant for go to SciPy's.
+
+    Examples
+    --------
+    >>> phi, ge, gl, m, frac = held_matrices_of(np.array([[0.0]]), np.array([2.0]), 0.1, 0.25)
+    >>> phi.tolist(), ge.round(12).tolist(), gl.round(12).tolist(), m, frac
+    ([[1.0]], [0.1], [0.1], 2, True)
+    """
+    m, f = split_delay(delay, period)
+    if not np.abs(A).sum() * period <= STIFF:
+        phi_h, gam_h = _phi_gamma(A, B, period)
+        if f > 0.0:
+            phi_r, gam_r = _phi_gamma(A, B, period - f)
+            _, gam_f = _phi_gamma(A, B, f)
+            return phi_h, phi_r @ gam_f, gam_r, m, True
+        return phi_h, np.zeros_like(gam_h), gam_h, m, False
+    phi, ge, gl = _held_arrays(A, B, float(period), float(f))
+    return phi, ge, gl, m, f > 0.0
 
 
 def _drive(name: str, values: np.ndarray) -> np.ndarray:
