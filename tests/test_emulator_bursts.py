@@ -282,8 +282,8 @@ def test_loopback_watchdog_and_physics_keep_running_in_a_silent_burst():
     D, W, v = 0.1, 0.5, 0.5
 
     def measure():
-        with DroneEmulator(EmulatorConfig(**FREE, seed=1, rate=50.0, delay=D, lag=0.0, noise=0.0, watchdog=W,
-                                          bursts=((2.6, 1.2),))) as emu:
+        with DroneEmulator(EmulatorConfig(**FREE, seed=1, rate=50.0, delay=D, vehicle="lag", lag=0.0, noise=0.0,
+                                          watchdog=W, bursts=((2.6, 1.2),))) as emu:
             c = _Client(emu)
             c.take_off()
             c.hover_until(2.5)
@@ -325,7 +325,7 @@ def test_loopback_actuator_delay_follows_a_replayed_trace(tmp_path):
     trace_file = tmp_path / "trace.csv"
     trace_file.write_text("t,delay\n50,0.20\n53,0.35\n56,0.15\n")
     for _ in range(3):
-        with DroneEmulator(EmulatorConfig(**FREE, seed=1, delay=0.05, lag=0.0, noise=0.0, rate=100.0,
+        with DroneEmulator(EmulatorConfig(**FREE, seed=1, delay=0.05, vehicle="lag", lag=0.0, noise=0.0, rate=100.0,
                                           delay_trace=DelayTrace.from_csv(trace_file))) as emu:
             c = _Client(emu)
             c.take_off()

@@ -48,8 +48,8 @@ def test_default_behaviour_and_accepted_forms():
 
 def _drive(delay_schedule=None, *, delay=0.25, **cfg):
     """An emulator that is not started (no threads), its clock set by hand: take off, and return it."""
-    emu = DroneEmulator(EmulatorConfig(**FREE, delay=delay, lag=0.0, noise=0.0, delay_schedule=delay_schedule,
-                                       **cfg))
+    emu = DroneEmulator(EmulatorConfig(**FREE, delay=delay, vehicle="lag", lag=0.0, noise=0.0,
+                                       delay_schedule=delay_schedule, **cfg))
     emu._phys.t = emu._t0
     enc = ATEncoder()
     emu._handle(enc.ref(takeoff=True), emu._t0 + 0.01)
@@ -126,7 +126,7 @@ def test_loopback_flight_measures_the_delay_moving_from_025_to_040():
     # the loopback's scheduling (a few ms), and a run where the machine stalled the packets is repeated.
     switch = 4.0
     for _ in range(3):
-        with DroneEmulator(EmulatorConfig(**FREE, seed=1, delay=0.25, lag=0.0, noise=0.0, rate=100.0,
+        with DroneEmulator(EmulatorConfig(**FREE, seed=1, delay=0.25, vehicle="lag", lag=0.0, noise=0.0, rate=100.0,
                                           delay_schedule=[(switch, 0.40)])) as emu:
             c = Client(emu)
             c.take_off()

@@ -26,11 +26,12 @@ def _fly(emu, tmp_path, **kw):
 @pytest.mark.realtime
 @pytest.mark.parametrize("kind", ["smith", "filtered-smith", "predictor"])
 def test_each_compensator_flies_its_law_and_settles(tmp_path, kind):
-    # designed for the emulator's loop delay (0.27 + 2 x 0.01 s) on the integrator model; the drone has no lag here.
+    # designed for the emulator's loop delay (0.27 + 2 x 0.01 s) on the integrator model; the drone is that model
+    # (the lag vehicle, no lag).
     # Real time: these designs tolerate a delay error of only -40 to +50 % (filtered Smith, Tc 37 ms), so a
     # loaded machine that delays the law's packets by tens of milliseconds makes them ring; they fly alone.
     law = tune_compensator(kind, "1/s", 0.29)
-    with emulator(delay=0.27, link_delay=0.01, lag=0.0, noise=0.002, seed=3) as emu:
+    with emulator(delay=0.27, link_delay=0.01, vehicle="lag", lag=0.0, noise=0.002, seed=3) as emu:
         res = _fly(emu, tmp_path, controller=law, steps=(0.8,), step_duration=4.0)
     assert res.completed, res.reason
     assert res.controller["controller"]["kind"] == kind
@@ -84,7 +85,7 @@ def test_the_monitor_follows_a_delay_that_moves_raises_the_alarm_and_reschedules
 
     runner = CliRunner()
     change = 13.0
-    with emulator(delay=0.25, link_delay=0.005, lag=0.0, noise=0.003, seed=8,
+    with emulator(delay=0.25, link_delay=0.005, vehicle="lag", lag=0.0, noise=0.003, seed=8,
                   delay_schedule=[(change, 0.40)]) as emu:
         res = runner.invoke(app, ["fly", "--host", "127.0.0.1", "--at-port", str(emu.ports["at"]), "--navdata-port",
                                   str(emu.ports["navdata"]), "--controller", "smith", "--model-delay", "0.26",

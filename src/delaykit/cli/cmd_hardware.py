@@ -22,7 +22,13 @@ def emulate(
     video_port: int = typer.Option(5555, "--video-port", help="TCP video port (accepted, nothing sent)."),
     control_port: int = typer.Option(5559, "--control-port", help="TCP control port (configuration text)."),
     delay: float = typer.Option(0.30, "--delay", help="Actuator delay, s."),
-    lag: float = typer.Option(0.05, "--lag", help="Lag of the drone's own speed loop, s."),
+    vehicle: str = typer.Option("speed_loop", "--vehicle", help="speed_loop: the PX4's identified speed loop and a hover wander (default) | lag: a first-order speed lag, no wander."),
+    lag: float = typer.Option(0.05, "--lag", help="With --vehicle lag: the lag of the drone's own speed loop, s."),
+    speed_wn: Optional[float] = typer.Option(None, "--speed-wn", help="With --vehicle speed_loop: its natural frequency, rad/s (default 1.53, the PX4's)."),
+    speed_zeta: Optional[float] = typer.Option(None, "--speed-zeta", help="With --vehicle speed_loop: its damping ratio (default 2.4)."),
+    speed_zero: Optional[float] = typer.Option(None, "--speed-zero", help="With --vehicle speed_loop: its zero's time constant, s (default 3.9)."),
+    wander: Optional[float] = typer.Option(None, "--wander", help="Hover wander, stationary RMS, m (default: the vehicle's own, 7 mm on the speed loop, 0 on the lag)."),
+    wander_time: Optional[float] = typer.Option(None, "--wander-time", help="The wander's correlation time, s (default 2)."),
     link_delay: float = typer.Option(0.0, "--link-delay", help="Extra one-way link delay, s."),
     noise: float = typer.Option(0.005, "--noise", help="Ultrasonic altitude noise (standard deviation), m."),
     rate: float = typer.Option(15.0, "--rate", help="Navdata rate, Hz."),
@@ -46,8 +52,11 @@ def emulate(
     if delay_schedule is not None and delay_trace is not None:
         raise InvalidValueError("give --delay-schedule or --delay-trace, not both: the schedule replaces --delay and "
                                 "the trace is added to it")
+    vehicle_opts = {k: v for k, v in (("speed_wn", speed_wn), ("speed_zeta", speed_zeta), ("speed_zero", speed_zero),
+                                       ("wander_time", wander_time)) if v is not None}
     cfg = EmulatorConfig(host=host, at_port=at_port, navdata_port=navdata_port, video_port=video_port,
-                         control_port=control_port, delay=delay, lag=lag, link_delay=link_delay, noise=noise,
+                         control_port=control_port, delay=delay, vehicle=vehicle, lag=lag, wander=wander,
+                         **vehicle_opts, link_delay=link_delay, noise=noise,
                          rate=rate, loss=loss, jitter=jitter, seed=seed,
                          delay_schedule=None if delay_schedule is None else parse_schedule(delay_schedule),
                          delay_trace=None if delay_trace is None else read_delay_trace(delay_trace),

@@ -71,11 +71,13 @@ def demo(
     compensate: bool = typer.Option(True, "--compensate/--no-compensate", help="Also design the delay compensators and fly the best."),
     varying_steps: int = typer.Option(6, "--varying-steps", help="Emulator only: steps of the flight whose delay grows mid-flight (0: none)."),
     delay_jump: float = typer.Option(0.15, "--delay-jump", help="Emulator only: how much that flight's delay grows, s."),
+    vehicle: str = typer.Option("speed_loop", "--vehicle", help="Emulator only: speed_loop (the PX4's speed loop and hover wander, not the estimator's model) | lag."),
+    identify_plant: bool = typer.Option(True, "--identify/--no-identify", help="Identify the plant from the P flights and predict the PV flight with it."),
     yes: bool = typer.Option(False, "--yes", help="Do not ask before taking off a real drone."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
 ) -> None:
-    """The whole pipeline: fly P step tests, estimate the delay, design PV gains and the delay compensators, fly
-    them, fly once more while the emulator's delay grows (the delay monitor's alarm), and report."""
+    """The whole pipeline: fly P step tests, estimate the delay, identify the plant, design PV gains and the delay
+    compensators, fly them, fly once more while the emulator's delay grows (the delay monitor's alarm), and report."""
     from ..paper.demo import run_demo
 
     if p_steps < 1:
@@ -85,7 +87,8 @@ def demo(
     check_real("--delay-jump (s)", delay_jump, minimum=0.0, maximum=2.0)
     with err.status("starting") as st:
         rep = run_demo(out_dir, host=host, seed=seed, p_steps=p_steps, step_duration=step_duration,
-                       compensate=compensate, varying_steps=varying_steps, delay_jump=delay_jump,
+                       compensate=compensate, varying_steps=varying_steps, delay_jump=delay_jump, vehicle=vehicle,
+                       identify_plant=identify_plant,
                        confirm=confirm_real(host, yes) if host else None, status=lambda m: st.update(m))
     if as_json:
         print(json.dumps(rep.to_dict(), indent=2, default=str))
@@ -98,14 +101,27 @@ def demo(
               highlight=False)
     import numpy as np
 
-    pm = np.mean([m["settling_time"] or np.nan for m in rep.p_metrics])
-    vm = np.mean([m["settling_time"] or np.nan for m in rep.pv_metrics])
-    out.print(f"PV design: Kp = {rep.pv_kp:g}, Kv = {rep.kv:g} ({rep.kv_source}). Mean settling time: P {pm:.2f} s, "
-              f"PV {vm:.2f} s.", highlight=False)
+    def settling(ms: list[dict]) -> str:
+        ts = [m["settling_time"] for m in ms]
+        done = [t for t in ts if t is not None and np.isfinite(t)]
+        text = f"{np.mean(done):.2f} s" if done else "none settled"
+        return text + (f" ({len(ts) - len(done)} of {len(ts)} not settled)" if done and len(done) < len(ts) else "")
+
+    ident = rep.identification
+    if ident and "structure" in ident:
+        lo, hi = ident["delay_ci"]
+        truth = "" if ident["true_delay"] is None else f"; truth {ident['true_delay']:.4f} s"
+        pv = ident["pv_flight"]
+        out.print(f"Identified: {ident['structure']}, dead time {ident['delay']:.4f} s (95 % {lo:.4f} to {hi:.4f}"
+                  f"{truth}); PV flight predicted within {1e3 * pv['identified_rms']:.1f} mm RMS (the paper model: "
+                  f"{1e3 * pv['paper_rms']:.1f} mm).", highlight=False)
+    elif ident:
+        out.print(f"[yellow]The plant was not identified:[/] {ident.get('error')}", highlight=False)
+    out.print(f"PV design: Kp = {rep.pv_kp:g}, Kv = {rep.kv:g} ({rep.kv_source}). Mean settling time: P "
+              f"{settling(rep.p_metrics)}, PV {settling(rep.pv_metrics)}.", highlight=False)
     if rep.comp_metrics:
-        cm = np.mean([m["settling_time"] or np.nan for m in rep.comp_metrics])
         out.print(f"Compensator flown: {rep.compensator['chosen']} (model delay {rep.compensator['model_delay']:.4f} s); "
-                  f"mean settling time {cm:.2f} s.", highlight=False)
+                  f"mean settling time {settling(rep.comp_metrics)}.", highlight=False)
     if rep.varying_flight is not None:
         v = rep.varying_flight
         out.print(f"Delay moving from {rep.varying_truth['before']:.3f} to {rep.varying_truth['after']:.3f} s: "

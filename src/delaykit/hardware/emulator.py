@@ -7,13 +7,32 @@ then demo packets at ``rate`` Hz); TCP accepted on the video and control ports (
 
 The vertical motion: while flying, a progressive PCMD commands the speed ``gaz * control_vz_max``; it takes
 effect ``delay`` seconds after the command arrives (the actuator delay), plus ``link_delay`` on the way in,
-and the actual speed follows it through a first-order lag ``lag``.  The altitude is integrated exactly
-between events.  The altitude and the vertical speed in navdata are the true ones ``link_delay`` before
-sending (the altitude plus Gaussian ultrasonic noise, in millimetres).  Navdata packets go out every ``1 / rate``
-seconds, each one late by a uniform random ``[0, jitter]`` seconds, and dropped with probability ``loss`` (the
-sequence number still counts it, so a receiver sees the gap).  Take-off climbs to 0.8 m, landing descends to the
-ground; the state bits follow take-off, flying, landing, emergency and the communication watchdog (2 s without a
-command: hover).
+and the actual speed follows it through the vehicle's speed loop, ``vehicle``:
+
+* ``"speed_loop"`` (the default): the closed second-order speed loop with a zero that delaykit identifies from
+  the PX4 flights (README, "Identifying a plant and its delay from real data"),
+  ``v/v_cmd = wn^2 (Tz s + 1)/(s^2 + 2 zeta wn s + wn^2)`` (``speed_wn``, ``speed_zeta``, ``speed_zero``;
+  defaults wn 1.53 rad/s, zeta 2.4, Tz 3.9 s), with unit DC gain, so that ``control_vz_max`` keeps meaning the
+  speed reached at ``gaz = 1`` (the PX4 fit's gain 0.79 belongs to that vehicle's own command chain, not to a
+  speed loop: it is not copied);
+  plus a slow coloured wander of the hovering altitude, an Ornstein-Uhlenbeck process of stationary RMS
+  ``wander`` (m) and correlation time ``wander_time`` (s), drawn from its own generator seeded by ``seed`` on a
+  fixed 2 ms grid from :meth:`DroneEmulator.start` (so a seed gives the same wander whatever the threads'
+  timing), and added to the altitude while flying or hovering (it starts at 0 when the emulator starts);
+* ``"lag"``: a first-order lag ``lag`` (s), and no wander unless ``wander`` is given: delaykit's simplest
+  model, the estimator's own.
+
+The altitude is integrated exactly between events (the command is piecewise constant: the lag's closed form, or
+the closed-form step of the speed loop and the altitude, three states, ``DroneEmulator._speed_step``); the wander
+is the exact discretisation of its process on its grid, held in between.  The altitude and the vertical speed in
+navdata are the true ones ``link_delay`` before sending (the altitude plus Gaussian ultrasonic noise, in
+millimetres; the speed is the speed loop's output: the wander, a position disturbance without a derivative, is
+not in it).
+
+Navdata packets go out every ``1 / rate`` seconds, each one late by a uniform random ``[0, jitter]`` seconds, and
+dropped with probability ``loss`` (the sequence number still counts it, so a receiver sees the gap).  Take-off
+climbs to 0.8 m, landing descends to the ground; the state bits follow take-off, flying, landing, emergency and
+the communication watchdog (2 s without a command: hover).
 
 **The loop delay** a controller sees is ``delay + 2 * link_delay`` (:attr:`DroneEmulator.true_delay`):
 actuator plus the network both ways; on loopback the real network adds microseconds.
@@ -69,261 +88,21 @@ import errno
 import math
 import random
 import socket
-import sys
 import threading
 import time
 from collections import deque
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from ..errors import InvalidTypeError, InvalidValueError, PortError, PortNumberError, check_real
-from .ardrone import CtrlState, Demo, NavState, ProtocolError, REF_EMERGENCY, REF_TAKEOFF, encode_navdata, parse_at
+from ..errors import PortError, PortNumberError
+from .ardrone import REF_EMERGENCY, REF_TAKEOFF, CtrlState, Demo, NavState, ProtocolError, encode_navdata, parse_at
+from .emulator_config import _WANDER_TICK, VEHICLES, EmulatorConfig, _wakeups, check_bursts
 from .stamps import enable_stamps, recv_stamped
 
-__all__ = ["EmulatorConfig", "DroneEmulator", "PortError", "PortNumberError", "check_bursts"]
+__all__ = ["EmulatorConfig", "DroneEmulator", "PortError", "PortNumberError", "check_bursts", "VEHICLES"]
 
 # PortError (a port that cannot be bound: an OSError, not a bad value) and PortNumberError (a port number out
 # of range: a bad value) are defined in delaykit.errors and re-exported here
-
-
-def _check_schedule(value: Any) -> tuple[tuple[float, float], ...] | None:
-    """``delay_schedule`` as a tuple of ``(t, delay)`` floats, or a delaykit error naming the bad value."""
-    if value is None:
-        return None
-    if hasattr(value, "times") and hasattr(value, "delays") and getattr(value, "function", None) is None:
-        value = list(zip(value.times, value.delays))  # a delaykit.simulate.varying.DelaySchedule
-    if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
-        raise InvalidValueError(f"delay_schedule must be a list of (t, delay) pairs, got {value!r}")
-    pairs: list[tuple[float, float]] = []
-    for i, pair in enumerate(value):
-        try:
-            t, d = pair
-        except (TypeError, ValueError):
-            raise InvalidValueError(f"delay_schedule[{i}] must be a (t, delay) pair, got {pair!r}") from None
-        t = check_real(f"delay_schedule[{i}] time (s since start)", t, minimum=0.0)
-        d = check_real(f"delay_schedule[{i}] delay (s)", d, minimum=0.0, maximum=5.0)
-        if pairs and not t > pairs[-1][0]:
-            raise InvalidValueError(f"delay_schedule times must increase: delay_schedule[{i}] time {t:g} s is not "
-                                    f"after {pairs[-1][0]:g} s")
-        pairs.append((t, d))
-    if not pairs:
-        raise InvalidValueError("delay_schedule must hold at least one (t, delay) pair (or be None)")
-    return tuple(pairs)
-
-
-_VARYING = __name__.rsplit(".", 2)[0] + ".simulate.varying"  # its classes, recognised without importing it
-_MAX_DELAY = 5.0  # the largest actuator delay (s)
-
-
-def check_bursts(bursts: Any, rate: float, *, labels: Any = None) -> tuple[tuple[float, float, float], ...]:
-    """Navdata bursts as ``(start, duration, rate)`` floats sorted by start, or a delaykit error naming the bad one.
-
-    Parameters
-    ----------
-    bursts : iterable of (start, duration[, rate]) or None
-        ``start`` (s since the emulator started, at least 0), ``duration`` (s, more than 0) and the navdata
-        ``rate`` during the burst (Hz, at least 0 and below ``rate``; 0 if left out: no navdata at all).  Bursts
-        may touch but not overlap.
-    rate : float
-        The normal navdata rate (Hz).
-    labels : sequence of str, optional
-        How the errors name each burst (default ``bursts[i]``; the command line passes its ``--burst`` texts).
-
-    Returns
-    -------
-    tuple of (float, float, float)
-
-    Raises
-    ------
-    InvalidValueError, InvalidTypeError
-        Naming the burst and the value at fault.
-
-    Examples
-    --------
-    >>> check_bursts([(5.0, 1.0, 2.0), (2, 0.5)], 15.0)
-    ((2.0, 0.5, 0.0), (5.0, 1.0, 2.0))
-    """
-    if bursts is None:
-        return ()
-    varying = sys.modules.get(_VARYING)
-    if isinstance(bursts, (str, bytes)) or not hasattr(bursts, "__iter__") or (
-            varying is not None and isinstance(bursts, varying.DelayModel)):
-        raise InvalidTypeError(f"bursts must be a list of (start, duration, rate) triples, got {bursts!r}")
-    items = list(bursts)
-    name = (lambda i: f"bursts[{i}]") if labels is None else (lambda i: str(labels[i]))
-    checked: list[tuple[int, float, float, float]] = []
-    for i, item in enumerate(items):
-        if varying is not None and isinstance(item, varying.Burst):
-            raise InvalidTypeError(f"{name(i)} is a simulator Burst ({item!r}), which adds command delay; the "
-                                   "emulator's bursts lower the navdata rate: give (start, duration, rate)")
-        parts = tuple(item) if hasattr(item, "__iter__") and not isinstance(item, (str, bytes)) else None
-        if parts is None or len(parts) not in (2, 3):
-            raise InvalidValueError(f"{name(i)} must be (start, duration) or (start, duration, rate), got {item!r}")
-        start = check_real(f"{name(i)} start (s since start)", parts[0], minimum=0.0)
-        duration = check_real(f"{name(i)} duration (s)", parts[1], minimum=0.0, strict=True)
-        if not math.isfinite(start + duration):
-            raise InvalidValueError(f"{name(i)} must end at a finite time, got start {start:g} s, duration "
-                                    f"{duration:g} s")
-        r = check_real(f"{name(i)} rate (Hz)", parts[2] if len(parts) == 3 else 0.0, minimum=0.0)
-        if not r < rate:
-            raise InvalidValueError(f"{name(i)} rate {r:g} Hz must be below the normal navdata rate {rate:g} Hz "
-                                    "(a burst lowers the rate)")
-        checked.append((i, start, duration, r))
-    checked.sort(key=lambda b: b[1])
-    for (i, s0, d0, _), (j, s1, _, _) in zip(checked, checked[1:]):
-        if s1 < s0 + d0:
-            raise InvalidValueError(f"{name(j)} (from {s1:g} s) overlaps {name(i)} ({s0:g} to {s0 + d0:g} s): "
-                                    "bursts must not overlap")
-    return tuple((s0, d0, r) for _, s0, d0, r in checked)
-
-
-def _check_trace(value: Any, delay: float) -> tuple[tuple[float, float], ...] | None:
-    """``delay_trace`` as ``(t, extra delay)`` steps in emulator time, the first at 0 (see the module docstring)."""
-    if value is None:
-        return None
-    varying = sys.modules.get(_VARYING)
-    if varying is not None and isinstance(value, varying.DelayModel):
-        if not isinstance(value, varying.DelayTrace):
-            raise InvalidTypeError(f"delay_trace must be a DelayTrace or (t, delay) records, got {value!r} (a "
-                                   "DelaySchedule goes to delay_schedule)")
-        if value.interpolation != "previous":
-            raise InvalidValueError(f"the emulator holds each record of delay_trace until the next "
-                                    f"(interpolation='previous'); {value.source} has interpolation="
-                                    f"{value.interpolation!r}")
-        times, delays, start, where = value.times, value.delays, value.start, f" of {value.source}"
-    else:
-        if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
-            raise InvalidValueError(f"delay_trace must be a DelayTrace or a list of (t, delay) records, got "
-                                    f"{value!r}")
-        times, delays = [], []
-        for i, pair in enumerate(value):
-            try:
-                t, d = pair
-            except (TypeError, ValueError):
-                raise InvalidValueError(f"delay_trace[{i}] must be a (t, delay) record, got {pair!r}") from None
-            t = check_real(f"delay_trace[{i}] time (s)", t)
-            d = check_real(f"delay_trace[{i}] delay (s)", d, minimum=0.0)
-            if times and not t > times[-1]:
-                raise InvalidValueError(f"delay_trace times must increase: delay_trace[{i}] time {t:g} s is not "
-                                        f"after {times[-1]:g} s")
-            times.append(t)
-            delays.append(d)
-        if not times:
-            raise InvalidValueError("delay_trace must hold at least one (t, delay) record (or be None)")
-        start, where = times[0], ""
-    first = max(bisect.bisect_right(times, start) - 1, 0)  # the record in force at the start
-    steps = [(0.0, float(delays[first]))] + [(float(t) - start, float(d)) for t, d in
-                                            zip(times[first + 1:], delays[first + 1:])]
-    worst = max(range(first, len(delays)), key=lambda i: delays[i])  # (records before the start are not replayed)
-    if delay + delays[worst] > _MAX_DELAY:
-        raise InvalidValueError(f"delay_trace record {worst}{where} (t = {times[worst]:g} s): delay {delay:g} s + "
-                                f"{delays[worst]:g} s = {delay + delays[worst]:g} s is above the emulator's largest "
-                                f"actuator delay, {_MAX_DELAY:g} s")
-    return tuple(steps)
-
-
-def _wakeups(rate: float, bursts: tuple[tuple[float, float, float], ...]) -> Any:
-    """The navdata thread's wake-up times (s since start) and whether it sends then, in order, without end.
-
-    The normal grid ``k / rate`` (``k = 1, 2, ...``) always wakes it (physics and watchdog), sending unless the
-    time falls in a burst; a burst ``(s, d, r)`` adds the sends ``s + j / r`` (``j = 0, 1, ...``) before ``s + d``.
-
-    Examples
-    --------
-    >>> import itertools
-    >>> [(round(t, 3), send) for t, send in itertools.islice(_wakeups(10.0, ((0.25, 0.3, 5.0),)), 7)]
-    [(0.1, True), (0.2, True), (0.25, True), (0.3, False), (0.4, False), (0.45, True), (0.5, False)]
-    """
-    def burst_sends() -> Any:
-        for s, d, r in bursts:
-            j = 0
-            while r > 0 and s + j / r < s + d:
-                yield s + j / r
-                j += 1
-
-    sends = burst_sends()
-    nb = next(sends, math.inf)
-    b, k = 0, 1
-    while True:
-        tn = k / rate
-        if nb <= tn:
-            yield nb, True
-            nb = next(sends, math.inf)
-            continue
-        while b < len(bursts) and tn >= bursts[b][0] + bursts[b][1]:
-            b += 1
-        yield tn, not (b < len(bursts) and tn >= bursts[b][0])
-        k += 1
-
-
-def _check_port(name: str, p: Any) -> int:
-    if isinstance(p, bool) or not isinstance(p, int) or not 0 <= p <= 65535:
-        raise PortNumberError(f"{name} must be a port number from 0 to 65535 (0 = any free one), got {p!r}")
-    return p
-
-
-@dataclass(frozen=True)
-class EmulatorConfig:
-    """Settings of the emulated drone (see the module docstring).
-
-    ``delay_schedule``: ``(t, delay)`` pairs, ``t`` in seconds since the emulator started, that change the
-    actuator delay mid-flight (None: ``delay`` throughout).
-
-    ``delay_trace``: a recorded delay replayed, added to ``delay``: a
-    :class:`~delaykit.simulate.varying.DelayTrace` or its ``(t, delay)`` records (replayed from the first); kept as
-    ``(t, extra delay)`` steps in seconds since start, the first at 0.  Not with ``delay_schedule``.
-
-    ``bursts``: ``(start, duration, rate)`` triples (s since start, s, Hz below ``rate``; a pair means rate 0)
-    during which the navdata rate falls; kept sorted by start (:func:`check_bursts`).
-
-    Examples
-    --------
-    >>> EmulatorConfig(delay=0.25, delay_schedule=[(20.0, 0.40)]).delay_schedule
-    ((20.0, 0.4),)
-    >>> EmulatorConfig(delay=0.2, delay_trace=[(100.0, 0.05), (101.5, 0.1)]).delay_trace
-    ((0.0, 0.05), (1.5, 0.1))
-    >>> EmulatorConfig(bursts=[(5.0, 1.0)]).bursts
-    ((5.0, 1.0, 0.0),)
-    """
-
-    host: str = "127.0.0.1"
-    at_port: int = 5556
-    navdata_port: int = 5554
-    video_port: int = 5555
-    control_port: int = 5559
-    delay: float = 0.30
-    lag: float = 0.05
-    link_delay: float = 0.0
-    noise: float = 0.005
-    rate: float = 15.0
-    loss: float = 0.0
-    jitter: float = 0.0
-    seed: int | None = None
-    takeoff_altitude: float = 0.8
-    takeoff_speed: float = 0.7
-    landing_speed: float = 0.6
-    watchdog: float = 2.0
-    delay_schedule: Any = None
-    delay_trace: Any = None
-    bursts: Any = ()
-
-    def __post_init__(self) -> None:
-        for name in ("at_port", "navdata_port", "video_port", "control_port"):
-            _check_port(name, getattr(self, name))
-        check_real("delay (s)", self.delay, minimum=0.0, maximum=5.0)
-        check_real("lag (s)", self.lag, minimum=0.0, maximum=5.0)
-        check_real("link_delay (s)", self.link_delay, minimum=0.0, maximum=2.0)
-        check_real("noise (m)", self.noise, minimum=0.0, maximum=1.0)
-        check_real("rate (Hz)", self.rate, minimum=1.0, maximum=1000.0)
-        check_real("loss", self.loss, minimum=0.0, maximum=0.9)
-        check_real("jitter (s)", self.jitter, minimum=0.0, maximum=0.5)
-        object.__setattr__(self, "delay_schedule", _check_schedule(self.delay_schedule))
-        if self.delay_schedule is not None and self.delay_trace is not None:
-            raise InvalidValueError("give delay_schedule or delay_trace, not both: a schedule replaces the actuator "
-                                    "delay and a trace is added to it, so together they are ambiguous (merge them "
-                                    "into one schedule)")
-        object.__setattr__(self, "delay_trace", _check_trace(self.delay_trace, float(self.delay)))
-        object.__setattr__(self, "bursts", check_bursts(self.bursts, float(self.rate)))
 
 
 @dataclass
@@ -335,6 +114,10 @@ class _Physics:
     t: float = 0.0
     pending: deque = field(default_factory=deque)
     history: deque = field(default_factory=lambda: deque(maxlen=4096))  # (t, z, v) every 2 ms
+    x1: float = 0.0  # the speed loop's states (v = wn^2 (x1 + Tz x2), x1' = x2)
+    x2: float = 0.0
+    w: float = 0.0  # the hover wander (m)
+    wk: int = 0  # the wander's grid point (ticks since start)
 
 
 class DroneEmulator:
@@ -368,6 +151,12 @@ class DroneEmulator:
         self._threads: list[threading.Thread] = []
         self._socks: list[socket.socket] = []
         self._phys = _Physics()
+        # the wander's own generator (the navdata thread draws noise, loss and jitter from self.rng)
+        self._wander_rng = random.Random(None if c.seed is None else f"{c.seed}:wander")
+        self._wander = c.wander_rms
+        self._wander_step = (math.exp(-_WANDER_TICK / c.wander_time),
+                             self._wander * math.sqrt(-math.expm1(-2.0 * _WANDER_TICK / c.wander_time)))
+        self._steps: dict[float, tuple[tuple[tuple[float, ...], ...], tuple[float, ...]]] = {}  # speed loop, by dt
         self._client: tuple[str, int] | None = None
         self._demo = False
         self._ack = False
@@ -399,11 +188,14 @@ class DroneEmulator:
         trace = None if c.delay_trace is None else {
             "records": len(c.delay_trace), "actuator_delay_min": min(self._delay_values),
             "actuator_delay_max": max(self._delay_values)}
+        vehicle: dict[str, Any] = {"kind": c.vehicle, "wander": c.wander_rms, "wander_time": c.wander_time}
+        vehicle.update({"wn": c.speed_wn, "zeta": c.speed_zeta, "zero": c.speed_zero} if c.vehicle == "speed_loop"
+                       else {"lag": c.lag})
         with self._lock:
             return {"ports": dict(self.ports), "stats": dict(self._stats), "last_error": self._last_error,
                     "true_delay": self.true_delay,
                     "delay_schedule": [list(p) for p in c.delay_schedule or ()],
-                    "delay_trace": trace, "bursts": [list(b) for b in c.bursts]}
+                    "delay_trace": trace, "bursts": [list(b) for b in c.bursts], "vehicle": vehicle}
 
     @property
     def true_delay(self) -> float:
@@ -443,10 +235,10 @@ class DroneEmulator:
 
     @property
     def altitude(self) -> float:
-        """The true altitude now (m)."""
+        """The true altitude now (m): the vehicle's, plus the hover wander while flying."""
         with self._lock:
             self._advance(time.monotonic())
-            return self._phys.z
+            return self._true_z()
 
     @property
     def mode(self) -> int:
@@ -514,6 +306,64 @@ class DroneEmulator:
         self.stop()
 
     # ---- physics --------------------------------------------------------------------------------------
+    def _true_z(self) -> float:
+        """The true altitude: the vehicle's, plus the wander while flying or hovering."""
+        p = self._phys
+        return p.z + p.w if p.mode in (CtrlState.FLYING, CtrlState.HOVERING) else p.z
+
+    def _rest(self) -> None:
+        """The vehicle stops: speed and the speed loop's states to 0."""
+        p = self._phys
+        p.v = p.x1 = p.x2 = 0.0
+
+    def _speed_step(self, dt: float) -> tuple[tuple[tuple[float, ...], ...], tuple[float, ...]]:
+        """The exact step over ``dt`` of (z, x1, x2) under a held speed command u: ``s' = Phi s + Gamma u``.
+
+        The speed loop ``wn^2 (Tz s + 1)/(s^2 + 2 zeta wn s + wn^2)`` in controllable form: ``x' = A x + b u``
+        with ``A = [[0, 1], [-wn^2, -2 zeta wn]]``, ``b = (0, 1)``, speed ``v = c x``, ``c = (wn^2, wn^2 Tz)``, and
+        ``z' = v``.  In closed form: ``E = exp(A dt)`` by Cayley-Hamilton, ``exp(m dt) (C I + S (A - m I))`` with
+        ``m = -zeta wn``, ``q^2 = wn^2 (zeta^2 - 1)``, ``C = cosh(q dt)``, ``S = sinh(q dt) / q`` (``cos``, ``sin``
+        when ``q^2 < 0``; ``1``, ``dt`` when 0), whatever the damping; then ``x -> E x + P b u`` and
+        ``z -> z + c (P x + Q b u)`` with ``P = A^-1 (E - I)`` and ``Q = A^-1 (P - dt I)``, the first and second
+        integrals of ``exp(A t)``.  Plain Python, no matrix library: the navdata thread calls it between packets
+        (SciPy's matrix exponential stalled it for milliseconds on a loaded machine).  Cached by ``dt`` (most
+        steps are the history's 2 ms).
+        """
+        hit = self._steps.get(dt)
+        if hit is not None:
+            return hit
+        c = self.config
+        wn, zeta, tz = c.speed_wn, c.speed_zeta, c.speed_zero
+        w2 = wn * wn
+        m = -zeta * wn
+        q2 = w2 * (zeta * zeta - 1.0)
+        if q2 > 0:
+            q = math.sqrt(q2)
+            ch, sh = math.cosh(q * dt), math.sinh(q * dt) / q
+        elif q2 < 0:
+            q = math.sqrt(-q2)
+            ch, sh = math.cos(q * dt), math.sin(q * dt) / q
+        else:
+            ch, sh = 1.0, dt
+        g = math.exp(m * dt)
+        # E = g (ch I + sh (A - m I)), A - m I = [[-m, 1], [-w2, -2 zeta wn - m]]
+        e00, e01 = g * (ch - sh * m), g * sh
+        e10, e11 = -g * sh * w2, g * (ch + sh * (-2.0 * zeta * wn - m))
+
+        def ainv(a: float, b: float, cc: float, d: float) -> tuple[float, float, float, float]:
+            # A^-1 [[a, b], [cc, d]], A^-1 = [[-2 zeta wn, -1], [w2, 0]] / w2
+            return ((-2.0 * zeta * wn * a - cc) / w2, (-2.0 * zeta * wn * b - d) / w2, a, b)
+
+        p00, p01, p10, p11 = ainv(e00 - 1.0, e01, e10, e11 - 1.0)
+        _, q01, _, q11 = ainv(p00 - dt, p01, p10, p11 - dt)
+        c0, c1 = w2, w2 * tz
+        step = ((1.0, c0 * p00 + c1 * p10, c0 * p01 + c1 * p11), (0.0, e00, e01), (0.0, e10, e11)), \
+            (c0 * q01 + c1 * q11, p01, p11)
+        if len(self._steps) > 64:  # (keep the 2 ms step; the odd remainders come and go)
+            self._steps = {k: v for k, v in self._steps.items() if k == 0.002}
+        self._steps[dt] = step
+        return step
+
     def _integrate(self, dt: float) -> None:
         p, c = self._phys, self.config
         if dt <= 0:
@@ -522,16 +372,26 @@ class DroneEmulator:
             p.z = min(c.takeoff_altitude, p.z + c.takeoff_speed * dt)
             p.v = c.takeoff_speed
             if p.z >= c.takeoff_altitude:
-                p.mode, p.v, p.v_in = CtrlState.HOVERING, 0.0, 0.0
+                p.mode, p.v_in = CtrlState.HOVERING, 0.0
+                self._rest()
                 p.pending.clear()
         elif p.mode == CtrlState.LANDING:
             p.z = max(0.0, p.z - c.landing_speed * dt)
             p.v = -c.landing_speed
+            p.x1 = p.x2 = 0.0
             if p.z <= 0.0:
-                p.mode, p.v, p.v_in = CtrlState.LANDED, 0.0, 0.0
+                p.mode, p.v_in = CtrlState.LANDED, 0.0
+                self._rest()
         elif p.mode in (CtrlState.FLYING, CtrlState.HOVERING):
             u = 0.0 if self._watchdog else p.v_in
-            if c.lag > 0:
+            if c.vehicle == "speed_loop":
+                (a, b, d), g = self._speed_step(dt)
+                z, x1, x2 = p.z, p.x1, p.x2
+                p.z = a[0] * z + a[1] * x1 + a[2] * x2 + g[0] * u
+                p.x1 = b[0] * z + b[1] * x1 + b[2] * x2 + g[1] * u
+                p.x2 = d[0] * z + d[1] * x1 + d[2] * x2 + g[2] * u
+                p.v = c.speed_wn * c.speed_wn * (p.x1 + c.speed_zero * p.x2)
+            elif c.lag > 0:
                 e = math.exp(-dt / c.lag)
                 p.z += u * dt + (p.v - u) * c.lag * (1.0 - e)
                 p.v = u + (p.v - u) * e
@@ -539,12 +399,30 @@ class DroneEmulator:
                 p.z += u * dt
                 p.v = u
             if p.z >= self._alt_max and p.v > 0:
-                p.z, p.v = self._alt_max, 0.0
+                p.z = self._alt_max
+                self._rest()
             if p.z <= 0.0:
-                p.z, p.v = 0.0, 0.0
+                p.z = 0.0
+                self._rest()
         else:
-            p.v = 0.0
+            self._rest()
         p.t += dt
+        if self._wander > 0:
+            self._wander_to(p.t)
+
+    def _wander_to(self, t: float) -> None:
+        """Advance the wander to the monotonic time ``t``: the Ornstein-Uhlenbeck process on a fixed grid of
+        ``_WANDER_TICK`` seconds from :meth:`start`, exactly discretised (AR(1), ``phi = exp(-tick / T)``, one draw
+        per tick, so a seed gives the same wander whatever the threads' timing), held between grid points."""
+        p = self._phys
+        n = math.floor((t - self._t0) / _WANDER_TICK)
+        if n > p.wk:
+            phi, scale = self._wander_step
+            rng = self._wander_rng
+            w = p.w
+            for _ in range(n - p.wk):
+                w = phi * w + scale * rng.gauss(0.0, 1.0)
+            p.w, p.wk = w, n
 
     def _advance(self, t: float) -> None:
         p = self._phys
@@ -557,9 +435,9 @@ class DroneEmulator:
         # record the trajectory finely enough for the link delay's look-back (linear between points)
         while t - p.t > 0.002:
             self._integrate(0.002)
-            p.history.append((p.t, p.z, p.v))
+            p.history.append((p.t, self._true_z(), p.v))
         self._integrate(t - p.t)
-        p.history.append((p.t, p.z, p.v))
+        p.history.append((p.t, self._true_z(), p.v))
 
     def _state_at(self, t: float) -> tuple[float, float]:
         """The true altitude and vertical speed at an earlier time t (for the link delay): linear between
@@ -573,7 +451,7 @@ class DroneEmulator:
                 f = (t - tt) / (prev[0] - tt)
                 return z + (prev[1] - z) * f, v + (prev[2] - v) * f
             prev = (tt, z, v)
-        return (h[0][1], h[0][2]) if h else (self._phys.z, self._phys.v)
+        return (h[0][1], h[0][2]) if h else (self._true_z(), self._phys.v)
 
     # ---- commands -------------------------------------------------------------------------------------
     def _handle(self, data: bytes, t: float) -> None:
@@ -596,7 +474,8 @@ class DroneEmulator:
                 if cmd.name == "REF":
                     bits = cmd.args[0]
                     if bits & REF_EMERGENCY and p.mode not in (CtrlState.LANDED,):
-                        p.mode, p.z, p.v, p.v_in = CtrlState.LANDED, 0.0, 0.0, 0.0
+                        p.mode, p.z, p.v_in = CtrlState.LANDED, 0.0, 0.0
+                        self._rest()
                         p.pending.clear()
                     elif bits & REF_TAKEOFF:
                         if p.mode == CtrlState.LANDED:
@@ -693,7 +572,7 @@ class DroneEmulator:
                 self._advance(now)
                 if not send:
                     continue
-                z_true, v = self._state_at(now - c.link_delay) if c.link_delay else (self._phys.z, self._phys.v)
+                z_true, v = self._state_at(now - c.link_delay) if c.link_delay else (self._true_z(), self._phys.v)
                 mode = self._phys.mode
                 state = self._state_bits()
                 client, demo_on = self._client, self._demo

@@ -41,8 +41,8 @@ import numpy as np
 from ..errors import DelaykitError, InvalidTypeError, InvalidValueError, check_real
 from ..models.compensators import Compensator
 from ..models.controllers import Controller
-from .ardrone import ATEncoder, CtrlState, NavState, Navdata, ProtocolError, decode_navdata
-from .emulator import _check_port
+from .ardrone import ATEncoder, CtrlState, Navdata, NavState, ProtocolError, decode_navdata
+from .emulator_config import _check_port
 from .laws import FlightLaw
 from .stamps import enable_stamps, recv_stamped
 

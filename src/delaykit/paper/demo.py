@@ -14,7 +14,22 @@ The stages:
    simulated 1 m step settles soonest flown on the same steps: the report compares P, PV and it;
 4. on the emulator only: one more flight of that compensator in which the emulator's delay grows by
    ``delay_jump`` seconds mid-flight, with the delay monitor (:mod:`delaykit.hardware.monitor`) re-estimating it
-   after every step, raising the alarm when it leaves the design range and re-designing the law.
+   after every step, raising the alarm when it leaves the design range and re-designing the law;
+5. which plant is it?  The P flight identified (:func:`identify_flights`:
+   :func:`~delaykit.identify.identification.identify` with ``model="auto"``), closed loop from the reference
+   through the known P law, its limits and the packet period, the altitude and the navdata's vertical speed
+   fitted jointly.  Not open loop from the logged command:
+   the controller answers the altitude's wander and noise, so the command is correlated with the very
+   disturbance an output-error fit leaves in its residuals, which biases an open-loop fit; the reference is
+   independent of it.  The report gives the structure chosen, its parameters with their 95 % intervals, its dead
+   time against the emulator's true loop delay, and the free-run prediction RMS
+   (:func:`~delaykit.identify.identification.predict`) of the PV flight by the identified model beside the paper
+   model's (the integrator with the estimated delay and lag: the estimator's).
+
+By default the emulator flies its richer vehicle (``vehicle="speed_loop"``: the PX4's identified speed loop and a
+hover wander, :mod:`delaykit.hardware.emulator`), not the estimator's own model; ``vehicle="lag"`` flies the
+simple one.  On the speed loop the paper estimator's delay is biased (its model lacks the loop's slow mode), and
+the report says by how much.
 
 Examples
 --------
@@ -35,17 +50,20 @@ import numpy as np
 
 from ..design.compensators import design_compensator
 from ..design.tuning import design_sweep
-from ..errors import FlightError
+from ..errors import FlightError, InvalidValueError
 from ..models.altitude import AltitudeLoop
 from ..hardware.emulator import DroneEmulator, EmulatorConfig
 from ..hardware.flight import FlightPlan, FlightResult, fly
 from ..identify.estimation import DelayEstimate, estimate_flights
 from ..identify.flightlog import FlightLog
+from ..identify.identification import IdentifiedModel, identify, predict
+from ..identify.iodata import Experiment
 from ..models.compensators import COMPENSATOR_KINDS
 from ..simulate.metrics import step_metrics
 from .data import PAPER_PV_KV, TABLE1_KP, TABLE3_KP
 
-__all__ = ["DemoReport", "run_demo", "P_KP", "PV_KP", "PV_KV_CANDIDATES", "FALLBACK_KV"]
+__all__ = ["DemoReport", "run_demo", "identify_flights", "flight_experiment", "P_KP", "PV_KP", "PV_KV_CANDIDATES",
+           "FALLBACK_KV"]
 
 P_STEPS = (1.0, -1.0, 1.0, -1.0, 1.0)
 #: The P gain of the step tests the delay is estimated from: the paper's flights (Table 1, Table 2).
@@ -79,6 +97,8 @@ class DemoReport:
     varying_flight: FlightResult | None = None
     varying_truth: dict | None = None
     pv_kp: float = PV_KP
+    vehicle: str | None = None
+    identification: dict | None = None
 
     @property
     def error(self) -> float | None:
@@ -91,7 +111,7 @@ class DemoReport:
                 "lag": self.lag, "p_kp": self.p_kp, "pv_kp": self.pv_kp, "pv_kv": self.kv,
                 "pv_kv_source": self.kv_source, "p_flight": self.p_flight.to_dict(),
                 "pv_flight": self.pv_flight.to_dict(), "p_metrics": self.p_metrics, "pv_metrics": self.pv_metrics,
-                "files": [str(f) for f in self.files]}
+                "files": [str(f) for f in self.files], "vehicle": self.vehicle, "identification": self.identification}
 
     def __repr__(self) -> str:
         t = "" if self.true_delay is None else f" (truth {self.true_delay:.4f} s, error {1e3 * self.error:+.1f} ms)"
@@ -124,6 +144,8 @@ def run_demo(
     delay_jump: float = 0.15,
     confirm: Callable[[], bool] | None = None,
     status: Callable[[str], None] | None = None,
+    vehicle: str = "speed_loop",
+    identify_plant: bool = True,
 ) -> DemoReport:
     """Run the pipeline and write ``demo.md``, ``demo.json`` and the figures into ``out``.
 
@@ -135,7 +157,17 @@ def run_demo(
     on the emulator, ``varying_steps`` steps of ``varying_duration`` seconds then fly it again while the
     emulator's delay grows by ``delay_jump`` after about half of them (0: no such flight).
 
+    ``vehicle`` is the emulator's (:data:`~delaykit.hardware.emulator.VEHICLES`; not used with ``host``).  With
+    ``identify_plant`` the P flights are identified and the identified model and the paper model predict the PV
+    flights (:attr:`DemoReport.identification`; see the module docstring).
+
     Raises :class:`~delaykit.errors.FlightError` when the P flight produced no logs (nothing to estimate from).
+
+    Examples
+    --------
+    >>> rep = run_demo("out/demo", seed=2026, p_steps=2, pv_steps=2, compensate=False)  # doctest: +SKIP
+    >>> rep.identification["structure"], rep.identification["delay_covers_truth"]  # doctest: +SKIP
+    ('ipdt_speed', True)
     """
     say = status or (lambda _m: None)
     out = Path(out)
@@ -145,7 +177,8 @@ def run_demo(
     if host is None:
         rng = random.Random(seed)
         cfg = EmulatorConfig(at_port=0, navdata_port=0, video_port=0, control_port=0,
-                             delay=round(rng.uniform(0.22, 0.42), 4), lag=0.05, noise=0.004, seed=seed)
+                             delay=round(rng.uniform(0.22, 0.42), 4), lag=0.05, noise=0.004, seed=seed,
+                             vehicle=vehicle)
         emu = DroneEmulator(cfg).start()
         truth = emu.true_delay
         host, at_port, navdata_port = "127.0.0.1", emu.ports["at"], emu.ports["navdata"]
@@ -194,13 +227,228 @@ def run_demo(
     if comp is not None and emu is not None and varying_steps > 0 and delay_jump != 0:
         vf, vtruth = _varying_flight(out, emu.config, designs[comp["chosen"]].compensator, varying_steps,
                                      varying_duration, delay_jump, say)
+    ident = None
+    if identify_plant:
+        say("identifying the plant from the P flights")
+        ident = identify_flights(p.logs, pv.logs, est, lag, kv, truth=truth, save=out / "identified_model.json",
+                                 status=say)
     pm, vm = _metrics(p.logs), _metrics(pv.logs)
     cm = _metrics(cf.logs) if cf is not None else None
     files = _write(out, truth, est, lag, kv, d, p, pv, pm, vm, kv_source=kv_source, comp=comp, cf=cf, cm=cm, vf=vf,
-                   vtruth=vtruth)
+                   vtruth=vtruth, ident=ident, vehicle=None if emu is None else emu.config.vehicle)
     return DemoReport(out=out, true_delay=truth, estimate=est, lag=lag, kv=kv, kv_source=kv_source, p_flight=p,
                       pv_flight=pv, p_metrics=pm, pv_metrics=vm, files=files, compensator=comp, comp_flight=cf,
-                      comp_metrics=cm, varying_flight=vf, varying_truth=vtruth)
+                      comp_metrics=cm, varying_flight=vf, varying_truth=vtruth,
+                      vehicle=None if emu is None else emu.config.vehicle, identification=ident)
+
+
+def _columns(path: str | Path, *names: str) -> FlightLog:
+    """A flight log that has the columns ``names`` (beside ``t, z, z_ref, u``), or a delaykit error saying which
+    it lacks."""
+    log = FlightLog.from_csv(path)
+    missing = [n for n in names if n not in log.extra]
+    if missing:
+        raise InvalidValueError(f"{path}: no {', '.join(missing)} column (a log written by delaykit fly has them)")
+    return log
+
+
+def _packet_period(paths: Any) -> float:
+    """The navdata period of flight logs: the least-squares slope of the packets' arrival times (``recv_time``)
+    on their sequence numbers, over all the logs (one drone: one grid, one clock).  Not the median arrival
+    interval: a packet sent late makes one interval longer and the next shorter, and on a loaded machine that
+    median was off by 0.2 %, 25 ms over a flight."""
+    seqs, times = [], []
+    for path in paths:
+        log = _columns(path, "seq", "recv_time")
+        seqs.append(np.asarray(log.extra["seq"], dtype=float))
+        times.append(np.asarray(log.extra["recv_time"], dtype=float))
+    seq = np.concatenate(seqs) if seqs else np.array([])
+    if np.unique(seq).size < 3:
+        raise InvalidValueError("the flight logs have too few packets to measure their period")
+    return float(np.polyfit(seq, np.concatenate(times), 1)[0])
+
+
+def _flight(paths: Any, period: float) -> tuple[Experiment, int, list[tuple[str, int, int]]]:
+    """One flight's step logs merged by sequence number (see :func:`flight_experiment`), the places filled, and
+    each log's ``(name, first, last)`` sample of the merged clock."""
+    seqs, zs, vs, rs, spans = [], [], [], [], []
+    for path in paths:
+        log = _columns(path, "seq", "vz")
+        seq = np.asarray(log.extra["seq"], dtype=float).astype(np.int64)
+        seqs.append(seq)
+        zs.append(log.z)
+        vs.append(np.asarray(log.extra["vz"], dtype=float))
+        rs.append(log.z_ref)
+        spans.append((Path(path).name, int(seq.min()), int(seq.max())))
+    seq = np.concatenate(seqs)
+    order = np.argsort(seq, kind="stable")
+    seq, z, v, r = seq[order], np.concatenate(zs)[order], np.concatenate(vs)[order], np.concatenate(rs)[order]
+    keep = np.r_[True, np.diff(seq) > 0]  # (a packet in two logs, a log's overlap with the next: once)
+    seq, z, v, r = seq[keep], z[keep], v[keep], r[keep]
+    k = seq - seq[0]
+    n = int(k[-1]) + 1
+    idx = np.searchsorted(k, np.arange(n), side="right") - 1  # each place: its packet, or the one before it
+    filled = n - int(k.size)
+    if filled > 0.1 * n:
+        raise InvalidValueError(f"{spans[0][0]}: {filled} of {n} packets are missing from the flight's logs; "
+                                "too many to fill")
+    name = spans[0][0] if len(spans) == 1 else f"{spans[0][0]} to {spans[-1][0]}"
+    exp = Experiment.from_arrays(period * np.arange(n), {"z": z[idx], "vz": v[idx]}, r=r[idx], name=name)
+    return exp, filled, [(nm, a - int(seq[0]), b - int(seq[0])) for nm, a, b in spans]
+
+
+def flight_experiment(paths: Any, period: float) -> tuple[Experiment, int]:
+    """A flight's step logs (:func:`~delaykit.hardware.flight.fly`'s CSVs) as one closed-loop experiment.
+
+    The navdata packets go out on a uniform grid and carry a sequence number that counts every packet, sent or
+    lost: sample ``k`` is at ``k * period`` from the first packet (the arrival stamps add only the loopback's
+    scheduling noise).  A flight's step logs overlap (each starts a second before its step), so merged by
+    sequence number they make the whole flight, from the hover before its first step: the one start at rest,
+    which an identification (deviation variables from a steady state) needs; a later step's log alone starts in
+    the middle of the previous step's response.  A lost packet's place is filled with the packet before it (an
+    identification then needs ``fresh_only``); more than a tenth missing is refused.  The outputs: the altitude
+    ``z`` and the navdata's vertical speed ``vz``.
+
+    Parameters
+    ----------
+    paths : path or sequence of path
+        One flight's logs.
+    period : float
+        The packet period (s).
+
+    Returns
+    -------
+    Experiment, int
+        The experiment (outputs ``z`` and ``vz``, reference ``z_ref``), and how many places were filled.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> path = os.path.join(tempfile.mkdtemp(), "f.csv")
+    >>> _ = open(path, "w").write("t,z,z_ref,u,vz,seq,recv_time,latency_ms\\n"
+    ...     + "".join(f"{0.05 * k},0.8,{0.8 if k < 6 else 1.8},0,0,{100 + k + (k > 12)},0,0\\n" for k in range(20)))
+    >>> exp, filled = flight_experiment(path, 0.05)
+    >>> exp, filled
+    (Experiment('f.csv': 21 samples every 0.05 s, reference z_ref, outputs z, vz, moves at 0.3 s), 1)
+    """
+    exp, filled, _ = _flight([paths] if isinstance(paths, (str, Path)) else list(paths), period)
+    return exp, filled
+
+
+def _model_like(model: IdentifiedModel, closed_loop: dict[str, Any]) -> IdentifiedModel:
+    """The same plant and dead time under another controller (for predicting flights flown with it)."""
+    return IdentifiedModel.from_dict({**model.to_dict(), "closed_loop": closed_loop})
+
+
+def identify_flights(
+    p_logs: Any,
+    pv_logs: Any,
+    estimate: DelayEstimate,
+    lag: float | None,
+    kv: float,
+    *,
+    truth: float | None = None,
+    save: str | Path | None = None,
+    status: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    """Identify the plant from the P flight, and predict the PV flight with it and with the paper model.
+
+    The P flight's logs, merged into the whole flight (:func:`flight_experiment`), are identified closed loop
+    (:func:`~delaykit.identify.identification.identify`, ``model="auto"``) from the reference through the P law
+    at :data:`P_KP`, limits ±1 m/s, at the packet period measured from the logs (see the module docstring for
+    why not open loop), the altitude ``z`` with its rate, the navdata's vertical speed ``vz`` (``rate="vz"``: it
+    shows the speed loop directly, where the altitude shows it through an integrator and the hover wander), and
+    an output offset fitted (``baseline="fit"``: the second of hover before the first step is too short to
+    average out a wander of seconds).  The PV flight (flown at :data:`PV_KP` and ``kv`` with the navdata speed),
+    merged the same way, is then predicted free-run from its reference by the identified plant and by the paper
+    model, the integrator with ``estimate``'s delay behind the ``lag`` (gain 1: the model the demo designs with),
+    both under the PV law; the RMS errors are given per step log (over its samples of the whole flight's
+    prediction) and over the whole flight.
+
+    Parameters
+    ----------
+    p_logs, pv_logs : sequence of path
+        The P and PV flights' logs.
+    estimate : DelayEstimate
+        The paper estimator's result on the P flights.
+    lag : float or None
+        Its fitted speed-loop lag (s).
+    kv : float
+        The PV flight's velocity gain.
+    truth : float, optional
+        The true loop delay (s), on the emulator.
+    save : path, optional
+        Where to write the identified model (JSON, for ``delaykit predict``).
+    status : callable, optional
+        Called with progress messages.
+
+    Returns
+    -------
+    dict
+        JSON-ready: ``structure``, ``title``, ``criterion``, ``params``, ``stderr``, ``ci``, ``delay``,
+        ``delay_ci``, ``true_delay``, ``delay_error``, ``delay_covers_truth``, ``candidates``, ``warnings``,
+        ``period``, ``filled_packets``, ``paper_model``, ``estimator`` (its delay, interval, error and whether
+        the interval holds the truth), ``pv_predictions`` (per PV step log: ``identified_rms``, ``paper_rms``,
+        in metres; ``identified_rms_vz``, ``paper_rms_vz`` for the vertical speed, m/s) and ``pv_flight`` (the
+        same over the whole PV flight, and its ``wander`` before the first step); or ``{"error": reason}`` when
+        the logs cannot be identified.
+
+    Examples
+    --------
+    >>> ident = identify_flights(p.logs, pv.logs, est, lag, 0.3, truth=0.30)  # doctest: +SKIP
+    >>> ident["structure"], ident["delay_covers_truth"]  # doctest: +SKIP
+    ('ipdt_speed', True)
+    """
+    say = status or (lambda _m: None)
+    try:
+        period = _packet_period(list(p_logs) + list(pv_logs))
+        p_exp, p_filled, _ = _flight(list(p_logs), period)
+        pv_exp, pv_filled, pv_spans = _flight(list(pv_logs), period)
+        loop = AltitudeLoop(kp=P_KP, delay=0.0, period=period)
+        model = identify(p_exp, model="auto", loop=loop, outputs=["z"], rate="vz", baseline="fit",
+                         fresh_only=p_filled > 0,
+                         progress=say)
+    except InvalidValueError as exc:  # (logs an identification cannot use: the report says why)
+        return {"error": str(exc)}
+    if save is not None:
+        model.save(save)
+    lo, hi = model.ci["delay"]
+    pv_law = {"kp": PV_KP, "kv": float(kv), "umin": -1.0, "umax": 1.0, "period": period}
+    names = ("gain", "lag", "delay") if lag else ("gain", "delay")
+    values = (1.0, float(lag), estimate.delay) if lag else (1.0, estimate.delay)
+    paper_params = dict(zip(names, values))
+    paper = IdentifiedModel.from_dict({
+        "model": "ipdt_lag" if lag else "ipdt", "params": paper_params, "stderr": dict.fromkeys(names, 0.0),
+        "ci": {}, "cov": [[0.0] * len(names)] * len(names), "rms": math.nan, "aic": math.nan, "bic": math.nan,
+        "n": 0, "outputs": ["z"], "rate": "vz", "closed_loop": pv_law}, source="the paper model")
+    a, b = predict(_model_like(model, pv_law), pv_exp), predict(paper, pv_exp)
+    err = {(who, o): pr.measured[o] - pr.predicted[o] for who, pr in (("identified", a), ("paper", b))
+           for o in ("z", "vz")}
+    rms = lambda e: float(np.sqrt(np.mean(e * e)))  # noqa: E731
+    preds = [{"file": nm, **{f"{who}_rms{'' if o == 'z' else '_vz'}": rms(e[i:j + 1]) for (who, o), e in err.items()}}
+             for nm, i, j in pv_spans]
+    w = a.wander["z"]
+    est_ci = estimate.ci
+    return {
+        "approach": "closed loop from the reference through the P law, the flight's logs merged, z and vz fitted "
+                    "jointly, an output offset fitted (see identify_flights)",
+        "period": period, "logs": [str(f) for f in p_logs], "filled_packets": p_filled + pv_filled,
+        "structure": model.model, "title": model.structure.title, "criterion": model.criterion,
+        "params": dict(model.params), "stderr": dict(model.stderr), "ci": {k: list(v) for k, v in model.ci.items()},
+        "delay": model.delay, "delay_ci": [lo, hi], "true_delay": truth,
+        "delay_error": None if truth is None else model.delay - truth,
+        "delay_covers_truth": None if truth is None else bool(lo <= truth <= hi),
+        "candidates": [c.to_dict() for c in model.candidates], "warnings": list(model.warnings),
+        "paper_model": {"structure": paper.model, "params": paper_params},
+        "estimator": {"delay": estimate.delay, "ci": None if est_ci is None else list(est_ci),
+                      "error": None if truth is None else estimate.delay - truth,
+                      "covers_truth": None if truth is None or est_ci is None
+                      else bool(est_ci[0] <= truth <= est_ci[1])},
+        "pv_predictions": preds,
+        "pv_flight": {"file": pv_exp.name, "identified_rms": a.rms["z"], "paper_rms": b.rms["z"],
+                      "identified_rms_vz": a.rms["vz"], "paper_rms_vz": b.rms["vz"],
+                      "wander": None if math.isnan(w) else w},
+    }
 
 
 def _settling(design: Any) -> float:
@@ -232,8 +480,75 @@ def _varying_flight(out: Path, cfg: EmulatorConfig, law: Any, n: int, duration: 
     return vf, truth
 
 
+def _identification_text(ident: dict, truth: float | None, vehicle: str | None = None) -> str:
+    """The report's section on the identified plant (see :func:`identify_flights`)."""
+    head = "\n## Which plant? Identified from the P flights\n\n"
+    if "error" in ident:
+        return head + f"The P flights could not be identified: {ident['error']}\n"
+    ms = lambda x: f"{1e3 * x:.1f}"  # noqa: E731
+    rows = ["| parameter | value | 95 % interval |", "|---|---|---|"]
+    rows += [f"| {k} | {v:.4g} | {ident['ci'][k][0]:.4g} to {ident['ci'][k][1]:.4g} |"
+             for k, v in ident["params"].items()]
+    cands = ["| structure | values fitted (BIC's count) | leave-one-log-out RMS (mm) | BIC |", "|---|---|---|---|"]
+    for c in ident["candidates"]:
+        lolo = "–" if c["lolo_rms"] is None else ms(c["lolo_rms"])
+        mark = " (chosen)" if c["model"] == ident["structure"] else ""
+        cands.append(f"| {c['model']}{mark} | {c['k']} | {lolo} | {c['bic']:.1f} |")
+    lo, hi = ident["delay_ci"]
+    text = (head + f"The P flight's step logs merged into the whole flight (from the hover before its first step, "
+            f"at rest), identified closed loop from the reference through the P law (Kp = {P_KP:g}, ±1 m/s, a "
+            f"command every {1e3 * ident['period']:.1f} ms), the altitude and the navdata's vertical speed fitted "
+            "jointly, with an output offset.  Not open loop from the "
+            "logged command: the controller answers the altitude's wander and noise, so the command is correlated "
+            "with what an output-error fit leaves in its residuals, which biases an open-loop fit; the reference is "
+            "independent of it.  Chosen by "
+            f"{'BIC' if ident['criterion'] == 'bic' else ident['criterion']}: **{ident['structure']}**, "
+            f"{ident['title']}.\n\n" + "\n".join(rows) + "\n\n"
+            + ("\n".join(cands) + "\n\n" if ident["candidates"] else ""))
+    text += f"Identified dead time: **{ident['delay']:.4f} s** (95 % {lo:.4f} to {hi:.4f} s)"
+    e = ident["estimator"]
+    if truth is not None:
+        text += (f"; the emulator's true loop delay is {truth:.4f} s, "
+                 + ("inside" if ident["delay_covers_truth"] else "**outside**")
+                 + f" the interval (error {1e3 * ident['delay_error']:+.1f} ms"
+                 + ("" if ident["delay_covers_truth"] else "; the interval counts the hover wander and the sensor "
+                    "noise, not the timing of the real-time loop, whose latency is given above") + ").")
+        text += (f"  The paper estimator's delay, {e['delay']:.4f} s, is off by {1e3 * e['error']:+.1f} ms"
+                 + ("" if e["ci"] is None else f" (its 95 % interval {e['ci'][0]:.4f} to {e['ci'][1]:.4f} s "
+                    + ("holds the truth)" if e["covers_truth"] else "does not hold the truth)")))
+        if vehicle == "speed_loop":
+            text += (": **the paper estimator is biased on this vehicle**.  Its model, an integrator behind a "
+                     "first-order lag, has no room for the speed loop's slow mode (its zero and slow pole), so its "
+                     "delay absorbs it" + (", and the misfit widens its interval" if e["covers_truth"] else "")
+                     + ".  The designs above used that delay.")
+        elif e["covers_truth"] is False:
+            text += ": its model does not describe this vehicle well enough, and its delay is biased."
+        else:
+            text += "."
+        text += "\n\n"
+    else:
+        text += ".\n\n"
+    preds = ["| PV flight | z: identified model (mm) | z: paper model (mm) | vz: identified model (mm/s) | "
+             "vz: paper model (mm/s) |", "|---|---|---|---|---|"]
+    f = ident["pv_flight"]
+    for q in (*ident["pv_predictions"], {**f, "file": "the whole flight"}):
+        preds.append(f"| {q['file']} | {ms(q['identified_rms'])} | {ms(q['paper_rms'])} | "
+                     f"{ms(q['identified_rms_vz'])} | {ms(q['paper_rms_vz'])} |")
+    pm = ident["paper_model"]
+    wander = "" if f["wander"] is None else (f"\nFor scale: the altitude's spread in the hover before the first step "
+                                             f"was {ms(f['wander'])} mm.\n")
+    text += ("### Predicting the PV flights\n\nThe whole PV flight (its step logs merged, from the hover before the "
+             "first step) run free from its reference through the PV law, by the identified model and by the paper "
+             f"model ({pm['structure']}: " + ", ".join(f"{k} {v:.4g}" for k, v in pm["params"].items())
+             + "); the RMS errors over each step log's samples and over the whole flight:\n\n" + "\n".join(preds)
+             + f"\n{wander}\n")
+    if ident["warnings"]:
+        text += "\nThe identification's warnings:\n\n" + "".join(f"* {w}\n" for w in ident["warnings"])
+    return text
+
+
 def _write(out, truth, est, lag, kv, d, p, pv, pm, vm, kv_source="design", comp=None, cf=None, cm=None, vf=None,
-           vtruth=None) -> tuple[Path, ...]:
+           vtruth=None, ident=None, vehicle=None) -> tuple[Path, ...]:
     from ..plotting.figures import plot_fit
 
     from ..identify.estimation import fitted_altitude
@@ -248,6 +563,9 @@ def _write(out, truth, est, lag, kv, d, p, pv, pm, vm, kv_source="design", comp=
              title=f"PV control, Kp = {PV_KP:g}, Kv = {kv:g}: altitude (dots) and reference (lines)")
     figs = [fig_p, fig_v]
     err = "" if truth is None else f" The emulator's true delay is {truth:.4f} s: the error is {1e3 * (est.delay - truth):+.1f} ms."
+    if truth is not None and vehicle == "speed_loop":
+        err += (" The emulated vehicle is not the estimator's model, so this error is the estimator's bias on it (see "
+                "\"Which plant?\" below).")
 
     def table(ms):
         rows = ["| flight | step (m) | Mo (%) | tp (s) | rise (s) | ts (s) |", "|---|---|---|---|---|---|"]
@@ -260,7 +578,10 @@ def _write(out, truth, est, lag, kv, d, p, pv, pm, vm, kv_source="design", comp=
     design = f"PV design for that delay (Kp = {PV_KP:g}, criterion: settling time): "
     design += (f"Kv = {kv:g} ({d.reason})." if kv_source == "design"
                else f"no candidate; **Kv = {kv:g} flown instead** ({kv_source}).")
-    text = ("# delaykit demo: fly, estimate, design, fly again\n\n"
+    veh = {"speed_loop": "the emulator flies its `speed_loop` vehicle (the PX4's identified speed loop and a hover "
+                         "wander), not the estimator's model.\n\n",
+           "lag": "the emulator flies its `lag` vehicle: the estimator's own model.\n\n"}.get(vehicle, "")
+    text = ("# delaykit demo: fly, estimate, design, fly again\n\n" + (veh[:1].upper() + veh[1:]) +
             f"Estimated loop delay: **{est.delay:.4f} s ± {est.stderr or 0:.4f}** ({interval}) from {est.flights} step "
             f"tests, with the drone's speed-loop lag fitted ({lag if lag is not None else 0:.3f} s).{err}\n\n"
             f"{design}\n\n"
@@ -309,6 +630,15 @@ def _write(out, truth, est, lag, kv, d, p, pv, pm, vm, kv_source="design", comp=
                  "is re-estimated from the step's packets and commands (the drone hovers meanwhile), compared with "
                  "the range the law was designed for, and the law is re-designed when the whole 95 % interval has "
                  "left it.\n\n" + "\n".join(rows) + "\n\n![online estimates](online_delay.png)\n")
+        early = [o.delay - vtruth["before"] for o in vf.online
+                 if o.estimate.t_to - vtruth["t0"] <= vtruth["change_time"]]
+        if vehicle == "speed_loop" and early:
+            text += (f"\nOn this vehicle these estimates carry the paper model's bias (\"Which plant?\" below): before "
+                     f"the change they exceed the true delay by {1e3 * float(np.mean(early)):+.0f} ms on average.  The "
+                     "law was designed for the same biased estimate, so the alarm answers the change, not the "
+                     "level.\n")
+    if ident is not None:
+        text += _identification_text(ident, truth, vehicle)
     md = out / "demo.md"
     md.write_text(text)
     js = out / "demo.json"
@@ -317,7 +647,11 @@ def _write(out, truth, est, lag, kv, d, p, pv, pm, vm, kv_source="design", comp=
                               "p_metrics": pm, "pv_metrics": vm, "p_flight": p.to_dict(), "pv_flight": pv.to_dict(),
                               "compensator": comp, "comp_metrics": cm,
                               "comp_flight": None if cf is None else cf.to_dict(),
-                              "varying_flight": None if vf is None else vf.to_dict(), "varying_truth": vtruth},
+                              "varying_flight": None if vf is None else vf.to_dict(), "varying_truth": vtruth,
+                              "vehicle": vehicle, "identification": ident},
                              indent=2, default=str))
     extra = [*(cf.logs if cf is not None else ()), *(vf.logs if vf is not None else ())]
+    model = out / "identified_model.json"
+    if ident is not None and "error" not in ident and model.exists():
+        extra.append(model)
     return (md, js, *figs, *p.logs, *pv.logs, *extra)
