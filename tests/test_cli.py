@@ -204,12 +204,18 @@ def test_demo_command_with_no_interval(tmp_path, monkeypatch):
 
     est = _no_interval_estimate()
     rep = SimpleNamespace(estimate=est, true_delay=0.37, error=est.delay - 0.37, kv=0.3, pv_kp=2.0, kv_source="design",
-                          p_metrics=[{"settling_time": 4.0}], pv_metrics=[{"settling_time": 2.5}], comp_metrics=None,
-                          varying_flight=None, to_dict=lambda: {"estimate": est.to_dict()})
+                          p_metrics=[{"settling_time": 4.0}, {"settling_time": None}],
+                          pv_metrics=[{"settling_time": 2.5}], comp_metrics=None, varying_flight=None,
+                          identification={"error": "the logs hold no step"},
+                          to_dict=lambda: {"estimate": est.to_dict()})
     monkeypatch.setattr(demo, "run_demo", lambda *a, **k: rep)
     res = run("demo", "--out", str(tmp_path))
     assert res.exit_code == 0, res.output
     assert "no interval" in res.stdout and "0.3712" in res.stdout
+    # a step that did not settle is counted, not averaged in as nan; a failed identification says why
+    said = " ".join(res.stdout.split())
+    assert "P 4.00 s (1 of 2 not settled)" in said and "nan" not in said
+    assert "not identified" in said and "the logs hold no step" in said
     res = run("demo", "--out", str(tmp_path), "--json")
     assert res.exit_code == 0 and json.loads(res.stdout)["estimate"]["ci"] is None
 
