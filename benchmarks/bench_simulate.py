@@ -198,12 +198,15 @@ def main() -> None:
     paper = dk.AltitudeLoop(kp=KP, delay=0.3)
     dk.simulate_many(paper, delay=td[:2])
     dk_compile = time.perf_counter() - t0
-    runs = []
+    runs, cpu = [], []
     for _ in range(3):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         batch = dk.simulate_many(paper, delay=td)
         runs.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
     dk_time = min(runs)
+    dk_cpu = cpu[int(np.argmin(runs))]
+    load = os.getloadavg()
 
     # the independent reference on a random subset
     ref_idx = rng.choice(args.loops, size=min(args.reference, args.loops), replace=False)
@@ -243,8 +246,9 @@ def main() -> None:
     for col in ("solver", "compile s", "run s", "µs/loop", "err Mo pp", "err times ms", "target met", "time ratio"):
         table.add_column(col, justify="right")
     terr = lambda e: 1e3 * max(e[k] for k in KEYS[1:])  # noqa: E731
-    table.add_row("delaykit", f"{dk_cold:.1f} ({dk_compile:.2f} cached)", f"{dk_time:.3f}", f"{1e6 * dk_time / args.loops:.1f}",
-                  f"{dk_err['overshoot']:.1e}", f"{terr(dk_err):.1e}", str(meets(dk_err)), "1")
+    table.add_row("delaykit", f"{dk_cold:.1f} ({dk_compile:.2f} cached)", f"{dk_time:.3f}",
+                  f"{1e6 * dk_time / args.loops:.1f}", f"{dk_err['overshoot']:.1e}", f"{terr(dk_err):.1e}",
+                  str(meets(dk_err)), "1")
     jit_ok = meets(je)
     table.add_row(f"jitcdde rtol {rtol:g}" + ("" if n_jit == args.loops else f" ({n_jit} run, scaled)"),
                   f"{jit.compile_time:.2f}", f"{jit_time:.2f}", f"{1e6 * jit_time / args.loops:.0f}",
@@ -261,9 +265,13 @@ def main() -> None:
         + ", ".join(f"{r:g} ({short(e)})" for r, e in tried)
         + f". {mismatched} values exist in one solver only (a peak time where the overshoot is at rounding level, "
         f"near Kp Td = 1/e). Largest discarded Taylor coefficient: {batch.truncation:.1e}. "
-        f"numba threads: {__import__('numba').get_num_threads()}."
+        f"numba threads: {__import__('numba').get_num_threads()}; delaykit's CPU time over its threads "
+        f"{dk_cpu:.3f} s (so at best {dk_cpu / 2:.3f} s of wall time on 2 idle cores); load average "
+        f"{load[0]:.1f} while it ran (the machine is shared)."
     )
-    result = {"loops": args.loops, "targets_met": {"delaykit": meets(dk_err), "jitcdde": jit_ok}, "delaykit": {"compile_cold": dk_cold, "compile": dk_compile, "run": dk_time, "runs": runs, "error": dk_err},
+    result = {"loops": args.loops, "targets_met": {"delaykit": meets(dk_err), "jitcdde": jit_ok},
+              "delaykit": {"compile_cold": dk_cold, "compile": dk_compile, "run": dk_time, "runs": runs, "cpu": dk_cpu,
+                           "loadavg": load, "error": dk_err},
               "jitcdde": {"compile": jit.compile_time, "run": jit_time, "rtol": rtol, "error": je, "loops_run": n_jit,
                           "tried": [{"rtol": r, "error": e} for r, e in tried]},
               "ratio": jit_time / dk_time, "agreement": agree, "mismatched": mismatched}

@@ -83,6 +83,9 @@ def simulate(
     if extra:
         raise InvalidValueError(f"{extra[0]} goes with a varying delay: add --delay-schedule, --jitter or "
                                 "--delay-trace")
+    from ..simulate import _jit
+
+    _jit.use_interpreter()  # short runs as plain Python, without numba's start-up; a long one moves to numba
     ref: Any = Step(step)
     if ramp is not None and reference_csv is not None:
         raise InvalidValueError("give --ramp or --reference, not both")

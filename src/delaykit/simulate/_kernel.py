@@ -1,4 +1,4 @@
-"""Compiled core of the simulator: the method of steps with truncated Taylor polynomials, for any loop.
+"""Core of the simulator: the method of steps with truncated Taylor polynomials, for any loop.
 
 The loop (see :mod:`delaykit.models.loop` for the user-facing description) is one linear system with a
 state vector ``X`` (the plant's states, then the controller's), driven by polynomial signals:
@@ -23,222 +23,57 @@ from the Taylor recursion ``X[j+1] = H (M X[j] + inputs[j]) / (j + 1)``.  A piec
 * a saturation switch of the command (a root of ``v(x) = umax`` or ``umin``, refined to machine precision),
   and, with clamping anti-windup, a sign change of the error while saturated;
 * a sample instant of a sampled controller, a knot of the reference, the load disturbance's start;
-* a length cap ``hmax`` (the reciprocal of the loop's fastest rate) that keeps the Taylor coefficients
-  decaying like ``1 / j!``.
+* a length cap: ``hmax`` (the reciprocal of the loop's fastest rate, which keeps the Taylor coefficients
+  decaying like ``1 / j!``), or longer, up to ``4 hmax``, where the last Taylor coefficient of every state and
+  of the command, relative to that signal's largest, stays below ``1 / 24!`` (that of a pure mode of the
+  fastest rate over ``hmax``): a fast mode the loop barely excites (a derivative filter's) does not hold every
+  piece to its own time scale.  Each piece's tail sets the next one's length; a piece longer than ``hmax``
+  whose tail misses the bound by far is redone shorter, and none reads a stored piece of a delayed signal
+  farther than twice that piece's length (or ``2 hmax``) from its start.
+
+Where the plant's input is known before the piece (delayed, or held by a sampled controller) and the command
+does not act back on the states, the recursion runs on ``X' = A X + G (w, r, ym, vm)``, with the measurement's
+coupling folded into ``A`` once per run (:mod:`._taylor`); otherwise on the general form.
 
 Step metrics are computed on the polynomials themselves while the pieces stream past.
 
-The parameter row layout (``HEAD`` and the ``OFF_*`` offsets) is defined once here and filled by
-:mod:`delaykit.simulate.simulation`.  This module is private.
+The parameter row layout (``HEAD`` and the ``OFF_*`` offsets) is defined in :mod:`._layout` and filled by
+:mod:`delaykit.simulate.simulation`; the polynomial helpers are :mod:`._poly`.  numba compiles this module, or
+it runs as plain Python (see :mod:`._jit`).  This module is private.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
 
-__all__ = ["DEG", "NC", "MAXN", "HEAD", "NPAR", "OUT", "NOUT", "AW", "run_one", "run_batch"]
+from . import _jit
+from ._jit import njit, prange
+from ._layout import (DEG, HEAD, MAXN, NC, NOUT, OFF_BAW, OFF_BR, OFF_BU, OFF_BUM, OFF_BVM, OFF_BW, OFF_BYM, OFF_CV,
+                      OFF_CY, OFF_CYD, OFF_M, STATUS_CAPACITY, STATUS_OK, STATUS_STALLED)
 
-DEG = 24
-NC = DEG + 1
-MAXN = 16
-_GRID = 16
+__all__ = ["run_one", "run_batch"]
 
-# Scalars at the start of a parameter row.
-(_N, _TI, _TO, _UMIN, _UMAX, _PERIOD, _OFFSET, _T_END, _BAND, _NORM, _DIST, _T_DIST, _DY, _DYD, _DVR, _DVY, _DVV, _INTEG, _AW, _HMAX, _SCALE, _STEP, _SLOPE, _TM) = range(24)
-HEAD = {
-    "n": _N,
-    "ti": _TI,
-    "to": _TO,
-    "umin": _UMIN,
-    "umax": _UMAX,
-    "period": _PERIOD,
-    "offset": _OFFSET,
-    "t_end": _T_END,
-    "band": _BAND,
-    "norm": _NORM,
-    "dist": _DIST,
-    "t_dist": _T_DIST,
-    "dy": _DY,
-    "dyd": _DYD,
-    "dvr": _DVR,
-    "dvy": _DVY,
-    "dvv": _DVV,
-    "integ": _INTEG,
-    "aw": _AW,
-    "hmax": _HMAX,
-    "scale": _SCALE,
-    "step": _STEP,
-    "slope": _SLOPE,
-    "tm": _TM,
-}
-NHEAD = 24
-# Matrices and vectors after it: M (MAXN x MAXN, row-major), then ten vectors of length MAXN.
-OFF_M = NHEAD
-OFF_BW = OFF_M + MAXN * MAXN      # plant input w
-OFF_BR = OFF_BW + MAXN            # reference r
-OFF_BYM = OFF_BR + MAXN           # measured output ym
-OFF_BVM = OFF_BYM + MAXN          # measured velocity vm
-OFF_BAW = OFF_BVM + MAXN          # back-calculation term sat(v) - v
-OFF_CY = OFF_BAW + MAXN           # y = CY X + dy w
-OFF_CYD = OFF_CY + MAXN           # y' = CYD X + dyd w
-OFF_CV = OFF_CYD + MAXN           # v = CV X + dvr r + dvy ym + dvv vm
-OFF_BU = OFF_CV + MAXN            # the command u itself (a predictor's model input)
-OFF_BUM = OFF_BU + MAXN           # the command one model delay ago, u(t - Tm)
-NPAR = OFF_BUM + MAXN
-AW = {"none": 0, "clamp": 1, "backcalc": 2}
+_p = _jit.sibling("_poly")  # the polynomial helpers, built in this module's mode
+_horner, _horner_d, _sum, _bounds, _refine = _p.horner, _p.horner_d, _p.poly_sum, _p.bounds, _p.refine
+_first_cross, _all_cross, _shift_scale, _scale, _degree = (_p.first_cross, _p.all_cross, _p.shift_scale, _p.scale,
+                                                           _p.degree)
+_GRID = _p.GRID
+_t = _jit.sibling("_taylor")  # the Taylor recursion of one piece
+_recursion, _recursion_known = _t.recursion, _t.recursion_known
 
-# Column layout of a metrics row.
-OUT = {
-    "overshoot": 0, "peak_time": 1, "peak": 2, "t10": 3, "t90": 4, "rise_time": 5,
-    "settling_time": 6, "final_error": 7, "truncation": 8, "pieces": 9, "status": 10,
-    "u_pieces": 11, "y_pieces": 12, "t_stop": 13,
-}
-NOUT = len(OUT)
-STATUS_OK, STATUS_CAPACITY, STATUS_STALLED = 0.0, 1.0, 2.0
+# Indices of the scalars at the start of a parameter row.
+(_N, _TI, _TO, _UMIN, _UMAX, _PERIOD, _OFFSET, _T_END, _BAND, _NORM, _DIST, _T_DIST, _DY, _DYD, _DVR, _DVY, _DVV,
+ _INTEG, _AW, _HMAX, _SCALE, _STEP, _SLOPE, _TM) = HEAD.values()
 _STALL = 256  # consecutive pieces shorter than 1e-9 of the run: no progress (the command chatters)
 
-_LIN, _HIGH, _LOW = 0, 1, 2
-
-
-# -- polynomials on [0, 1] ---------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
-def _horner(c, n, x):
-    s = 0.0
-    for j in range(n - 1, -1, -1):
-        s = s * x + c[j]
-    return s
+_LIN, _HIGH, _LOW = _t.LIN, _t.HIGH, _t.LOW
+# A piece's length: hmax (the reciprocal of the fastest rate), or up to _GROW times that where the Taylor tail
+# relative to the signal (see _tail) stays below _TAIL = 1 / 24!, the tail of a pure mode of that rate over hmax.
+_TAIL = 1.0 / 620448401733239439360000.0
+_GROW = 4.0
 
 
 @njit(cache=True, inline="always")
-def _horner_d(c, n, x):
-    p = 0.0
-    dp = 0.0
-    for j in range(n - 1, -1, -1):
-        dp = dp * x + p
-        p = p * x + c[j]
-    return p, dp
-
-
-@njit(cache=True, inline="always")
-def _sum(c, n):
-    s = 0.0
-    for j in range(n):
-        s += c[j]
-    return s
-
-
-@njit(cache=True)
-def _bounds(c, n):
-    """Lower and upper bounds of the polynomial on [0, 1] (x**j lies in [0, 1])."""
-    lo = c[0]
-    hi = c[0]
-    for j in range(1, n):
-        if c[j] > 0.0:
-            hi += c[j]
-        else:
-            lo += c[j]
-    return lo, hi
-
-
-@njit(cache=True)
-def _refine(c, n, target, lo, hi, slo):
-    """Root of c(x) - target in [lo, hi], where the sign just right of lo is ``slo`` (safeguarded Newton)."""
-    x = 0.5 * (lo + hi)
-    for _ in range(200):
-        f, df = _horner_d(c, n, x)
-        f -= target
-        if f == 0.0:
-            return x
-        if f * slo > 0.0:
-            lo = x
-        else:
-            hi = x
-        if hi - lo <= 4e-16 * max(1.0, abs(x)):
-            break
-        xn = x - f / df if df != 0.0 else 0.5 * (lo + hi)
-        if not (lo < xn < hi):
-            xn = 0.5 * (lo + hi)
-        if abs(xn - x) <= 1e-17:
-            x = xn
-            break
-        x = xn
-    return x
-
-
-@njit(cache=True)
-def _first_cross(c, n, target, s0):
-    """First x in (0, 1] where c(x) - target leaves the sign ``s0`` it has just right of 0; 2.0 if none."""
-    if n <= 1:
-        return 2.0
-    prev = 0.0
-    for i in range(1, _GRID + 1):
-        x = i / _GRID
-        f = _horner(c, n, x) - target
-        if f * s0 <= 0.0:
-            if f == 0.0 and i == _GRID:
-                return 1.0
-            return _refine(c, n, target, prev, x, s0)
-        prev = x
-    return 2.0
-
-
-@njit(cache=True)
-def _all_cross(c, n, target, xs):
-    """All sign changes of c(x) - target in (0, 1), refined; returns their count (stored in xs)."""
-    if n <= 1:
-        return 0
-    k = 0
-    fp = c[0] - target
-    xp = 0.0
-    for i in range(1, _GRID + 1):
-        x = i / _GRID
-        f = _horner(c, n, x) - target
-        if (fp < 0.0 and f >= 0.0) or (fp > 0.0 and f <= 0.0):
-            if not (i == _GRID and f == 0.0):
-                xs[k] = _refine(c, n, target, xp, x, 1.0 if fp > 0.0 else -1.0)
-                k += 1
-        if f != 0.0:
-            fp = f
-        xp = x
-    return k
-
-
-@njit(cache=True)
-def _shift_scale(src, n, alpha, beta, dst):
-    """dst(y) = src(alpha + beta*y): Taylor shift by alpha, then scale by beta (zeros above degree n-1)."""
-    for j in range(n):
-        dst[j] = src[j]
-    for j in range(n, NC):
-        dst[j] = 0.0
-    if alpha != 0.0:
-        for i in range(n - 1):
-            for j in range(n - 2, i - 1, -1):
-                dst[j] += alpha * dst[j + 1]
-    if beta != 1.0:
-        b = 1.0
-        for j in range(n):
-            dst[j] *= b
-            b *= beta
-
-
-@njit(cache=True)
-def _scale(c, n, s):
-    b = 1.0
-    for j in range(n):
-        c[j] *= b
-        b *= s
-
-
-@njit(cache=True)
-def _degree(c, n):
-    """Number of coefficients up to the last non-zero one (at least 1)."""
-    while n > 1 and c[n - 1] == 0.0:
-        n -= 1
-    return n
-
-
-@njit(cache=True)
 def _classify(V, n, umin, umax, tol):
     """Regime of the command at the start of a piece: linear, or saturated high or low."""
     v0 = V[0]
@@ -258,8 +93,8 @@ def _classify(V, n, umin, umax, tol):
     return _LIN
 
 
-@njit(cache=True)
-def _delayed(t0, th, tc, tdeg, q, s, H, dst):
+@njit(cache=True, inline="always")
+def _delayed(t0, th, tc, tdeg, q, s, H, dst, work):
     """The stored piece ``q`` of a history, as a polynomial over [s, s + H] (extrapolated past its end
     where the signal is analytic there); returns the number of coefficients."""
     alpha = (s - t0[q]) / th[q]
@@ -269,16 +104,35 @@ def _delayed(t0, th, tc, tdeg, q, s, H, dst):
     if alpha == 0.0 and abs(beta - 1.0) < 1e-13:
         beta = 1.0
     n = tdeg[q]
-    _shift_scale(tc[q], n, alpha, beta, dst)
+    _shift_scale(tc[q], n, alpha, beta, dst, work)
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _ref_poly(rt, r0, rs, k, a, H, R):
     """The reference on [a, a + H] within its segment ``k`` (value r0[k] + rs[k] (t - rt[k]))."""
     R[0] = r0[k] + rs[k] * (a - rt[k])
     R[1] = rs[k] * H
     return 2 if rs[k] != 0.0 else 1
+
+
+@njit(cache=True, inline="always")
+def _tail(X, N, V, nt):
+    """The largest last Taylor coefficient of a state or of the command, relative to that signal's largest
+    coefficient on the piece (0 when the coefficients ended before degree DEG)."""
+    if nt < NC:
+        return 0.0
+    t = 0.0
+    for i in range(N + 1):
+        big = 0.0
+        for j in range(NC):
+            c = abs(X[i, j]) if i < N else abs(V[j])
+            if c > big:
+                big = c
+        if big > 0.0:
+            last = abs(X[i, DEG]) if i < N else abs(V[DEG])
+            t = max(t, last / big)
+    return t
 
 
 # The step metrics' running state (a row of ``ms``): highest w so far and when, the first times w reaches
@@ -287,8 +141,8 @@ _WMAX, _TPEAK, _T10, _T90, _TLAST, _WEND = range(6)
 _NMS = 6
 
 
-@njit(cache=True)
-def _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs):
+@njit(cache=True, inline="always")
+def _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs, fs):
     """Update the step metrics with the piece ``Y`` on ``[a, a + H]`` (exact: extrema and crossings are roots)."""
     end = a + H
     for j in range(nY):
@@ -297,7 +151,7 @@ def _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs):
     if hi > ms[_WMAX]:
         for j in range(nY - 1):
             dW[j] = (j + 1) * Wn[j + 1]
-        k = _all_cross(dW, nY - 1, 0.0, xs)
+        k = _all_cross(dW, nY - 1, 0.0, xs, fs)
         for i in range(k + 1):
             x = xs[i] if i < k else 1.0
             wv = _horner(Wn, nY, x)
@@ -309,7 +163,7 @@ def _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs):
             ms[_TPEAK] = a
     for idx, level in ((_T10, 0.1), (_T90, 0.9)):
         if np.isnan(ms[idx]) and hi >= level:
-            t = a if Wn[0] >= level else a + _first_cross(Wn, nY, level, -1.0) * H
+            t = a if Wn[0] >= level else a + _first_cross(Wn, nY, level, -1.0, fs) * H
             ms[idx] = t if t <= end else np.nan
     wend = _sum(Wn, nY)
     ms[_WEND] = wend
@@ -318,10 +172,10 @@ def _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs):
             ms[_TLAST] = end
         else:
             xl = -1.0
-            k = _all_cross(Wn, nY, 1.0 + band, xs)
+            k = _all_cross(Wn, nY, 1.0 + band, xs, fs)
             if k > 0:
                 xl = max(xl, xs[k - 1])
-            k = _all_cross(Wn, nY, 1.0 - band, xs)
+            k = _all_cross(Wn, nY, 1.0 - band, xs, fs)
             if k > 0:
                 xl = max(xl, xs[k - 1])
             if xl >= 0.0:
@@ -330,29 +184,29 @@ def _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs):
                 ms[_TLAST] = a
 
 
-@njit(cache=True)
-def _first_switch(V, nv, E, ne, regime, frozen, umin, umax, aw):
+@njit(cache=True, inline="always")
+def _first_switch(V, nv, E, ne, regime, frozen, umin, umax, aw, fs):
     """Where on the piece (x in (0, 1]) the command ``V`` first leaves its regime or, with clamping
     anti-windup while saturated, the error ``E`` changes sign; 2.0 if nowhere."""
     xc = 2.0
     lo, hi = _bounds(V, nv)
     if regime == _LIN:
         if hi >= umax:
-            xc = min(xc, _first_cross(V, nv, umax, -1.0))
+            xc = min(xc, _first_cross(V, nv, umax, -1.0, fs))
         if lo <= umin:
-            xc = min(xc, _first_cross(V, nv, umin, 1.0))
+            xc = min(xc, _first_cross(V, nv, umin, 1.0, fs))
     elif regime == _HIGH:
         if lo <= umax:
-            xc = _first_cross(V, nv, umax, 1.0)
+            xc = _first_cross(V, nv, umax, 1.0, fs)
     elif hi >= umin:
-        xc = _first_cross(V, nv, umin, -1.0)
+        xc = _first_cross(V, nv, umin, -1.0, fs)
     if aw == 1 and regime != _LIN:
         s0 = 1.0 if frozen == (regime == _HIGH) else -1.0
-        xc = min(xc, _first_cross(E, ne, 0.0, s0))
+        xc = min(xc, _first_cross(E, ne, 0.0, s0, fs))
     return xc
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _image(t0, gen, n, q, qg, s, a, delay, eps):
     """In a history of ``n`` pieces (starts ``t0``, ``gen`` = not analytic at the start): the piece ``q``
     that contains ``s``, the first piece ``qg`` after it that starts where the signal is not analytic, and
@@ -364,131 +218,6 @@ def _image(t0, gen, n, q, qg, s, a, delay, eps):
     while qg < n and gen[qg] == 0:
         qg += 1
     return q, qg, (t0[qg] if qg < n else a) + delay
-
-
-# -- one piece -------------------------------------------------------------------------------------------
-@njit(cache=True)
-def _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dist, X, R, nR,
-               Wd, nW, Ym, Vm, use_meas, Y, Yd, V, E, need_yd, Um, nUm, has_u):
-    """Taylor coefficients of every signal on one piece of length ``H`` with the regime fixed.
-
-    ``X[:, 0]`` holds the states at the start; fills ``X[:, 1:]``, the output ``Y``, its derivative ``Yd``,
-    the controller output ``V`` and the error ``E`` (``Yd`` only where ``need_yd``: something reads y').
-    With ``has_u`` (a predictor's model inside the controller), the states also read the command ``u``
-    itself and ``Um`` (``nUm`` coefficients), the command one model delay ago.
-    """
-    umin = par[_UMIN]
-    umax = par[_UMAX]
-    dy = par[_DY]
-    dyd = par[_DYD]
-    dvr = par[_DVR]
-    dvy = par[_DVY]
-    dvv = par[_DVV]
-    integ = int(par[_INTEG])
-    aw = int(par[_AW])
-    kd = dvy * dy + dvv * dyd  # direct feedthrough around a loop with no delay at all
-    lim = umax if regime == _HIGH else umin
-    # the forcing is a polynomial of degree < nf: once the states' coefficients vanish past it, all do
-    nf = max(nR, nW if ti_pos else 1, 1)
-    if has_u:
-        nf = max(nf, nUm)
-    if use_meas:
-        nf = max(nf, _degree(Ym, NC), _degree(Vm, NC))
-    nt = NC
-    for j in range(NC):
-        if j >= nf and j > 0:
-            zero = True
-            for i in range(N):
-                if X[i, j] != 0.0:
-                    zero = False
-                    break
-            if zero:
-                nt = j
-                break
-        rj = R[j] if j < nR else 0.0
-        dj = dist if j == 0 else 0.0
-        # the parts of y, y' and v that do not depend on this piece's plant input
-        cy = 0.0
-        cyd = 0.0
-        cv = 0.0
-        for i in range(N):
-            xi = X[i, j]
-            cy += VE[5, i] * xi
-            cv += VE[7, i] * xi
-        if need_yd:
-            for i in range(N):
-                cyd += VE[6, i] * X[i, j]
-        if sampled:
-            wj = (Wd[j] if (ti_pos and j < nW) else (uhold if j == 0 else 0.0)) + dj
-            vj = 0.0  # filled below
-        elif ti_pos:
-            wj = (Wd[j] if j < nW else 0.0) + dj
-            vj = 0.0
-        elif algebraic:
-            base = cv + dvr * rj + dvy * cy + dvv * cyd
-            if regime == _LIN:
-                vj = (base + kd * dj) / (1.0 - kd)
-                wj = vj + dj
-            else:
-                wj = (lim if j == 0 else 0.0) + dj
-                vj = base + kd * wj
-        else:
-            # no input delay, a delayed measurement: v is known before w
-            vj = cv + dvr * rj + dvy * Ym[j] + dvv * Vm[j]
-            wj = (vj if regime == _LIN else (lim if j == 0 else 0.0)) + dj
-        yj = cy + dy * wj
-        ydj = cyd + dyd * wj
-        if use_meas:
-            ymj = Ym[j]
-            vmj = Vm[j]
-        else:
-            ymj = yj
-            vmj = ydj
-        if sampled or ti_pos:
-            vj = cv + dvr * rj + dvy * ymj + dvv * vmj
-        Y[j] = yj
-        Yd[j] = ydj
-        V[j] = vj
-        E[j] = rj - ymj
-        if j == DEG:
-            break
-        awj = 0.0
-        if aw == 2 and regime != _LIN:
-            awj = (lim if j == 0 else 0.0) - vj
-        f = H / (j + 1)
-        if has_u:
-            # the command as applied: held, the law's output, or the limit it is clipped to
-            if sampled:
-                uj = uhold if j == 0 else 0.0
-            elif regime == _LIN:
-                uj = vj
-            else:
-                uj = lim if j == 0 else 0.0
-            umj = Um[j] if j < nUm else 0.0
-            for i in range(N):
-                acc = (VE[0, i] * wj + VE[1, i] * rj + VE[2, i] * ymj + VE[3, i] * vmj + VE[4, i] * awj
-                       + VE[8, i] * uj + VE[9, i] * umj)
-                for k in range(N):
-                    acc += Mloc[i, k] * X[k, j]
-                X[i, j + 1] = f * acc
-        else:
-            for i in range(N):
-                acc = VE[0, i] * wj + VE[1, i] * rj + VE[2, i] * ymj + VE[3, i] * vmj + VE[4, i] * awj
-                for k in range(N):
-                    acc += Mloc[i, k] * X[k, j]
-                X[i, j + 1] = f * acc
-        if frozen and integ >= 0:
-            X[integ, j + 1] = 0.0
-    for j in range(nt, NC):
-        Y[j] = 0.0
-        Yd[j] = 0.0
-        V[j] = 0.0
-        E[j] = 0.0
-        for i in range(N):
-            X[i, j] = 0.0
-    for i in range(N):
-        X[i, NC] = 0.0
-    return nt
 
 
 @njit(cache=True)
@@ -538,19 +267,18 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     nref = rt.shape[0]
 
     X = np.zeros((MAXN, NC + 1))
-    R = np.zeros(NC)
-    Wd = np.zeros(NC)
-    Um = np.zeros(NC)
-    Ym = np.zeros(NC)
-    Vm = np.zeros(NC)
-    Y = np.zeros(NC)
-    Yd = np.zeros(NC)
-    V = np.zeros(NC)
-    E = np.zeros(NC)
-    Wn = np.zeros(NC)
-    dW = np.zeros(NC)
-    xs = np.zeros(_GRID + 2)
-    x0 = np.zeros(MAXN)
+    # the signals' coefficients and the small work arrays: views of one block (one allocation per run)
+    buf = np.zeros(12 * NC + 2 * _GRID + 3 + MAXN + 5 + _NMS)
+    R, Wd, Um, Ym, Vm, Y = buf[0:NC], buf[NC:2 * NC], buf[2 * NC:3 * NC], buf[3 * NC:4 * NC], buf[4 * NC:5 * NC], \
+        buf[5 * NC:6 * NC]
+    Yd, V, E, Wn, dW, work = buf[6 * NC:7 * NC], buf[7 * NC:8 * NC], buf[8 * NC:9 * NC], buf[9 * NC:10 * NC], \
+        buf[10 * NC:11 * NC], buf[11 * NC:12 * NC]
+    o = 12 * NC
+    xs, fs = buf[o:o + _GRID + 2], buf[o + _GRID + 2:o + 2 * _GRID + 3]
+    o += 2 * _GRID + 3
+    x0 = buf[o:o + MAXN]
+    o += MAXN
+    d5, ms = buf[o:o + 5], buf[o + 5:o + 5 + _NMS]  # the direct terms; the step metrics as the pieces stream past
     has_u = False
     for i in range(N):
         if par[OFF_BVM + i] != 0.0:
@@ -575,6 +303,27 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
         VE[7, i] = par[OFF_CV + i]
         VE[8, i] = par[OFF_BU + i]
         VE[9, i] = par[OFF_BUM + i]
+    # with the plant's input known (delayed, or held by a sampled controller): X' = A X + G (w, r, ym, vm), the
+    # measurement folded into A when it is the output itself (no output delay)
+    known = (ti_pos or sampled) and not algebraic and not has_u
+    A = Mloc.copy()
+    G = np.zeros((4, N))
+    d5[0], d5[1], d5[2], d5[3], d5[4] = par[_DY], par[_DYD], dvr, dvy, dvv
+    integ = int(par[_INTEG])
+    zero_a = True
+    for i in range(N):
+        G[0, i] = VE[0, i]
+        G[1, i] = VE[1, i]
+        if to_pos:
+            G[2, i] = VE[2, i]
+            G[3, i] = VE[3, i]
+        else:
+            G[0, i] += VE[2, i] * d5[0] + VE[3, i] * d5[1]
+            for k in range(N):
+                A[i, k] += VE[2, i] * VE[5, k] + VE[3, i] * VE[6, k]
+        for k in range(N):
+            if A[i, k] != 0.0:
+                zero_a = False
 
     ne = et.shape[0]
     ke = 0
@@ -598,7 +347,6 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     qgm = 1
     kr = 0
     trunc = 0.0
-    ms = np.empty(_NMS)  # the step metrics as the pieces stream past
     ms[_WMAX] = -np.inf
     ms[_TPEAK] = np.nan
     ms[_T10] = np.nan
@@ -608,6 +356,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     status = STATUS_OK
     regime = _LIN
     tiny = 0
+    hlen = hmax  # the next piece's length, unless something cuts it shorter
     genu = True  # the command and the output are not analytic at t = 0
     geny = True
     y_end = 0.0
@@ -627,7 +376,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
             ksamp += 1
             nexts = off + ksamp * per
         # where the piece must end, and why
-        end = min(tend, a + hmax)
+        end = min(tend, a + hlen)
         t_img_u = np.inf
         t_img_y = np.inf
         t_img_m = np.inf
@@ -659,12 +408,21 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
             else:
                 qm, qgm, t_img_m = _image(tu0, ugen, nu, qm, qgm, sm, a, tm, eps)
             end = min(end, t_img_m)
+        if end - a > hmax:
+            # a piece longer than hmax reads a delayed signal's stored piece at most twice that piece's length
+            # (or 2 hmax) from its start, as a piece of length hmax would
+            if ti_pos and su >= -eps and tdeg[qu] > 1:
+                end = min(end, tu0[qu] + ti + 2.0 * max(thu[qu], hmax))
+            if to_pos and sy >= -eps:
+                end = min(end, ty0[qy] + to + 2.0 * max(tyh[qy], hmax))
+            if tm_pos and sm >= -eps and tdeg[qm] > 1:
+                end = min(end, tu0[qm] + tm + 2.0 * max(thu[qm], hmax))
         H = end - a
         # the delayed signals and the reference on this piece
         nW = 1
         Wd[0] = 0.0
         if ti_pos and su >= -eps:
-            nW = _delayed(tu0, thu, tuc, tdeg, qu, max(su, tu0[qu]), H, Wd)
+            nW = _delayed(tu0, thu, tuc, tdeg, qu, max(su, tu0[qu]), H, Wd, work)
         if to_pos:
             if sy >= -eps:
                 alpha = (max(sy, ty0[qy]) - ty0[qy]) / tyh[qy]
@@ -673,8 +431,8 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
                 beta = H / tyh[qy]
                 if alpha == 0.0 and abs(beta - 1.0) < 1e-13:
                     beta = 1.0
-                _shift_scale(tyc[qy], NC, alpha, beta, Ym)
-                _shift_scale(tyd[qy], NC, alpha, beta, Vm)
+                _shift_scale(tyc[qy], _degree(tyc[qy], NC), alpha, beta, Ym, work)
+                _shift_scale(tyd[qy], _degree(tyd[qy], NC), alpha, beta, Vm, work)
             else:
                 for j in range(NC):
                     Ym[j] = 0.0
@@ -682,7 +440,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
         nUm = 1
         Um[0] = 0.0
         if tm_pos and sm >= -eps:
-            nUm = _delayed(tu0, thu, tuc, tdeg, qm, max(sm, tu0[qm]), H, Um)
+            nUm = _delayed(tu0, thu, tuc, tdeg, qm, max(sm, tu0[qm]), H, Um, work)
         nR = _ref_poly(rt, r0, rs, kr, a, H, R)
         dcur = dist if dist_on else 0.0
         for i in range(N):
@@ -692,8 +450,12 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
         xc = 2.0
         prev_regime = regime
         for attempt in range(4):
-            nt = _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dcur, X, R, nR,
-                            Wd, nW, Ym, Vm, to_pos, Y, Yd, V, E, need_yd, Um, nUm, has_u)
+            if known and (aw != 2 or regime == _LIN):
+                nt = _recursion_known(A, G, VE, N, H, frozen, integ, dcur + (0.0 if ti_pos else uhold), Wd, nW, R,
+                                      nR, Ym, Vm, to_pos, need_yd, d5, X, Y, Yd, V, E, zero_a)
+            else:
+                nt = _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dcur, X, R,
+                                nR, Wd, nW, Ym, Vm, to_pos, Y, Yd, V, E, need_yd, Um, nUm, has_u)
             nv = _degree(V, nt)
             new = _classify(V, nv, umin, umax, ptol)
             newf = False
@@ -711,7 +473,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
                 if changed:
                     continue
             # the first switch on the piece: the command leaves its regime, or the error changes sign
-            xc = _first_switch(V, nv, E, _degree(E, nt), regime, frozen, umin, umax, aw) if switches else 2.0
+            xc = _first_switch(V, nv, E, _degree(E, nt), regime, frozen, umin, umax, aw, fs) if switches else 2.0
             # a switch at the very start: the piece began on the boundary in the wrong regime
             if attempt < 3 and xc < 1.0 and xc * H <= 1e-12 * max(1.0, abs(a) + H):
                 probe = _horner(V, nv, min(1.0, max(16.0 * xc, 1e-9)))
@@ -723,6 +485,18 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
                     frozen = False
                 continue
             break
+        # the Taylor tail of the states and the command decides how long the next piece may be: as long as
+        # their last coefficient stays below that of the loop's fastest mode over hmax (a piece that was longer
+        # than hmax and missed that by far is redone shorter; one shorter than hmax, cut by a breakpoint, leaves
+        # the length as it was)
+        if H >= hmax * (1.0 - 1e-9):
+            tail = _tail(X, N, V, nt)
+            grow = (_TAIL / tail) ** (1.0 / DEG) if tail > 0.0 else np.inf
+            if H > hmax * (1.0 + 1e-9) and tail > 64.0 * _TAIL:
+                hlen = max(hmax, H * grow)
+                regime = prev_regime
+                continue
+            hlen = min(_GROW * hmax, max(hmax, H * grow))
         cut = xc < 1.0 - 1e-13
         if cut:
             for i in range(N):
@@ -781,7 +555,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
             ny += 1
         trunc = max(trunc, abs(Y[DEG]) / max(abs(norm), scale, 1e-300))
         if metrics:
-            _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs)
+            _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs, fs)
         # the requested samples of y on this piece
         while ke < ne and et[ke] <= end + eps:
             x = (et[ke] - a) / H
@@ -789,14 +563,18 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
             ke += 1
         # advance: the states, the left limits the next sample reads, and why the next piece starts
         for i in range(N):
-            x0[i] = _sum(X[i], nt)
+            x0[i] = 0.0
+        for j in range(nt):  # the sums of the states' coefficients, side by side
+            for i in range(N):
+                x0[i] += X[i, j]
         y_end = _sum(Y, nY)
-        if to_pos:
-            ym_left = _sum(Ym, NC)
-            vm_left = _sum(Vm, NC)
-        else:
-            ym_left = y_end
-            vm_left = _sum(Yd, nt)
+        if sampled:  # what the next sample reads
+            if to_pos:
+                ym_left = _sum(Ym, NC)
+                vm_left = _sum(Vm, NC)
+            else:
+                ym_left = y_end
+                vm_left = _sum(Yd, nt)
         genu = False
         geny = False
         if cut:

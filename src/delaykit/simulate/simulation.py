@@ -1,6 +1,7 @@
 """Exact simulation of any delayed loop, one loop at a time or thousands at once.
 
-The solver (:mod:`delaykit.simulate._kernel`) is the method of steps with Taylor polynomials between
+The solver (:mod:`delaykit.simulate._kernel`, compiled by numba or, for a single run after
+:func:`~delaykit.simulate._jit.use_interpreter`, interpreted) is the method of steps with Taylor polynomials between
 breakpoints: saturation switches, their images one delay later, sample instants, reference knots and the
 jumps of neutral loops are all located to machine precision, so the responses and their metrics are exact
 up to rounding.  The largest discarded Taylor coefficient is reported as ``truncation`` (typically below
@@ -29,7 +30,9 @@ from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop, as_loop
 from ..models.loop import Loop
 from ..models.signals import LoadStep, Ramp, Samples, Step, as_reference
-from . import _kernel as K
+from . import _jit
+from . import _layout as K
+from ._layout import LoopMatrices, fastest_rate, loop_matrices, param_row
 from .metrics import StepMetrics
 
 __all__ = ["Response", "BatchMetrics", "Sampler", "simulate", "simulate_many", "as_loop", "SWEEPABLE"]
@@ -41,123 +44,12 @@ SWEEPABLE = ("kp", "ki", "kd", "kv", "delay", "output_delay", "umin", "umax", "v
 """The parameters :func:`simulate_many` sweeps (arrays broadcast together)."""
 
 
-# -- parameter rows ---------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class _Layout:
-    """A loop as the kernel's matrices (everything of a parameter row but the run's settings)."""
-
-    npl: int
-    M: np.ndarray
-    bw: np.ndarray
-    br: np.ndarray
-    bym: np.ndarray
-    bvm: np.ndarray
-    baw: np.ndarray
-    cy: np.ndarray
-    cyd: np.ndarray
-    cv: np.ndarray
-    bu: np.ndarray
-    bum: np.ndarray
-    dy: float
-    dyd: float
-    integ: int
-
-
-def _layout(loop: Loop) -> _Layout:
-    A, B, C, D = loop.plant.state_space()
-    A = np.atleast_2d(np.asarray(A, float))
-    npl = A.shape[0]
-    B = np.asarray(B, float).reshape(npl)
-    C = np.asarray(C, float).reshape(npl)
-    rz = loop.controller.realisation()
-    nc = rz.order
-    n = npl + nc
-    if n > K.MAXN:
-        raise InvalidValueError(
-            f"the loop has {n} states (plant {npl}, controller {nc}); the simulator takes at most {K.MAXN}")
-    if n == 0:  # a static plant: give the kernel one inert state
-        A, B, C, npl, n = np.zeros((1, 1)), np.zeros(1), np.zeros(1), 1, 1 + nc
-    M = np.zeros((n, n))
-    M[:npl, :npl] = A
-    if nc:
-        M[npl:, npl:] = rz.Ac
-    zp, zc = np.zeros(npl), np.zeros(nc)
-    return _Layout(
-        npl=npl, M=M, bw=np.r_[B, zc], br=np.r_[zp, rz.Bcr], bym=np.r_[zp, rz.Bcy], bvm=np.r_[zp, rz.Bcv],
-        baw=np.r_[zp, rz.Baw], cy=np.r_[C, zc], cyd=np.r_[C @ A, zc], cv=np.r_[zp, rz.Cc],
-        bu=np.r_[zp, rz.Bcu if rz.Bcu is not None else zc], bum=np.r_[zp, rz.Bcm if rz.Bcm is not None else zc],
-        dy=float(D),
-        dyd=float(C @ B), integ=npl + rz.integ if rz.integ >= 0 else -1,
-    )
-
-
-def _put(row: np.ndarray, off: int, vec: np.ndarray) -> None:
-    row[off:off + vec.size] = vec
-
-
-def _rate(lay: _Layout, dvy: float, dvv: float, cv: np.ndarray, delay_free: bool) -> float:
-    """The loop's fastest rate, whose reciprocal caps a piece's length (Taylor terms decay like 1/j!)."""
-    rate = float(np.max(np.abs(np.linalg.eigvals(lay.M)))) if lay.M.size else 0.0
-    rate = max(rate, abs(dvy * lay.dyd))
-    if np.any(lay.bu):  # a predictor's model reads the command, u = v while it is not saturated
-        rate = max(rate, float(np.max(np.abs(np.linalg.eigvals(lay.M + np.outer(lay.bu, cv))))))
-    if delay_free:
-        kd = dvy * lay.dy + dvv * lay.dyd
-        if abs(1.0 - kd) < 1e-12:
-            raise InvalidValueError("the loop without delay is ill-posed: the controller's direct feedthrough "
-                                    "cancels the plant's (1 + C(inf) P(inf) = 0)")
-        krow = cv + dvy * lay.cy + dvv * lay.cyd
-        acl = lay.M + np.outer(lay.bw + lay.bym * lay.dy + lay.bvm * lay.dyd, krow) / (1.0 - kd)
-        acl += np.outer(lay.bym, lay.cy) + np.outer(lay.bvm, lay.cyd)
-        rate = max(rate, float(np.max(np.abs(np.linalg.eigvals(acl)))))
-    return rate
-
-
-def _row(loop: Loop, lay: _Layout, *, step: float, slope: float, norm: float, t_end: float, band: float,
-         dist: LoadStep | None) -> np.ndarray:
-    c = loop.controller
-    rz = c.realisation()
-    p = np.zeros(K.NPAR)
-    n = lay.M.shape[0]
-    p[K.HEAD["n"]] = n
-    p[K.HEAD["ti"]] = loop.delay
-    p[K.HEAD["to"]] = loop.output_delay
-    p[K.HEAD["umin"]] = loop.umin
-    p[K.HEAD["umax"]] = loop.umax
-    p[K.HEAD["period"]] = loop.period or 0.0
-    p[K.HEAD["offset"]] = loop.sample_offset
-    p[K.HEAD["t_end"]] = t_end
-    p[K.HEAD["band"]] = band
-    p[K.HEAD["norm"]] = norm
-    p[K.HEAD["dist"]] = dist.size if dist is not None else 0.0
-    p[K.HEAD["t_dist"]] = dist.time if dist is not None else math.inf
-    p[K.HEAD["dy"]] = lay.dy
-    p[K.HEAD["dyd"]] = lay.dyd
-    p[K.HEAD["dvr"]] = rz.dvr
-    p[K.HEAD["dvy"]] = rz.dvy
-    p[K.HEAD["dvv"]] = rz.dvv
-    p[K.HEAD["integ"]] = lay.integ
-    p[K.HEAD["aw"]] = K.AW[c.antiwindup]
-    delay_free = loop.total_delay == 0.0 and not loop.sampled
-    p[K.HEAD["hmax"]] = 1.0 / max(_rate(lay, rz.dvy, rz.dvv, lay.cv, delay_free), 1e-9)
-    p[K.HEAD["scale"]] = max(1.0, abs(rz.dvr * step), abs(norm))
-    p[K.HEAD["step"]] = step
-    p[K.HEAD["slope"]] = slope
-    p[K.HEAD["tm"]] = rz.model_delay
-    M = np.zeros((K.MAXN, K.MAXN))
-    M[:n, :n] = lay.M
-    _put(p, K.OFF_M, M.ravel())
-    for off, vec in ((K.OFF_BW, lay.bw), (K.OFF_BR, lay.br), (K.OFF_BYM, lay.bym), (K.OFF_BVM, lay.bvm),
-                     (K.OFF_BAW, lay.baw), (K.OFF_CY, lay.cy), (K.OFF_CYD, lay.cyd), (K.OFF_CV, lay.cv),
-                     (K.OFF_BU, lay.bu), (K.OFF_BUM, lay.bum)):
-        _put(p, off, vec)
-    return p
-
-
 class _Workspace:
     """Work arrays for the kernel, grown eightfold (up to ``_CAP_MAX`` pieces) when a run needs more.
 
-    ``store`` keeps the output's pieces (for a :class:`Response`); ``t`` are times at which to evaluate y.
+    ``store`` keeps the output's pieces (for a :class:`Response`); ``t`` are times at which to evaluate y.  A run
+    goes to the interpreted kernel while the process runs interpreted (:mod:`._jit`) and its piece budget lasts;
+    one that reaches the budget (the kernel's capacity status) is redone compiled.  Batches are always compiled.
     """
 
     def __init__(self, store: bool, t: np.ndarray = _NO_T) -> None:
@@ -168,16 +60,25 @@ class _Workspace:
 
     def _alloc(self) -> None:
         c = self.cap
-        self.u = (np.empty(c), np.empty(c), np.zeros((c, K.NC)), np.empty(c, dtype=np.int64), np.empty(c, dtype=np.int8))
+        self.u = (np.empty(c), np.empty(c), np.zeros((c, K.NC)), np.empty(c, dtype=np.int64),
+                  np.empty(c, dtype=np.int8))
         self.y = (np.empty(c), np.empty(c), np.empty((c, K.NC)), np.empty((c, K.NC)), np.empty(c, dtype=np.int8))
         self.out = np.empty(K.NOUT)
         self.ez = np.empty(self.t.size)
 
     def run(self, row: np.ndarray, knots: tuple[np.ndarray, np.ndarray, np.ndarray]) -> int:
         """Run the kernel on one parameter row; returns the number of pieces."""
+        nstates = int(row[K.HEAD["n"]])
         while True:
-            n = K.run_one(row, *knots, self.cap, *self.u, *self.y, self.out, self.store, self.t, self.ez)
+            allowed = _jit.budget(nstates)  # pieces the interpreter may run (0: compiled)
+            cap = min(self.cap, allowed) if allowed else self.cap
+            kern = _jit.kernel(compiled=not allowed)
+            n = kern.run_one(row, *knots, cap, *self.u, *self.y, self.out, self.store, self.t, self.ez)
             status = self.out[K.OUT["status"]]
+            if allowed:
+                _jit.spend(nstates, n)
+                if status == K.STATUS_CAPACITY and cap < self.cap:
+                    continue  # the interpreter's budget is spent (n = cap): redo the run compiled
             if status == K.STATUS_OK:
                 return n
             if status == K.STATUS_STALLED:
@@ -390,10 +291,10 @@ def simulate(
     t_end, band = _check_run(t_end, band)
     z0 = check_real("z0", z0)
     ref, dist = _inputs(reference, step, disturbance)
-    lay = _layout(gen)
+    lay = loop_matrices(gen)
     norm = 0.0 if isinstance(ref, Ramp) else ref.final_value(t_end)
     knots = ref.knots()
-    row = _row(gen, lay, step=float(knots[1][0]), slope=0.0, norm=norm, t_end=t_end, band=band, dist=dist)
+    row = param_row(gen, lay, step=float(knots[1][0]), slope=0.0, norm=norm, t_end=t_end, band=band, dist=dist)
     ws = _Workspace(store=True)
     n = ws.run(row, knots)
     out = ws.out
@@ -429,8 +330,8 @@ class Sampler:
     def __call__(self, loop: Any, step: float, z0: float = 0.0) -> np.ndarray:
         """The output at the sample times (relative to the step at t = 0)."""
         gen = as_loop(loop)
-        row = _row(gen, _layout(gen), step=step, slope=0.0, norm=step, t_end=max(self.t_end, 1e-6), band=0.02,
-                   dist=None)
+        row = param_row(gen, loop_matrices(gen), step=step, slope=0.0, norm=step, t_end=max(self.t_end, 1e-6),
+                        band=0.02, dist=None)
         self._ws.run(row, (np.zeros(1), np.array([step]), np.zeros(1)))
         return z0 + self._ws.ez
 
@@ -597,8 +498,8 @@ def simulate_many(loop: Any, *, t_end: float = 15.0, band: float = 0.02, **sweep
 
 def _sweep_rows(gen: Loop, m: int, flat: dict[str, np.ndarray], t_end: float, band: float) -> np.ndarray:
     """Parameter rows of ``m`` variants of a loop: its row, with the swept columns written over."""
-    lay = _layout(gen)
-    row0 = _row(gen, lay, step=1.0, slope=0.0, norm=1.0, t_end=t_end, band=band, dist=None)
+    lay = loop_matrices(gen)
+    row0 = param_row(gen, lay, step=1.0, slope=0.0, norm=1.0, t_end=t_end, band=band, dist=None)
     pars = np.repeat(row0[None, :], m, axis=0)
     H = K.HEAD
     if any(name in flat for name in ("kp", "ki", "kd", "kv")):
@@ -629,12 +530,12 @@ def _sweep_rows(gen: Loop, m: int, flat: dict[str, np.ndarray], t_end: float, ba
     if not gen.sampled:
         for i in np.flatnonzero((pars[:, H["ti"]] + pars[:, H["to"]]) == 0):
             cv = pars[i, K.OFF_CV:K.OFF_CV + lay.M.shape[0]]
-            rate = _rate(lay, pars[i, H["dvy"]], pars[i, H["dvv"]], cv, True)
+            rate = fastest_rate(lay, pars[i, H["dvy"]], pars[i, H["dvv"]], cv, True)
             pars[i, H["hmax"]] = 1.0 / max(rate, 1e-9)
     return pars
 
 
-def _gain_columns(loop: Loop, lay: _Layout, pars: np.ndarray, g: dict[str, np.ndarray]) -> None:
+def _gain_columns(loop: Loop, lay: LoopMatrices, pars: np.ndarray, g: dict[str, np.ndarray]) -> None:
     """Write the controller's gain-dependent entries of many rows (the structure is the loop's)."""
     c = loop.controller
     H = K.HEAD
@@ -669,13 +570,14 @@ def _gain_columns(loop: Loop, lay: _Layout, pars: np.ndarray, g: dict[str, np.nd
 
 
 def _batch(pars: np.ndarray) -> np.ndarray:
-    import numba
-
     m = pars.shape[0]
     if m == 0:
         return np.empty((0, K.NOUT))
+    kern = _jit.kernel(compiled=True)
+    import numba
+
     nchunks = max(1, min(m, 8 * numba.get_num_threads()))
-    out = K.run_batch(pars, _CAP0, nchunks)
+    out = kern.run_batch(pars, _CAP0, nchunks)
     redo = np.flatnonzero(out[:, K.OUT["status"]] != K.STATUS_OK)  # a stall raises its error from run()
     for i in redo:
         ws = _Workspace(store=False)

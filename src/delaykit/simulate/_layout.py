@@ -1,0 +1,203 @@
+"""The simulator kernel's data: a loop's parameter row (built here from a loop) and a run's metrics row.
+
+:mod:`delaykit.simulate.simulation` builds parameter rows (:func:`param_row`) and reads metrics rows; the
+kernel (:mod:`._kernel`, compiled or interpreted, see :mod:`._jit`) reads and fills them.  Kept apart so that
+neither importing nor building a row imports numba.  This module is private.
+
+Examples
+--------
+>>> from delaykit import AltitudeLoop
+>>> from delaykit.simulate.simulation import as_loop
+>>> loop = as_loop(AltitudeLoop(kp=1.31, delay=0.368))
+>>> row = param_row(loop, loop_matrices(loop), step=1.0, slope=0.0, norm=1.0, t_end=15.0, band=0.02, dist=None)
+>>> row.size == NPAR, float(row[HEAD["ti"]]), round(float(1.0 / row[HEAD["hmax"]]), 2)  # the fastest rate: Kp
+(True, 0.368, 1.31)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InvalidValueError
+from ..models.loop import Loop
+from ..models.signals import LoadStep
+
+__all__ = ["LoopMatrices", "loop_matrices", "fastest_rate", "param_row", "DEG", "NC", "MAXN", "HEAD", "NHEAD",
+           "NPAR", "OUT", "NOUT", "AW", "STATUS_OK", "STATUS_CAPACITY", "STATUS_STALLED", "OFF_M", "OFF_BW",
+           "OFF_BR", "OFF_BYM", "OFF_BVM", "OFF_BAW", "OFF_CY", "OFF_CYD", "OFF_CV", "OFF_BU", "OFF_BUM"]
+
+DEG = 24  # the Taylor polynomials' degree
+NC = DEG + 1
+MAXN = 16  # states of plant and controller together
+
+# Scalars at the start of a parameter row.
+_NAMES = ("n", "ti", "to", "umin", "umax", "period", "offset", "t_end", "band", "norm", "dist", "t_dist", "dy",
+          "dyd", "dvr", "dvy", "dvv", "integ", "aw", "hmax", "scale", "step", "slope", "tm")
+HEAD = {name: i for i, name in enumerate(_NAMES)}
+NHEAD = len(_NAMES)
+# Matrices and vectors after it: M (MAXN x MAXN, row-major), then ten vectors of length MAXN.
+OFF_M = NHEAD
+OFF_BW = OFF_M + MAXN * MAXN      # plant input w
+OFF_BR = OFF_BW + MAXN            # reference r
+OFF_BYM = OFF_BR + MAXN           # measured output ym
+OFF_BVM = OFF_BYM + MAXN          # measured velocity vm
+OFF_BAW = OFF_BVM + MAXN          # back-calculation term sat(v) - v
+OFF_CY = OFF_BAW + MAXN           # y = CY X + dy w
+OFF_CYD = OFF_CY + MAXN           # y' = CYD X + dyd w
+OFF_CV = OFF_CYD + MAXN           # v = CV X + dvr r + dvy ym + dvv vm
+OFF_BU = OFF_CV + MAXN            # the command u itself (a predictor's model input)
+OFF_BUM = OFF_BU + MAXN           # the command one model delay ago, u(t - Tm)
+NPAR = OFF_BUM + MAXN
+AW = {"none": 0, "clamp": 1, "backcalc": 2}
+
+# Column layout of a metrics row.
+OUT = {
+    "overshoot": 0, "peak_time": 1, "peak": 2, "t10": 3, "t90": 4, "rise_time": 5,
+    "settling_time": 6, "final_error": 7, "truncation": 8, "pieces": 9, "status": 10,
+    "u_pieces": 11, "y_pieces": 12, "t_stop": 13,
+}
+NOUT = len(OUT)
+STATUS_OK, STATUS_CAPACITY, STATUS_STALLED = 0.0, 1.0, 2.0
+
+
+@dataclass(frozen=True)
+class LoopMatrices:
+    """A loop as the kernel's matrices (everything of a parameter row but the run's settings).
+
+    The state vector is the plant's states (``npl`` of them), then the controller's; ``M`` is block diagonal,
+    and the vectors couple the states to the signals (see :mod:`._kernel`).  Built by :func:`loop_matrices`.
+    """
+
+    npl: int
+    M: np.ndarray
+    bw: np.ndarray
+    br: np.ndarray
+    bym: np.ndarray
+    bvm: np.ndarray
+    baw: np.ndarray
+    cy: np.ndarray
+    cyd: np.ndarray
+    cv: np.ndarray
+    bu: np.ndarray
+    bum: np.ndarray
+    dy: float
+    dyd: float
+    integ: int
+
+
+def loop_matrices(loop: Loop) -> LoopMatrices:
+    """The kernel's matrices of a loop (at most ``MAXN`` states in all).
+
+    Examples
+    --------
+    >>> from delaykit.models import Controller, Loop
+    >>> m = loop_matrices(Loop("1/((s+1)*(0.5*s+1))", Controller.pid(1.5, 0.8, 0.2, 0.05), delay=0.2))
+    >>> m.npl, m.M.shape, m.integ
+    (2, (4, 4), 2)
+    """
+    A, B, C, D = loop.plant.state_space()
+    A = np.atleast_2d(np.asarray(A, float))
+    npl = A.shape[0]
+    B = np.asarray(B, float).reshape(npl)
+    C = np.asarray(C, float).reshape(npl)
+    rz = loop.controller.realisation()
+    nc = rz.order
+    n = npl + nc
+    if n > MAXN:
+        raise InvalidValueError(
+            f"the loop has {n} states (plant {npl}, controller {nc}); the simulator takes at most {MAXN}")
+    if n == 0:  # a static plant: give the kernel one inert state
+        A, B, C, npl, n = np.zeros((1, 1)), np.zeros(1), np.zeros(1), 1, 1 + nc
+    M = np.zeros((n, n))
+    M[:npl, :npl] = A
+    if nc:
+        M[npl:, npl:] = rz.Ac
+    zp, zc = np.zeros(npl), np.zeros(nc)
+    return LoopMatrices(
+        npl=npl, M=M, bw=np.r_[B, zc], br=np.r_[zp, rz.Bcr], bym=np.r_[zp, rz.Bcy], bvm=np.r_[zp, rz.Bcv],
+        baw=np.r_[zp, rz.Baw], cy=np.r_[C, zc], cyd=np.r_[C @ A, zc], cv=np.r_[zp, rz.Cc],
+        bu=np.r_[zp, rz.Bcu if rz.Bcu is not None else zc], bum=np.r_[zp, rz.Bcm if rz.Bcm is not None else zc],
+        dy=float(D),
+        dyd=float(C @ B), integ=npl + rz.integ if rz.integ >= 0 else -1,
+    )
+
+
+def _put(row: np.ndarray, off: int, vec: np.ndarray) -> None:
+    row[off:off + vec.size] = vec
+
+
+def fastest_rate(lay: LoopMatrices, dvy: float, dvv: float, cv: np.ndarray, delay_free: bool) -> float:
+    """The loop's fastest rate, whose reciprocal caps a piece's length (Taylor terms decay like 1/j!).
+
+    Examples
+    --------
+    >>> from delaykit.models import Controller, Loop
+    >>> m = loop_matrices(Loop("1/((s+1)*(0.5*s+1))", Controller.pid(1.5, 0.8, 0.2, 0.05), delay=0.2))
+    >>> fastest_rate(m, -5.5, 0.0, m.cv, False)  # the derivative filter's pole, 1 / 0.05 s
+    20.0
+    """
+    rate = float(np.max(np.abs(np.linalg.eigvals(lay.M)))) if lay.M.size else 0.0
+    rate = max(rate, abs(dvy * lay.dyd))
+    if np.any(lay.bu):  # a predictor's model reads the command, u = v while it is not saturated
+        rate = max(rate, float(np.max(np.abs(np.linalg.eigvals(lay.M + np.outer(lay.bu, cv))))))
+    if delay_free:
+        kd = dvy * lay.dy + dvv * lay.dyd
+        if abs(1.0 - kd) < 1e-12:
+            raise InvalidValueError("the loop without delay is ill-posed: the controller's direct feedthrough "
+                                    "cancels the plant's (1 + C(inf) P(inf) = 0)")
+        krow = cv + dvy * lay.cy + dvv * lay.cyd
+        acl = lay.M + np.outer(lay.bw + lay.bym * lay.dy + lay.bvm * lay.dyd, krow) / (1.0 - kd)
+        acl += np.outer(lay.bym, lay.cy) + np.outer(lay.bvm, lay.cyd)
+        rate = max(rate, float(np.max(np.abs(np.linalg.eigvals(acl)))))
+    return rate
+
+
+def param_row(loop: Loop, lay: LoopMatrices, *, step: float, slope: float, norm: float, t_end: float, band: float,
+              dist: LoadStep | None) -> np.ndarray:
+    """The kernel's parameter row of one run of a loop (its matrices ``lay``, the reference's first value
+    ``step`` and slope, the metrics' normalisation ``norm``, the run's end and settling band, a load).
+
+    Examples
+    --------
+    See the module's.
+    """
+    c = loop.controller
+    rz = c.realisation()
+    p = np.zeros(NPAR)
+    n = lay.M.shape[0]
+    p[HEAD["n"]] = n
+    p[HEAD["ti"]] = loop.delay
+    p[HEAD["to"]] = loop.output_delay
+    p[HEAD["umin"]] = loop.umin
+    p[HEAD["umax"]] = loop.umax
+    p[HEAD["period"]] = loop.period or 0.0
+    p[HEAD["offset"]] = loop.sample_offset
+    p[HEAD["t_end"]] = t_end
+    p[HEAD["band"]] = band
+    p[HEAD["norm"]] = norm
+    p[HEAD["dist"]] = dist.size if dist is not None else 0.0
+    p[HEAD["t_dist"]] = dist.time if dist is not None else math.inf
+    p[HEAD["dy"]] = lay.dy
+    p[HEAD["dyd"]] = lay.dyd
+    p[HEAD["dvr"]] = rz.dvr
+    p[HEAD["dvy"]] = rz.dvy
+    p[HEAD["dvv"]] = rz.dvv
+    p[HEAD["integ"]] = lay.integ
+    p[HEAD["aw"]] = AW[c.antiwindup]
+    delay_free = loop.total_delay == 0.0 and not loop.sampled
+    p[HEAD["hmax"]] = 1.0 / max(fastest_rate(lay, rz.dvy, rz.dvv, lay.cv, delay_free), 1e-9)
+    p[HEAD["scale"]] = max(1.0, abs(rz.dvr * step), abs(norm))
+    p[HEAD["step"]] = step
+    p[HEAD["slope"]] = slope
+    p[HEAD["tm"]] = rz.model_delay
+    M = np.zeros((MAXN, MAXN))
+    M[:n, :n] = lay.M
+    _put(p, OFF_M, M.ravel())
+    for off, vec in ((OFF_BW, lay.bw), (OFF_BR, lay.br), (OFF_BYM, lay.bym), (OFF_BVM, lay.bvm),
+                     (OFF_BAW, lay.baw), (OFF_CY, lay.cy), (OFF_CYD, lay.cyd), (OFF_CV, lay.cv),
+                     (OFF_BU, lay.bu), (OFF_BUM, lay.bum)):
+        _put(p, off, vec)
+    return p

@@ -1,0 +1,206 @@
+"""Polynomials on [0, 1] for the simulator kernel: evaluation, bounds, roots, Taylor shifts.
+
+A polynomial is its coefficients ``c[0] + c[1] x + ... + c[n-1] x**(n-1)`` in a local variable ``x`` in
+``[0, 1]`` (one piece of a response).  Compiled or interpreted with the kernel that imports it (see
+:mod:`._jit`).  This module is private.
+
+Note that numba's cache of a compiled kernel does not notice edits of this file (see :mod:`._jit`).
+
+Examples
+--------
+>>> import numpy as np
+>>> from delaykit.simulate._jit import sibling
+>>> p = sibling("_poly")
+>>> c = np.array([-0.25, 0.0, 1.0])  # x**2 - 1/4
+>>> p.horner(c, 3, 0.5), p.bounds(c, 3)
+(0.0, (-0.25, 0.75))
+>>> round(p.first_cross(c, 3, 0.0, -1.0, np.empty(p.GRID + 1)), 15)  # its root, refined
+0.5
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._jit import njit
+from ._layout import NC
+
+__all__ = ["GRID", "grid_values", "horner", "horner_d", "poly_sum", "bounds", "refine", "first_cross", "all_cross",
+           "shift_scale",
+           "scale", "degree"]
+
+GRID = 16  # root searches evaluate the polynomial on this many subintervals of [0, 1]
+_XG = np.arange(GRID + 1) / GRID  # the grid's points, 0 ... 1
+_BIN = np.array([[float(math.comb(j, k)) for k in range(NC)] for j in range(NC)])  # binomial coefficients
+
+
+@njit(cache=True, inline="always")
+def horner(c, n, x):
+    s = 0.0
+    for j in range(n - 1, -1, -1):
+        s = s * x + c[j]
+    return s
+
+
+@njit(cache=True, inline="always")
+def horner_d(c, n, x):
+    p = 0.0
+    dp = 0.0
+    for j in range(n - 1, -1, -1):
+        dp = dp * x + p
+        p = p * x + c[j]
+    return p, dp
+
+
+@njit(cache=True, inline="always")
+def poly_sum(c, n):
+    s = 0.0
+    for j in range(n):
+        s += c[j]
+    return s
+
+
+@njit(cache=True, inline="always")
+def bounds(c, n):
+    """Lower and upper bounds of the polynomial on [0, 1] (x**j lies in [0, 1])."""
+    lo = c[0]
+    hi = c[0]
+    for j in range(1, n):
+        if c[j] > 0.0:
+            hi += c[j]
+        else:
+            lo += c[j]
+    return lo, hi
+
+
+@njit(cache=True)
+def refine(c, n, target, lo, hi, slo):
+    """Root of c(x) - target in [lo, hi], where the sign just right of lo is ``slo`` (safeguarded Newton)."""
+    x = 0.5 * (lo + hi)
+    for _ in range(200):
+        f, df = horner_d(c, n, x)
+        f -= target
+        if f == 0.0:
+            return x
+        if f * slo > 0.0:
+            lo = x
+        else:
+            hi = x
+        if hi - lo <= 4e-16 * max(1.0, abs(x)):
+            break
+        xn = x - f / df if df != 0.0 else 0.5 * (lo + hi)
+        if not (lo < xn < hi):
+            xn = 0.5 * (lo + hi)
+        if abs(xn - x) <= 1e-17:
+            x = xn
+            break
+        x = xn
+    return x
+
+
+@njit(cache=True, inline="always")
+def grid_values(c, n, target, fs, i0):
+    """``fs[i] = c(i / GRID) - target`` for the four grid points i = i0 ... i0 + 3, by Horner's rule on four
+    independent chains at once (which the processor overlaps)."""
+    x0 = _XG[i0]
+    x1 = _XG[i0 + 1]
+    x2 = _XG[i0 + 2]
+    x3 = _XG[i0 + 3]
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    for j in range(n - 1, -1, -1):
+        cj = c[j]
+        s0 = s0 * x0 + cj
+        s1 = s1 * x1 + cj
+        s2 = s2 * x2 + cj
+        s3 = s3 * x3 + cj
+    fs[i0] = s0 - target
+    fs[i0 + 1] = s1 - target
+    fs[i0 + 2] = s2 - target
+    fs[i0 + 3] = s3 - target
+
+
+@njit(cache=True, inline="always")
+def first_cross(c, n, target, s0, fs):
+    """First x in (0, 1] where c(x) - target leaves the sign ``s0`` it has just right of 0; 2.0 if none.
+
+    ``fs`` is work space of GRID + 1 numbers."""
+    if n <= 1:
+        return 2.0
+    for i in range(1, GRID + 1):
+        if i % 4 == 1:
+            grid_values(c, n, target, fs, i)
+        f = fs[i]
+        if f * s0 <= 0.0:
+            if f == 0.0 and i == GRID:
+                return 1.0
+            return refine(c, n, target, _XG[i - 1], _XG[i], s0)
+    return 2.0
+
+
+@njit(cache=True)
+def all_cross(c, n, target, xs, fs):
+    """All sign changes of c(x) - target in (0, 1), refined; returns their count (stored in xs).
+
+    ``fs`` is work space of GRID + 1 numbers."""
+    if n <= 1:
+        return 0
+    k = 0
+    fp = c[0] - target
+    for i in range(1, GRID + 1):
+        if i % 4 == 1:
+            grid_values(c, n, target, fs, i)
+        f = fs[i]
+        if (fp < 0.0 and f >= 0.0) or (fp > 0.0 and f <= 0.0):
+            if not (i == GRID and f == 0.0):
+                xs[k] = refine(c, n, target, _XG[i - 1], _XG[i], 1.0 if fp > 0.0 else -1.0)
+                k += 1
+        if f != 0.0:
+            fp = f
+    return k
+
+
+@njit(cache=True, inline="always")
+def shift_scale(src, n, alpha, beta, dst, work):
+    """dst(y) = src(alpha + beta*y): Taylor shift by alpha, then scale by beta (zeros above degree n-1).
+
+    The shift sums the binomial expansion, ``dst[k] = sum_j C(j, k) alpha**(j-k) src[j]``: independent
+    products rather than Horner's chain of dependent ones.  ``work`` is work space of NC numbers."""
+    for k in range(NC):
+        dst[k] = 0.0
+    if alpha == 0.0:
+        for j in range(n):
+            dst[j] = src[j]
+    else:
+        work[0] = 1.0
+        for j in range(1, n):
+            work[j] = work[j - 1] * alpha
+        for j in range(n):
+            t = src[j]
+            for k in range(j + 1):
+                dst[k] += _BIN[j, k] * work[j - k] * t
+    if beta != 1.0:
+        b = 1.0
+        for j in range(n):
+            dst[j] *= b
+            b *= beta
+
+
+@njit(cache=True, inline="always")
+def scale(c, n, s):
+    b = 1.0
+    for j in range(n):
+        c[j] *= b
+        b *= s
+
+
+@njit(cache=True, inline="always")
+def degree(c, n):
+    """Number of coefficients up to the last non-zero one (at least 1)."""
+    while n > 1 and c[n - 1] == 0.0:
+        n -= 1
+    return n

@@ -1,0 +1,248 @@
+"""The Taylor recursion of one piece of the simulator's response: every signal's coefficients, the regime fixed.
+
+On a piece of length ``H`` the loop's states follow ``X[j+1] = H (M X[j] + inputs[j]) / (j + 1)``, where the
+inputs (the delayed command, the reference, the delayed measurement, anti-windup, a predictor's command) are
+polynomials known before the piece or, without any delay in the loop, algebraic in the states.
+:func:`recursion_known` is the common case, the plant's input known before the piece and the command not
+acting back on the states, with the measurement folded into the matrix once per run; :func:`recursion` is
+the general one.  Built compiled or interpreted with the kernel (see :mod:`._jit`).  This module is private.
+
+Examples
+--------
+>>> import numpy as np
+>>> from delaykit.simulate._jit import sibling
+>>> from delaykit.simulate._layout import NC
+>>> t = sibling("_taylor")
+>>> X, Y, Yd, V, E = np.zeros((1, NC + 1)), np.zeros(NC), np.zeros(NC), np.zeros(NC), np.zeros(NC)
+>>> X[0, 0] = 1.0  # x' = -x over a piece of length 1: the coefficients of exp(-x)
+>>> A, G, VE = np.array([[-1.0]]), np.zeros((4, 1)), np.zeros((10, 1))
+>>> VE[5, 0] = 1.0  # y = x
+>>> nt = t.recursion_known(A, G, VE, 1, 1.0, False, -1, 0.0, np.zeros(NC), 1, np.zeros(NC), 1, np.zeros(NC),
+...                        np.zeros(NC), False, False, np.zeros(5), X, Y, Yd, V, E, False)
+>>> nt, [round(float(c), 6) for c in Y[:4]]
+(25, [1.0, -1.0, 0.5, -0.166667])
+"""
+
+from __future__ import annotations
+
+from . import _jit
+from ._jit import njit
+from ._layout import DEG, HEAD, NC
+
+__all__ = ["LIN", "HIGH", "LOW", "recursion", "recursion_known"]
+
+LIN, HIGH, LOW = 0, 1, 2  # the command's regime on a piece: linear, saturated high or low
+
+_degree = _jit.sibling("_poly").degree
+_UMIN, _UMAX, _DY, _DYD, _DVR, _DVY, _DVV, _INTEG, _AW = (HEAD[k] for k in ("umin", "umax", "dy", "dyd", "dvr", "dvy",
+                                                                          "dvv", "integ", "aw"))
+
+
+@njit(cache=True, inline="always")
+def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, need_yd, d5, X, Y, Yd, V,
+                    E, zero_a):
+    """:func:`recursion` where the plant's input is known before the piece (delayed or held) and the command
+    does not act back on the states (no back-calculation while saturated, no predictor): ``X' = A X + G (w, r,
+    ym, vm)``, with the measurement's coupling folded into ``A`` and ``G`` once per run (by the kernel's
+    ``run_one``).
+
+    ``w0`` is added to the plant input's constant term (a held command, a load disturbance); ``d5`` holds the
+    direct terms ``dy, dyd, dvr, dvy, dvv``; ``zero_a`` says that ``A`` is zero (integrators driven by the input
+    alone, as the paper's loop: each coefficient then follows from the input's, with no chain through the
+    states).  Returns the number of coefficients, as :func:`recursion`.
+    """
+    dy, dyd, dvr, dvy, dvv = d5[0], d5[1], d5[2], d5[3], d5[4]
+    nf = max(nR, nW, 1)
+    if use_meas:
+        nf = max(nf, _degree(Ym, NC), _degree(Vm, NC))
+    nt = NC
+    for j in range(NC):
+        if j >= nf and j > 0:
+            zero = True
+            for i in range(N):
+                if X[i, j] != 0.0:
+                    zero = False
+                    break
+            if zero:
+                nt = j
+                break
+        wj = (Wd[j] if j < nW else 0.0) + (w0 if j == 0 else 0.0)
+        rj = R[j] if j < nR else 0.0
+        cy = 0.0
+        cv = 0.0
+        for i in range(N):
+            xi = X[i, j]
+            cy += VE[5, i] * xi
+            cv += VE[7, i] * xi
+        yj = cy + dy * wj
+        ydj = 0.0
+        if need_yd:
+            cyd = 0.0
+            for i in range(N):
+                cyd += VE[6, i] * X[i, j]
+            ydj = cyd + dyd * wj
+        if use_meas:
+            ymj = Ym[j]
+            vmj = Vm[j]
+        else:
+            ymj = yj
+            vmj = ydj
+        Y[j] = yj
+        Yd[j] = ydj
+        V[j] = cv + dvr * rj + dvy * ymj + dvv * vmj
+        E[j] = rj - ymj
+        if j == DEG:
+            break
+        f = H / (j + 1)
+        if j < nf:
+            for i in range(N):
+                acc = G[0, i] * wj + G[1, i] * rj + G[2, i] * ymj + G[3, i] * vmj
+                if not zero_a:
+                    for k in range(N):
+                        acc += A[i, k] * X[k, j]
+                X[i, j + 1] = f * acc
+        elif zero_a:
+            for i in range(N):
+                X[i, j + 1] = 0.0
+        else:
+            for i in range(N):
+                acc = 0.0
+                for k in range(N):
+                    acc += A[i, k] * X[k, j]
+                X[i, j + 1] = f * acc
+        if frozen and integ >= 0:
+            X[integ, j + 1] = 0.0
+    for j in range(nt, NC):
+        Y[j] = 0.0
+        Yd[j] = 0.0
+        V[j] = 0.0
+        E[j] = 0.0
+        for i in range(N):
+            X[i, j] = 0.0
+    for i in range(N):
+        X[i, NC] = 0.0
+    return nt
+
+
+@njit(cache=True)
+def recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dist, X, R, nR,
+              Wd, nW, Ym, Vm, use_meas, Y, Yd, V, E, need_yd, Um, nUm, has_u):
+    """Taylor coefficients of every signal on one piece of length ``H`` with the regime fixed.
+
+    ``X[:, 0]`` holds the states at the start; fills ``X[:, 1:]``, the output ``Y``, its derivative ``Yd``,
+    the controller output ``V`` and the error ``E`` (``Yd`` only where ``need_yd``: something reads y').
+    With ``has_u`` (a predictor's model inside the controller), the states also read the command ``u``
+    itself and ``Um`` (``nUm`` coefficients), the command one model delay ago.
+    """
+    umin = par[_UMIN]
+    umax = par[_UMAX]
+    dy = par[_DY]
+    dyd = par[_DYD]
+    dvr = par[_DVR]
+    dvy = par[_DVY]
+    dvv = par[_DVV]
+    integ = int(par[_INTEG])
+    aw = int(par[_AW])
+    kd = dvy * dy + dvv * dyd  # direct feedthrough around a loop with no delay at all
+    lim = umax if regime == HIGH else umin
+    # the forcing is a polynomial of degree < nf: once the states' coefficients vanish past it, all do
+    nf = max(nR, nW if ti_pos else 1, 1)
+    if has_u:
+        nf = max(nf, nUm)
+    if use_meas:
+        nf = max(nf, _degree(Ym, NC), _degree(Vm, NC))
+    nt = NC
+    for j in range(NC):
+        if j >= nf and j > 0:
+            zero = True
+            for i in range(N):
+                if X[i, j] != 0.0:
+                    zero = False
+                    break
+            if zero:
+                nt = j
+                break
+        rj = R[j] if j < nR else 0.0
+        dj = dist if j == 0 else 0.0
+        # the parts of y, y' and v that do not depend on this piece's plant input
+        cy = 0.0
+        cyd = 0.0
+        cv = 0.0
+        for i in range(N):
+            xi = X[i, j]
+            cy += VE[5, i] * xi
+            cv += VE[7, i] * xi
+        if need_yd:
+            for i in range(N):
+                cyd += VE[6, i] * X[i, j]
+        if sampled:
+            wj = (Wd[j] if (ti_pos and j < nW) else (uhold if j == 0 else 0.0)) + dj
+            vj = 0.0  # filled below
+        elif ti_pos:
+            wj = (Wd[j] if j < nW else 0.0) + dj
+            vj = 0.0
+        elif algebraic:
+            base = cv + dvr * rj + dvy * cy + dvv * cyd
+            if regime == LIN:
+                vj = (base + kd * dj) / (1.0 - kd)
+                wj = vj + dj
+            else:
+                wj = (lim if j == 0 else 0.0) + dj
+                vj = base + kd * wj
+        else:
+            # no input delay, a delayed measurement: v is known before w
+            vj = cv + dvr * rj + dvy * Ym[j] + dvv * Vm[j]
+            wj = (vj if regime == LIN else (lim if j == 0 else 0.0)) + dj
+        yj = cy + dy * wj
+        ydj = cyd + dyd * wj
+        if use_meas:
+            ymj = Ym[j]
+            vmj = Vm[j]
+        else:
+            ymj = yj
+            vmj = ydj
+        if sampled or ti_pos:
+            vj = cv + dvr * rj + dvy * ymj + dvv * vmj
+        Y[j] = yj
+        Yd[j] = ydj
+        V[j] = vj
+        E[j] = rj - ymj
+        if j == DEG:
+            break
+        awj = 0.0
+        if aw == 2 and regime != LIN:
+            awj = (lim if j == 0 else 0.0) - vj
+        f = H / (j + 1)
+        if has_u:
+            # the command as applied: held, the law's output, or the limit it is clipped to
+            if sampled:
+                uj = uhold if j == 0 else 0.0
+            elif regime == LIN:
+                uj = vj
+            else:
+                uj = lim if j == 0 else 0.0
+            umj = Um[j] if j < nUm else 0.0
+            for i in range(N):
+                acc = (VE[0, i] * wj + VE[1, i] * rj + VE[2, i] * ymj + VE[3, i] * vmj + VE[4, i] * awj
+                       + VE[8, i] * uj + VE[9, i] * umj)
+                for k in range(N):
+                    acc += Mloc[i, k] * X[k, j]
+                X[i, j + 1] = f * acc
+        else:
+            for i in range(N):
+                acc = VE[0, i] * wj + VE[1, i] * rj + VE[2, i] * ymj + VE[3, i] * vmj + VE[4, i] * awj
+                for k in range(N):
+                    acc += Mloc[i, k] * X[k, j]
+                X[i, j + 1] = f * acc
+        if frozen and integ >= 0:
+            X[integ, j + 1] = 0.0
+    for j in range(nt, NC):
+        Y[j] = 0.0
+        Yd[j] = 0.0
+        V[j] = 0.0
+        E[j] = 0.0
+        for i in range(N):
+            X[i, j] = 0.0
+    for i in range(N):
+        X[i, NC] = 0.0
+    return nt
