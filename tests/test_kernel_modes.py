@@ -197,6 +197,7 @@ def test_a_run_past_the_piece_budget_is_redone_compiled():
 def test_budget_counts_pieces_by_the_loops_size():
     before = _jit._budget
     try:
+        _jit._budget = float(_jit.PIECE_BUDGET)  # a fresh process's (another test in this worker may have spent it)
         _jit.use_interpreter()
         assert _jit.budget(1) == _jit.PIECE_BUDGET
         assert _jit.budget(4) < _jit.budget(2) < _jit.budget(1)  # bigger loops: fewer interpreted pieces
@@ -223,3 +224,15 @@ def test_the_simulate_command_runs_one_loop_without_numba():
     ref = simulate(AltitudeLoop(kp=1.31, delay=0.368)).metrics
     for k in ("overshoot", "peak_time", "rise_time", "settling_time"):
         assert got[k] == pytest.approx(getattr(ref, k), rel=1e-12, abs=1e-12), k
+
+
+def test_the_command_line_restores_the_mode_it_found():
+    # `simulate` run in-process (here, through typer's runner) switches the interpreter on for its own run only
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+
+    assert not _jit._interpreting
+    res = CliRunner().invoke(app, ["simulate", "--kp", "1.31", "--delay", "0.368", "--json"])
+    assert res.exit_code == 0, res.output
+    assert not _jit._interpreting and not _jit.interpreting()

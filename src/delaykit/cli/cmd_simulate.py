@@ -85,64 +85,64 @@ def simulate(
                                 "--delay-trace")
     from ..simulate import _jit
 
-    _jit.use_interpreter()  # short runs as plain Python, without numba's start-up; a long one moves to numba
-    ref: Any = Step(step)
-    if ramp is not None and reference_csv is not None:
-        raise InvalidValueError("give --ramp or --reference, not both")
-    if ramp is not None:
-        ref = Ramp(slope=ramp, size=0.0)
-    elif reference_csv is not None:
-        ref = _read_reference(reference_csv, hold)
-    dist = LoadStep(disturbance, disturbance_time) if disturbance is not None else None
-    with err.status("simulating (the first run compiles the solver, a few seconds)…"):
-        responses = [sim(loop.replace(delay=d), step, z0=z0, t_end=t_end, band=band, reference=ref,
-                         disturbance=dist) for d in delays]
-    paper_cfg = isinstance(loop, AltitudeLoop) and isinstance(ref, Step) and step == 1.0 and dist is None \
-        and loop == paper_loop(loop.delay)
-    rows = []
-    for r in responses:
-        row = {"delay": r.loop.delay, **r.to_dict()}
-        if paper_cfg and table1_overshoot(r.loop.delay) is not None:
-            row["paper_overshoot"] = table1_overshoot(r.loop.delay)
-        rows.append(row)
-    if csv_path is not None:
-        with open(csv_path, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow((["delay"] if len(responses) > 1 else []) + ["t", "z", "z_ref", "u"])
-            for r in responses:
-                s = r.sample(dt=dt)
-                for i in range(s["t"].size):
-                    vals = [f"{s[k][i]:.9g}" for k in ("t", "z", "z_ref", "u")]
-                    w.writerow(([f"{r.loop.delay:.9g}"] if len(responses) > 1 else []) + vals)
-    if plot is not None:
-        from ..plotting.figures import plot_responses
+    with _jit.interpreter():  # short runs as plain Python, without numba's start-up; a long one moves to numba
+        ref: Any = Step(step)
+        if ramp is not None and reference_csv is not None:
+            raise InvalidValueError("give --ramp or --reference, not both")
+        if ramp is not None:
+            ref = Ramp(slope=ramp, size=0.0)
+        elif reference_csv is not None:
+            ref = _read_reference(reference_csv, hold)
+        dist = LoadStep(disturbance, disturbance_time) if disturbance is not None else None
+        with err.status("simulating (the first run compiles the solver, a few seconds)…"):
+            responses = [sim(loop.replace(delay=d), step, z0=z0, t_end=t_end, band=band, reference=ref,
+                             disturbance=dist) for d in delays]
+        paper_cfg = isinstance(loop, AltitudeLoop) and isinstance(ref, Step) and step == 1.0 and dist is None \
+            and loop == paper_loop(loop.delay)
+        rows = []
+        for r in responses:
+            row = {"delay": r.loop.delay, **r.to_dict()}
+            if paper_cfg and table1_overshoot(r.loop.delay) is not None:
+                row["paper_overshoot"] = table1_overshoot(r.loop.delay)
+            rows.append(row)
+        if csv_path is not None:
+            with open(csv_path, "w", newline="") as fh:
+                w = csv.writer(fh)
+                w.writerow((["delay"] if len(responses) > 1 else []) + ["t", "z", "z_ref", "u"])
+                for r in responses:
+                    s = r.sample(dt=dt)
+                    for i in range(s["t"].size):
+                        vals = [f"{s[k][i]:.9g}" for k in ("t", "z", "z_ref", "u")]
+                        w.writerow(([f"{r.loop.delay:.9g}"] if len(responses) > 1 else []) + vals)
+        if plot is not None:
+            from ..plotting.figures import plot_responses
 
-        plot_responses(responses, plot, title=repr(loop) if len(delays) == 1 else None)
-    if as_json:
-        print(json.dumps(rows[0] if len(rows) == 1 else rows, indent=2))
-        return
-    title = repr(loop) if len(delays) == 1 else repr(loop).replace(f"delay={loop.delay:.4g} s, ", "")
-    table = Table(title=title)
-    table.add_column("Td s", justify="right")
-    table.add_column("Mo %", justify="right")
-    if any("paper_overshoot" in r for r in rows):
-        table.add_column("paper Mo %", justify="right")
-        table.add_column("paper−ours", justify="right")
-    for col in ("peak s", "rise s", "settle s"):
-        table.add_column(col, justify="right")
-    for r in rows:
-        if "overshoot" not in r:
-            table.add_row(f"{r['delay']:.5f}", "–", *(["–", "–"] if any("paper_overshoot" in x for x in rows) else []),
-                          "–", "–", "–")
-            continue
-        cells = [f"{r['delay']:.5f}", fmt(r["overshoot"])]
-        if any("paper_overshoot" in x for x in rows):
-            p = r.get("paper_overshoot")
-            cells += [fmt(p, 3), "–" if p is None else f"{p - r['overshoot']:+.4f}"]
-        cells += [fmt(r["peak_time"]), fmt(r["rise_time"]),
-                  fmt(r["settling_time"]) if r["settled"] else "never"]
-        table.add_row(*cells)
-    out.print(table)
+            plot_responses(responses, plot, title=repr(loop) if len(delays) == 1 else None)
+        if as_json:
+            print(json.dumps(rows[0] if len(rows) == 1 else rows, indent=2))
+            return
+        title = repr(loop) if len(delays) == 1 else repr(loop).replace(f"delay={loop.delay:.4g} s, ", "")
+        table = Table(title=title)
+        table.add_column("Td s", justify="right")
+        table.add_column("Mo %", justify="right")
+        if any("paper_overshoot" in r for r in rows):
+            table.add_column("paper Mo %", justify="right")
+            table.add_column("paper−ours", justify="right")
+        for col in ("peak s", "rise s", "settle s"):
+            table.add_column(col, justify="right")
+        for r in rows:
+            if "overshoot" not in r:
+                paper_cols = ["–", "–"] if any("paper_overshoot" in x for x in rows) else []
+                table.add_row(f"{r['delay']:.5f}", "–", *paper_cols, "–", "–", "–")
+                continue
+            cells = [f"{r['delay']:.5f}", fmt(r["overshoot"])]
+            if any("paper_overshoot" in x for x in rows):
+                p = r.get("paper_overshoot")
+                cells += [fmt(p, 3), "–" if p is None else f"{p - r['overshoot']:+.4f}"]
+            cells += [fmt(r["peak_time"]), fmt(r["rise_time"]),
+                      fmt(r["settling_time"]) if r["settled"] else "never"]
+            table.add_row(*cells)
+        out.print(table)
 
 
 def _varying_delay(base: float, schedule: Optional[str], jitter: Optional[float], dist: Optional[str],

@@ -31,9 +31,11 @@ import importlib.util
 import sys
 from pathlib import Path
 from types import ModuleType
-from typing import Any, Callable
+from contextlib import contextmanager
+from typing import Any, Callable, Iterator
 
-__all__ = ["njit", "use_interpreter", "interpreting", "budget", "spend", "kernel", "sibling", "PIECE_BUDGET"]
+__all__ = ["njit", "use_interpreter", "interpreter", "interpreting", "budget", "spend", "kernel", "sibling",
+           "PIECE_BUDGET"]
 
 PIECE_BUDGET = 1000
 """Pieces of a one-state loop the interpreter may run in a process before the compiled kernel takes over (a loop
@@ -59,6 +61,28 @@ def use_interpreter(on: bool = True) -> None:
     """
     global _interpreting
     _interpreting = bool(on)
+
+
+@contextmanager
+def interpreter() -> Iterator[None]:
+    """Within the block, run single simulations as plain Python (as :func:`use_interpreter`), then restore the
+    process's mode: what the command line's ``simulate`` does, so that a command run in-process (a test, a
+    notebook) leaves the library as it found it.  The budget spent stays spent.
+
+    Examples
+    --------
+    >>> with interpreter():
+    ...     inside = interpreting()  # (while the budget lasts)
+    >>> inside, interpreting()
+    (True, False)
+    """
+    global _interpreting
+    before = _interpreting
+    _interpreting = True
+    try:
+        yield
+    finally:
+        _interpreting = before
 
 
 def interpreting() -> bool:
