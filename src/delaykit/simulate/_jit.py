@@ -54,10 +54,10 @@ def use_interpreter(on: bool = True) -> None:
 
     Examples
     --------
-    >>> use_interpreter(); interpreting()
+    >>> use_interpreter(); budget(1) <= PIECE_BUDGET  # the pieces it may still run interpreted (0 once spent)
     True
-    >>> use_interpreter(False); interpreting()
-    False
+    >>> use_interpreter(False); interpreting(), budget(1)
+    (False, 0)
     """
     global _interpreting
     _interpreting = bool(on)
@@ -72,9 +72,9 @@ def interpreter() -> Iterator[None]:
     Examples
     --------
     >>> with interpreter():
-    ...     inside = interpreting()  # (while the budget lasts)
-    >>> inside, interpreting()
-    (True, False)
+    ...     allowed = budget(1)  # pieces it may run interpreted inside (0 once the budget is spent)
+    >>> allowed <= PIECE_BUDGET, budget(1)  # and outside, none
+    (True, 0)
     """
     global _interpreting
     before = _interpreting
