@@ -39,6 +39,29 @@ _UMIN, _UMAX, _DY, _DYD, _DVR, _DVY, _DVV, _INTEG, _AW = (HEAD[k] for k in ("umi
 
 
 @njit(cache=True, inline="always")
+def _vanished(X, N, j):
+    """Whether every state's coefficient ``j`` is zero (past the forcing's degree, all later ones are then too)."""
+    for i in range(N):
+        if X[i, j] != 0.0:
+            return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def _clear_tail(X, Y, Yd, V, E, N, nt):
+    """Zero every signal's coefficients from ``nt`` on (the buffers are reused from piece to piece)."""
+    for j in range(nt, NC):
+        Y[j] = 0.0
+        Yd[j] = 0.0
+        V[j] = 0.0
+        E[j] = 0.0
+        for i in range(N):
+            X[i, j] = 0.0
+    for i in range(N):
+        X[i, NC] = 0.0
+
+
+@njit(cache=True, inline="always")
 def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, need_yd, d5, X, Y, Yd, V,
                     E, zero_a):
     """:func:`recursion` where the plant's input is known before the piece (delayed or held) and the command
@@ -57,15 +80,9 @@ def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, us
         nf = max(nf, _degree(Ym, NC), _degree(Vm, NC))
     nt = NC
     for j in range(NC):
-        if j >= nf and j > 0:
-            zero = True
-            for i in range(N):
-                if X[i, j] != 0.0:
-                    zero = False
-                    break
-            if zero:
-                nt = j
-                break
+        if j >= nf and j > 0 and _vanished(X, N, j):
+            nt = j
+            break
         wj = (Wd[j] if j < nW else 0.0) + (w0 if j == 0 else 0.0)
         rj = R[j] if j < nR else 0.0
         cy = 0.0
@@ -112,15 +129,7 @@ def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, us
                 X[i, j + 1] = f * acc
         if frozen and integ >= 0:
             X[integ, j + 1] = 0.0
-    for j in range(nt, NC):
-        Y[j] = 0.0
-        Yd[j] = 0.0
-        V[j] = 0.0
-        E[j] = 0.0
-        for i in range(N):
-            X[i, j] = 0.0
-    for i in range(N):
-        X[i, NC] = 0.0
+    _clear_tail(X, Y, Yd, V, E, N, nt)
     return nt
 
 
@@ -153,15 +162,9 @@ def recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, u
         nf = max(nf, _degree(Ym, NC), _degree(Vm, NC))
     nt = NC
     for j in range(NC):
-        if j >= nf and j > 0:
-            zero = True
-            for i in range(N):
-                if X[i, j] != 0.0:
-                    zero = False
-                    break
-            if zero:
-                nt = j
-                break
+        if j >= nf and j > 0 and _vanished(X, N, j):
+            nt = j
+            break
         rj = R[j] if j < nR else 0.0
         dj = dist if j == 0 else 0.0
         # the parts of y, y' and v that do not depend on this piece's plant input
@@ -236,13 +239,5 @@ def recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, u
                 X[i, j + 1] = f * acc
         if frozen and integ >= 0:
             X[integ, j + 1] = 0.0
-    for j in range(nt, NC):
-        Y[j] = 0.0
-        Yd[j] = 0.0
-        V[j] = 0.0
-        E[j] = 0.0
-        for i in range(N):
-            X[i, j] = 0.0
-    for i in range(N):
-        X[i, NC] = 0.0
+    _clear_tail(X, Y, Yd, V, E, N, nt)
     return nt

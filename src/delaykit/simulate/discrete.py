@@ -115,10 +115,8 @@ def _expm(M):  # pragma: no cover (compiled)
 @njit(cache=True)
 def _phi_gamma_fast(A, B, t):  # pragma: no cover (compiled)
     n = A.shape[0]
-    M = np.zeros((n + 1, n + 1))
-    M[:n, :n] = A * t
-    M[:n, n] = B * t
-    E = _expm(M)
+    E = np.empty((n + 1, n + 1))
+    _aug_expm(A, B, t, E)
     return E[:n, :n].copy(), E[:n, n].copy()
 
 
