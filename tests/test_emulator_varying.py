@@ -46,16 +46,21 @@ def test_default_behaviour_and_accepted_forms():
     assert [emu.actuator_delay(t0 + x) for x in (0.0, 9.99, 10.0, 19.0, 25.0)] == [0.25, 0.25, 0.4, 0.4, 0.3]
 
 
-def _drive(delay_schedule=None, *, delay=0.25, **cfg):
-    """An emulator that is not started (no threads), its clock set by hand: take off, and return it."""
-    emu = DroneEmulator(EmulatorConfig(**FREE, delay=delay, vehicle="lag", lag=0.0, noise=0.0,
-                                       delay_schedule=delay_schedule, **cfg))
+def take_off_by_hand(**cfg):
+    """An emulator with these settings that is not started (no threads), its clock set by hand: taken off and
+    hovering at 0.8 m; returned with the encoder that commanded it (tests/test_emulator_vehicle.py uses it too)."""
+    emu = DroneEmulator(EmulatorConfig(**FREE, **cfg))
     emu._phys.t = emu._t0
     enc = ATEncoder()
     emu._handle(enc.ref(takeoff=True), emu._t0 + 0.01)
     emu._advance(emu._t0 + 1.4)  # 0.8 m at 0.7 m/s: 1.15 s
     assert emu.mode == CtrlState.HOVERING
     return emu, enc
+
+
+def _drive(delay_schedule=None, *, delay=0.25, **cfg):
+    """The lag vehicle without lag or noise, taken off by hand (:func:`take_off_by_hand`)."""
+    return take_off_by_hand(delay=delay, vehicle="lag", lag=0.0, noise=0.0, delay_schedule=delay_schedule, **cfg)
 
 
 def _altitude(emu, t):

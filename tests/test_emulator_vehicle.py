@@ -11,6 +11,7 @@ import math
 import numpy as np
 import pytest
 from scipy import signal
+from test_emulator_varying import take_off_by_hand
 
 from delaykit import InvalidTypeError, InvalidValueError
 from delaykit.hardware.ardrone import ATEncoder, CtrlState
@@ -22,13 +23,7 @@ VZ_MAX = 0.7  # the factory control_vz_max (m/s): gaz 1 commands 0.7 m/s
 
 def hovering(**cfg) -> tuple[DroneEmulator, ATEncoder]:
     """An emulator that is not started (no threads), its clock set by hand: taken off and hovering at 0.8 m."""
-    emu = DroneEmulator(EmulatorConfig(**{**FREE, "delay": 0.25, "noise": 0.0, **cfg}))
-    emu._phys.t = emu._t0
-    enc = ATEncoder()
-    emu._handle(enc.ref(takeoff=True), emu._t0 + 0.01)
-    emu._advance(emu._t0 + 1.4)  # 0.8 m at 0.7 m/s: 1.15 s
-    assert emu.mode == CtrlState.HOVERING
-    return emu, enc
+    return take_off_by_hand(**{"delay": 0.25, "noise": 0.0, **cfg})
 
 
 def state(emu: DroneEmulator, t: float) -> tuple[float, float]:
