@@ -393,6 +393,13 @@ class LoopOracle:
             gf, gc = sgn * (g + ki * e), sgn * g
             if gf < -eps:
                 return "free", True
+            if abs(gc) <= eps:
+                # the clamped field is tangent to the surface (v' = 0, as when the measurement has not moved
+                # yet): which side it turns to decides (a slide if it turns back below the limit)
+                gc = sgn * self._g_after(t, Z)
+                if gc < -1e-15 and gf > eps:
+                    return ("slide+" if sgn > 0 else "slide-"), False
+                return "clamped", True
             if gc > eps or abs(gc) <= eps:
                 return "clamped", True
             if gc < -eps and gf > eps:
@@ -400,6 +407,21 @@ class LoopOracle:
             return "free", True
         sat = (math.isfinite(self.umax) and v > self.umax - eps) or (math.isfinite(self.umin) and v < self.umin + eps)
         return "free", sat
+
+    def _g_after(self, t, Z):
+        """g a moment after ``t`` (the tangent case, g(t) = 0).  While the command sits at the limit the plant
+        and the filters do not depend on the integrator, so g follows the same path in the clamped mode and
+        in a slide: integrate the clamped field over a short stretch and read g at its end."""
+        a, b = self._seg
+        d = min(1e-4, (b - a) / 8)
+        keep = self._cmode
+        self._cmode = "clamped"
+        try:
+            _, Z1 = self._integrate(t, t + d, Z, [])
+            self._set_seg(a, b)
+            return self._vdot(t + d, Z1)[2]
+        finally:
+            self._cmode = keep
 
     def _rhs(self, t, Z):
         slide = self.aw == "clamp" and self._cmode.startswith("slide")

@@ -326,6 +326,28 @@ def test_clamp_sliding_mode_is_the_limit_of_fixed_steps():
     assert 7 < errs[0] / errs[1] < 13
 
 
+def test_clamp_slide_entered_at_a_tangency():
+    """v = Kp S = umax at t = 0 and nothing moves before the delay: the clamped field is tangent to the
+    surface (v' = 0) until the output moves, and then turns below it, so the command slides on umax.
+    The plant 1/((s+1)(0.5 s+1)) sees 0.5 from t = 0.2 throughout: y = 0.5 (1 - 2 e^-tau + e^-2tau).
+    A third-order plant (y' = 0 and y'' = 0 where it starts to move) is the harder tangency."""
+    A = np.array([[-3.0, -2.0], [1.0, 0.0]])
+    o = LoopOracle(LoopSpec(A=A, B=np.array([1.0, 0.0]), C=np.array([0.0, 2.0]), Ti=0.2, controller="pi", kp=0.5,
+                            ki=0.8, antiwindup="clamp", umin=-0.5, umax=0.5, reference=("step", 1.0), t_end=10.0))
+    t = np.linspace(0.0, 10.0, 501)
+    tau = np.maximum(t - 0.2, 0.0)
+    np.testing.assert_allclose(o.y(t), 0.5 * (1.0 - 2.0 * np.exp(-tau) + np.exp(-2.0 * tau)), atol=1e-10, rtol=0)
+    assert o.slide_time > 9.0
+    # 1/(s+1)^3 from rest under v = Kp S = umax: the command holds umax while the slide lasts
+    A3 = np.array([[-3.0, -3.0, -1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    o3 = LoopOracle(LoopSpec(A=A3, B=np.array([1.0, 0.0, 0.0]), C=np.array([0.0, 0.0, 1.0]), Ti=0.1,
+                             controller="pi", kp=0.4, ki=0.5, antiwindup="clamp", umin=-0.4, umax=0.4,
+                             reference=("step", 1.0), t_end=3.0))
+    tau = np.maximum(np.linspace(0.0, 3.0, 301) - 0.1, 0.0)
+    step3 = 1.0 - np.exp(-tau) * (1.0 + tau + tau ** 2 / 2.0)
+    np.testing.assert_allclose(o3.y(np.linspace(0.0, 3.0, 301)), 0.4 * step3, atol=1e-10, rtol=0)
+
+
 # --------------------------------------------------------------------------------------------------
 # sampling
 # --------------------------------------------------------------------------------------------------

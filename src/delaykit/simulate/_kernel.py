@@ -21,15 +21,20 @@ from the Taylor recursion ``X[j+1] = H (M X[j] + inputs[j]) / (j + 1)``.  A piec
   imaged: the signal is analytic there, and the earlier piece's polynomial is its Taylor series, accurate
   over the next piece too;
 * a saturation switch of the command (a root of ``v(x) = umax`` or ``umin``, refined to machine precision),
-  and, with clamping anti-windup, a sign change of the error while saturated;
+  and, with clamping anti-windup, a sign change of the error while saturated, or the end of a slide: where
+  the free integrator would drive the command past its limit and the frozen one back, the command slides on
+  the limit (the Filippov solution), the integrator running at the rate that holds it there, until that
+  rate reaches 0 or the free rate;
 * a sample instant of a sampled controller, a knot of the reference, the load disturbance's start;
 * a length cap: ``hmax`` (the reciprocal of the loop's fastest rate, which keeps the Taylor coefficients
   decaying like ``1 / j!``), or longer, up to ``4 hmax``, where the last Taylor coefficient of every state and
   of the command, relative to that signal's largest, stays below ``1 / 24!`` (that of a pure mode of the
   fastest rate over ``hmax``): a fast mode the loop barely excites (a derivative filter's) does not hold every
   piece to its own time scale.  Each piece's tail sets the next one's length; a piece longer than ``hmax``
-  whose tail misses the bound by far is redone shorter, and none reads a stored piece of a delayed signal
-  farther than twice that piece's length (or ``2 hmax``) from its start.
+  whose tail misses the bound by far is redone shorter;
+* twice the length of the stored piece a delayed signal is read from, past that piece's start: a short
+  stored piece (between two near breakpoints), rescaled far past its end, would amplify the rounding of its
+  high coefficients.
 
 Where the plant's input is known before the piece (delayed, or held by a sampled controller) and the command
 does not act back on the states, the recursion runs on ``X' = A X + G (w, r, ym, vm)``, with the measurement's
@@ -207,6 +212,64 @@ def _first_switch(V, nv, E, ne, regime, frozen, umin, umax, aw, fs):
 
 
 @njit(cache=True, inline="always")
+def _continues(t0, th, tc, deg, full, n, q, s, tol):
+    """Whether the stored piece ``q`` of a history, continued past its end to ``s``, still agrees (to ``tol``)
+    with the stored piece that covers ``s`` (or, past the history's end, with the last one at its end).
+    ``deg``: the pieces' numbers of coefficients, or all ``NC`` where ``full``."""
+    end_q = t0[q] + th[q]
+    if q + 1 >= n or s <= end_q:
+        return True
+    k = q + 1
+    while k + 1 < n and t0[k + 1] <= s:
+        k += 1
+    s = min(s, t0[k] + th[k])
+    ext = _horner(tc[q], NC if full else deg[q], (s - t0[q]) / th[q])
+    return abs(ext - _horner(tc[k], NC if full else deg[k], (s - t0[k]) / th[k])) <= tol
+
+
+@njit(cache=True, inline="always")
+def _on_limit(v0, E, ne, umin, umax, tol):
+    """The limit the command starts on (``_HIGH``, ``_LOW``) with the error ``E`` driving it further (the
+    clamp would freeze the integrator beyond it); ``_LIN`` if none."""
+    if abs(v0 - umax) <= tol:
+        side = _HIGH
+    elif abs(v0 - umin) <= tol:
+        side = _LOW
+    else:
+        return _LIN
+    s = _lead_sign(E, ne, tol)
+    if (side == _HIGH and s > 0.0) or (side == _LOW and s < 0.0):
+        return side
+    return _LIN
+
+
+@njit(cache=True, inline="always")
+def _lead_sign(c, n, tol):
+    """The sign of the polynomial ``c`` just right of 0: that of its first coefficient above ``tol`` (0 if none)."""
+    for j in range(n):
+        if c[j] > tol:
+            return 1.0
+        if c[j] < -tol:
+            return -1.0
+    return 0.0
+
+
+@njit(cache=True, inline="always")
+def _slide_rates(X, integ, Fz, nt, S, D):
+    """On a sliding piece: ``S`` the integrator's rate and ``D`` the free rate minus it, times the piece's
+    length, as polynomials in ``x``; returns their number of coefficients."""
+    ns = max(nt - 1, 1)
+    for k in range(ns):
+        if k + 1 < nt:
+            S[k] = (k + 1) * X[integ, k + 1]
+            D[k] = (k + 1) * Fz[k + 1] - S[k]
+        else:
+            S[k] = 0.0
+            D[k] = 0.0
+    return ns
+
+
+@njit(cache=True, inline="always")
 def _image(t0, gen, n, q, qg, s, a, delay, eps):
     """In a history of ``n`` pieces (starts ``t0``, ``gen`` = not analytic at the start): the piece ``q``
     that contains ``s``, the first piece ``qg`` after it that starts where the signal is not analytic, and
@@ -263,17 +326,19 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     has_dist = dist != 0.0
     eps = 1e-12 * max(1.0, tend)
     ptol = 1e-13 * max(1.0, scale)
+    ctol = 1e-12 * max(1.0, scale)  # a delayed signal's continuation past its stored piece: how far it may drift
     metrics = norm != 0.0
     nref = rt.shape[0]
 
     X = np.zeros((MAXN, NC + 1))
     # the signals' coefficients and the small work arrays: views of one block (one allocation per run)
-    buf = np.zeros(12 * NC + 2 * _GRID + 3 + MAXN + 5 + _NMS)
+    buf = np.zeros(15 * NC + 2 * _GRID + 3 + MAXN + 5 + _NMS)
     R, Wd, Um, Ym, Vm, Y = buf[0:NC], buf[NC:2 * NC], buf[2 * NC:3 * NC], buf[3 * NC:4 * NC], buf[4 * NC:5 * NC], \
         buf[5 * NC:6 * NC]
     Yd, V, E, Wn, dW, work = buf[6 * NC:7 * NC], buf[7 * NC:8 * NC], buf[8 * NC:9 * NC], buf[9 * NC:10 * NC], \
         buf[10 * NC:11 * NC], buf[11 * NC:12 * NC]
-    o = 12 * NC
+    Fz, S, D = buf[12 * NC:13 * NC], buf[13 * NC:14 * NC], buf[14 * NC:15 * NC]  # a slide's integrator rates
+    o = 15 * NC
     xs, fs = buf[o:o + _GRID + 2], buf[o + _GRID + 2:o + 2 * _GRID + 3]
     o += 2 * _GRID + 3
     x0 = buf[o:o + MAXN]
@@ -286,6 +351,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
         if par[OFF_BU + i] != 0.0 or par[OFF_BUM + i] != 0.0:
             has_u = True
     tm_pos = tm_pos and has_u
+    integ = int(par[_INTEG])
     regime_matters = (cont and not ti_pos) or aw != 0 or (cont and has_u)
     # the loop's matrices, read once: M, then the input and output vectors (w, r, ym, vm, aw; y, y', v)
     Mloc = np.empty((N, N))
@@ -309,7 +375,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     A = Mloc.copy()
     G = np.zeros((4, N))
     d5[0], d5[1], d5[2], d5[3], d5[4] = par[_DY], par[_DYD], dvr, dvy, dvv
-    integ = int(par[_INTEG])
+    slide_on = aw == 1 and integ >= 0 and VE[7, integ] != 0.0  # clamping: the command may slide on a limit
     zero_a = True
     for i in range(N):
         G[0, i] = VE[0, i]
@@ -408,15 +474,22 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
             else:
                 qm, qgm, t_img_m = _image(tu0, ugen, nu, qm, qgm, sm, a, tm, eps)
             end = min(end, t_img_m)
-        if end - a > hmax:
-            # a piece longer than hmax reads a delayed signal's stored piece at most twice that piece's length
-            # (or 2 hmax) from its start, as a piece of length hmax would
-            if ti_pos and su >= -eps and tdeg[qu] > 1:
-                end = min(end, tu0[qu] + ti + 2.0 * max(thu[qu], hmax))
-            if to_pos and sy >= -eps:
-                end = min(end, ty0[qy] + to + 2.0 * max(tyh[qy], hmax))
-            if tm_pos and sm >= -eps and tdeg[qm] > 1:
-                end = min(end, tu0[qm] + tm + 2.0 * max(thu[qm], hmax))
+        # no piece reads a delayed signal's stored piece farther than twice that piece's length from its start
+        # (rescaled far past its end, a short piece's polynomial would amplify the rounding of its high
+        # coefficients), nor past its end where its continuation has drifted from the pieces stored after it:
+        # the piece then ends at that junction's image, as at a point where the signal is not analytic
+        if ti_pos and su >= -eps and tdeg[qu] > 1:
+            end = min(end, tu0[qu] + ti + 2.0 * thu[qu])
+            if not _continues(tu0, thu, tuc, tdeg, False, nu, qu, end - ti, ctol):
+                end = min(end, tu0[qu] + thu[qu] + ti)
+        if to_pos and sy >= -eps:
+            end = min(end, ty0[qy] + to + 2.0 * tyh[qy])
+            if not _continues(ty0, tyh, tyc, tdeg, True, ny, qy, end - to, ctol):
+                end = min(end, ty0[qy] + tyh[qy] + to)
+        if tm_pos and sm >= -eps and tdeg[qm] > 1:
+            end = min(end, tu0[qm] + tm + 2.0 * thu[qm])
+            if not _continues(tu0, thu, tuc, tdeg, False, nu, qm, end - tm, ctol):
+                end = min(end, tu0[qm] + thu[qm] + tm)
         H = end - a
         # the delayed signals and the reference on this piece
         nW = 1
@@ -445,17 +518,48 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
         dcur = dist if dist_on else 0.0
         for i in range(N):
             X[i, 0] = x0[i]
-        # the regime (linear or saturated) and, with clamping, whether the integrator is frozen
+        # the regime (linear or saturated) and, with clamping, whether the integrator is frozen or the command
+        # slides on its limit
         frozen = False
+        sliding = False
+        tried = not slide_on  # whether the piece was tested for a slide
+        keep_regime = regime
         xc = 2.0
         prev_regime = regime
-        for attempt in range(4):
+        attempt = 0
+        while True:
+            lim = umax if regime == _HIGH else umin
             if known and (aw != 2 or regime == _LIN):
                 nt = _recursion_known(A, G, VE, N, H, frozen, integ, dcur + (0.0 if ti_pos else uhold), Wd, nW, R,
-                                      nR, Ym, Vm, to_pos, need_yd, d5, X, Y, Yd, V, E, zero_a)
+                                      nR, Ym, Vm, to_pos, need_yd, d5, X, Y, Yd, V, E, zero_a, sliding, lim, Fz)
             else:
                 nt = _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dcur, X, R,
-                                nR, Wd, nW, Ym, Vm, to_pos, Y, Yd, V, E, need_yd, Um, nUm, has_u)
+                                nR, Wd, nW, Ym, Vm, to_pos, Y, Yd, V, E, need_yd, Um, nUm, has_u, sliding, Fz)
+            if not tried:
+                # the command starts on a limit with the error driving it further: try a slide
+                tried = True
+                side = _on_limit(V[0], E, nt, umin, umax, ptol)
+                if side != _LIN:
+                    keep_regime = regime
+                    regime = side
+                    sliding = True
+                    continue
+            if sliding:
+                # a Filippov slide holds while the integrator's rate stays between 0 and the free rate, both
+                # fields pointing into the limit; it ends where the rate reaches either end
+                ns = _slide_rates(X, integ, Fz, nt, S, D)
+                want = (1.0 if regime == _HIGH else -1.0) * (1.0 if VE[7, integ] > 0.0 else -1.0)
+                big = 0.0
+                for k in range(ns):
+                    big = max(big, abs(S[k] + D[k]))
+                tol = 1e-12 * big
+                if big > 0.0 and _lead_sign(S, ns, tol) == want and _lead_sign(D, ns, tol) == want:
+                    xc = min(_first_cross(S, ns, 0.0, want, fs), _first_cross(D, ns, 0.0, want, fs))
+                    break
+                sliding = False  # no slide: the regime is decided as usual
+                regime = keep_regime
+                X[integ, 0] = x0[integ]
+                continue
             nv = _degree(V, nt)
             new = _classify(V, nv, umin, umax, ptol)
             newf = False
@@ -471,6 +575,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
                 regime = new
                 frozen = newf
                 if changed:
+                    attempt += 1
                     continue
             # the first switch on the piece: the command leaves its regime, or the error changes sign
             xc = _first_switch(V, nv, E, _degree(E, nt), regime, frozen, umin, umax, aw, fs) if switches else 2.0
@@ -483,6 +588,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
                     frozen = (regime == _HIGH and ep > 0.0) or (regime == _LOW and ep < 0.0)
                 else:
                     frozen = False
+                attempt += 1
                 continue
             break
         # the Taylor tail of the states and the command decides how long the next piece may be: as long as

@@ -18,7 +18,7 @@ Examples
 >>> A, G, VE = np.array([[-1.0]]), np.zeros((4, 1)), np.zeros((10, 1))
 >>> VE[5, 0] = 1.0  # y = x
 >>> nt = t.recursion_known(A, G, VE, 1, 1.0, False, -1, 0.0, np.zeros(NC), 1, np.zeros(NC), 1, np.zeros(NC),
-...                        np.zeros(NC), False, False, np.zeros(5), X, Y, Yd, V, E, False)
+...                        np.zeros(NC), False, False, np.zeros(5), X, Y, Yd, V, E, False, False, 0.0, np.zeros(NC))
 >>> nt, [round(float(c), 6) for c in Y[:4]]
 (25, [1.0, -1.0, 0.5, -0.166667])
 """
@@ -62,8 +62,21 @@ def _clear_tail(X, Y, Yd, V, E, N, nt):
 
 
 @njit(cache=True, inline="always")
+def _hold_at_limit(X, V, VE, integ, j, lim, Fz):
+    """Sliding on the limit (Filippov): replace the integrator's coefficient ``j`` by the one that keeps the
+    command at ``lim`` (``V[0] = lim``, ``V[j] = 0`` after), and keep the free integrator's in ``Fz[j]``.
+
+    The integrator feeds the command only (``v = ... + Ki xi``, nothing else reads ``xi``), so its
+    coefficient ``j`` follows from the others' at ``j``; the next order's then read the corrected one."""
+    target = lim if j == 0 else 0.0
+    Fz[j] = X[integ, j]
+    X[integ, j] -= (V[j] - target) / VE[7, integ]
+    V[j] = target
+
+
+@njit(cache=True, inline="always")
 def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, need_yd, d5, X, Y, Yd, V,
-                    E, zero_a):
+                    E, zero_a, slide, lim, Fz):
     """:func:`recursion` where the plant's input is known before the piece (delayed or held) and the command
     does not act back on the states (no back-calculation while saturated, no predictor): ``X' = A X + G (w, r,
     ym, vm)``, with the measurement's coupling folded into ``A`` and ``G`` once per run (by the kernel's
@@ -72,7 +85,8 @@ def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, us
     ``w0`` is added to the plant input's constant term (a held command, a load disturbance); ``d5`` holds the
     direct terms ``dy, dyd, dvr, dvy, dvv``; ``zero_a`` says that ``A`` is zero (integrators driven by the input
     alone, as the paper's loop: each coefficient then follows from the input's, with no chain through the
-    states).  Returns the number of coefficients, as :func:`recursion`.
+    states).  ``slide``: the command slides on the limit ``lim`` (clamping anti-windup, see :func:`recursion`).
+    Returns the number of coefficients, as :func:`recursion`.
     """
     dy, dyd, dvr, dvy, dvv = d5[0], d5[1], d5[2], d5[3], d5[4]
     nf = max(nR, nW, 1)
@@ -108,6 +122,8 @@ def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, us
         Yd[j] = ydj
         V[j] = cv + dvr * rj + dvy * ymj + dvv * vmj
         E[j] = rj - ymj
+        if slide:
+            _hold_at_limit(X, V, VE, integ, j, lim, Fz)
         if j == DEG:
             break
         f = H / (j + 1)
@@ -135,13 +151,19 @@ def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, us
 
 @njit(cache=True)
 def recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dist, X, R, nR,
-              Wd, nW, Ym, Vm, use_meas, Y, Yd, V, E, need_yd, Um, nUm, has_u):
+              Wd, nW, Ym, Vm, use_meas, Y, Yd, V, E, need_yd, Um, nUm, has_u, slide, Fz):
     """Taylor coefficients of every signal on one piece of length ``H`` with the regime fixed.
 
     ``X[:, 0]`` holds the states at the start; fills ``X[:, 1:]``, the output ``Y``, its derivative ``Yd``,
     the controller output ``V`` and the error ``E`` (``Yd`` only where ``need_yd``: something reads y').
     With ``has_u`` (a predictor's model inside the controller), the states also read the command ``u``
     itself and ``Um`` (``nUm`` coefficients), the command one model delay ago.
+
+    With ``slide`` (clamping anti-windup, the regime saturated), the command slides on its limit: the
+    Filippov solution where the free integrator would drive the command past the limit and the frozen one
+    back below it.  The integrator then runs at the rate that holds the command at the limit, between 0 and
+    the free rate; ``Fz`` receives the free integrator's coefficients (the kernel ends the slide where the
+    rate reaches either end).
     """
     umin = par[_UMIN]
     umax = par[_UMAX]
@@ -210,6 +232,9 @@ def recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, u
         Yd[j] = ydj
         V[j] = vj
         E[j] = rj - ymj
+        if slide:
+            _hold_at_limit(X, V, VE, integ, j, lim, Fz)
+            vj = V[j]
         if j == DEG:
             break
         awj = 0.0

@@ -83,9 +83,8 @@ class _Workspace:
                 return n
             if status == K.STATUS_STALLED:
                 raise InvalidValueError(
-                    f"the simulation stalls at t = {self.out[K.OUT['t_stop']]:.6g} s: the command chatters at its "
-                    "limit (with clamping anti-windup, a sliding mode, which the simulator does not model yet; "
-                    "antiwindup='backcalc' avoids it)")
+                    f"the simulation stalls at t = {self.out[K.OUT['t_stop']]:.6g} s: the command switches at its "
+                    "limit without advancing (report the loop; antiwindup='backcalc' avoids such switching)")
             if self.cap >= _CAP_MAX:
                 hmax = row[K.HEAD["hmax"]]
                 raise InvalidValueError(
