@@ -3,8 +3,10 @@ their finite-difference Jacobian, the starting points, and a bounded Levenberg-M
 
 One trial point of a fit is one compiled call: the plant's realisation, the split of the delay into whole periods
 and a fraction, the exact held-input matrices, every log simulated (open loop from its input, closed loop through
-the known P/PV controller) and each log's offset and hover level projected out.  Private: :mod:`.identification`
-is the public face; only :class:`IdentificationError` is exported (and re-exported there).
+the known P/PV controller) and each log's offset and hover level projected out.  A closed loop through any other
+controller (PI, PID, PD, filtered PV, a transfer function; continuous or sampled) is simulated by the general
+simulator instead (:mod:`._closed_general`, dispatched to from here).  Private: :mod:`.identification` is the
+public face; only :class:`IdentificationError` is exported (and re-exported there).
 """
 
 from __future__ import annotations
@@ -46,25 +48,54 @@ class _Law:
     period: float | None
 
 
-def _law(loop: Loop | None) -> _Law | None:
+def _law(loop: Loop | None, general: bool = False) -> Any:
+    """The controller of a closed-loop fit: a :class:`_Law` (the compiled path) for a static P or PV (true
+    velocity) law sampled at the log's rate, unless ``general`` (a command at rest was given); otherwise the
+    general simulator's law (:func:`._closed_general.general_law`)."""
     if loop is None:
         return None
     loop = as_loop(loop)
     c = loop.controller
-    static = c.kind in ("p", "pv") and not c.filtered
-    if not static:
+    static = getattr(c, "kind", "") in ("p", "pv") and not c.filtered
+    if static and loop.period is None:
         raise IdentificationError(
-            f"closed-loop identification takes a P or PV (true velocity) controller sampled at the log's rate; "
-            f"the loop's controller is {c!r} (identify open loop from the logged command instead)")
-    if loop.period is None:
-        raise IdentificationError(
-            "closed-loop identification simulates the controller at the log's samples, so the loop must be sampled: "
-            "give it the log's sample period (period=..., --period on the command line); this loop's controller is "
-            "continuous")
+            "a P or PV (true velocity) controller is simulated at the log's samples in a closed-loop fit, so the "
+            "loop must be sampled: give it the log's sample period (period=..., --period on the command line); "
+            "this loop's controller is continuous")
     if loop.delay or loop.output_delay:
         raise IdentificationError("the loop given for a closed-loop fit must have no delay: the delay is what is "
                                   f"identified (got delay {loop.delay:g} s, output delay {loop.output_delay:g} s)")
+    if not static or general:
+        from ._closed_general import general_law
+
+        return general_law(loop)
     return _Law(c.kp, c.kv if c.kind == "pv" else 0.0, loop.umin, loop.umax, loop.period)
+
+
+def _law_dict(law: Any) -> dict[str, Any] | None:
+    """The controller's saved form (:attr:`IdentifiedModel.closed_loop`); ``None`` for open loop."""
+    if law is None:
+        return None
+    if not isinstance(law, _Law):
+        from ._closed_general import law_to_dict
+
+        return law_to_dict(law)
+    return {"kind": "pv" if law.kv else "p", "kp": law.kp, "kv": law.kv,
+            "umin": law.umin if math.isfinite(law.umin) else None,
+            "umax": law.umax if math.isfinite(law.umax) else None, "period": law.period}
+
+
+def _law_from_dict(c: dict[str, Any] | None) -> Any:
+    """The controller back from :func:`_law_dict`'s form (a P/PV law by its gains: files written before the kind
+    was saved have none)."""
+    if c is None:
+        return None
+    if "controller" in c:
+        from ._closed_general import law_from_dict
+
+        return law_from_dict(c)
+    return _Law(float(c["kp"]), float(c.get("kv") or 0.0), -math.inf if c.get("umin") is None else float(c["umin"]),
+                math.inf if c.get("umax") is None else float(c["umax"]), c.get("period"))
 
 
 # -- one log, prepared ------------------------------------------------------------------------------------
@@ -80,6 +111,7 @@ class _Prepared:
     keep: dict[str, np.ndarray]  # indices of fresh samples per output
     base: dict[str, float]
     wander: dict[str, float]
+    u0: float | None = None      # the absolute command at rest, where known (general closed loop)
 
 
 def _fresh(x: np.ndarray) -> np.ndarray:
@@ -88,8 +120,8 @@ def _fresh(x: np.ndarray) -> np.ndarray:
     return np.flatnonzero(keep)
 
 
-def _prepare(exp: Experiment, outputs: tuple[str, ...], rate: str | None, law: _Law | None,
-             fresh_only: bool) -> _Prepared:
+def _prepare(exp: Experiment, outputs: tuple[str, ...], rate: str | None, law: Any, fresh_only: bool,
+             u0: float | str | None = None) -> _Prepared:
     for o in outputs + ((rate,) if rate else ()):
         if o not in exp.outputs:
             raise IdentificationError(f"{exp.name}: no output column {o!r} (it has {', '.join(exp.outputs)})")
@@ -104,6 +136,11 @@ def _prepare(exp: Experiment, outputs: tuple[str, ...], rate: str | None, law: _
     pre = exp.onset if not exp.starts_moving else 0
     wander = {o: float(np.std(exp.outputs[o][:pre])) if pre >= 5 else math.nan for o in names}
     keep = {o: (_fresh(exp.outputs[o]) if fresh_only else np.arange(exp.t.size)) for o in names}
+    if law is not None and not isinstance(law, _Law):
+        from ._closed_general import prepare
+
+        common = {"outputs": outputs, "rate": rate, "meas": meas, "keep": keep, "base": base, "wander": wander}
+        return prepare(exp, law, common, u0)
     if law is None:
         drive = exp.u - exp.drive_baseline  # type: ignore[operator]
         lo, hi = -math.inf, math.inf
@@ -121,8 +158,12 @@ def _prepare(exp: Experiment, outputs: tuple[str, ...], rate: str | None, law: _
     return _Prepared(exp, outputs, rate, np.ascontiguousarray(drive), lo, hi, meas, keep, base, wander)
 
 
-def _simulate(prep: _Prepared, plant: TransferFunction, delay: float, law: _Law | None,
+def _simulate(prep: _Prepared, plant: TransferFunction, delay: float, law: Any,
               cache: dict | None = None) -> dict[str, np.ndarray]:
+    if law is not None and not isinstance(law, _Law):
+        from ._closed_general import simulate
+
+        return simulate(prep, plant, delay, law)
     key = (prep.exp.period, delay)
     model = None if cache is None else cache.get(key)
     if model is None:
@@ -145,8 +186,19 @@ class _Problem:
 
     Every evaluation runs compiled code end to end: the structure's well-scaled realisation, the exact one-period
     matrices (:func:`~delaykit.simulate.discrete.held_matrices_of`), all logs in one pass and the projection of
-    the per-log linear nuisance parameters.
+    the per-log linear nuisance parameters.  Constructed with a law of the general simulator, it is a
+    :class:`._closed_general.GeneralProblem`.
     """
+
+    compiled = True  # residuals by the compiled kernels (False: :meth:`raw` is overridden)
+    max_nfev = 300  # residual evaluations allowed to one Levenberg-Marquardt run
+
+    def __new__(cls, st: Structure, preps: list[_Prepared], law: Any, *args: Any, **kwargs: Any) -> "_Problem":
+        if cls is _Problem and law is not None and not isinstance(law, _Law):
+            from ._closed_general import GeneralProblem
+
+            cls = GeneralProblem
+        return super().__new__(cls)
 
     def __init__(self, st: Structure, preps: list[_Prepared], law: _Law | None, weights: dict[str, float],
                  fit_offset: bool) -> None:
@@ -251,7 +303,7 @@ class _Problem:
         return r
 
     def _residuals(self, z: np.ndarray) -> np.ndarray:
-        if self.st.code >= 0:
+        if self.compiled and self.st.code >= 0:
             r = np.empty(self._rw.size)
             status = _evaluate_fit(self.st.code, z, self.pos, self._rw, *self._data(), r)
             if status == _OK:
@@ -275,7 +327,7 @@ class _Problem:
         r0 = last[1] if last is not None and np.array_equal(last[0], z) else self.residuals(z)
         J = np.empty((r0.size, z.size))
         status = _STIFF
-        if self.st.code >= 0:
+        if self.compiled and self.st.code >= 0:
             status = _jacobian_fit(self.st.code, z, self.pos, lb, ub, r0, self._rw, *self._data(),
                                    np.empty(r0.size), J)
         if status == _STIFF:
@@ -291,6 +343,10 @@ class _Problem:
     @property
     def size(self) -> int:
         return int(self._rw.size)
+
+    def grid_starts(self) -> list[np.ndarray]:
+        """The coarse grid of starting points :func:`_fit` scores (:func:`_grid_starts`)."""
+        return _grid_starts(self.st, self.preps)
 
 
 @njit(cache=True)
@@ -445,8 +501,12 @@ def _residual_blocks(y, dy, uy, udy, starts, k0, p0, m0, k1, p1, m1, w0, w1, bia
         pos += n0 + n1
 
 
-def _guesses(st: Structure, preps: list[_Prepared], law: _Law | None) -> list[np.ndarray]:
+def _guesses(st: Structure, preps: list[_Prepared], law: Any) -> list[np.ndarray]:
     """Starting points from the data: the response's onset for the delay, its slope or level for the gain."""
+    if law is not None and not isinstance(law, _Law):
+        from ._closed_general import guesses
+
+        return guesses(st, preps, law)
     prep = preps[0]
     e = prep.exp
     o = prep.outputs[0]
@@ -642,7 +702,7 @@ def _fit(prob: _Problem, starts: list[np.ndarray], explore: bool = True) -> np.n
     h = prob.preps[0].exp.period
     lb, ub = prob.bounds()
     lb[-1], ub[-1] = 0.0, hi_delay
-    cand = [np.array(p0, dtype=float) for p0 in starts] + (_grid_starts(prob.st, prob.preps) if explore else [])
+    cand = [np.array(p0, dtype=float) for p0 in starts] + (prob.grid_starts() if explore else [])
     scored = []
     for p0 in cand:
         p0[-1] = min(max(p0[-1], 0.0), hi_delay * 0.999)
@@ -657,7 +717,7 @@ def _fit(prob: _Problem, starts: list[np.ndarray], explore: bool = True) -> np.n
         p0[-1] = min(max(p0[-1], 0.0), hi_delay * 0.999)
         z0 = np.clip(prob.to_fit(p0), lb, ub)
         with np.errstate(all="ignore"):
-            return _levenberg_marquardt(prob, z0, lb, ub)
+            return _levenberg_marquardt(prob, z0, lb, ub, max_nfev=prob.max_nfev)
 
     best = None
     for _, p0 in scored[:2]:  # the two most promising starts
@@ -694,7 +754,10 @@ def _fit(prob: _Problem, starts: list[np.ndarray], explore: bool = True) -> np.n
             fit = run(p0)
             if fit is None or fit.cost >= best.cost * (1 - 1e-9):
                 break
+            back = abs(prob.to_phys(fit.x)[-1] - prob.to_phys(best.x)[-1]) < 0.5 * h
             best = fit
+            if back and not prob.compiled:
+                break  # the run came back to the same delay: it polished the fit (a slow valley), no kink crossed
     return prob.to_phys(best.x)
 
 

@@ -40,9 +40,11 @@ from scipy import stats
 from ..errors import InvalidTypeError
 from ..models.loop import Loop
 from ..models.transfer import TransferFunction
-from ._fit import IdentificationError, _fit, _guesses, _jacobian, _Law, _law, _prepare, _Prepared, _Problem, _simulate
+from ._closed_general import check_rest, from_static, rest_commands
+from ._fit import (IdentificationError, _fit, _guesses, _jacobian, _Law, _law, _law_dict, _law_from_dict, _prepare,
+                   _Prepared, _Problem, _simulate)
 from .iodata import Experiment
-from .noise import ar_covariance, cross_correlation, fit_ar, ljung_box
+from .noise import ar_covariance, cross_correlation, fit_ar, fit_var, ljung_box
 from .structures import STRUCTURES, Structure, structure
 
 __all__ = ["IdentifiedModel", "Candidate", "LogFit", "Prediction", "identify", "predict", "simulate_experiment",
@@ -224,18 +226,18 @@ def _fit_structure(st: Structure, preps: list[_Prepared], law: _Law | None, fit_
     # Jacobian in physical parameters, by central differences
     with np.errstate(all="ignore"):
         J = _jacobian(prob, p)
-    noise, jb, loglik, row = [], [], 0.0, 0
+    noise, loglik, row = [], 0.0, 0
     for _, o, r in blocks:
         rw = r / prob.w[o]
         ar = fit_ar(rw)
         noise.append(ar)
-        jb.append((J[row:row + r.size], ar))
         row += r.size
         loglik += ar.loglik() - r.size * math.log(prob.w[o])
     try:
         if not np.all(np.isfinite(J)):
             raise np.linalg.LinAlgError("sensitivities are not finite")
-        cov = ar_covariance(jb)
+        models = _noise_models(prob, blocks, noise)
+        cov = _edge_covariance(prob, p, blocks, models, ar_covariance(_covariance_blocks(blocks, models, J)))
     except np.linalg.LinAlgError:
         cov = np.full((st.size, st.size), np.nan)
     k = st.size + sum(a.order for a in noise) + prob.linear_count
@@ -243,6 +245,77 @@ def _fit_structure(st: Structure, preps: list[_Prepared], law: _Law | None, fit_
     rr = np.concatenate([r for _, o, r in blocks if o == first])
     rms = float(np.sqrt(np.mean(rr * rr)))
     return _Outcome(st, p, cov, loglik, k, row, rms, blocks, noise, prob)
+
+
+def _noise_models(prob: _Problem, blocks: list, noise: list) -> list:
+    """The covariance's noise models: a log's output and its rate share the log's disturbance (in closed loop
+    the rate's residual is mostly the output's, a few samples earlier, through the controller), so the pair is
+    described jointly by one vector autoregressive model (:func:`.noise.fit_var`) on the log's samples where
+    either is kept (with ``fresh_only``, a sample one of them skips is filled in by linear interpolation of its
+    own kept ones, for the noise model only); any other block keeps its own autoregressive model.  Returns
+    ``(first block, number of blocks, model, where)`` tuples, ``where`` the rows of the pair's common samples
+    that each block's residuals occupy."""
+    out, i = [], 0
+    while i < len(blocks):
+        prep, o, r = blocks[i]
+        if i + 1 < len(blocks) and blocks[i + 1][0] is prep and o != blocks[i + 1][1]:
+            o2, r2 = blocks[i + 1][1], blocks[i + 1][2]
+            k1, k2 = prep.keep[o], prep.keep[o2]
+            if np.std(r) > 0 and np.std(r2) > 0 and k1.size == r.size and k2.size == r2.size:
+                grid = np.union1d(k1, k2)
+                x = np.column_stack([np.interp(grid, k1, r / prob.w[o]), np.interp(grid, k2, r2 / prob.w[o2])])
+                where = (np.searchsorted(grid, k1), np.searchsorted(grid, k2), grid.size)
+                out.append((i, 2, fit_var(x), where))
+                i += 2
+                continue
+        out.append((i, 1, noise[i], None))
+        i += 1
+    return out
+
+
+def _covariance_blocks(blocks: list, models: list, J: np.ndarray) -> list:
+    """:func:`.noise.ar_covariance`'s blocks: the Jacobian's rows of each block with its model (a jointly
+    described pair as one ``(n, 2, q)`` block on its common samples, zero where one of the two is not kept)."""
+    starts = np.cumsum([0] + [r.size for _, _, r in blocks])
+    out = []
+    for i, count, model, where in models:
+        if count == 1:
+            out.append((J[starts[i]:starts[i + 1]], model))
+        else:
+            w1, w2, size = where
+            pair = np.zeros((size, 2, J.shape[1]))
+            pair[w1, 0] = J[starts[i]:starts[i + 1]]
+            pair[w2, 1] = J[starts[i + 1]:starts[i + 2]]
+            out.append((pair, model))
+    return out
+
+
+def _edge_covariance(prob: _Problem, p: np.ndarray, blocks: list, models: list, cov: np.ndarray) -> np.ndarray:
+    """The covariance, honest near a whole number of sample periods of delay.
+
+    Where the delay crosses a multiple of the period a held input's edges cross the samples, and the
+    sensitivity of an output that answers an edge at once (a speed, a first-order plant) jumps: the cost has a
+    kink there and its curvature on one side can be several times that on the other (on the emulated demo
+    flights, a factor 2 to 3 in the delay's standard error).  The covariance at the estimate describes only its
+    own side.  When the nearest such delay lies within the 95 % interval given by the other side's curvature
+    (the sensitivities just across it), the larger of the two covariances is kept.
+    """
+    h, d = prob.h, float(p[-1])
+    m = round(d / h)
+    if m < 1 or not np.all(np.isfinite(cov)):
+        return cov
+    edge = m * h
+    q = np.array(p, dtype=float)
+    step = max(1e-3 * h, 1e-5 * d)  # (ten times _jacobian's own step: its differences stay on that side)
+    q[-1] = edge + (step if d <= edge else -step)
+    with np.errstate(all="ignore"):
+        J = _jacobian(prob, q)
+    if not np.all(np.isfinite(J)):
+        return cov
+    other = ar_covariance(_covariance_blocks(blocks, models, J))
+    if other[-1, -1] > cov[-1, -1] and abs(d - edge) < Z95 * math.sqrt(other[-1, -1]):
+        return other
+    return cov
 
 
 def _criteria(o: _Outcome) -> tuple[float, float]:
@@ -282,6 +355,8 @@ def identify(
     candidates: Sequence[str] | None = None,
     per_log: bool = True,
     progress: Callable[[str], None] | None = None,
+    u0: float | Sequence[float] | None = None,
+    command: str | None = None,
 ) -> IdentifiedModel:
     """Identify a plant and its dead time from one or more logs.
 
@@ -293,8 +368,10 @@ def identify(
     model : str
         A structure name (:data:`~.structures.STRUCTURES`) or ``"auto"`` to fit the candidates and choose.
     loop : Loop, optional
-        For closed-loop logs: the controller (P or PV with the true velocity, sampled at the log's period), its
-        limits and its period; the loop's plant is ignored (it is what is identified).
+        For closed-loop logs: the controller, its limits, anti-windup and period (the log's, or ``None`` for a
+        continuous controller; P and PV with the true velocity must be sampled); its delays must be 0 and its
+        plant is ignored (both are what is identified).  The loop is simulated exactly in deviations from the
+        log's initial rest, the reference held between the log's samples.
     outputs : sequence of str, optional
         The output column(s) fitted; default: every output of the first log but ``rate``.
     rate : str, optional
@@ -311,6 +388,14 @@ def identify(
         Also fit the chosen structure to each log alone, to compare the logs' delays.
     progress : callable, optional
         Called with a short message before each fit.
+    u0 : float or sequence of float, optional
+        Closed loop: the absolute command at rest before each log (one value for all, or one per log).  Only the
+        limits need it.  Without it: ``C(0) (r0 - y0)`` for a controller without an integrator, 0 for an
+        integrating plant under an integrating controller, and an error for a self-regulating plant under an
+        integrating controller with limits (the integrator holds a command the data do not show).
+    command : str, optional
+        Closed loop: a column of the logs (read as one of their outputs, not fitted) holding the command; its
+        mean before the reference moves is ``u0``.
 
     Returns
     -------
@@ -320,7 +405,8 @@ def identify(
     ------
     IdentificationError
         Logs that mix open and closed loop or sample clocks, a missing column, a closed-loop fit without a
-        controller, an unknown model name.
+        controller, a loop with a delay or another period than the logs', a command at rest the limits need and
+        the data do not give (``u0``), an unknown model name.
 
     See Also
     --------
@@ -350,14 +436,21 @@ def identify(
     names = [model] if model != "auto" else list(candidates or STRUCTURES)
     for nm in names:
         structure(nm)
-    law = _law(loop)
+    if (u0 is not None or command is not None) and loop is None:
+        raise IdentificationError("u0 and command are the command at rest of a closed-loop fit: give the loop too")
+    if u0 is not None and command is not None:
+        raise IdentificationError("give the command at rest as u0 or as a command column, not both")
+    law = _law(loop, general=u0 is not None or command is not None)
+    rests = rest_commands(u0, command, len(exps))
     if outputs is None:
-        outs = tuple(o for o in exps[0].outputs if o != rate)
+        outs = tuple(o for o in exps[0].outputs if o not in (rate, command))
     else:
         outs = tuple([outputs] if isinstance(outputs, str) else outputs)
     if len(outs) != 1:
         raise IdentificationError(f"give one output (and its rate with rate=...), got {list(outs)}")
-    preps = [_prepare(e, outs, rate, law, fresh_only) for e in exps]
+    preps = [_prepare(e, outs, rate, law, fresh_only, u0=w) for e, w in zip(exps, rests)]
+    if law is not None and not isinstance(law, _Law):
+        check_rest(law, preps, names)
     fit_offset = baseline == "fit"
 
     say = progress or (lambda msg: None)
@@ -508,9 +601,7 @@ def _assemble(o: _Outcome, preps: list[_Prepared], law: _Law | None, crit: tuple
     return IdentifiedModel(
         model=st.name, params=params, stderr=stderr, ci=ci, cov=o.cov, rms=o.rms, aic=crit[0], bic=crit[1], n=o.n,
         outputs=preps[0].outputs, rate=preps[0].rate,
-        closed_loop=None if law is None else {"kp": law.kp, "kv": law.kv, "umin": law.umin if math.isfinite(law.umin) else None,
-                                              "umax": law.umax if math.isfinite(law.umax) else None,
-                                              "period": law.period},
+        closed_loop=_law_dict(law),
         logs=tuple(logs), candidates=cands, criterion=criterion, warnings=tuple(warnings), per_log=tuple(per),
         combinations=tuple(combos),
         drive_column=preps[0].exp.reference_name if law is not None else preps[0].exp.input_name)
@@ -540,21 +631,29 @@ class Prediction:
         return f"Prediction({self.file!r}: rms {first} = {self.rms[first]:.4g}, {self.t.size} samples)"
 
 
-def simulate_experiment(model: IdentifiedModel, experiment: Experiment) -> dict[str, np.ndarray]:
-    """The model's free-run outputs over a log (absolute units: the log's initial steady state added back)."""
-    law = None
-    if model.closed_loop is not None:
-        c = model.closed_loop
-        law = _Law(float(c["kp"]), float(c.get("kv") or 0.0),
-                   -math.inf if c.get("umin") is None else float(c["umin"]),
-                   math.inf if c.get("umax") is None else float(c["umax"]), c.get("period"))
-    prep = _prepare(experiment, model.outputs, model.rate, law, fresh_only=False)
+def simulate_experiment(model: IdentifiedModel, experiment: Experiment, *, u0: float | None = None,
+                        command: str | None = None) -> dict[str, np.ndarray]:
+    """The model's free-run outputs over a log (absolute units: the log's initial steady state added back).
+
+    ``u0`` or ``command``: the log's command at rest, for a closed loop that needs it (see :func:`identify`).
+    """
+    try:
+        law = _law_from_dict(model.closed_loop)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise IdentificationError(f"the model's closed_loop controller cannot be read ({exc})") from None
+    if law is not None and (u0 is not None or command is not None) and isinstance(law, _Law):
+        law = from_static(law)
+    prep = _prepare(experiment, model.outputs, model.rate, law, fresh_only=False, u0=command if command else u0)
     sim = _simulate(prep, model.plant, model.delay, law)
     return {o: y + prep.base[o] for o, y in sim.items()}
 
 
-def predict(model: IdentifiedModel, experiment: Experiment) -> Prediction:
+def predict(model: IdentifiedModel, experiment: Experiment, *, u0: float | None = None,
+            command: str | None = None) -> Prediction:
     """Predict a log with a model, free-run (not one step ahead) from the log's input or reference.
+
+    A closed-loop model runs the saved controller (kind, gains, limits, period); ``u0`` or ``command`` give the
+    log's command at rest where the limits need it (see :func:`identify`).
 
     Examples
     --------
@@ -568,7 +667,7 @@ def predict(model: IdentifiedModel, experiment: Experiment) -> Prediction:
     """
     if not isinstance(model, IdentifiedModel):
         raise InvalidTypeError(f"model must be an IdentifiedModel, got {type(model).__name__}")
-    sim = simulate_experiment(model, experiment)
+    sim = simulate_experiment(model, experiment, u0=u0, command=command)
     meas = {o: experiment.outputs[o] for o in sim}
     rms = {o: float(np.sqrt(np.mean((meas[o] - sim[o]) ** 2))) for o in sim}
     pre = experiment.onset if not experiment.starts_moving else 0
