@@ -1,16 +1,24 @@
 """Benchmark: how long the ``delaykit`` command line takes, start to exit, once the compiled kernels are cached.
 
-Each command runs in a fresh subprocess (so every run pays Python's start-up, the imports and the loading of the
-cached numba kernels, as a user does), first once untimed to fill numba's cache, then ``--runs`` times; the table
-gives the median, fastest and slowest wall times and the median CPU time (user + system, all threads) of the
-process. The commands: ``delaykit --help``, and ``simulate``, ``margins`` and ``roots`` of the paper's loop
-(Kp = 1.31, delay 0.368 s) with ``--json``. The issue's target is 0.5 s for ``--help`` and ``simulate``.
+Each command runs in a fresh subprocess (so every run pays Python's start-up, the imports and, where a command
+needs them, the loading of the cached numba kernels, as a user does), first once untimed to fill numba's cache,
+then ``--runs`` times; the table gives the median, fastest and slowest wall times and the median CPU time (user +
+system, all threads) of the process. The commands: ``delaykit --help``; ``simulate`` of the paper's loop (Kp =
+1.31, delay 0.368 s) and of a general loop (the plant 1/(s(0.05 s + 1)), PD control with a filtered derivative,
+limits -1 and 3, a step of -1), both with ``--json``; and ``margins`` and ``roots`` of the paper's loop. The
+issue's target is 0.5 s for ``--help`` and both ``simulate`` commands. A first row, ``python -c pass``, is the
+interpreter's own start-up, for scale.
+
+Then, for ``--help`` and the two ``simulate`` commands, one more run under ``python -X importtime`` gives where
+the imports' time goes: the self time of every module imported, summed by top-level package (the standard
+library as one), and whether the heavy packages a short simulation must not need (numba, SciPy, matplotlib,
+pydantic, rich's console) were imported at all. Those times are of one run, with the profiler's overhead.
 
 Where ``PYTHONDONTWRITEBYTECODE`` is set, Python compiles every delaykit module from source on every run (some
 0.1 s); ``--pycache-prefix DIR`` lets the commands cache their bytecode under DIR instead (not in the source tree),
 as an ordinary installation does. Other work on the machine slows every run: compare figures taken side by side.
 
-Run: ``python benchmarks/bench_startup.py [--runs 7] [--pycache-prefix DIR] [--json FILE]``.
+Run: ``python benchmarks/bench_startup.py [--runs 7] [--only NAME,...] [--pycache-prefix DIR] [--json FILE]``.
 """
 
 from __future__ import annotations
@@ -18,24 +26,33 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import shutil
 import statistics
 import subprocess
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 from rich.console import Console
 from rich.table import Table
 
 LOOP = ["--kp", "1.31", "--delay", "0.368", "--json"]
+GENERAL = ["--plant", "1/(s*(0.05*s+1))", "--delay", "0.3", "--controller", "pd", "--kp", "2", "--kd", "0.1",
+           "--derivative-filter", "0.02", "--umin", "-1", "--umax", "3", "--step", "-1", "--json"]
 COMMANDS = {
-    "--help": ["--help"],
+    "help": ["--help"],
     "simulate": ["simulate", *LOOP],
+    "simulate-general": ["simulate", *GENERAL],
     "margins": ["margins", *LOOP],
     "roots": ["roots", *LOOP],
 }
-TARGET = {"--help": 0.5, "simulate": 0.5}  # seconds, from the issue
+TARGET = {"help": 0.5, "simulate": 0.5, "simulate-general": 0.5}  # seconds, from the issue
+BREAKDOWN = ("help", "simulate", "simulate-general")  # the commands whose imports are broken down
+HEAVY = ("numba", "scipy", "matplotlib", "pydantic", "rich.console")  # not needed by a short simulation
+PACKAGES = ("numpy", "typer", "rich", "pydantic", "delaykit", "numba", "scipy", "matplotlib")
+_IMPORT_LINE = re.compile(r"import time:\s+(\d+) \|\s+(\d+) \| (\s*)(\S+)")
 
 
 def delaykit_command() -> list[str]:
@@ -62,9 +79,35 @@ def run_once(argv: list[str], env: dict[str, str]) -> tuple[float, float]:
     return elapsed, cpu
 
 
+def import_breakdown(args: list[str], env: dict[str, str]) -> dict[str, object]:
+    """One run of ``delaykit ARGS`` under ``python -X importtime``: the imports' self time (s) by top-level
+    package (the standard library as ``stdlib``), the total, the module count and which heavy packages loaded."""
+    code = "import sys; from delaykit.cli import main; sys.argv[0] = 'delaykit'; main()"
+    proc = subprocess.run([sys.executable, "-X", "importtime", "-c", code, *args], capture_output=True, text=True,
+                          env=env)
+    if proc.returncode != 0:
+        raise SystemExit(f"delaykit {' '.join(args)} failed under -X importtime:\n{proc.stderr[-2000:]}")
+    by: Counter[str] = Counter()
+    names: set[str] = set()
+    for line in proc.stderr.splitlines():
+        m = _IMPORT_LINE.match(line)
+        if not m:
+            continue
+        name = m.group(4)
+        names.add(name)
+        top = name.split(".")[0]
+        stdlib = top in sys.stdlib_module_names or top.lstrip("_") in sys.stdlib_module_names or \
+            top in sys.builtin_module_names
+        by["stdlib" if stdlib else top] += int(m.group(1))
+    return {"self_time": {k: v / 1e6 for k, v in by.most_common()}, "total": sum(by.values()) / 1e6,
+            "modules": len(names), "heavy_loaded": {h: h in names for h in HEAVY}}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=7, help="Timed runs per command (after one untimed warm-up run).")
+    ap.add_argument("--only", default=None,
+                    help=f"Comma-separated commands to time, of {', '.join(COMMANDS)} (default: all).")
     ap.add_argument("--json", type=Path, default=None, help="Also write the results here as JSON.")
     ap.add_argument("--pycache-prefix", type=Path, default=None,
                     help="Cache the commands' bytecode under this directory (PYTHONPYCACHEPREFIX), even where "
@@ -72,6 +115,10 @@ def main() -> None:
     args = ap.parse_args()
     if args.runs < 1:
         ap.error("--runs must be at least 1")
+    names = list(COMMANDS) if args.only is None else [n.strip() for n in args.only.split(",") if n.strip()]
+    unknown = [n for n in names if n not in COMMANDS]
+    if unknown or not names:
+        ap.error(f"--only takes names of {', '.join(COMMANDS)}; got {args.only!r}")
     env = dict(os.environ)
     if args.pycache_prefix is not None:
         env.pop("PYTHONDONTWRITEBYTECODE", None)
@@ -79,25 +126,48 @@ def main() -> None:
     bytecode = "compiled from source every run" if env.get("PYTHONDONTWRITEBYTECODE") else "cached"
     base = delaykit_command()
     results = {}
-    for name, extra in COMMANDS.items():
-        argv = base + extra
+    plan = [("python -c pass", [sys.executable, "-c", "pass"], None)]
+    plan += [(name, base + COMMANDS[name], name) for name in names]
+    for label, argv, name in plan:
         run_once(argv, env)  # warm-up: fills numba's cache (and the bytecode cache, if any)
         runs = [run_once(argv, env) for _ in range(args.runs)]
         times = [wall for wall, _ in runs]
-        results[name] = {"command": " ".join(["delaykit", *extra]), "runs": args.runs,
-                         "median": statistics.median(times), "min": min(times), "max": max(times),
-                         "cpu_median": statistics.median(cpu for _, cpu in runs), "target": TARGET.get(name)}
+        command = "python -c pass" if name is None else " ".join(["delaykit", *COMMANDS[name]])
+        results[label] = {"command": command, "runs": args.runs, "median": statistics.median(times),
+                          "min": min(times), "max": max(times),
+                          "cpu_median": statistics.median(cpu for _, cpu in runs), "target": TARGET.get(label)}
+    breakdown = {name: import_breakdown(COMMANDS[name], env) for name in names if name in BREAKDOWN}
+
+    console = Console(width=max(Console().width, 110))
     table = Table(title=f"delaykit start-up, wall time of a fresh process ({args.runs} runs each, kernels cached, "
                         f"bytecode {bytecode})")
     for col in ("command", "median s", "min s", "max s", "CPU median s", "target s"):
-        table.add_column(col, justify="left" if col == "command" else "right")
+        table.add_column(col, justify="left" if col == "command" else "right", overflow="fold")
     for r in results.values():
         target = "–" if r["target"] is None else f"{r['target']:.1f}"
         table.add_row(r["command"], f"{r['median']:.3f}", f"{r['min']:.3f}", f"{r['max']:.3f}",
                       f"{r['cpu_median']:.3f}", target)
-    Console(width=max(Console().width, 110)).print(table)
+    console.print(table)
+    if breakdown:
+        seen = {g for b in breakdown.values() for g in b["self_time"]}  # type: ignore[attr-defined]
+        others = sorted(seen - set(PACKAGES) - {"stdlib"},
+                        key=lambda g: -max(b["self_time"].get(g, 0.0) for b in breakdown.values()))  # type: ignore
+        groups = [g for g in PACKAGES if g in seen] + others + ["stdlib"]
+        imp = Table(title="Imports, self time by package (s; one run under python -X importtime)")
+        imp.add_column("package")
+        for name in breakdown:
+            imp.add_column(name, justify="right")
+        for g in groups:
+            imp.add_row(g, *(f"{b['self_time'].get(g, 0.0):.3f}"  # type: ignore[attr-defined]
+                             for b in breakdown.values()))
+        imp.add_row("all imports", *(f"{b['total']:.3f}" for b in breakdown.values()))
+        imp.add_row("modules", *(str(b["modules"]) for b in breakdown.values()))
+        for h in HEAVY:
+            imp.add_row(f"{h} loaded", *("yes" if b["heavy_loaded"][h] else "no"  # type: ignore[index]
+                                         for b in breakdown.values()))
+        console.print(imp)
     if args.json is not None:
-        doc = {"python": sys.version.split()[0], "bytecode": bytecode, "commands": results}
+        doc = {"python": sys.version.split()[0], "bytecode": bytecode, "commands": results, "imports": breakdown}
         args.json.write_text(json.dumps(doc, indent=2) + "\n")
 
 

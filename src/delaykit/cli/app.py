@@ -6,33 +6,41 @@ Every command has ``--help``; those that print results have ``--json``; figures 
 The Typer application is :data:`.common.app`; each ``cmd_*`` module holds one group of commands (simulate;
 roots, margins and lambert; design; estimate, identify and predict; emulate and fly; report, reproduce and demo)
 and imports the library only when a command runs, so ``delaykit --help`` stays quick.  This module registers
-them, in the order and under the headings ``delaykit --help`` shows.
+them, in the order and under the headings ``delaykit --help`` shows, by module and name: a command's module
+is imported when the command is needed (``delaykit simulate ...`` imports :mod:`.cmd_simulate` alone).
 """
 
 from __future__ import annotations
 
 import sys
+from typing import Any
 
-from .cmd_design import design
-from .cmd_hardware import emulate, fly
-from .cmd_identify import estimate, identify, predict
-from .cmd_paper import demo, report, reproduce
-from .cmd_simulate import simulate
-from .cmd_spectrum import lambert, margins, roots
 from .common import app, parse_delays, parse_schedule
 
 __all__ = ["app", "main", "parse_delays", "parse_schedule"]
 
 COMMANDS = (
-    ("Simulate and analyse a loop", (simulate, roots, margins, lambert)),
-    ("Identify from logs", (estimate, identify, predict)),
-    ("Design", (design,)),
-    ("Fly", (emulate, fly)),
-    ("The paper", (reproduce, report, demo)),
+    ("Simulate and analyse a loop", (("cmd_simulate", "simulate"), ("cmd_spectrum", "roots"),
+                                     ("cmd_spectrum", "margins"), ("cmd_spectrum", "lambert"))),
+    ("Identify from logs", (("cmd_identify", "estimate"), ("cmd_identify", "identify"), ("cmd_identify", "predict"))),
+    ("Design", (("cmd_design", "design"),)),
+    ("Fly", (("cmd_hardware", "emulate"), ("cmd_hardware", "fly"))),
+    ("The paper", (("cmd_paper", "reproduce"), ("cmd_paper", "report"), ("cmd_paper", "demo"))),
 )
+"""The commands under their help headings, each as (module in this package, function)."""
+_WHERE = {function: module for _, commands in COMMANDS for module, function in commands}
 for _panel, _commands in COMMANDS:
-    for _command in _commands:
-        app.command(rich_help_panel=_panel)(_command)
+    for _module, _function in _commands:
+        app.add_lazy_command(f"{__package__}.{_module}", _function, _panel)
+
+
+def __getattr__(name: str) -> Any:
+    """A command's function by its name (``delaykit.cli.app.simulate``), its module imported now."""
+    if name in _WHERE:
+        from importlib import import_module
+
+        return getattr(import_module(f".{_WHERE[name]}", __package__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def main() -> None:

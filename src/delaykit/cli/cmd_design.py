@@ -7,7 +7,6 @@ from pathlib import Path
 from typing import Any, Optional
 
 import typer
-from rich.table import Table
 
 from ..errors import InvalidValueError
 from .common import err, fmt, friendly, out, parse_delays
@@ -37,7 +36,7 @@ def _design_compensator(kind: str, opts: dict[str, Any], uncertainty: float, as_
         from ..plotting.compensation import plot_robustness_map
 
         dr, gr = np.linspace(0.25, 2.5, 46), np.linspace(0.25, 2.5, 31)
-        with Progress(console=err, transient=True) as bar:
+        with Progress(console=err.console, transient=True) as bar:
             task = bar.add_task("robustness map", total=dr.size * gr.size)
             rm = robustness_map(d.compensator, dr, gr, progress=lambda: bar.advance(task))
         plot_robustness_map(rm, path=plot)
@@ -45,6 +44,8 @@ def _design_compensator(kind: str, opts: dict[str, Any], uncertainty: float, as_
         print(json.dumps(d.to_dict(), indent=2))
         return
     out.print(repr(d.compensator), highlight=False)
+    from rich.table import Table
+
     table = Table(title=f"{kind} design for {loop.plant.to_string(times=' ')}, model delay "
                         f"{d.compensator.model_delay:g} s")
     for col in ("step", "Mo %", "rise s", "settle s", "bound s"):
@@ -106,7 +107,7 @@ def design(
             raise InvalidValueError(f"--criterion {criterion} is not available with --delays (the robust search "
                                     "ranks by the worst case over the delays): use settling or abscissa")
         dl = [d + extra for d in D.parse_range(delays_range, "--delays")]
-        with Progress(console=err, transient=True) as bar:
+        with Progress(console=err.console, transient=True) as bar:
             task = bar.add_task("gain search", total=None)
             gm = D.gain_search(base, dl, kps, kvs, criterion=criterion, step=step, scheduler=scheduler,
                                progress=lambda k, n: bar.update(task, completed=k, total=n))
@@ -122,7 +123,7 @@ def design(
         out.print(repr(gm), highlight=False)
         out.print(f"Best: {gm.best} ({gm.reason})." if gm.best else f"No candidate: {gm.reason}.", highlight=False)
         return
-    with Progress(console=err, transient=True) as bar:
+    with Progress(console=err.console, transient=True) as bar:
         task = bar.add_task("evaluating candidates", total=None)
         d = D.design_sweep(base, kps, kvs, step=step, criterion=criterion, overshoot_limit=overshoot_limit,
                            progress=lambda k, n: bar.update(task, completed=k, total=n))
@@ -137,6 +138,8 @@ def design(
         print(json.dumps({"rows": rows, "best": None if d.best is None else d.best.to_dict(),
                           "criterion": d.criterion, "reason": d.reason}, indent=2))
         return
+    from rich.table import Table
+
     table = Table(title=f"Candidates for {base!r}")
     for col in ("Kp", "Kv", "rightmost", "abscissa", "neutral", "stable", "Mo %", "tp s", "ts s"):
         table.add_column(col, justify="right")

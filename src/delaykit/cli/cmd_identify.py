@@ -7,7 +7,6 @@ from pathlib import Path
 from typing import Any, Optional
 
 import typer
-from rich.table import Table
 
 from ..errors import InvalidValueError
 from .common import ci_list, err, fmt, fmt_ci, friendly, out, parse_delays, print_rms
@@ -107,6 +106,8 @@ def estimate(
     if as_json:
         print(json.dumps(result, indent=2))
         return
+    from rich.table import Table
+
     table = Table(title=f"Delay by the {method} method (Kp = {kp:g})")
     for col in ("flight", "delay (s)", "± stderr", "95 % interval", "skipped rows"):
         table.add_column(col, justify="right")
@@ -123,7 +124,7 @@ def estimate(
 @with_loop(omit=("plant",))
 def identify(
     logs: list[Path] = typer.Argument(..., help="Logs (CSV with a header: time, the input or reference, outputs)."),
-    closed_loop: bool = typer.Option(False, "--closed-loop", help="Closed-loop fit from the reference through the controller given by the loop options (P or PV, its limits, --period = the log's)."),
+    closed_loop: bool = typer.Option(False, "--closed-loop", help="Closed-loop fit from the reference through the controller given by the loop options (--controller p | pv | pi | pd | pid | a transfer function, its gains, --umin/--umax, --antiwindup, --period = the log's; pi, pd, pid and tf may be continuous: no --period; p and pv must be sampled)."),
     input_col: str = typer.Option("u", "--input", help="The plant's command column (open-loop fit)."),
     reference: str = typer.Option("z_ref", "--reference", help="The reference column (with --closed-loop)."),
     output: str = typer.Option("z", "--output", help="The output column."),
@@ -132,6 +133,8 @@ def identify(
     model: str = typer.Option("auto", "--model", help="auto | ipdt | ipdt_lag | ipdt_speed | fopdt | sopdt."),
     baseline: str = typer.Option("initial", "--baseline", help="initial (mean before the drive moves) | fit (an offset per log)."),
     u_before: Optional[float] = typer.Option(None, "--u-before", help="The input before the log, when the log starts with the step (default 0)."),
+    u0: Optional[float] = typer.Option(None, "--u0", help="With --closed-loop: the absolute command at rest before the logs, which places the limits (needed for an integrating controller, limits and a self-regulating plant)."),
+    command: Optional[str] = typer.Option(None, "--command", help="With --closed-loop: the logs' command column; its value at rest is --u0."),
     resample: Optional[float] = typer.Option(None, "--resample", help="Put logs with an irregular clock on this uniform period, s (the drive held, the outputs interpolated; timing then known to this period)."),
     fresh_only: bool = typer.Option(False, "--fresh-only", help="Count only output samples that changed (a sensor slower than the log repeats its values)."),
     save: Optional[Path] = typer.Option(None, "--save", help="Write the model here (JSON), for `delaykit predict`."),
@@ -154,30 +157,37 @@ def identify(
     if closed_loop:
         if given.get("delay") not in (None, "0", "0.0"):
             raise InvalidValueError("identify finds the delay: do not give --delay")
-        loop, _ = build_loop(loop_options, parse_delays)
+        opts = dict(loop_options)
+        if str(given.get("controller", "p")).lower() not in ("p", "pv") and "loop_file" not in given:
+            opts["plant"] = "1/s"  # (ignored) so that the paper's P/PV loop's +-1 limits are not assumed
+        loop, _ = build_loop(opts, parse_delays)
     elif given:
         raise InvalidValueError(f"the loop options ({', '.join('--' + k.replace('_', '-') for k in given)}) describe "
                                 "the controller of a closed-loop fit: add --closed-loop, or drop them")
+    if (u0 is not None or command is not None) and not closed_loop:
+        raise InvalidValueError("--u0 and --command give the command at rest of a closed-loop fit: add --closed-loop")
     drive = {"reference": reference} if closed_loop else {"input": input_col, "u_before": u_before}
-    exps = [read_experiment(f, outputs=[output] + ([rate] if rate else []), time=time_col, resample=resample, **drive)
-            for f in logs]
+    cols = [output] + ([rate] if rate else []) + ([command] if command else [])
+    exps = [read_experiment(f, outputs=cols, time=time_col, resample=resample, **drive) for f in logs]
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
-    with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=err,
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=err.console,
                   transient=True) as bar:
         task = bar.add_task("identifying…", total=None)
         m = run_identify(exps, model=model, loop=loop, outputs=[output], rate=rate,
-                         baseline=baseline, fresh_only=fresh_only,
+                         baseline=baseline, fresh_only=fresh_only, u0=u0, command=command,
                          progress=lambda msg: bar.update(task, description=msg))
     if save is not None:
         m.save(save)
     if plot is not None:
         from ..plotting.identification import plot_predictions
 
-        plot_predictions([run_predict(m, e) for e in exps], path=plot, title=repr(m))
+        plot_predictions([run_predict(m, e, u0=u0, command=command) for e in exps], path=plot, title=repr(m))
     if as_json:
         print(json.dumps(m.to_dict(), indent=2))
         return
+    from rich.table import Table
+
     table = Table(title=f"{m.structure.title} ({m.model}), {'closed' if closed_loop else 'open'} loop, {len(exps)} log(s)")
     for col in ("parameter", "value", "± stderr", "95 % interval"):
         table.add_column(col, justify="right")
@@ -204,6 +214,8 @@ def predict(
     logs: list[Path] = typer.Argument(..., help="Logs to predict (same columns as the model was fitted on)."),
     time_col: str = typer.Option("t", "--time", help="The time column (s)."),
     u_before: Optional[float] = typer.Option(None, "--u-before", help="The input before the log, when it starts with the step."),
+    u0: Optional[float] = typer.Option(None, "--u0", help="A closed-loop model: the absolute command at rest before the logs (see identify --u0)."),
+    command: Optional[str] = typer.Option(None, "--command", help="A closed-loop model: the logs' command column; its value at rest is --u0."),
     resample: Optional[float] = typer.Option(None, "--resample", help="Put logs with an irregular clock on this uniform period, s (the drive held, the outputs interpolated; timing then known to this period)."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Overlay each log and the prediction here."),
@@ -214,11 +226,13 @@ def predict(
     from ..identify.iodata import read_experiment
 
     m = load_model(model_file)
-    outs = list(m.outputs) + ([m.rate] if m.rate else [])
+    if (u0 is not None or command is not None) and m.closed_loop is None:
+        raise InvalidValueError("--u0 and --command are for a closed-loop model; this one is open loop")
+    outs = list(m.outputs) + ([m.rate] if m.rate else []) + ([command] if command else [])
     drive = ({"reference": m.drive_column} if m.closed_loop is not None
              else {"input": m.drive_column, "u_before": u_before})
     exps = [read_experiment(f, outputs=outs, time=time_col, resample=resample, **drive) for f in logs]
-    preds = [run_predict(m, e) for e in exps]
+    preds = [run_predict(m, e, u0=u0, command=command) for e in exps]
     if plot is not None:
         from ..plotting.identification import plot_predictions
 

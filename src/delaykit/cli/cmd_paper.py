@@ -7,7 +7,6 @@ from pathlib import Path
 from typing import Optional
 
 import typer
-from rich.table import Table
 
 from ..errors import InvalidValueError, check_real
 from .common import confirm_real, err, fmt_ci, friendly, out
@@ -45,13 +44,15 @@ def reproduce(
 
     from ..paper.reproduce import reproduce as run
 
-    with Progress(console=err, transient=True) as bar:
+    with Progress(console=err.console, transient=True) as bar:
         task = bar.add_task("reproducing the paper", total=None)  # the total comes with the first report
         rep = run(out_dir, progress=lambda name, done, total: bar.update(task, completed=done, total=total,
                                                                            description=name))
     if as_json:
         print(json.dumps(rep.to_dict(), indent=2))
         return
+    from rich.table import Table
+
     table = Table(title="The paper, regenerated")
     table.add_column("item", justify="left")
     table.add_column("verdict", justify="left")

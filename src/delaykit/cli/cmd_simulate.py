@@ -8,7 +8,6 @@ from pathlib import Path
 from typing import Any, Optional
 
 import typer
-from rich.table import Table
 
 from ..errors import InvalidValueError, check_real
 from .common import err, fmt, friendly, out, parse_schedule, read_delay_trace
@@ -59,7 +58,6 @@ def simulate(
     """
     from ..models.altitude import AltitudeLoop
     from ..models.signals import LoadStep, Ramp, Step
-    from ..paper.data import paper_loop, table1_overshoot
     from ..simulate.simulation import simulate as sim
 
     check_real("--dt", dt, minimum=0.0, strict=True)
@@ -97,8 +95,11 @@ def simulate(
         with err.status("simulating (the first run compiles the solver, a few seconds)…"):
             responses = [sim(loop.replace(delay=d), step, z0=z0, t_end=t_end, band=band, reference=ref,
                              disturbance=dist) for d in delays]
-        paper_cfg = isinstance(loop, AltitudeLoop) and isinstance(ref, Step) and step == 1.0 and dist is None \
-            and loop == paper_loop(loop.delay)
+        paper_cfg = isinstance(loop, AltitudeLoop) and isinstance(ref, Step) and step == 1.0 and dist is None
+        if paper_cfg:  # the paper's loop: its printed overshoot beside ours (other loops need not load the paper)
+            from ..paper.data import paper_loop, table1_overshoot
+
+            paper_cfg = loop == paper_loop(loop.delay)
         rows = []
         for r in responses:
             row = {"delay": r.loop.delay, **r.to_dict()}
@@ -122,6 +123,8 @@ def simulate(
             print(json.dumps(rows[0] if len(rows) == 1 else rows, indent=2))
             return
         title = repr(loop) if len(delays) == 1 else repr(loop).replace(f"delay={loop.delay:.4g} s, ", "")
+        from rich.table import Table
+
         table = Table(title=title)
         table.add_column("Td s", justify="right")
         table.add_column("Mo %", justify="right")
@@ -253,6 +256,8 @@ def _simulate_varying(loop: Any, model: Any, keep_order: Optional[bool], *, step
     if as_json:
         print(json.dumps(row, indent=2))
         return
+    from rich.table import Table
+
     table = Table(title=repr(loop))
     for col in ("delay s", "Mo %", "peak s", "rise s", "settle s", "packets", "dropped"):
         table.add_column(col, justify="right")

@@ -8,7 +8,6 @@ from pathlib import Path
 from typing import Any, Optional
 
 import typer
-from rich.table import Table
 
 from ..errors import DelaykitError, InvalidValueError, check_real
 from .common import friendly, out
@@ -63,6 +62,8 @@ def roots(
     if as_json:
         print(json.dumps(data, indent=2))
         return
+    from rich.table import Table
+
     table = Table(title=f"{q!r} in {tuple(sp.region)}")
     for col in ("#", "Re s", "Im s", "multiplicity"):
         table.add_column(col, justify="right")
@@ -92,6 +93,8 @@ def _sampled_roots(loop: Any, as_json: bool) -> None:
     if as_json:
         print(json.dumps(data, indent=2))
         return
+    from rich.table import Table
+
     table = Table(title=f"Poles of the sampled loop {loop!r} (z-plane, h = {sp.period:g} s)")
     for col in ("#", "Re z", "Im z", "|z|", "rate log|z|/h (1/s)"):
         table.add_column(col, justify="right")
@@ -199,6 +202,8 @@ def margins(
     def at(w: Optional[float]) -> str:
         return "" if w is None else " at ∞" if math.isinf(w) else f" at {w:.6g} rad/s"
 
+    from rich.table import Table
+
     table = Table(title=f"Margins of {loop!r}")
     table.add_column("quantity")
     table.add_column("value", justify="right")
@@ -271,6 +276,8 @@ def lambert(
     if as_json:
         print(json.dumps(data, indent=2))
         return
+    from rich.table import Table
+
     table = Table(title=f"s - {a0:g} - ({a1:g}) exp(-{delay:g} s) = 0")
     for col in ("branch k", "Re s", "Im s"):
         table.add_column(col, justify="right")

@@ -5,28 +5,288 @@ from __future__ import annotations
 import csv
 import functools
 import math
+import re
 from pathlib import Path
 from typing import Any, Callable, Optional
 
 import typer
-from rich.console import Console
-from rich.table import Table
 
 from ..errors import DelaykitError, InvalidValueError, RangeSpecError
 
 __all__ = [
     "app", "ci_list", "confirm_real", "err", "fmt", "fmt_ci", "friendly", "out", "parse_delays", "parse_schedule",
-    "print_rms", "read_delay_trace",
+    "print_rms", "quick_coercion", "read_delay_trace",
 ]
 
-app = typer.Typer(
+_MISSING = object()
+_FLOAT_TEXT = re.compile(r"-?(?:0|[1-9][0-9]{0,19})(?:\.[0-9]{1,20})?(?:[eE][-+]?[0-9]{1,2})?")
+_INT_TEXT = re.compile(r"-?(?:0|[1-9][0-9]{0,17})")
+
+
+class _QuickCoercion:
+    """Typer's conversion of one option's value, without pydantic where the value is plain.
+
+    Recent Typer (0.29 here) converts every option's value, given or not, through a pydantic ``TypeAdapter``
+    built for it, and importing pydantic and building the adapters of a command's 45 options takes a sixth of a
+    second.
+    For an option that is absent (``None``), a value of the option's own type (its default), or a number written
+    plainly (``-1``, ``0.368``, ``2e-3``: text that pydantic and Python's ``float``/``int`` read alike) the
+    result is the same computed here; any other value (a path, ``1_000``, ``inf``, a bad number) goes to
+    typer's own conversion, built the first time it is needed, which gives typer's result and its error message.
+    """
+
+    def __init__(self, param: Any, build: Callable[[Any], Any]) -> None:
+        self.param, self.build, self.real = param, build, None
+        desc = param.type_descriptor
+        info = desc.parameter_info
+        plain = (desc.file_annotation is None and getattr(info, "parser", None) is None
+                 and getattr(info, "min", None) is None and getattr(info, "max", None) is None
+                 and not getattr(info, "clamp", False) and not param.multiple and param.nargs == 1)
+        self.kind = desc.annotation if plain and desc.annotation in (float, int, str) else None
+        self.single = not param.multiple and param.nargs == 1
+
+    def quick(self, value: Any) -> Any:
+        """The converted value, or ``_MISSING`` where typer's own conversion must decide."""
+        if value is None and self.single:
+            return None
+        kind = self.kind
+        if kind is None and type(value) is bool and self.param.type_descriptor.annotation is bool:
+            return value  # a flag: what typer does too
+        if kind is None:
+            return _MISSING
+        if type(value) is kind:
+            return value
+        if type(value) is str:
+            if kind is float and _FLOAT_TEXT.fullmatch(value):
+                return float(value)
+            if kind is int and _INT_TEXT.fullmatch(value):
+                return int(value)
+        return _MISSING
+
+    def coerce(self, value: Any, param: Any, ctx: Any) -> Any:
+        got = self.quick(value)
+        if got is not _MISSING:
+            return got
+        if self.real is None:
+            self.real = self.build(self.param.type_descriptor)
+        return self.real.coerce(value, param=param, ctx=ctx)
+
+
+def quick_coercion(command: Any) -> int:
+    """Give every option of a Typer-built click command (and its subcommands) a :class:`_QuickCoercion`.
+
+    Returns how many options got one (0 with a Typer that converts values without pydantic, where there is
+    nothing to gain: the command is then left as it is).
+
+    Examples
+    --------
+    >>> import typer.main
+    >>> from delaykit.cli import app
+    >>> quick_coercion(typer.main.get_command(app)) > 40
+    True
+    """
+    try:
+        from typer._coercion import build_runtime_param
+    except ImportError:  # a Typer without pydantic coercion
+        return 0
+
+    def install(param: Any) -> int:
+        if getattr(param, "_runtime_param", _MISSING) is None and hasattr(param, "type_descriptor"):
+            param._runtime_param = _QuickCoercion(param, build_runtime_param)
+            return 1
+        return 0
+
+    def with_help(get_help_option: Callable[[Any], Any]) -> Callable[[Any], Any]:
+        def get(ctx: Any) -> Any:  # the --help option, made when the command first parses
+            option = get_help_option(ctx)
+            if option is not None:
+                install(option)
+            return option
+
+        return get
+
+    count = 0
+    stack = [command]
+    while stack:
+        cmd = stack.pop()
+        stack.extend(getattr(cmd, "commands", {}).values())
+        count += sum(install(param) for param in getattr(cmd, "params", ()))
+        if callable(getattr(cmd, "get_help_option", None)):
+            cmd.get_help_option = with_help(cmd.get_help_option)
+    return count
+
+
+class _App(typer.Typer):
+    """The Typer application: its commands imported when needed, and built for the command being run only.
+
+    * :meth:`add_lazy_command` registers a command by the module and name of its function; the module is
+      imported the first time the commands are read (``registered_commands``: Typer's help, its test runner),
+      so that ``import delaykit.cli`` does not load every command's module.
+    * Run (``app()``, the ``delaykit`` script) with a first argument that names a lazily registered command
+      (``delaykit simulate ...``), the click group is built with that command alone, from its module alone:
+      Typer would otherwise import all six command modules and read the signatures and build the options of
+      all thirteen commands (some 25 ms, and more where Python compiles the modules afresh) to run one.  The
+      command's parsing, help and errors are the same either way (the tests compare them); anything else
+      (``--help``, no command, a misspelt one) gets the whole group.
+    * Every option's value is converted by :func:`quick_coercion`.
+
+    The click command is built at each call, as Typer's own ``__call__`` does (with
+    ``pretty_exceptions_enable=False`` Typer's exception hook only passes an exception on, so it is not
+    installed here).
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self._lazy: list[tuple[str, str, str]] = []  # (module, function, help panel), in the order registered
+        self._loaded = True
+        self._commands: list[Any] = []
+        super().__init__(*args, **kwargs)
+
+    @property  # type: ignore[override]
+    def registered_commands(self) -> list[Any]:
+        """Typer's list of commands: importing the lazily registered ones' modules the first time it is read."""
+        if not self._loaded:
+            self._loaded = True
+            for module, function, panel in self._lazy:
+                self.command(rich_help_panel=panel)(_function(module, function))
+        return self._commands
+
+    @registered_commands.setter
+    def registered_commands(self, value: list[Any]) -> None:
+        self._commands = value
+
+    def add_lazy_command(self, module: str, function: str, panel: str) -> None:
+        """Register the command ``function`` of ``module`` (a full module name) under the help panel ``panel``;
+        the module is imported when the command is needed.
+
+        Examples
+        --------
+        >>> from delaykit.cli.app import COMMANDS, app
+        >>> len(app._lazy) == sum(len(commands) for _, commands in COMMANDS)  # what delaykit.cli.app registers
+        True
+        """
+        self._lazy.append((module, function, panel))
+        self._loaded = False
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        argv = kwargs["args"] if "args" in kwargs else args[0] if args else None
+        if argv is None:
+            import sys
+
+            argv = sys.argv[1:]
+        first = next(iter(argv), None) if not isinstance(argv, str) else None
+        command = self.click_command(first if isinstance(first, str) else None)
+        quick_coercion(command)
+        return command(*args, **kwargs)
+
+    def click_command(self, name: Optional[str] = None) -> Any:
+        """The click group: with the lazily registered command ``name`` alone where there is one, else with every
+        command.
+
+        Examples
+        --------
+        >>> from delaykit.cli import app
+        >>> sorted(app.click_command("lambert").commands), len(app.click_command().commands)
+        (['lambert'], 13)
+        """
+        import copy
+
+        import typer.main
+
+        if name is not None and self.registered_callback is None and not self.registered_groups \
+                and not getattr(self, "_add_completion", True):
+            named = getattr(typer.main, "get_command_name", lambda n: n.lower().replace("_", "-"))
+            chosen = [(module, function, panel) for module, function, panel in self._lazy if named(function) == name]
+            if len(chosen) == 1:
+                module, function, panel = chosen[0]
+                scratch = typer.Typer()
+                scratch.command(rich_help_panel=panel)(_function(module, function))
+                one = copy.copy(self)
+                one._loaded, one._commands = True, list(scratch.registered_commands)
+                return typer.main.get_group(one)
+        return typer.main.get_command(self)
+
+
+def _function(module: str, name: str) -> Any:
+    from importlib import import_module
+
+    return getattr(import_module(module), name)
+
+
+app = _App(
     help="delaykit: feedback loops with a time delay (the quadrotor altitude loop of Armah & Yi).",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-out = Console(soft_wrap=True)
-err = Console(stderr=True)
+
+
+class _NoStatus:
+    """What :meth:`_LazyConsole.status` gives where rich would draw nothing: a context that does nothing."""
+
+    def __enter__(self) -> "_NoStatus":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        return None
+
+    def update(self, *args: Any, **kwargs: Any) -> None:
+        """Ignore a new status message."""
+
+    def start(self) -> None:
+        """Nothing to start."""
+
+    def stop(self) -> None:
+        """Nothing to stop."""
+
+
+class _LazyConsole:
+    """A rich ``Console`` made on first use (importing rich's console costs some 40 ms, which a ``--json`` run
+    that prints with ``print`` need not pay); every attribute is the console's.
+
+    :meth:`status` draws a spinner only where rich would: on a terminal (or where ``TTY_COMPATIBLE`` or
+    ``FORCE_COLOR`` says there is one), or in Jupyter; elsewhere rich's spinner prints nothing, and this one does
+    not make the console to print it.
+    """
+
+    def __init__(self, **kwargs: Any) -> None:
+        self._kwargs = kwargs
+        self._console: Any = None
+
+    @property
+    def console(self) -> Any:
+        """The rich ``Console`` itself (made now if it was not), for code that takes a console."""
+        if self._console is None:
+            from rich.console import Console
+
+            self._console = Console(**self._kwargs)
+        return self._console
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.console, name)
+
+    def status(self, *args: Any, **kwargs: Any) -> Any:
+        """``Console.status``, or a context that does nothing where rich's spinner would print nothing."""
+        if self._console is None and not self._may_draw():
+            return _NoStatus()
+        return self.console.status(*args, **kwargs)
+
+    def _may_draw(self) -> bool:
+        import os
+        import sys
+
+        if os.environ.get("TTY_COMPATIBLE") is not None or os.environ.get("FORCE_COLOR") is not None:
+            return True
+        if "IPython" in sys.modules:  # a notebook: rich draws in the cell
+            return True
+        stream = sys.stderr if self._kwargs.get("stderr") else sys.stdout
+        try:
+            return bool(stream.isatty())
+        except (AttributeError, ValueError):
+            return False
+
+
+out: Any = _LazyConsole(soft_wrap=True)
+err: Any = _LazyConsole(stderr=True)
 
 
 def friendly(fn: Callable[..., Any]) -> Callable[..., Any]:
@@ -117,6 +377,8 @@ def ci_list(ci: Any) -> Optional[list[float]]:
 
 def print_rms(title: str, rows: list[tuple[str, float, Optional[float]]]) -> None:
     """A table of each log's RMS error beside its initial wander (``None`` where the log has none)."""
+    from rich.table import Table
+
     table = Table(title=title)
     for col in ("log", "rms", "initial wander", "rms / wander"):
         table.add_column(col, justify="right")
