@@ -42,6 +42,11 @@ coupling folded into ``A`` once per run (:mod:`._taylor`); otherwise on the gene
 
 Step metrics are computed on the polynomials themselves while the pieces stream past.
 
+The piece loop (``_run``) and the non-inlined helpers it calls are compiled without numba's reference counting
+(``_nrt=False``): they allocate nothing, and with it every array view bound in the loop (each inlined helper's
+array arguments) cost an atomic increment and decrement, a third of the paper's P loops' time.  Their work
+arrays come from the caller: :func:`run_one` allocates them for one run, :func:`run_batch` once per thread.
+
 The parameter row layout (``HEAD`` and the ``OFF_*`` offsets) is defined in :mod:`._layout` and filled by
 :mod:`delaykit.simulate.simulation`; the polynomial helpers are :mod:`._poly`.  numba compiles this module, or
 it runs as plain Python (see :mod:`._jit`).  This module is private.
@@ -150,13 +155,25 @@ _NMS = 6
 def _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs, fs):
     """Update the step metrics with the piece ``Y`` on ``[a, a + H]`` (exact: extrema and crossings are roots)."""
     end = a + H
-    for j in range(nY):
-        Wn[j] = Y[j] / norm
+    if norm == 1.0:
+        for j in range(nY):
+            Wn[j] = Y[j]
+    else:
+        for j in range(nY):
+            Wn[j] = Y[j] / norm
     lo, hi = _bounds(Wn, nY)
     if hi > ms[_WMAX]:
+        big = 0.0
         for j in range(nY - 1):
             dW[j] = (j + 1) * Wn[j + 1]
-        k = _all_cross(dW, nY - 1, 0.0, xs, fs)
+            big += abs(dW[j])
+        # no root of the derivative where its bounds keep one sign, beyond rounding: the grid search would
+        # find none
+        dlo, dhi = _bounds(dW, nY - 1)
+        if dlo > 1e-13 * big or dhi < -1e-13 * big:
+            k = 0
+        else:
+            k = _all_cross(dW, nY - 1, 0.0, xs, fs)
         for i in range(k + 1):
             x = xs[i] if i < k else 1.0
             wv = _horner(Wn, nY, x)
@@ -192,7 +209,7 @@ def _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs, fs):
 @njit(cache=True, inline="always")
 def _first_switch(V, nv, E, ne, regime, frozen, umin, umax, aw, fs):
     """Where on the piece (x in (0, 1]) the command ``V`` first leaves its regime or, with clamping
-    anti-windup while saturated, the error ``E`` changes sign; 2.0 if nowhere."""
+    anti-windup while saturated, the error ``E`` (at most ``ne`` coefficients) changes sign; 2.0 if nowhere."""
     xc = 2.0
     lo, hi = _bounds(V, nv)
     if regime == _LIN:
@@ -207,7 +224,7 @@ def _first_switch(V, nv, E, ne, regime, frozen, umin, umax, aw, fs):
         xc = _first_cross(V, nv, umin, -1.0, fs)
     if aw == 1 and regime != _LIN:
         s0 = 1.0 if frozen == (regime == _HIGH) else -1.0
-        xc = min(xc, _first_cross(E, ne, 0.0, s0, fs))
+        xc = min(xc, _first_cross(E, _degree(E, ne), 0.0, s0, fs))
     return xc
 
 
@@ -283,6 +300,9 @@ def _image(t0, gen, n, q, qg, s, a, delay, eps):
     return q, qg, (t0[qg] if qg < n else a) + delay
 
 
+_NBUF = 15 * NC + 2 * _GRID + 3 + MAXN + 5 + _NMS  # the signals' coefficients and the small work arrays
+
+
 @njit(cache=True)
 def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, out, keep_y, et, ez):
     """Simulate one loop; fill ``out`` with its metrics.
@@ -295,6 +315,19 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     ``t_end``, 0 before the step).  Returns the number of pieces; ``out[status]`` is 1 when ``cap``
     pieces were not enough.
     """
+    X = np.empty((MAXN, NC + 1))
+    buf = np.empty(_NBUF)
+    mats = np.empty((4, MAXN, MAXN))
+    return _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, out, keep_y, et, ez,
+                X, buf, mats)
+
+
+@njit(cache=True, _nrt=False)
+def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, out, keep_y, et, ez, X, buf,
+         mats):
+    """:func:`run_one` on work arrays from the caller (cleared here): ``X`` the states' coefficients
+    (``MAXN x (NC + 1)``), ``buf`` the signals' coefficients and small work arrays (``_NBUF``), ``mats`` the
+    loop's matrices (``4 x MAXN x MAXN``).  Compiled without reference counting (see the module's notes)."""
     N = int(par[_N])
     ti = par[_TI]
     to = par[_TO]
@@ -326,13 +359,16 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     has_dist = dist != 0.0
     eps = 1e-12 * max(1.0, tend)
     ptol = 1e-13 * max(1.0, scale)
+    tdiv = max(abs(norm), scale, 1e-300)  # the truncation's scale
+    # a command coefficient below rounding, relative to this, is dropped when the piece is stored
+    uref = max(abs(umax) if umax < np.inf else 0.0, abs(umin) if umin > -np.inf else 0.0, scale, 1.0)
     ctol = 1e-12 * max(1.0, scale)  # a delayed signal's continuation past its stored piece: how far it may drift
     metrics = norm != 0.0
     nref = rt.shape[0]
 
-    X = np.zeros((MAXN, NC + 1))
-    # the signals' coefficients and the small work arrays: views of one block (one allocation per run)
-    buf = np.zeros(15 * NC + 2 * _GRID + 3 + MAXN + 5 + _NMS)
+    X[:, :] = 0.0
+    # the signals' coefficients and the small work arrays: views of one block
+    buf[:] = 0.0
     R, Wd, Um, Ym, Vm, Y = buf[0:NC], buf[NC:2 * NC], buf[2 * NC:3 * NC], buf[3 * NC:4 * NC], buf[4 * NC:5 * NC], \
         buf[5 * NC:6 * NC]
     Yd, V, E, Wn, dW, work = buf[6 * NC:7 * NC], buf[7 * NC:8 * NC], buf[8 * NC:9 * NC], buf[9 * NC:10 * NC], \
@@ -353,9 +389,12 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     tm_pos = tm_pos and has_u
     integ = int(par[_INTEG])
     regime_matters = (cont and not ti_pos) or aw != 0 or (cont and has_u)
-    # the loop's matrices, read once: M, then the input and output vectors (w, r, ym, vm, aw; y, y', v)
-    Mloc = np.empty((N, N))
-    VE = np.empty((10, N))
+    # the loop's matrices, read once: M, then the input and output vectors (w, r, ym, vm, aw; y, y', v), and
+    # the known-input form's A and G (below); only their first N rows and columns are used
+    Mloc = mats[0]
+    VE = mats[1, :10]
+    A = mats[2]
+    G = mats[3, :4]
     for i in range(N):
         for k in range(N):
             Mloc[i, k] = par[OFF_M + i * MAXN + k]
@@ -372,8 +411,11 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
     # with the plant's input known (delayed, or held by a sampled controller): X' = A X + G (w, r, ym, vm), the
     # measurement folded into A when it is the output itself (no output delay)
     known = (ti_pos or sampled) and not algebraic and not has_u
-    A = Mloc.copy()
-    G = np.zeros((4, N))
+    for i in range(N):
+        for k in range(N):
+            A[i, k] = Mloc[i, k]
+        for k in range(4):
+            G[k, i] = 0.0
     d5[0], d5[1], d5[2], d5[3], d5[4] = par[_DY], par[_DYD], dvr, dvy, dvv
     slide_on = aw == 1 and integ >= 0 and VE[7, integ] != 0.0  # clamping: the command may slide on a limit
     zero_a = True
@@ -578,7 +620,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
                     attempt += 1
                     continue
             # the first switch on the piece: the command leaves its regime, or the error changes sign
-            xc = _first_switch(V, nv, E, _degree(E, nt), regime, frozen, umin, umax, aw, fs) if switches else 2.0
+            xc = _first_switch(V, nv, E, nt, regime, frozen, umin, umax, aw, fs) if switches else 2.0
             # a switch at the very start: the piece began on the boundary in the wrong regime
             if attempt < 3 and xc < 1.0 and xc * H <= 1e-12 * max(1.0, abs(a) + H):
                 probe = _horner(V, nv, min(1.0, max(16.0 * xc, 1e-9)))
@@ -632,8 +674,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
             nU = nv
             uval = V[0]
             # drop coefficients below rounding
-            ref = max(abs(umax) if umax < np.inf else 0.0, abs(umin) if umin > -np.inf else 0.0, scale, 1.0)
-            while nU > 1 and abs(V[nU - 1]) < 1e-19 * ref:
+            while nU > 1 and abs(V[nU - 1]) < 1e-19 * uref:
                 nU -= 1
         else:
             uval = umax if regime == _HIGH else umin
@@ -659,7 +700,7 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
                 tyc[ny, j] = Y[j]
                 tyd[ny, j] = Yd[j]
             ny += 1
-        trunc = max(trunc, abs(Y[DEG]) / max(abs(norm), scale, 1e-300))
+        trunc = max(trunc, abs(Y[DEG]) / tdiv)
         if metrics:
             _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs, fs)
         # the requested samples of y on this piece
@@ -668,11 +709,17 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
             ez[ke] = _horner(Y, nY, min(max(x, 0.0), 1.0))
             ke += 1
         # advance: the states, the left limits the next sample reads, and why the next piece starts
-        for i in range(N):
-            x0[i] = 0.0
-        for j in range(nt):  # the sums of the states' coefficients, side by side
+        if N == 1:  # the same sum, without the inner loop
+            s1 = 0.0
+            for j in range(nt):
+                s1 += X[0, j]
+            x0[0] = s1
+        else:
             for i in range(N):
-                x0[i] += X[i, j]
+                x0[i] = 0.0
+            for j in range(nt):  # the sums of the states' coefficients, side by side
+                for i in range(N):
+                    x0[i] += X[i, j]
         y_end = _sum(Y, nY)
         if sampled:  # what the next sample reads
             if to_pos:
@@ -747,6 +794,9 @@ def run_batch(pars, cap, nchunks):
         tyc = np.empty((cap, NC))
         tyd = np.empty((cap, NC))
         ygen = np.empty(cap, dtype=np.int8)
+        X = np.empty((MAXN, NC + 1))
+        buf = np.empty(_NBUF)
+        mats = np.empty((4, MAXN, MAXN))
         rt = np.zeros(1)
         r0 = np.zeros(1)
         rs = np.zeros(1)
@@ -755,6 +805,6 @@ def run_batch(pars, cap, nchunks):
         for i in range(lo, hi):
             r0[0] = pars[i, _STEP]
             rs[0] = pars[i, _SLOPE]
-            run_one(pars[i], rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen,
-                    out[i], False, et, ez)
+            _run(pars[i], rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, out[i], False, et, ez,
+                 X, buf, mats)
     return out

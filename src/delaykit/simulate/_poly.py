@@ -4,7 +4,9 @@ A polynomial is its coefficients ``c[0] + c[1] x + ... + c[n-1] x**(n-1)`` in a 
 ``[0, 1]`` (one piece of a response).  Compiled or interpreted with the kernel that imports it (see
 :mod:`._jit`).  This module is private.
 
-Note that numba's cache of a compiled kernel does not notice edits of this file (see :mod:`._jit`).
+Note that numba's cache of a compiled kernel does not notice edits of this file (see :mod:`._jit`).  The
+functions that are not inlined (:func:`refine`, :func:`all_cross`) allocate nothing and are compiled without
+reference counting, as the kernel's piece loop (see :mod:`._kernel`).
 
 Examples
 --------
@@ -67,15 +69,14 @@ def bounds(c, n):
     """Lower and upper bounds of the polynomial on [0, 1] (x**j lies in [0, 1])."""
     lo = c[0]
     hi = c[0]
-    for j in range(1, n):
-        if c[j] > 0.0:
-            hi += c[j]
-        else:
-            lo += c[j]
+    for j in range(1, n):  # branch-free: adding 0.0 leaves a sum unchanged
+        cj = c[j]
+        hi += cj if cj > 0.0 else 0.0
+        lo += 0.0 if cj > 0.0 else cj
     return lo, hi
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def refine(c, n, target, lo, hi, slo):
     """Root of c(x) - target in [lo, hi], where the sign just right of lo is ``slo`` (safeguarded Newton)."""
     x = 0.5 * (lo + hi)
@@ -142,7 +143,7 @@ def first_cross(c, n, target, s0, fs):
     return 2.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def all_cross(c, n, target, xs, fs):
     """All sign changes of c(x) - target in (0, 1), refined; returns their count (stored in xs).
 

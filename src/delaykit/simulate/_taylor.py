@@ -5,7 +5,8 @@ inputs (the delayed command, the reference, the delayed measurement, anti-windup
 polynomials known before the piece or, without any delay in the loop, algebraic in the states.
 :func:`recursion_known` is the common case, the plant's input known before the piece and the command not
 acting back on the states, with the measurement folded into the matrix once per run; :func:`recursion` is
-the general one.  Built compiled or interpreted with the kernel (see :mod:`._jit`).  This module is private.
+the general one (compiled without reference counting, as the kernel's piece loop: see :mod:`._kernel`).  Built
+compiled or interpreted with the kernel (see :mod:`._jit`).  This module is private.
 
 Examples
 --------
@@ -75,6 +76,70 @@ def _hold_at_limit(X, V, VE, integ, j, lim, Fz):
 
 
 @njit(cache=True, inline="always")
+def _known_one(A, G, VE, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, need_yd, d5, X, Y, Yd, V, E,
+               zero_a, nf):
+    """:func:`recursion_known` for a single state, not sliding: the same arithmetic in the same order, with
+    the state's coefficient carried from one order to the next rather than read back."""
+    dy, dyd, dvr, dvy, dvv = d5[0], d5[1], d5[2], d5[3], d5[4]
+    c5 = VE[5, 0]
+    c6 = VE[6, 0]
+    c7 = VE[7, 0]
+    g0 = G[0, 0]
+    g1 = G[1, 0]
+    g2 = G[2, 0]
+    g3 = G[3, 0]
+    a00 = A[0, 0]
+    hold = frozen and integ == 0
+    x = X[0, 0]
+    nt = NC
+    for j in range(NC):
+        if j >= nf and j > 0 and x == 0.0:
+            nt = j
+            break
+        wj = (Wd[j] if j < nW else 0.0) + (w0 if j == 0 else 0.0)
+        rj = R[j] if j < nR else 0.0
+        cy = 0.0
+        cv = 0.0
+        cy += c5 * x
+        cv += c7 * x
+        yj = cy + dy * wj
+        ydj = 0.0
+        if need_yd:
+            cyd = 0.0
+            cyd += c6 * x
+            ydj = cyd + dyd * wj
+        if use_meas:
+            ymj = Ym[j]
+            vmj = Vm[j]
+        else:
+            ymj = yj
+            vmj = ydj
+        Y[j] = yj
+        Yd[j] = ydj
+        V[j] = cv + dvr * rj + dvy * ymj + dvv * vmj
+        E[j] = rj - ymj
+        if j == DEG:
+            break
+        f = H / (j + 1)
+        if j < nf:
+            acc = g0 * wj + g1 * rj + g2 * ymj + g3 * vmj
+            if not zero_a:
+                acc += a00 * x
+            x = f * acc
+        elif zero_a:
+            x = 0.0
+        else:
+            acc = 0.0
+            acc += a00 * x
+            x = f * acc
+        if hold:
+            x = 0.0
+        X[0, j + 1] = x
+    _clear_tail(X, Y, Yd, V, E, 1, nt)
+    return nt
+
+
+@njit(cache=True, inline="always")
 def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, need_yd, d5, X, Y, Yd, V,
                     E, zero_a, slide, lim, Fz):
     """:func:`recursion` where the plant's input is known before the piece (delayed or held) and the command
@@ -92,6 +157,9 @@ def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, us
     nf = max(nR, nW, 1)
     if use_meas:
         nf = max(nf, _degree(Ym, NC), _degree(Vm, NC))
+    if N == 1 and not slide:
+        return _known_one(A, G, VE, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, need_yd, d5, X, Y, Yd, V,
+                          E, zero_a, nf)
     nt = NC
     for j in range(NC):
         if j >= nf and j > 0 and _vanished(X, N, j):
@@ -149,7 +217,7 @@ def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, us
     return nt
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dist, X, R, nR,
               Wd, nW, Ym, Vm, use_meas, Y, Yd, V, E, need_yd, Um, nUm, has_u, slide, Fz):
     """Taylor coefficients of every signal on one piece of length ``H`` with the regime fixed.
