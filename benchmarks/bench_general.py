@@ -15,7 +15,8 @@ runs; its saturation is its own smoothed `conditional` (width 1e-5), since it ha
 its metrics are read off its own dense output (the cubic Hermite spline through its anchors), not off a
 sampling grid.  jitcdde has no exact sample-and-hold, so the sampled loop is delaykit's alone (its time,
 and its accuracy against the reference's sampled loop); the time ratio is for the continuous loop only.
-Compile times are reported apart.
+delaykit runs the sampled batch with its event stepper (matrix exponentials from sample to sample,
+delaykit.simulate._sampled_batch), the continuous one with the Taylor kernel.  Compile times are reported apart.
 
 Run: ``python benchmarks/bench_general.py [--loops N] [--reference M] [--jit-loops K] [--json PATH] [--no-cold]``.
 """
@@ -258,6 +259,7 @@ def main() -> None:
         return "ok" if meets(e) else f"short: {e['overshoot']:.1e} pp, {terr(e):.1e} ms"
 
     under_1s = dk_c * per10k < 1.0
+    under_1s_sampled = dk_s * per10k < 1.0
     fast_50 = ratio >= 50 and jit_ok and meets(dk_err_c)
     console.print(
         f"Errors: delaykit's are the largest over {ref_idx.size} random loops against the reference solver "
@@ -277,9 +279,11 @@ def main() -> None:
         f"sampled (so at best {dk_cpu_c / 2:.2f} s and {dk_cpu_s / 2:.2f} s of wall time on 2 idle cores); "
         f"jitcdde {jit_cpu:.2f} s "
         f"(one thread; CPU-time ratio {jit_cpu / dk_cpu_c:.1f}). The sampled loop's cold compile is what it adds after "
-        "the continuous one (the same kernel). "
+        "the continuous one (its own kernel, the event stepper of sampled loops). "
         f"Goal '10,000 loops under 1 s on 2 cores': {'met' if under_1s else 'NOT met'} ({dk_c:.2f} s wall for "
         f"{args.loops:,} loops" + ("" if args.loops == 10_000 else f", {dk_c * per10k:.2f} s scaled to 10,000") + "); "
+        f"for the sampled loop {'met' if under_1s_sampled else 'NOT met'} ({dk_s * per10k:.2f} s wall for 10,000, "
+        f"best of 3; median {float(np.median(runs_s)) * per10k:.2f} s); "
         f"'at least 50x faster than jitcdde at equal accuracy': {'met' if fast_50 else 'NOT met'} ({ratio:.1f}x)."
     )
     result = {
@@ -301,7 +305,7 @@ def main() -> None:
         "reference": {"loops": ref_idx.tolist(), "time": ref_time,
                       "continuous": [dict(kp=float(kp[i]), td=float(td[i]), **r) for i, r in zip(ref_idx, ref_rows_c)],
                       "sampled": [dict(kp=float(kp[i]), td=float(td[i]), **r) for i, r in zip(ref_idx, ref_rows_s)]},
-        "goals": {"under_1s": under_1s, "at_least_50x": fast_50},
+        "goals": {"under_1s": under_1s, "under_1s_sampled": under_1s_sampled, "at_least_50x": fast_50},
         "numba_threads": __import__("numba").get_num_threads(), "loadavg_before": load_before,
         "loadavg_after": load_after,
     }

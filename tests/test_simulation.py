@@ -224,7 +224,10 @@ def test_batch_equals_single_runs_for_sampled_gain_and_lag_loops(base):
         for k in METRICS:
             a = getattr(single.metrics, k)
             b = getattr(batch, k)[i]
-            assert (a is None and np.isnan(b)) or a == b, (i, k, a, b)
+            # a sampled batch runs the event stepper (matrix exponentials), a single run the Taylor kernel: both
+            # exact, equal to rounding; a continuous batch runs the same kernel as a single run: equal exactly
+            tol = 1e-9 if base.period is not None else 0.0
+            assert (a is None and np.isnan(b)) or abs(a - b) <= tol, (i, k, a, b)
     # the period, gain and lag did matter: the same sweep on the plain continuous integrator differs
     plain = simulate_many(AltitudeLoop(kp=1.0, delay=0.3), t_end=10.0, **{k: v for k, v in sweep.items()
                                                                           if k != "sample_offset"})

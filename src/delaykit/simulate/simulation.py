@@ -568,18 +568,41 @@ def _gain_columns(loop: Loop, lay: LoopMatrices, pars: np.ndarray, g: dict[str, 
     pars[:, H["hmax"]] = 1.0 / np.maximum(np.maximum(rate0, np.abs(pars[:, H["dvy"]] * lay.dyd)), 1e-9)
 
 
+def _event_stepped(pars: np.ndarray) -> np.ndarray:
+    """Which parameter rows :mod:`._sampled_batch` simulates (stepping exactly from sample to sample with matrix
+    exponentials): a sampled controller, no output delay, no anti-windup and no predictor (no command or
+    model-delay terms).  The batch's reference is a step or ramp and its load, if any, a step: both qualify."""
+    H = K.HEAD
+    ok = (pars[:, H["period"]] > 0.0) & (pars[:, H["to"]] == 0.0) & (pars[:, H["aw"]] == 0.0)
+    ok &= pars[:, H["tm"]] == 0.0
+    ok &= ~np.any(pars[:, K.OFF_BU:K.OFF_BU + K.MAXN] != 0.0, axis=1)
+    ok &= ~np.any(pars[:, K.OFF_BUM:K.OFF_BUM + K.MAXN] != 0.0, axis=1)
+    return ok
+
+
 def _batch(pars: np.ndarray) -> np.ndarray:
     m = pars.shape[0]
     if m == 0:
         return np.empty((0, K.NOUT))
-    kern = _jit.kernel(compiled=True)
     import numba
 
-    nchunks = max(1, min(m, 8 * numba.get_num_threads()))
-    out = kern.run_batch(pars, _CAP0, nchunks)
-    redo = np.flatnonzero(out[:, K.OUT["status"]] != K.STATUS_OK)  # a stall raises its error from run()
+    out = np.empty((m, K.NOUT))
+    fast = _event_stepped(pars)
+    if np.any(fast):  # sampled loops: from event to event with matrix exponentials
+        from . import _sampled_batch
+
+        sub = np.ascontiguousarray(pars[fast])
+        out[fast] = _sampled_batch.run_batch(sub, max(1, min(sub.shape[0], 8 * numba.get_num_threads())))
+    rest = np.flatnonzero(~fast)
+    if rest.size == 0:
+        return out
+    kern = _jit.kernel(compiled=True)
+    sub = np.ascontiguousarray(pars[rest])
+    res = kern.run_batch(sub, _CAP0, max(1, min(rest.size, 8 * numba.get_num_threads())))
+    redo = np.flatnonzero(res[:, K.OUT["status"]] != K.STATUS_OK)  # a stall raises its error from run()
     for i in redo:
         ws = _Workspace(store=False)
-        ws.run(pars[i], (np.zeros(1), np.array([pars[i, K.HEAD["step"]]]), np.zeros(1)))
-        out[i] = ws.out
+        ws.run(sub[i], (np.zeros(1), np.array([sub[i, K.HEAD["step"]]]), np.zeros(1)))
+        res[i] = ws.out
+    out[rest] = res
     return out
