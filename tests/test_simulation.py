@@ -227,6 +227,12 @@ def test_batch_equals_single_runs_for_sampled_gain_and_lag_loops(base):
             # a sampled batch runs the event stepper (matrix exponentials), a single run the Taylor kernel: both
             # exact, equal to rounding; a continuous batch runs the same kernel as a single run: equal exactly
             tol = 1e-9 if base.period is not None else 0.0
+            if (a is None) != bool(np.isnan(b)):
+                # a peak time exists only above zero overshoot: at a tie (overshoot 0 to rounding) one method
+                # may see a maximum 1e-13 above the target and the other none
+                assert k == "peak_time" and tol > 0, (i, k, a, b)
+                assert max(single.metrics.overshoot, batch.overshoot[i]) < 1e-9, (i, k, a, b)
+                continue
             assert (a is None and np.isnan(b)) or abs(a - b) <= tol, (i, k, a, b)
     # the period, gain and lag did matter: the same sweep on the plain continuous integrator differs
     plain = simulate_many(AltitudeLoop(kp=1.0, delay=0.3), t_end=10.0, **{k: v for k, v in sweep.items()
