@@ -152,3 +152,26 @@ def test_peak_of_a_piece_is_its_maximum(seed):
         assert ms[_K._TPEAK] == a + H
     elif kind == 1:
         assert ms[_K._TPEAK] == a
+
+
+def test_this_numba_accepts_the_no_refcount_option():
+    # the piece loop relies on it for a third of its speed; if this fails, numba dropped the private option and
+    # the kernel compiles with reference counting (slower, still exact): see _jit._numba_knows
+    assert _jit._numba_knows("_nrt")
+    assert not _jit._numba_knows("an_option_numba_never_had")
+
+
+def test_a_numba_without_the_option_still_compiles(monkeypatch):
+    # a numba release that drops `_nrt` would raise KeyError("Unrecognized options") at the first call: the
+    # decorator drops the option instead, and the function compiles and runs (with reference counting)
+    monkeypatch.setattr(_jit, "_numba_knows", lambda option: False)
+
+    @_jit.njit(cache=False, _nrt=False)
+    def total(x):
+        s = 0.0
+        for i in range(x.size):
+            s += x[i]
+        return s
+
+    assert total(np.arange(5.0)) == 10.0
+    assert "_nrt" not in total.targetoptions  # dropped, not passed on (numba keeps the options it was given)

@@ -136,10 +136,26 @@ def njit(*args: Any, **kwargs: Any) -> Any:
     if _building_compiled:
         import numba
 
+        if "_nrt" in kwargs and not _numba_knows("_nrt"):
+            del kwargs["_nrt"]  # a private option: compile with reference counting rather than not at all
         return numba.njit(*args, **kwargs)
     if len(args) == 1 and callable(args[0]) and not kwargs:
         return args[0]
     return _identity
+
+
+def _numba_knows(option: str) -> bool:
+    """Whether this numba's CPU target accepts ``option``.
+
+    The piece loop is compiled with ``_nrt=False`` (no reference counting: a third of its time), a private option
+    numba's own tests use.  A numba release that drops it would refuse to compile the kernel with a ``KeyError``;
+    asking first keeps the kernel compiling, only slower, on such a release.
+    """
+    try:
+        from numba.core.cpu import CPUTargetOptions
+    except ImportError:
+        return False
+    return hasattr(CPUTargetOptions, option)
 
 
 def _identity(fn: Callable[..., Any]) -> Callable[..., Any]:
