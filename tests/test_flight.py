@@ -729,7 +729,8 @@ def test_emulate_command_prints_its_summary_on_sigterm_as_on_ctrl_c(tmp_path, si
     import delaykit
 
     src = os.path.dirname(os.path.dirname(delaykit.__file__))  # run this copy of delaykit
-    env = {**os.environ, "PYTHONPATH": src + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    env = {**os.environ, "PYTHONPATH": src + os.pathsep + os.environ.get("PYTHONPATH", ""),
+           "PYTHONFAULTHANDLER": "1"}  # a hang is shown: SIGABRT then prints every thread's stack
     out_path, err_path = tmp_path / "out.txt", tmp_path / "err.txt"
     with open(out_path, "w") as out, open(err_path, "w") as err:
         proc = subprocess.Popen([sys.executable, "-m", "delaykit.cli", "emulate", "--host", "127.0.0.1",
@@ -760,7 +761,12 @@ def test_emulate_command_prints_its_summary_on_sigterm_as_on_ctrl_c(tmp_path, si
         finally:
             sock.close()
         proc.send_signal(getattr(signal, sig))
-        rc = proc.wait(timeout=20)
+        try:
+            rc = proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGABRT)
+            proc.wait(timeout=10)
+            pytest.fail(f"the emulator did not stop within 20 s of {sig}; its threads:\n{err_path.read_text()}")
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -61,9 +61,13 @@ def emulate(
                          delay_schedule=None if delay_schedule is None else parse_schedule(delay_schedule),
                          delay_trace=None if delay_trace is None else read_delay_trace(delay_trace),
                          bursts=_parse_bursts(burst or [], rate))
-    terminated = threading.Event()  # SIGTERM ends the run like Ctrl-C: the same summary, exit status 0
+    # Ctrl-C (SIGINT) and SIGTERM end the run alike: the same summary, exit status 0.  Their handler only sets a
+    # flag that the main loop polls: it takes no lock (setting a threading.Event from a handler can deadlock, as the
+    # handler may run while the main thread holds that Event's own lock) and raises nothing mid-shutdown.
+    stop_signal: list[int] = []
     main_thread = threading.current_thread() is threading.main_thread()  # (signal handlers only go there)
-    old_term = signal.signal(signal.SIGTERM, lambda *_: terminated.set()) if main_thread else None
+    old = ({sig: signal.signal(sig, lambda signum, _frame: stop_signal.append(signum))
+            for sig in (signal.SIGINT, signal.SIGTERM)} if main_thread else {})
     try:
         with DroneEmulator(cfg) as emu:
             err.print(f"emulated drone on {host}: AT {emu.ports['at']}, navdata {emu.ports['navdata']}, video "
@@ -71,14 +75,14 @@ def emulate(
                       "Ctrl-C stops.", highlight=False)
             t0 = _time.monotonic()
             try:
-                while not terminated.is_set() and (duration == 0 or _time.monotonic() - t0 < duration):
-                    terminated.wait(0.1)
-            except KeyboardInterrupt:
+                while not stop_signal and (duration == 0 or _time.monotonic() - t0 < duration):
+                    _time.sleep(0.05)
+            except KeyboardInterrupt:  # not from the handler above: only where it could not be installed
                 pass
         summary = emu.summary()  # after stop(): the threads are done, so the counts are final
     finally:
-        if main_thread:
-            signal.signal(signal.SIGTERM, old_term)
+        for sig, handler in old.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
     print(json.dumps(summary))
 
 
