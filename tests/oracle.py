@@ -83,19 +83,29 @@ class Oracle:
                 k += 1
                 t = self.offset + k * self.period
         todo = sorted(bps)
+        order = list(todo)  # the breakpoints, kept sorted (bisect) so that each step finds the next in log time
+
+        def add(b):
+            if b not in bps:
+                bps.add(b)
+                bisect.insort(order, b)
+
         # add the images of every breakpoint
         def add_images(b):
             t = b + self.td
             while t < T:
-                bps.add(round(t, 13))
+                add(round(t, 13))
                 t += self.td
         for b in todo:
             add_images(b)
         t = 0.0
         y = np.zeros(4)
+        samples = self._sample_times() if self.period else []
         while t < T - 1e-12:
-            nxt = min([b for b in bps if b > t + 1e-12] + [T])
-            if self.period and any(abs(t - s) < 1e-12 for s in self._sample_times()):
+            i = bisect.bisect_right(order, t + 1e-12)  # the first breakpoint > t + 1e-12
+            nxt = min(order[i], T) if i < len(order) else T
+            j = bisect.bisect_right(samples, t - 1e-12)  # a sample within 1e-12 of t?
+            if self.period and j < len(samples) and samples[j] < t + 1e-12:
                 self._take_sample(t, y)
             events = []
             if not self.period and math.isfinite(self.vmax):
