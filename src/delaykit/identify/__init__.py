@@ -16,7 +16,7 @@ from .flightlog import REQUIRED, FlightLog, LogError, synthetic_log, write_log
 from .identification import (Candidate, IdentificationError, IdentifiedModel, LogFit, Prediction, identify, load_model,
                              predict, simulate_experiment)
 from .iodata import Experiment, read_experiment
-from .noise import ARNoise, fit_ar, ljung_box
+from .noise import ARNoise, VARNoise, fit_ar, fit_var, ljung_box
 from .online import WindowEstimate, estimate_window
 from .structures import STRUCTURES, Structure, structure
 
@@ -26,6 +26,6 @@ __all__ = [
     "estimate_flights", "fitted_altitude", "lambert_paper_iterations",
     "Experiment", "read_experiment", "Structure", "STRUCTURES", "structure",
     "IdentifiedModel", "Candidate", "LogFit", "Prediction", "IdentificationError", "identify", "predict",
-    "simulate_experiment", "load_model", "ARNoise", "fit_ar", "ljung_box",
+    "simulate_experiment", "load_model", "ARNoise", "VARNoise", "fit_ar", "fit_var", "ljung_box",
     "ExpectedErrors", "expected_errors", "planned_signal", "SIGNALS", "WindowEstimate", "estimate_window",
 ]

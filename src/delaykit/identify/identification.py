@@ -8,8 +8,10 @@ differences to the measured outputs are minimised.  Several logs share the plant
 steady state (deviation variables).  Several outputs (altitude and its rate) are fitted jointly, each weighted
 by its own residual level.
 
-Uncertainty: residuals are modelled as autoregressive noise per log and output (:mod:`.noise`), so standard
-errors and 95 % intervals (Wald, from the sandwich covariance) stay honest when the residuals are coloured.
+Uncertainty: residuals are modelled as autoregressive noise per log (:mod:`.noise`): one scalar model per
+output, or, where several outputs are fitted jointly (altitude and its rate, one disturbance seen twice in closed
+loop), one vector autoregressive model for them together.  Standard errors and 95 % intervals (Wald, from the
+sandwich covariance) so stay honest when the residuals are coloured and correlated.
 Model selection: BIC from the autoregressive likelihood; with two logs or more, leave-one-log-out prediction
 error decides (BIC is still reported).
 
