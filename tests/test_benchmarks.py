@@ -7,9 +7,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow
 def test_simulation_benchmark_small(tmp_path):
     out = tmp_path / "r.json"
     subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_simulate.py"), "--loops", "300",
@@ -21,6 +24,7 @@ def test_simulation_benchmark_small(tmp_path):
     assert res["targets_met"] == {"delaykit": True, "jitcdde": True}
 
 
+@pytest.mark.slow
 def test_general_loop_benchmark_small(tmp_path):
     """The PID loop benchmark: delaykit (continuous and sampled) and jitcdde reach the accuracy target against
     the independent oracle (tests/oracle_loop.py) on a small case."""
@@ -33,6 +37,7 @@ def test_general_loop_benchmark_small(tmp_path):
     assert res["delaykit"]["continuous"]["error"]["overshoot"] < 1e-6
 
 
+@pytest.mark.slow
 def test_estimation_benchmark_small(tmp_path):
     out = tmp_path / "e.json"
     subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_estimate.py"), "--flights", "12",
@@ -43,6 +48,7 @@ def test_estimation_benchmark_small(tmp_path):
     assert res["overshoot"]["answered"] <= 12
 
 
+@pytest.mark.slow
 def test_roots_benchmark_quick_runs(tmp_path):
     out = tmp_path / "r.json"
     subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_roots.py"), "--quick", "--json", str(out)],
@@ -52,6 +58,7 @@ def test_roots_benchmark_quick_runs(tmp_path):
     assert all(c["qpmr_found_by_delaykit"] == c["qpmr_roots"] for c in res["cases"] if "mazanti" not in c["case"])
 
 
+@pytest.mark.slow
 def test_frequency_benchmark_quick_runs(tmp_path):
     """The frequency benchmark's quick mode: delaykit's L(jw) equals both anchors' (python-control's response of
     the delay-free part times exp(-jwT), and plain NumPy) to rounding, the stability map equals the full certified

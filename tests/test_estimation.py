@@ -105,6 +105,7 @@ def test_trajectory_intervals_cover_the_truth():
     assert np.median(errs) < 2e-3
 
 
+@pytest.mark.slow
 def test_intervals_cover_the_truth_for_pooled_sampled_flights_with_a_free_lag():
     # the configuration of the flights (delaykit fly + estimate, and the demo): an up and a down step at Kp = 1.31,
     # sampled every 0.065 s, 4 mm noise, the drone's speed-loop lag fitted; 40 pairs with known delays and lags.

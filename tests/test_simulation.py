@@ -92,6 +92,7 @@ loops = st.builds(
 )
 
 
+@pytest.mark.slow
 @settings(max_examples=30)
 @given(loop=loops, step=st.one_of(st.floats(0.2, 3.0), st.floats(-3.0, -0.2)))
 def test_random_loops_match_reference_solver(loop, step):
