@@ -17,7 +17,8 @@ import pytest
 from typer.testing import CliRunner
 
 from delaykit.cli import app
-from delaykit.identify import Experiment, IdentificationError, identify, load_model, predict
+from delaykit.errors import InvalidValueError
+from delaykit.identify import Experiment, IdentificationError, expected_errors, identify, load_model, predict
 from delaykit.identify import _closed_general as G
 from delaykit.identify._fit import _law, _prepare
 from delaykit.models.compensators import Compensator
@@ -238,6 +239,32 @@ def test_saved_model_rebuilds_the_controller_and_predicts_another_log(tmp_path):
 
 
 # -- bad input ------------------------------------------------------------------------------------------------
+def test_planned_errors_of_a_pi_loop_at_rest_off_zero_match_monte_carlo():
+    # expected_errors for the heater-like PI loop, whose limits act on the absolute command (resting at U0), against
+    # the spread of 20 actual fits of oracle-made logs.  The plan at the true command at rest must match (the fits
+    # project out nothing the plan keeps: +-45 % allows for 20 samples' spread, the sd of an sd being 16 %); a plan
+    # that put the rest command near the upper limit (saturating longer) predicts errors far off that spread.
+    r = np.where(T_LOG >= 1.0, 15.0, 0.0)
+    plan = expected_errors("fopdt", FOPDT, T_LOG, r, noise=0.05, loop=PI_LOOP, u0=U0)
+    wrong = expected_errors("fopdt", FOPDT, T_LOG, r, noise=0.05, loop=PI_LOOP, u0=50.0)
+    fits = {k: [] for k in FOPDT}
+    for seed in range(20):
+        e, _ = _fopdt_log(seed=500 + seed)
+        m = identify(e, model="fopdt", loop=PI_LOOP, u0=U0, outputs="T", per_log=False)
+        for k in fits:
+            fits[k].append(m.params[k])
+    for k in FOPDT:
+        sd = float(np.std(fits[k], ddof=1))
+        assert 0.7 * plan.stderr[k] < sd < 1.45 * plan.stderr[k], (k, sd, plan.stderr[k])
+    sd = float(np.std(fits["delay"], ddof=1))
+    assert not 0.7 * wrong.stderr["delay"] < sd < 1.45 * wrong.stderr["delay"], (sd, wrong.stderr["delay"])
+    # without u0 the plan cannot place the limits: the error says to give it, and expected_errors now takes it
+    with pytest.raises(IdentificationError, match="give it"):
+        expected_errors("fopdt", FOPDT, T_LOG, r, noise=0.05, loop=PI_LOOP)
+    with pytest.raises(InvalidValueError, match="give the loop too"):
+        expected_errors("fopdt", FOPDT, T_LOG, r, noise=0.05, u0=U0)
+
+
 def test_bad_input_is_refused_with_a_named_reason():
     e, _ = _fopdt_log(seed=4)
     with pytest.raises(IdentificationError, match="must have no delay"):

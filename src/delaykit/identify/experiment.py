@@ -119,7 +119,7 @@ def planned_signal(kind: str, *, duration: float, period: float, amplitude: floa
 
 def expected_errors(model: IdentifiedModel | str, params: Mapping[str, float] | None, t: np.ndarray,
                     drive: np.ndarray, *, noise: float, loop: Loop | None = None,
-                    ar: tuple[float, ...] = ()) -> ExpectedErrors:
+                    ar: tuple[float, ...] = (), u0: float | None = None) -> ExpectedErrors:
     """The standard errors an output-error fit of ``model`` will have on the planned experiment.
 
     Parameters
@@ -137,6 +137,9 @@ def expected_errors(model: IdentifiedModel | str, params: Mapping[str, float] | 
         The controller of a closed-loop experiment (as for :func:`~.identification.identify`).
     ar : tuple of float
         Autoregressive noise coefficients ``a1, ..., ap`` (``e[k] = r[k] + a1 r[k-1] + ...``); none: white.
+    u0 : float, optional
+        The absolute command at rest, for a closed loop whose limits act on it and whose controller's integrator
+        holds it (a PI or PID loop around a self-regulating plant), as for :func:`~.identification.identify`.
 
     Returns
     -------
@@ -166,11 +169,15 @@ def expected_errors(model: IdentifiedModel | str, params: Mapping[str, float] | 
         values = {p: check_real(p, params[p]) for p in st.params}
         law_loop = loop
     sigma = check_real("noise (output standard deviation)", noise, minimum=0.0, strict=True)
-    law = _law(law_loop)
+    if u0 is not None:
+        if law_loop is None:
+            raise InvalidValueError("u0 is the command at rest of a closed-loop experiment: give the loop too")
+        u0 = check_real("u0 (the command at rest)", u0)
+    law = _law(law_loop, general=u0 is not None)
     zeros = {"y": np.zeros(len(t))}
     exp = (Experiment.from_arrays(t, zeros, r=drive, name="plan") if law is not None
            else Experiment.from_arrays(t, zeros, u=drive, name="plan", u_before=0.0))
-    prep = _prepare(exp, ("y",), None, law, fresh_only=False)
+    prep = _prepare(exp, ("y",), None, law, fresh_only=False, u0=u0)
     prob = _Problem(st, [prep], law, {"y": 1.0}, fit_offset=False)
     prob.fit_bias = False  # a planned experiment knows its input's level
     p = np.array([values[k] for k in st.params], dtype=float)
