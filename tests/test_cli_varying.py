@@ -79,6 +79,18 @@ def test_schedule_that_falls_drops_packets_unless_order_is_kept():
     assert free["settling_time"] != fifo["settling_time"]  # the two channels do differ
 
 
+@pytest.mark.parametrize("order", [[], ["--keep-order"]], ids=["free", "kept"])
+def test_the_printed_delay_law_says_the_packet_order_it_ran_with(order):
+    # the jitter's own description must not say "may overtake" on a run whose packets were kept in order
+    res = run("simulate", *PAPER, "--delay", "0.3", "--jitter", "0.05", "--seed", "1", *order)
+    assert res.exit_code == 0, res.output
+    line = " ".join(res.output.split()).split("Delay per packet: ")[1]
+    if order:
+        assert "in order" in line and "overtake" not in line, line
+    else:
+        assert "may overtake" in line and "in order" not in line, line
+
+
 @pytest.mark.parametrize("dist, extra, model", [
     ("uniform", [], Jitter(0.0, "uniform", spread=0.1, seed=7)),
     ("exponential", ["--jitter-scale", "0.03"], Jitter(0.0, "exponential", scale=0.03, cap=0.1, seed=7)),

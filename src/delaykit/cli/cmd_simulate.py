@@ -270,8 +270,21 @@ def _simulate_varying(loop: Any, model: Any, keep_order: Optional[bool], *, step
         cells = ["–"] * 4
     table.add_row(span, *cells, str(row["packets"]), str(row["dropped"]))
     out.print(table)
-    out.print(f"Delay per packet: {model!r}; "
+    out.print(f"Delay per packet: {_as_run(model, order)!r}; "
               f"{'kept in order' if order else 'packets may overtake (a stale one is dropped)'}.", highlight=False)
+
+
+def _as_run(model: Any, order: bool) -> Any:
+    """The delay model with the packet order it ran with (``--keep-order`` overrides the model's own), to print."""
+    import dataclasses
+
+    from ..simulate.varying import CombinedDelay
+
+    if isinstance(model, CombinedDelay):
+        return CombinedDelay(tuple(_as_run(p, order) for p in model.parts))
+    if model.keep_order != order and dataclasses.is_dataclass(model):
+        return dataclasses.replace(model, keep_order=order)
+    return model
 
 
 def _read_reference(path: Path, hold: str) -> Any:
