@@ -140,7 +140,9 @@ def design(
         return
     from rich.table import Table
 
-    table = Table(title=f"Candidates for {base!r}")
+    span = lambda xs: f"{min(xs):g} to {max(xs):g}" if len(xs) > 1 else f"{xs[0]:g}"  # noqa: E731
+    table = Table(title=f"Candidates Kp {span(kps)}, Kv {span(kvs)} on {base!r}, its gains replaced by each "
+                        "candidate's")
     for col in ("Kp", "Kv", "rightmost", "abscissa", "neutral", "stable", "Mo %", "tp s", "ts s"):
         table.add_column(col, justify="right")
     for r in d.rows:
