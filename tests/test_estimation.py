@@ -526,3 +526,29 @@ def test_cli_estimate_takes_the_loop_file(tmp_path):
     # a loop of another family: exit 2, naming the plant, and pointing nowhere deep into numpy
     res = runner.invoke(app, ["estimate", *paths, "--plant", "1/(s+1)", "--kp", "1.1"])
     assert res.exit_code == 2 and "1/(s + 1)" in res.output and "Traceback" not in res.output
+
+
+def test_cli_estimate_says_each_warning_once(tmp_path):
+    # a flight of a loop with a speed-loop lag that the estimator's integrator model leaves out: the residuals are
+    # not white, and the one-flight fit (which is the pooled fit) says so once, not once as pooled and again per
+    # flight; with two flights each flight's own warning is named
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+
+    rng = np.random.default_rng(3)
+    paths = []
+    for i in range(2):
+        log = synthetic_log(AltitudeLoop(kp=1.31, delay=0.3, lag=0.15, period=0.065), 1.0, noise=0.002, rng=rng,
+                            t0=50.0)
+        p = tmp_path / f"flight{i}.csv"
+        write_log(p, {"t": log.t, "z": log.z, "z_ref": log.z_ref})
+        paths.append(str(p))
+    runner = CliRunner()
+    one = runner.invoke(app, ["estimate", paths[0], "--kp", "1.31", "--period", "0.065"])
+    assert one.exit_code == 0, one.output
+    said = [line for line in one.output.splitlines() if line.startswith("warning:")]
+    assert said and len(said) == len(set(said)), said
+    two = runner.invoke(app, ["estimate", *paths, "--kp", "1.31", "--period", "0.065"])
+    said = [line for line in two.output.splitlines() if line.startswith("warning:")]
+    assert len(said) == len(set(said)) and any("flight0.csv: " in w or "flight1.csv: " in w for w in said), said

@@ -116,7 +116,13 @@ def estimate(
     if len(rows) > 1:
         table.add_row("pooled", f"{pooled.delay:.4f}", fmt(pooled.stderr), fmt_ci(pooled.ci), "")
     out.print(table)
-    for w in pooled.warnings + [w for r in rows for w in r["warnings"]]:
+    # the pooled fit's warnings, then each flight's own (named) where it adds something: one flight's fit is the
+    # pooled fit, whose warnings are not repeated
+    said = set(pooled.warnings)
+    lines = list(pooled.warnings)
+    for r in rows:
+        lines += [w if len(rows) == 1 else f"{Path(r['file']).name}: {w}" for w in r["warnings"] if w not in said]
+    for w in lines:
         out.print(f"[yellow]warning:[/] {w}", highlight=False)
 
 
