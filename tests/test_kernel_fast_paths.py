@@ -8,6 +8,10 @@
   exactly what each gives alone.
 * The peak search skips the derivative's root search where the derivative's bounds keep one sign: the peak
   found on a piece must still be the piece's maximum, as a dense evaluation of the polynomial finds it.
+* One metric update (``_kernel._metrics_update``) serves the kernel (roots on a grid) and the sampled batch
+  (certified roots, ``_sampled_batch._poly_metrics``): on one piece both must find what a dense evaluation finds.
+* The two Taylor recursions share their output block: on a piece both can run (the plant's input delayed, the
+  measurement delayed too), the known-input one and the general one must give the same coefficients.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from delaykit.simulate.simulation import as_loop
 
 _T = _jit.sibling("_taylor")  # compiled (this process builds compiled modules by default)
 _K = _jit.kernel(compiled=True)
+_KI = _jit.kernel(compiled=False)  # the same source run as plain Python
 
 
 def _recur(N, A, G, VE, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, need_yd, d5, x0, zero_a):
@@ -152,6 +157,137 @@ def test_peak_of_a_piece_is_its_maximum(seed):
         assert ms[_K._TPEAK] == a + H
     elif kind == 1:
         assert ms[_K._TPEAK] == a
+
+
+def _step_response_piece(rng):
+    """A damped second-order step response w(t) = 1 - e^(-al t) (cos(be t) + al/be sin(be t)) over [0, T], as
+    the Taylor polynomial in x = t / T that the kernel would hold: it rises through 0.1 and 0.9, overshoots and
+    leaves the 2 % band more than once."""
+    al, be, T = rng.uniform(0.3, 0.8), rng.uniform(1.2, 1.8), rng.uniform(2.2, 3.0)
+    j = np.arange(NC)
+    fact = np.cumprod(np.r_[1.0, np.arange(1, NC)])
+    s = complex(-al, be) * T
+    W = -np.real((1.0 - 1j * al / be) * s ** j / fact)
+    W[0] += 1.0
+    return W
+
+
+def _dense_metrics(W, a, H, band):
+    """The metrics of one piece from 400,001 evaluations: (peak, its time, t10, t90, last time outside the
+    band), the times to within H / 400,000."""
+    x = np.linspace(0.0, 1.0, 400_001)
+    w = np.polynomial.polynomial.polyval(x, W)
+    k = int(np.argmax(w))
+    t10 = a + x[np.argmax(w >= 0.1)] * H
+    t90 = a + x[np.argmax(w >= 0.9)] * H
+    out = np.flatnonzero(np.abs(w - 1.0) >= band)
+    return w[k], a + x[k] * H, t10, t90, a + x[out[-1]] * H
+
+
+@pytest.mark.parametrize("seed", range(16))
+def test_metric_update_serves_the_kernel_and_the_sampled_batch(seed):
+    from delaykit.simulate import _sampled_batch as SB
+
+    rng = np.random.default_rng(500 + seed)
+    W = _step_response_piece(rng)
+    a, band = rng.uniform(0.0, 5.0), 0.02
+    H = rng.uniform(0.5, 2.0)  # the piece's length in time (W is already in x on [0, 1])
+    peak, tpeak, t10, t90, tlast = _dense_metrics(W, a, H, band)
+    assert 1.0 + band < peak < 2.0 and 0.0 < t10 - a < t90 - a < tpeak - a < H  # the piece is as intended
+    sentinel = 123.0
+    found = {}
+    for way in ("kernel", "interpreted kernel", "sampled batch", "interpreted sampled way"):
+        ms = _metrics_state()
+        ms[_K._TLAST] = 0.0
+        ms[_K._WEND] = sentinel
+        Wn, dW, fs = np.zeros(NC), np.zeros(NC), np.zeros(_K._GRID + 1)
+        xs = np.zeros(SB._MAXX)
+        sr, sd = np.zeros(SB._STACK), np.zeros(SB._STACK, dtype=np.int64)
+        if way == "kernel":
+            _K._step_metrics(W, NC, 1.0, a, H, band, ms, Wn, dW, xs, fs)
+        elif way == "interpreted kernel":
+            _KI._step_metrics(W, NC, 1.0, a, H, band, ms, Wn, dW, xs, fs)
+        elif way == "sampled batch":
+            SB._poly_metrics(W.copy(), NC, a, H, band, ms, dW, xs, sr, sd)
+        else:
+            _KI._metrics_update(W.copy(), NC, a, H, band, ms, dW, xs, fs, sr, sd, True)
+        tol = 2e-5 * H
+        assert abs(ms[_K._WMAX] - peak) <= 1e-9, way
+        assert ms[_K._WMAX] >= peak - 1e-12, way
+        assert abs(ms[_K._TPEAK] - tpeak) <= 1e-3 * H, way  # a flat maximum: its time is found less sharply
+        assert abs(ms[_K._T10] - t10) <= tol and abs(ms[_K._T90] - t90) <= tol, way
+        assert abs(ms[_K._TLAST] - tlast) <= tol, way
+        if way.endswith("kernel"):  # the kernel keeps w at the piece's end; the batch's ms has no such slot
+            assert abs(ms[_K._WEND] - np.polynomial.polynomial.polyval(1.0, W)) <= 1e-12, way
+        else:
+            assert ms[_K._WEND] == sentinel, way
+        found[way] = ms.copy()
+    # each way's two modes run the same arithmetic
+    np.testing.assert_allclose(found["kernel"], found["interpreted kernel"], rtol=1e-12)
+    np.testing.assert_allclose(found["sampled batch"], found["interpreted sampled way"], rtol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_known_input_recursion_equals_the_general_one(seed):
+    """A piece where the plant's input is delayed (known before it) and the measurement is delayed too (no
+    folding into the matrix): ``recursion_known`` on ``X' = A X + G (w, r, ym, vm)`` with ``A = M``, ``G`` the
+    input vectors, against ``recursion`` on the general form, and both outputs against numpy's sums."""
+    rng = np.random.default_rng(900 + seed)
+    N = int(rng.integers(2, 4))  # two or three states: the general loop of recursion_known
+    MAXN = _layout.MAXN
+    M = np.zeros((MAXN, MAXN))
+    M[:N, :N] = rng.uniform(-1.0, 1.0, (N, N)) - 1.5 * np.eye(N)
+    VE = np.zeros((10, MAXN))
+    VE[:4, :N] = rng.normal(size=(4, N))  # w, r, ym, vm
+    VE[5:8, :N] = rng.normal(size=(3, N))  # y, y', v
+    G = VE[:4].copy()
+    d5 = rng.normal(size=5)
+    par = np.zeros(len(HEAD))
+    par[HEAD["umin"]], par[HEAD["umax"]] = -np.inf, np.inf
+    for k, name in enumerate(("dy", "dyd", "dvr", "dvy", "dvv")):
+        par[HEAD[name]] = d5[k]
+    par[HEAD["integ"]] = -1.0
+    nW = int(rng.integers(1, NC + 1))
+    Wd = np.zeros(NC)
+    Wd[:nW] = rng.normal(size=nW) / np.cumprod(np.arange(1, nW + 1))
+    R = np.zeros(NC)
+    R[:2] = rng.normal(size=2)
+    k = int(rng.integers(1, 10))
+    Ym, Vm = np.zeros(NC), np.zeros(NC)
+    Ym[:k], Vm[:k] = rng.normal(size=k), rng.normal(size=k)
+    H, dist = rng.uniform(0.05, 0.6), rng.normal()
+    x0 = rng.normal(size=N)
+    got = []
+    for general in (False, True):
+        X = np.zeros((MAXN, NC + 1))
+        X[:N, 0] = x0
+        Y, Yd, V, E, Fz = np.zeros(NC), np.zeros(NC), np.zeros(NC), np.zeros(NC), np.zeros(NC)
+        if general:
+            nt = _T.recursion(par, M, VE, N, H, _T.LIN, False, False, True, False, 0.0, dist, X, R, 2, Wd, nW, Ym,
+                              Vm, True, Y, Yd, V, E, True, np.zeros(NC), 1, False, False, Fz)
+        else:
+            nt = _T.recursion_known(M, G, VE, N, H, False, -1, dist, Wd, nW, R, 2, Ym, Vm, True, True, d5, X, Y,
+                                    Yd, V, E, False, False, 0.0, Fz)
+        got.append((nt, X, Y, Yd, V, E))
+    (n1, *one), (n2, *two) = got
+    assert n1 == n2 and n1 > 2
+    for u, v in zip(one, two):
+        np.testing.assert_array_equal(u, v)
+    # the outputs from the states, by numpy: y = c'X + dy w, y' likewise, v = cv'X + dvr r + dvy ym + dvv vm
+    X, Y, Yd, V, E = one
+    w = np.where(np.arange(NC) < nW, Wd, 0.0)
+    w[0] += dist
+    dy, dyd, dvr, dvy, dvv = d5
+    scale = 1.0 + np.abs(X[:N, :NC]).sum(axis=0) + np.abs(w)
+    np.testing.assert_allclose(Y[:n1], (VE[5, :N] @ X[:N, :NC] + dy * w)[:n1], rtol=0, atol=1e-14 * scale.max())
+    np.testing.assert_allclose(Yd[:n1], (VE[6, :N] @ X[:N, :NC] + dyd * w)[:n1], rtol=0, atol=1e-14 * scale.max())
+    v = VE[7, :N] @ X[:N, :NC] + dvr * R + dvy * Ym + dvv * Vm
+    np.testing.assert_allclose(V[:n1], v[:n1], rtol=0, atol=1e-14 * (scale.max() + np.abs(Ym).max()))
+    np.testing.assert_array_equal(E[:n1], (R - Ym)[:n1])
+    # and the states follow X[j+1] = H (M X[j] + G (w, r, ym, vm)[j]) / (j + 1)
+    for j in range(n1 - 1):
+        rhs = M[:N, :N] @ X[:N, j] + G[0, :N] * w[j] + G[1, :N] * R[j] + G[2, :N] * Ym[j] + G[3, :N] * Vm[j]
+        np.testing.assert_allclose(X[:N, j + 1], H * rhs / (j + 1), rtol=1e-12, atol=1e-300)
 
 
 def test_this_numba_accepts_the_no_refcount_option():

@@ -65,8 +65,8 @@ __all__ = ["run_one", "run_batch"]
 
 _p = _jit.sibling("_poly")  # the polynomial helpers, built in this module's mode
 _horner, _horner_d, _sum, _bounds, _refine = _p.horner, _p.horner_d, _p.poly_sum, _p.bounds, _p.refine
-_first_cross, _all_cross, _shift_scale, _scale, _degree = (_p.first_cross, _p.all_cross, _p.shift_scale, _p.scale,
-                                                           _p.degree)
+_first_cross, _all_cross, _crossings, _shift_scale, _scale, _degree = (_p.first_cross, _p.all_cross, _p.crossings,
+                                                                       _p.shift_scale, _p.scale, _p.degree)
 _GRID = _p.GRID
 _t = _jit.sibling("_taylor")  # the Taylor recursion of one piece
 _recursion, _recursion_known = _t.recursion, _t.recursion_known
@@ -154,29 +154,45 @@ _NMS = 6
 @njit(cache=True, inline="always")
 def _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs, fs):
     """Update the step metrics with the piece ``Y`` on ``[a, a + H]`` (exact: extrema and crossings are roots)."""
-    end = a + H
     if norm == 1.0:
         for j in range(nY):
             Wn[j] = Y[j]
     else:
         for j in range(nY):
             Wn[j] = Y[j] / norm
-    lo, hi = _bounds(Wn, nY)
+    _metrics_update(Wn, nY, a, H, band, ms, dW, xs, fs, fs, fs, False)
+
+
+@njit(cache=True, inline="always")
+def _metrics_update(Wn, nW, a, H, band, ms, dW, xs, fs, sr, sd, certified):
+    """Update the step metrics ``ms`` with the piece ``Wn`` (the output over ``[a, a + H]``, divided by the
+    step), the kernel's way or (``certified``) the sampled batch's (:mod:`._sampled_batch`).
+
+    The kernel finds the roots on a grid (:func:`._poly.all_cross`, :func:`._poly.first_cross`; ``fs`` their
+    work space), skips the derivative's root search where the derivative's bounds keep one sign, and keeps w at
+    the piece's end in ``ms[_WEND]``.  The sampled batch isolates them with certainty (:func:`._poly.crossings`;
+    ``sr``, ``sd`` its stack) and has no ``_WEND`` in its ``ms``.  ``certified`` is a constant at each call:
+    numba drops the other way's branches before typing them, so each caller compiles only its own."""
+    end = a + H
+    lo, hi = _bounds(Wn, nW)
     if hi > ms[_WMAX]:
         big = 0.0
-        for j in range(nY - 1):
+        for j in range(nW - 1):
             dW[j] = (j + 1) * Wn[j + 1]
             big += abs(dW[j])
-        # no root of the derivative where its bounds keep one sign, beyond rounding: the grid search would
-        # find none
-        dlo, dhi = _bounds(dW, nY - 1)
-        if dlo > 1e-13 * big or dhi < -1e-13 * big:
-            k = 0
+        if certified:
+            k = _crossings(dW, nW - 1, 0.0, xs, sr, sd)
         else:
-            k = _all_cross(dW, nY - 1, 0.0, xs, fs)
+            # no root of the derivative where its bounds keep one sign, beyond rounding: the grid search would
+            # find none
+            dlo, dhi = _bounds(dW, nW - 1)
+            if dlo > 1e-13 * big or dhi < -1e-13 * big:
+                k = 0
+            else:
+                k = _all_cross(dW, nW - 1, 0.0, xs, fs)
         for i in range(k + 1):
             x = xs[i] if i < k else 1.0
-            wv = _horner(Wn, nY, x)
+            wv = _horner(Wn, nW, x)
             if wv > ms[_WMAX]:
                 ms[_WMAX] = wv
                 ms[_TPEAK] = a + x * H
@@ -185,21 +201,25 @@ def _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs, fs):
             ms[_TPEAK] = a
     for idx, level in ((_T10, 0.1), (_T90, 0.9)):
         if np.isnan(ms[idx]) and hi >= level:
-            t = a if Wn[0] >= level else a + _first_cross(Wn, nY, level, -1.0, fs) * H
+            if Wn[0] >= level:
+                t = a
+            elif certified:
+                t = a + xs[0] * H if _crossings(Wn, nW, level, xs, sr, sd) > 0 else np.nan
+            else:
+                t = a + _first_cross(Wn, nW, level, -1.0, fs) * H  # (2.0 where there is none: past the end)
             ms[idx] = t if t <= end else np.nan
-    wend = _sum(Wn, nY)
-    ms[_WEND] = wend
+    wend = _sum(Wn, nW)
+    if not certified:
+        ms[_WEND] = wend
     if hi - 1.0 >= band or lo - 1.0 <= -band:
         if abs(wend - 1.0) >= band:
             ms[_TLAST] = end
         else:
-            xl = -1.0
-            k = _all_cross(Wn, nY, 1.0 + band, xs, fs)
-            if k > 0:
-                xl = max(xl, xs[k - 1])
-            k = _all_cross(Wn, nY, 1.0 - band, xs, fs)
-            if k > 0:
-                xl = max(xl, xs[k - 1])
+            xl = -1.0  # the last exit from the band on the piece
+            for level in (1.0 + band, 1.0 - band):
+                k = _crossings(Wn, nW, level, xs, sr, sd) if certified else _all_cross(Wn, nW, level, xs, fs)
+                if k > 0:
+                    xl = max(xl, xs[k - 1])
             if xl >= 0.0:
                 ms[_TLAST] = a + xl * H
             elif abs(Wn[0] - 1.0) >= band:

@@ -6,7 +6,8 @@ A polynomial is its coefficients ``c[0] + c[1] x + ... + c[n-1] x**(n-1)`` in a 
 
 Note that numba's cache of a compiled kernel does not notice edits of this file (see :mod:`._jit`).  The
 functions that are not inlined (:func:`refine`, :func:`all_cross`) allocate nothing and are compiled without
-reference counting, as the kernel's piece loop (see :mod:`._kernel`).
+reference counting, as the kernel's piece loop (see :mod:`._kernel`); :func:`crossings`, the certified root
+search of the sampled batch (:mod:`._sampled_batch`), is compiled as that module's functions are.
 
 Examples
 --------
@@ -29,11 +30,13 @@ import numpy as np
 from ._jit import njit
 from ._layout import NC
 
-__all__ = ["GRID", "grid_values", "horner", "horner_d", "poly_sum", "bounds", "refine", "first_cross", "all_cross",
-           "shift_scale",
-           "scale", "degree"]
+__all__ = ["GRID", "MAXX", "STACK", "grid_values", "horner", "horner_d", "poly_sum", "bounds", "refine", "first_cross",
+           "all_cross", "crossings", "shift_scale", "scale", "degree"]
 
 GRID = 16  # root searches evaluate the polynomial on this many subintervals of [0, 1]
+DEPTH = 40  # bisections of a grid cell before a same-sign cell counts as a tangency (crossings)
+MAXX = 64  # crossings kept per certified search
+STACK = GRID + DEPTH + 4  # the certified search's stack of cells
 _XG = np.arange(GRID + 1) / GRID  # the grid's points, 0 ... 1
 _BIN = np.array([[float(math.comb(j, k)) for k in range(NC)] for j in range(NC)])  # binomial coefficients
 
@@ -162,6 +165,70 @@ def all_cross(c, n, target, xs, fs):
                 k += 1
         if f != 0.0:
             fp = f
+    return k
+
+
+@njit(cache=True)
+def crossings(c, n, target, xs, sr, sd):
+    """All points of (0, 1) where ``c(x) - target`` changes sign, in increasing order (at most ``MAXX``), with
+    none missed (the certified isolation described in :mod:`._sampled_batch`); ``sr``, ``sd``: a stack of
+    ``STACK`` right ends and depths.  A zero exactly at x = 1 is not a crossing (as :func:`all_cross`)."""
+    if n <= 1:
+        return 0
+    b1 = 0.0
+    b2 = 0.0
+    size = abs(c[0]) + abs(target)
+    for j in range(1, n):
+        b1 += j * abs(c[j])
+        b2 += j * (j - 1) * abs(c[j])
+        size += abs(c[j])
+    noise = 4.0 * n * 1.1102230246251565e-16 * size  # Horner's rounding on [0, 1], twice over
+    top = 0
+    for i in range(GRID, 0, -1):
+        sr[top] = i / GRID
+        sd[top] = 0
+        top += 1
+    k = 0
+    xl = 0.0
+    fl = c[0] - target
+    sl = fl  # the sign just right of xl: f's there, or the last non-zero value's (as all_cross carries it) ...
+    if fl == 0.0:  # ... or, at 0 itself, the first non-zero coefficient's
+        for j in range(1, n):
+            if c[j] != 0.0:
+                sl = c[j]
+                break
+    while top > 0:
+        top -= 1
+        r = sr[top]
+        d = sd[top]
+        fr = horner(c, n, r) - target
+        w = r - xl
+        change = (sl < 0.0 and fr >= 0.0) or (sl > 0.0 and fr <= 0.0)
+        if change and r == 1.0 and fr == 0.0:
+            change = False
+        if sl == 0.0:  # f is the target itself
+            ok = True
+        elif change:  # f' keeps its sign on the cell: one root
+            ok = abs(horner_d(c, n, xl)[1]) > w * b2
+        else:  # f cannot reach 0 inside the cell
+            ok = min(abs(fl), abs(fr)) > 0.125 * w * w * b2 or abs(fl) + abs(fr) > w * b1
+        if not ok and abs(fl) <= noise and abs(fr) <= noise:
+            ok = True  # f is at rounding level across the cell (a tangency): its sign there is not resolved
+        if not ok and d < DEPTH:
+            sr[top] = r
+            sd[top] = d + 1
+            top += 1
+            sr[top] = 0.5 * (xl + r)
+            sd[top] = d + 1
+            top += 1
+            continue
+        if change and k < MAXX:
+            xs[k] = refine(c, n, target, xl, r, 1.0 if sl > 0.0 else -1.0)
+            k += 1
+        xl = r
+        fl = fr
+        if fr != 0.0:
+            sl = fr
     return k
 
 

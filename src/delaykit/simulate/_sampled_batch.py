@@ -45,10 +45,11 @@ maximum, or reach 0.1 or 0.9 before they are found, or leave the settling band w
 end values does not settle the question.  It is then expanded as the output's Taylor polynomial in ``x`` (the
 coefficients ``c' Z_S^(j-1) v0 tau^j / j!``, degree raised until the remainder bound
 ``||c||_1 ||q_K||_inf (beta/(K+1)) / (1 - beta/(K+2))`` is below 1e-17 of the step (cut into 2^p sub-pieces
-with ``beta <= 1`` when needed), and the kernel's metric rules are applied to it with certified root
-isolation: the polynomial is evaluated on a grid of 16 cells (:mod:`._poly`); a cell whose ends have the same
-sign is dropped only if ``min(|f_l|, |f_r|) > w^2 B2 / 8`` or ``|f_l| + |f_r| > w B1`` (``B1``, ``B2`` bounds of
-``|f'|``, ``|f''|`` on [0, 1]: then ``f`` cannot vanish inside), a cell with a sign change is refined
+with ``beta <= 1`` when needed), and the kernel's metric rules (:func:`._kernel._metrics_update`) are applied to
+it with certified root isolation (:func:`._poly.crossings`): the polynomial is evaluated on a grid of 16 cells;
+a cell whose ends have the same sign is dropped only if ``min(|f_l|, |f_r|) > w^2 B2 / 8`` or
+``|f_l| + |f_r| > w B1`` (``B1``, ``B2`` bounds of ``|f'|``, ``|f''|`` on [0, 1]: then ``f`` cannot vanish
+inside), a cell with a sign change is refined
 (:func:`._poly.refine`) only if ``|f'(l)| > w B2`` (then it holds exactly one root); any other cell is
 bisected, until ``f`` at both its ends is within the rounding of its evaluation (a tangency, whose sign is not
 resolved: it is then counted as the kernel's grid would see its ends) or its width is 2^-40 of the interval.
@@ -78,8 +79,9 @@ from ._layout import (DEG, HEAD, MAXN, NC, NOUT, OFF_BR, OFF_BVM, OFF_BW, OFF_BY
 __all__ = ["expm", "run_one", "run_batch", "NSLOT"]
 
 _p = _jit.sibling("_poly")  # the polynomial helpers (compiled: this module is always built compiled)
-_horner, _horner_d, _bounds, _refine = _p.horner, _p.horner_d, _p.bounds, _p.refine
-_GRID = _p.GRID
+_crossings = _p.crossings  # certified roots (see the module's notes)
+_k = _jit.sibling("_kernel")  # the step metrics' update, shared with the Taylor kernel
+_metrics_update = _k._metrics_update
 
 (_N, _TI, _TO, _UMIN, _UMAX, _PERIOD, _OFFSET, _T_END, _BAND, _NORM, _DIST, _T_DIST, _DY, _DYD, _DVR, _DVY, _DVV,
  _INTEG, _AW, _HMAX, _SCALE, _STEP, _SLOPE, _TM) = HEAD.values()
@@ -95,12 +97,10 @@ _GMAX_BETA = 8.0  # beyond this ||Z_S tau||, no cheap bound (every interval is e
 _SUB_BETA = 1.0  # the expansion's sub-pieces have ||Z_S tau|| at most this
 _REM = 1e-17  # the expansion's remainder, relative to the step
 _MARGIN = 1e-14  # rounding margin of the cheap bound, relative
-_DEPTH = 40  # bisections of a grid cell before a same-sign cell counts as a tangency
-_MAXX = 64  # crossings kept per search
-_STACK = _GRID + _DEPTH + 4
-# the running metrics (as the kernel's), as an expansion reads and updates them: highest w and when, first times
-# w >= 0.1 and 0.9, last time outside the band
-_WMAX, _TPEAK, _T10, _T90, _TLAST = range(5)
+_MAXX, _STACK = _p.MAXX, _p.STACK  # the certified root search's (_crossings) most roots, and its stack
+# the running metrics (the kernel's but its last, w at the end), as an expansion reads and updates them: highest w
+# and when, first times w >= 0.1 and 0.9, last time outside the band
+_WMAX, _TPEAK, _T10, _T90, _TLAST = _k._WMAX, _k._TPEAK, _k._T10, _k._T90, _k._TLAST
 
 
 @njit(cache=True)
@@ -208,117 +208,11 @@ def expm(A: np.ndarray) -> np.ndarray:
     return _expm(np.asarray(A, dtype=float))
 
 
-# -- certified roots of a polynomial on [0, 1] -------------------------------------------------------------------
-@njit(cache=True)
-def _crossings(c, n, target, xs, sr, sd):
-    """All points of (0, 1) where ``c(x) - target`` changes sign, in increasing order (at most ``_MAXX``), with
-    none missed (see the module's docstring); ``sr``, ``sd``: a stack of ``_STACK`` right ends and depths.
-    A zero exactly at x = 1 is not a crossing (as :func:`._poly.all_cross`)."""
-    if n <= 1:
-        return 0
-    b1 = 0.0
-    b2 = 0.0
-    size = abs(c[0]) + abs(target)
-    for j in range(1, n):
-        b1 += j * abs(c[j])
-        b2 += j * (j - 1) * abs(c[j])
-        size += abs(c[j])
-    noise = 4.0 * n * 1.1102230246251565e-16 * size  # Horner's rounding on [0, 1], twice over
-    top = 0
-    for i in range(_GRID, 0, -1):
-        sr[top] = i / _GRID
-        sd[top] = 0
-        top += 1
-    k = 0
-    xl = 0.0
-    fl = c[0] - target
-    sl = fl  # the sign just right of xl: f's there, or the last non-zero value's (as all_cross carries it) ...
-    if fl == 0.0:  # ... or, at 0 itself, the first non-zero coefficient's
-        for j in range(1, n):
-            if c[j] != 0.0:
-                sl = c[j]
-                break
-    while top > 0:
-        top -= 1
-        r = sr[top]
-        d = sd[top]
-        fr = _horner(c, n, r) - target
-        w = r - xl
-        change = (sl < 0.0 and fr >= 0.0) or (sl > 0.0 and fr <= 0.0)
-        if change and r == 1.0 and fr == 0.0:
-            change = False
-        if sl == 0.0:  # f is the target itself
-            ok = True
-        elif change:  # f' keeps its sign on the cell: one root
-            ok = abs(_horner_d(c, n, xl)[1]) > w * b2
-        else:  # f cannot reach 0 inside the cell
-            ok = min(abs(fl), abs(fr)) > 0.125 * w * w * b2 or abs(fl) + abs(fr) > w * b1
-        if not ok and abs(fl) <= noise and abs(fr) <= noise:
-            ok = True  # f is at rounding level across the cell (a tangency): its sign there is not resolved
-        if not ok and d < _DEPTH:
-            sr[top] = r
-            sd[top] = d + 1
-            top += 1
-            sr[top] = 0.5 * (xl + r)
-            sd[top] = d + 1
-            top += 1
-            continue
-        if change and k < _MAXX:
-            xs[k] = _refine(c, n, target, xl, r, 1.0 if sl > 0.0 else -1.0)
-            k += 1
-        xl = r
-        fl = fr
-        if fr != 0.0:
-            sl = fr
-    return k
-
-
 @njit(cache=True)
 def _poly_metrics(Wn, nW, a, H, band, ms, dW, xs, sr, sd):
-    """The kernel's metric update (:func:`._kernel._step_metrics`) on the piece ``Wn`` (the normalised output
-    over ``[a, a + H]``), with certified roots."""
-    end = a + H
-    lo, hi = _bounds(Wn, nW)
-    if hi > ms[_WMAX]:
-        for j in range(nW - 1):
-            dW[j] = (j + 1) * Wn[j + 1]
-        k = _crossings(dW, nW - 1, 0.0, xs, sr, sd)
-        for i in range(k + 1):
-            x = xs[i] if i < k else 1.0
-            wv = _horner(Wn, nW, x)
-            if wv > ms[_WMAX]:
-                ms[_WMAX] = wv
-                ms[_TPEAK] = a + x * H
-        if Wn[0] > ms[_WMAX]:
-            ms[_WMAX] = Wn[0]
-            ms[_TPEAK] = a
-    for idx in (_T10, _T90):
-        level = 0.1 if idx == _T10 else 0.9
-        if np.isnan(ms[idx]) and hi >= level:
-            if Wn[0] >= level:
-                ms[idx] = a
-            else:
-                k = _crossings(Wn, nW, level, xs, sr, sd)
-                if k > 0:
-                    ms[idx] = a + xs[0] * H
-    if hi - 1.0 >= band or lo - 1.0 <= -band:
-        wend = 0.0
-        for j in range(nW):
-            wend += Wn[j]
-        if abs(wend - 1.0) >= band:
-            ms[_TLAST] = end
-        else:
-            xl = -1.0
-            k = _crossings(Wn, nW, 1.0 + band, xs, sr, sd)
-            if k > 0:
-                xl = max(xl, xs[k - 1])
-            k = _crossings(Wn, nW, 1.0 - band, xs, sr, sd)
-            if k > 0:
-                xl = max(xl, xs[k - 1])
-            if xl >= 0.0:
-                ms[_TLAST] = a + xl * H
-            elif abs(Wn[0] - 1.0) >= band:
-                ms[_TLAST] = a
+    """The kernel's metric update (:func:`._kernel._metrics_update`) on the piece ``Wn`` (the normalised output
+    over ``[a, a + H]``), with certified roots (:func:`._poly.crossings`)."""
+    _metrics_update(Wn, nW, a, H, band, ms, dW, xs, xs, sr, sd, True)
 
 
 @njit(cache=True)

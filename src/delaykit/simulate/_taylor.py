@@ -76,6 +76,48 @@ def _hold_at_limit(X, V, VE, integ, j, lim, Fz):
 
 
 @njit(cache=True, inline="always")
+def _state_parts(X, VE, N, j, need_yd):
+    """The parts of the output, its derivative (only where ``need_yd``, else 0) and the command that the
+    states' coefficients ``j`` carry: ``sum_i VE[5, i] X[i, j]``, with rows 6 and 7."""
+    cy = 0.0
+    cv = 0.0
+    for i in range(N):
+        xi = X[i, j]
+        cy += VE[5, i] * xi
+        cv += VE[7, i] * xi
+    cyd = 0.0
+    if need_yd:
+        for i in range(N):
+            cyd += VE[6, i] * X[i, j]
+    return cy, cyd, cv
+
+
+@njit(cache=True, inline="always")
+def _signals(j, cy, cyd, cv, wj, rj, yd_on, law_on, vj, use_meas, Ym, Vm, dy, dyd, dvr, dvy, dvv, Y, Yd, V, E):
+    """Store the coefficients ``j`` of the output, its derivative, the command and the error, from the states'
+    parts (:func:`_state_parts`), the plant input's ``wj`` and the reference's ``rj``; returns the measurement's
+    (``ymj, vmj``: the delayed one's where ``use_meas``, else the output's own) and the command's.
+
+    ``yd_on``: compute y' (else 0); ``law_on``: the command follows from the control law on the measurement
+    (else ``vj``, already known, is stored)."""
+    yj = cy + dy * wj
+    ydj = cyd + dyd * wj if yd_on else 0.0
+    if use_meas:
+        ymj = Ym[j]
+        vmj = Vm[j]
+    else:
+        ymj = yj
+        vmj = ydj
+    if law_on:
+        vj = cv + dvr * rj + dvy * ymj + dvv * vmj
+    Y[j] = yj
+    Yd[j] = ydj
+    V[j] = vj
+    E[j] = rj - ymj
+    return ymj, vmj, vj
+
+
+@njit(cache=True, inline="always")
 def _known_one(A, G, VE, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, need_yd, d5, X, Y, Yd, V, E,
                zero_a, nf):
     """:func:`recursion_known` for a single state, not sliding: the same arithmetic in the same order, with
@@ -98,26 +140,12 @@ def _known_one(A, G, VE, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, 
             break
         wj = (Wd[j] if j < nW else 0.0) + (w0 if j == 0 else 0.0)
         rj = R[j] if j < nR else 0.0
-        cy = 0.0
-        cv = 0.0
-        cy += c5 * x
-        cv += c7 * x
-        yj = cy + dy * wj
-        ydj = 0.0
-        if need_yd:
-            cyd = 0.0
-            cyd += c6 * x
-            ydj = cyd + dyd * wj
-        if use_meas:
-            ymj = Ym[j]
-            vmj = Vm[j]
-        else:
-            ymj = yj
-            vmj = ydj
-        Y[j] = yj
-        Yd[j] = ydj
-        V[j] = cv + dvr * rj + dvy * ymj + dvv * vmj
-        E[j] = rj - ymj
+        # the sums of _state_parts, from 0.0 as there
+        cy = 0.0 + c5 * x
+        cv = 0.0 + c7 * x
+        cyd = 0.0 + c6 * x if need_yd else 0.0
+        ymj, vmj, _ = _signals(j, cy, cyd, cv, wj, rj, need_yd, True, 0.0, use_meas, Ym, Vm, dy, dyd, dvr, dvy, dvv,
+                               Y, Yd, V, E)
         if j == DEG:
             break
         f = H / (j + 1)
@@ -167,29 +195,9 @@ def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, us
             break
         wj = (Wd[j] if j < nW else 0.0) + (w0 if j == 0 else 0.0)
         rj = R[j] if j < nR else 0.0
-        cy = 0.0
-        cv = 0.0
-        for i in range(N):
-            xi = X[i, j]
-            cy += VE[5, i] * xi
-            cv += VE[7, i] * xi
-        yj = cy + dy * wj
-        ydj = 0.0
-        if need_yd:
-            cyd = 0.0
-            for i in range(N):
-                cyd += VE[6, i] * X[i, j]
-            ydj = cyd + dyd * wj
-        if use_meas:
-            ymj = Ym[j]
-            vmj = Vm[j]
-        else:
-            ymj = yj
-            vmj = ydj
-        Y[j] = yj
-        Yd[j] = ydj
-        V[j] = cv + dvr * rj + dvy * ymj + dvv * vmj
-        E[j] = rj - ymj
+        cy, cyd, cv = _state_parts(X, VE, N, j, need_yd)
+        ymj, vmj, _ = _signals(j, cy, cyd, cv, wj, rj, need_yd, True, 0.0, use_meas, Ym, Vm, dy, dyd, dvr, dvy, dvv,
+                               Y, Yd, V, E)
         if slide:
             _hold_at_limit(X, V, VE, integ, j, lim, Fz)
         if j == DEG:
@@ -258,16 +266,7 @@ def recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, u
         rj = R[j] if j < nR else 0.0
         dj = dist if j == 0 else 0.0
         # the parts of y, y' and v that do not depend on this piece's plant input
-        cy = 0.0
-        cyd = 0.0
-        cv = 0.0
-        for i in range(N):
-            xi = X[i, j]
-            cy += VE[5, i] * xi
-            cv += VE[7, i] * xi
-        if need_yd:
-            for i in range(N):
-                cyd += VE[6, i] * X[i, j]
+        cy, cyd, cv = _state_parts(X, VE, N, j, need_yd)
         if sampled:
             wj = (Wd[j] if (ti_pos and j < nW) else (uhold if j == 0 else 0.0)) + dj
             vj = 0.0  # filled below
@@ -286,20 +285,9 @@ def recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, u
             # no input delay, a delayed measurement: v is known before w
             vj = cv + dvr * rj + dvy * Ym[j] + dvv * Vm[j]
             wj = (vj if regime == LIN else (lim if j == 0 else 0.0)) + dj
-        yj = cy + dy * wj
-        ydj = cyd + dyd * wj
-        if use_meas:
-            ymj = Ym[j]
-            vmj = Vm[j]
-        else:
-            ymj = yj
-            vmj = ydj
-        if sampled or ti_pos:
-            vj = cv + dvr * rj + dvy * ymj + dvv * vmj
-        Y[j] = yj
-        Yd[j] = ydj
-        V[j] = vj
-        E[j] = rj - ymj
+        # y' always (0 + dyd wj where nothing reads it); the law gives v where the input is delayed or held
+        ymj, vmj, vj = _signals(j, cy, cyd, cv, wj, rj, True, sampled or ti_pos, vj, use_meas, Ym, Vm, dy, dyd, dvr,
+                                dvy, dvv, Y, Yd, V, E)
         if slide:
             _hold_at_limit(X, V, VE, integ, j, lim, Fz)
             vj = V[j]
