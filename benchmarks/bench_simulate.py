@@ -192,14 +192,15 @@ def main() -> None:
     rng = np.random.default_rng(2024)
     td = rng.uniform(0.2, 0.5, args.loops)
 
-    # delaykit: a cold compile (empty numba cache, in a fresh process), then time the whole batch (best of 3)
+    # delaykit: a cold compile (empty numba cache, in a fresh process), then time the whole batch (best of 9: one
+    # run is 70 ms, so a single scheduling hiccup on the shared machine moves it by half; the median is printed too)
     dk_cold = cold_compile_time() if not args.no_cold else math.nan
     t0 = time.perf_counter()
     paper = dk.AltitudeLoop(kp=KP, delay=0.3)
     dk.simulate_many(paper, delay=td[:2])
     dk_compile = time.perf_counter() - t0
     runs, cpu = [], []
-    for _ in range(3):
+    for _ in range(9):
         t0, c0 = time.perf_counter(), time.process_time()
         batch = dk.simulate_many(paper, delay=td)
         runs.append(time.perf_counter() - t0)
@@ -267,7 +268,9 @@ def main() -> None:
         f"near Kp Td = 1/e). Largest discarded Taylor coefficient: {batch.truncation:.1e}. "
         f"numba threads: {__import__('numba').get_num_threads()}; delaykit's CPU time over its threads "
         f"{dk_cpu:.3f} s (so at best {dk_cpu / 2:.3f} s of wall time on 2 idle cores); load average "
-        f"{load[0]:.1f} while it ran (the machine is shared)."
+        f"{load[0]:.1f} while it ran (the machine is shared). delaykit's 9 runs: "
+        + ", ".join(f"{r:.3f}" for r in sorted(runs)) + f" s; the ratio at their median "
+        f"{float(np.median(runs)):.3f} s is {jit_time / float(np.median(runs)):.0f}x."
     )
     result = {"loops": args.loops, "targets_met": {"delaykit": meets(dk_err), "jitcdde": jit_ok},
               "delaykit": {"compile_cold": dk_cold, "compile": dk_compile, "run": dk_time, "runs": runs, "cpu": dk_cpu,
