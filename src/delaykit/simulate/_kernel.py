@@ -164,6 +164,26 @@ def _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs, fs):
 
 
 @njit(cache=True, inline="always")
+def _metrics_row(out, metrics, wmax, wend, tpeak, t10, t90, tlast, norm, band):
+    """The step metrics' part of an output row (:data:`._layout.OUT`: overshoot %, peak time, peak, 10/90 %
+    times, rise time, settling time, steady error) from the run's extremes and crossings (``wmax``, ``wend``,
+    ``tpeak``... of the output divided by the step ``norm``); NaN without metrics.  The Taylor kernel and the
+    sampled batch (:mod:`._sampled_batch`) both end with it."""
+    if metrics:
+        out[0] = max(0.0, wmax - 1.0) * 100.0
+        out[1] = tpeak if wmax > 1.0 else np.nan
+        out[2] = wmax
+        out[3] = t10
+        out[4] = t90
+        out[5] = t90 - t10
+        out[6] = tlast if abs(wend - 1.0) < band else np.nan
+        out[7] = norm * (1.0 - wend)
+    else:
+        for i in range(8):
+            out[i] = np.nan
+
+
+@njit(cache=True, inline="always")
 def _metrics_update(Wn, nW, a, H, band, ms, dW, xs, fs, sr, sd, certified):
     """Update the step metrics ``ms`` with the piece ``Wn`` (the output over ``[a, a + H]``, divided by the
     step), the kernel's way or (``certified``) the sampled batch's (:mod:`._sampled_batch`).
@@ -774,19 +794,7 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
     while ke < ne:
         ez[ke] = y_end
         ke += 1
-    if metrics:
-        wmax, wend = ms[_WMAX], ms[_WEND]
-        out[0] = max(0.0, wmax - 1.0) * 100.0
-        out[1] = ms[_TPEAK] if wmax > 1.0 else np.nan
-        out[2] = wmax
-        out[3] = ms[_T10]
-        out[4] = ms[_T90]
-        out[5] = ms[_T90] - ms[_T10]
-        out[6] = ms[_TLAST] if abs(wend - 1.0) < band else np.nan
-        out[7] = norm * (1.0 - wend)
-    else:
-        for i in range(8):
-            out[i] = np.nan
+    _metrics_row(out, metrics, ms[_WMAX], ms[_WEND], ms[_TPEAK], ms[_T10], ms[_T90], ms[_TLAST], norm, band)
     out[8] = trunc
     out[9] = n
     out[10] = status

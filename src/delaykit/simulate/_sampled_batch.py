@@ -81,7 +81,7 @@ __all__ = ["expm", "run_one", "run_batch", "NSLOT"]
 _p = _jit.sibling("_poly")  # the polynomial helpers (compiled: this module is always built compiled)
 _crossings = _p.crossings  # certified roots (see the module's notes)
 _k = _jit.sibling("_kernel")  # the step metrics' update, shared with the Taylor kernel
-_metrics_update = _k._metrics_update
+_metrics_update, _metrics_row = _k._metrics_update, _k._metrics_row
 
 (_N, _TI, _TO, _UMIN, _UMAX, _PERIOD, _OFFSET, _T_END, _BAND, _NORM, _DIST, _T_DIST, _DY, _DYD, _DVR, _DVY, _DVV,
  _INTEG, _AW, _HMAX, _SCALE, _STEP, _SLOPE, _TM) = HEAD.values()
@@ -273,6 +273,22 @@ def _expand(zs, Zs, cs, ns, tau, a, inv, ref, band, ms, q, qn, zsum, Y, Wn, dW, 
         for i in range(ns):
             zs[i] += zsum[i]
     return trunc
+
+
+@njit(cache=True, inline="always")
+def _row4(M, s, r, z0, z1, z2, z3):
+    """Row ``r`` of the map ``M[s]`` applied to the first four states, summed as a tree (the small systems'
+    fixed order, which the results depend on to the last bit)."""
+    return (M[s, r, 0] * z0 + M[s, r, 1] * z1) + (M[s, r, 2] * z2 + M[s, r, 3] * z3)
+
+
+@njit(cache=True, inline="always")
+def _slope_bound(G, cheap, s, v0, v1):
+    """The cheap bound on the interval's higher terms from the command's coefficients ``v0``, ``v1`` (slot
+    ``s``), or, where that length has none, 0 if they vanish and infinity (expand the interval) if not."""
+    if cheap[s]:
+        return abs(v0) * G[s, 0] + abs(v1) * G[s, 1]
+    return 0.0 if v0 == 0.0 and v1 == 0.0 else np.inf
 
 
 @njit(cache=True, inline="always")
@@ -654,18 +670,11 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
                                                                                     + Pab[d, 7] * z7)))
                                             + dw * gb[d])
                     if metrics:
-                        r = N
-                        y0 = (Q[sa, r, 0] * z0 + Q[sa, r, 1] * z1) + (Q[sa, r, 2] * z2 + Q[sa, r, 3] * z3)
-                        r = N + 1
-                        y1 = (Q[sa, r, 0] * z0 + Q[sa, r, 1] * z1) + (Q[sa, r, 2] * z2 + Q[sa, r, 3] * z3)
-                        r = N + 3
-                        v0 = (Q[sa, r, 0] * z0 + Q[sa, r, 1] * z1) + (Q[sa, r, 2] * z2 + Q[sa, r, 3] * z3)
-                        r = N + 4
-                        v1 = (Q[sa, r, 0] * z0 + Q[sa, r, 1] * z1) + (Q[sa, r, 2] * z2 + Q[sa, r, 3] * z3)
-                        if cheap[sa]:
-                            gs = abs(v0) * G[sa, 0] + abs(v1) * G[sa, 1]
-                        else:
-                            gs = 0.0 if v0 == 0.0 and v1 == 0.0 else np.inf
+                        y0 = _row4(Q, sa, N, z0, z1, z2, z3)
+                        y1 = _row4(Q, sa, N + 1, z0, z1, z2, z3)
+                        v0 = _row4(Q, sa, N + 3, z0, z1, z2, z3)
+                        v1 = _row4(Q, sa, N + 4, z0, z1, z2, z3)
+                        gs = _slope_bound(G, cheap, sa, v0, v1)
                         st, wend, need = _interval_metrics(y0, y1, fa * (cr0 * v0 + cr1 * v1), gs, a, timg, st, inv,
                                                            ainv, band)
                         if need:
@@ -678,10 +687,7 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
                         y1 = ((Rb[0, 0] * z0 + Rb[0, 1] * z1) + (Rb[0, 2] * z2 + Rb[0, 3] * z3)) + Rbw[0] * wb
                         v0 = ((Rb[1, 0] * z0 + Rb[1, 1] * z1) + (Rb[1, 2] * z2 + Rb[1, 3] * z3)) + Rbw[1] * wb
                         v1 = ((Rb[2, 0] * z0 + Rb[2, 1] * z1) + (Rb[2, 2] * z2 + Rb[2, 3] * z3)) + Rbw[2] * wb
-                        if cheap[sb]:
-                            gs = abs(v0) * G[sb, 0] + abs(v1) * G[sb, 1]
-                        else:
-                            gs = 0.0 if v0 == 0.0 and v1 == 0.0 else np.inf
+                        gs = _slope_bound(G, cheap, sb, v0, v1)
                         st, wend, need = _interval_metrics(y0, y1, fb * (cr0 * v0 + cr1 * v1), gs, timg, ts, st,
                                                            inv, ainv, band)
                         if need:  # the part the output sees at the image, the plant's input changed
@@ -754,19 +760,12 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
                                      + Q[slot, d, 3] * z3)) + ((Q[slot, d, 4] * z4 + Q[slot, d, 5] * z5)
                                                                + (Q[slot, d, 6] * z6 + Q[slot, d, 7] * z7)))
             if metrics:
-                r = N
-                y0 = (Q[slot, r, 0] * z0 + Q[slot, r, 1] * z1) + (Q[slot, r, 2] * z2 + Q[slot, r, 3] * z3)
-                r = N + 1
-                y1 = (Q[slot, r, 0] * z0 + Q[slot, r, 1] * z1) + (Q[slot, r, 2] * z2 + Q[slot, r, 3] * z3)
-                r = N + 3
-                v0 = (Q[slot, r, 0] * z0 + Q[slot, r, 1] * z1) + (Q[slot, r, 2] * z2 + Q[slot, r, 3] * z3)
-                r = N + 4
-                v1 = (Q[slot, r, 0] * z0 + Q[slot, r, 1] * z1) + (Q[slot, r, 2] * z2 + Q[slot, r, 3] * z3)
+                y0 = _row4(Q, slot, N, z0, z1, z2, z3)
+                y1 = _row4(Q, slot, N + 1, z0, z1, z2, z3)
+                v0 = _row4(Q, slot, N + 3, z0, z1, z2, z3)
+                v1 = _row4(Q, slot, N + 4, z0, z1, z2, z3)
                 d1 = tau * (cr0 * v0 + cr1 * v1)
-                if cheap[slot]:
-                    gs = abs(v0) * G[slot, 0] + abs(v1) * G[slot, 1]
-                else:  # no cheap bound for this length
-                    gs = 0.0 if v0 == 0.0 and v1 == 0.0 else np.inf
+                gs = _slope_bound(G, cheap, slot, v0, v1)
         else:
             for d in range(N):
                 s = 0.0
@@ -796,18 +795,7 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
         n += 1
 
     wmax, tpeak, t10, t90, tlast = st
-    if metrics:
-        out[0] = max(0.0, wmax - 1.0) * 100.0
-        out[1] = tpeak if wmax > 1.0 else np.nan
-        out[2] = wmax
-        out[3] = t10
-        out[4] = t90
-        out[5] = t90 - t10
-        out[6] = tlast if abs(wend - 1.0) < band else np.nan
-        out[7] = norm * (1.0 - wend)
-    else:
-        for i in range(8):
-            out[i] = np.nan
+    _metrics_row(out, metrics, wmax, wend, tpeak, t10, t90, tlast, norm, band)
     out[8] = trunc
     out[9] = n
     out[10] = STATUS_OK
