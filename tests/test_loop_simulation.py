@@ -19,6 +19,7 @@ from delaykit.models import Controller, LoadStep, Loop, Ramp, Samples, Step
 from delaykit.models import plants
 from delaykit.simulate import simulate, simulate_many
 from oracle_loop import LoopOracle, LoopSpec
+from strategies import plant_denominators
 
 
 def spec_for(loop: Loop, reference=("step", 1.0), disturbance=None, t_end: float = 10.0) -> LoopSpec:
@@ -208,12 +209,7 @@ def test_simulate_many_matches_simulate_for_pid_sweep():
 # -- random loops --------------------------------------------------------------------------------------------
 @st.composite
 def random_loops(draw):
-    order = draw(st.integers(1, 4))
-    poles = [-draw(st.floats(0.3, 5.0)) for _ in range(order)]
-    if draw(st.booleans()):
-        poles[0] = 0.0  # integrating
-    den = np.real(np.poly(poles))
-    gain = draw(st.floats(0.3, 3.0)) * den[-1] if den[-1] != 0 else draw(st.floats(0.3, 3.0))
+    _order, den, gain = draw(plant_denominators())
     kind = draw(st.sampled_from(["p", "pi", "pd", "pid", "pv"]))
     kp = draw(st.floats(0.2, 2.0))
     c = {"p": lambda: Controller.p(kp),

@@ -25,6 +25,7 @@ from delaykit.simulate import _jit, _layout as K, simulate, simulate_many
 from delaykit.simulate import _sampled_batch as F
 from delaykit.simulate import simulation as S
 from oracle_loop import LoopOracle
+from strategies import plant_denominators
 from test_loop_simulation import spec_for
 
 KEYS = ("overshoot", "peak_time", "peak", "t10", "t90", "rise_time", "settling_time", "final_error")
@@ -155,12 +156,7 @@ def test_a_tangency_is_resolved_to_rounding():
 # -- against the Taylor kernel on random sampled loops ---------------------------------------------------------
 @st.composite
 def sampled_loops(draw):
-    order = draw(st.integers(1, 4))
-    poles = [-draw(st.floats(0.3, 5.0)) for _ in range(order)]
-    if draw(st.booleans()):
-        poles[0] = 0.0  # integrating
-    den = np.real(np.poly(poles))
-    gain = draw(st.floats(0.3, 3.0)) * den[-1] if den[-1] != 0 else draw(st.floats(0.3, 3.0))
+    order, den, gain = draw(plant_denominators())
     kind = draw(st.sampled_from(["p", "pi", "pd", "pid", "pv-true", "pv-filtered"]))
     num = np.array([gain])
     zero = draw(st.sampled_from([None, None, "zero", "biproper"]))  # a zero; or a direct feedthrough (y jumps)
