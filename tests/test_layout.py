@@ -2,7 +2,7 @@
 
 Read from the source with :mod:`ast` (nothing is imported), so imports inside function bodies count as much as those
 at the top of a module. A module may import its own layer's package-mates and any lower layer; the two peers of
-layer 2 (simulate and spectrum) must not import each other. The package root ``delaykit/__init__.py`` is exempt as
+layer 3 (simulate and spectrum) must not import each other. The package root ``delaykit/__init__.py`` is exempt as
 an importer (it re-exports); a module that imports the root is taken to import what the root imports.
 """
 
@@ -16,17 +16,22 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "delaykit"
 LAYERS = {
     "errors": 0, "_lazy": 0,
     "models": 1,
-    "simulate": 2, "spectrum": 2,  # peers: neither imports the other
-    "identify": 3,
-    "design": 4,
-    "hardware": 5,
-    "plotting": 6,
-    "paper": 7,
-    "cli": 8,
+    "systems": 2,  # delay systems as objects: their algebra and exact frequency response read models only
+    "simulate": 3, "spectrum": 3,  # peers: neither imports the other
+    "identify": 4,
+    "design": 5,
+    "hardware": 6,
+    "plotting": 7,
+    "paper": 8,
+    "cli": 9,
 }
 
 # (importing module, imported module) pairs that break the contract but are kept on purpose, each with its reason.
-ALLOWED: set[tuple[str, str]] = set()
+ALLOWED: set[tuple[str, str]] = {
+    # DelayLTI.poles() and .is_stable() (python-control's method names) call the root finder of the layer above,
+    # inside the methods; the object and its algebra need nothing from it
+    ("delaykit.systems.lti", "delaykit.spectrum.systems"),
+}
 
 
 def _module_name(root: Path, path: Path) -> str:

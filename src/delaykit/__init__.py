@@ -38,6 +38,9 @@ __all__ = [
     "Compensator", "design_compensator", "delay_ratio_range", "simulate_varying", "monte_carlo", "DelayDistribution",
     "DelaySchedule",
     "Jitter", "Burst", "DelayTrace", "jitter_margin", "stable_for",
+    # delay systems as objects
+    "DelayLTI", "tf", "ss", "delay", "feedback", "append", "interconnect", "summing_junction", "from_loop",
+    "poles", "is_stable", "hinfnorm", "nyquist_count", "loop_margins",
 ]
 __version__ = "0.1.0"
 
@@ -67,6 +70,11 @@ _LAZY = {
     "DelaySchedule": ".simulate.varying", "Jitter": ".simulate.varying",
     "Burst": ".simulate.varying", "DelayTrace": ".simulate.varying", "jitter_margin": ".spectrum.jitter",
     "stable_for": ".spectrum.jitter",
+    "DelayLTI": ".systems.lti", "tf": ".systems.build", "ss": ".systems.build", "delay": ".systems.build",
+    "feedback": ".systems.algebra", "append": ".systems.algebra", "interconnect": ".systems.algebra",
+    "summing_junction": ".systems.algebra", "from_loop": ".systems.build", "poles": ".spectrum.systems",
+    "is_stable": ".spectrum.systems", "hinfnorm": ".spectrum.systems", "nyquist_count": ".spectrum.systems",
+    "loop_margins": ".spectrum.systems",
 }
 
 

@@ -52,7 +52,7 @@ import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, MissingDependencyError, check_real
 
-__all__ = ["TransferFunction", "MAX_ORDER"]
+__all__ = ["TransferFunction", "MAX_ORDER", "check_control_system"]
 
 MAX_ORDER = 12
 """The highest order (denominator degree) a :class:`TransferFunction` may have."""
@@ -282,6 +282,22 @@ def _read(text: Any) -> tuple[_Val, str]:
         reader.fail("it is nested too deeply")
 
 
+def check_control_system(obj: Any) -> str:
+    """The class name of a continuous-time python-control ``TransferFunction`` or ``StateSpace``; an error for
+    any other python-control object or a discrete-time one."""
+    import control
+
+    kind = type(obj).__name__
+    if not isinstance(obj, (control.TransferFunction, control.StateSpace)):
+        raise InvalidTypeError(f"python-control {kind} objects are not supported; give a TransferFunction "
+                               "or a StateSpace")
+    dt = obj.dt
+    if not (dt is None or (not isinstance(dt, bool) and dt == 0)):
+        raise InvalidValueError(f"the python-control {kind} is discrete-time (dt = {dt}); only "
+                                "continuous-time systems (dt = 0) are supported")
+    return kind
+
+
 def _scalar(x: Any) -> float | None:
     """``x`` as a float if it is a real scalar (not a bool), else None."""
     if isinstance(x, (bool, np.bool_)):
@@ -455,14 +471,7 @@ class TransferFunction:
     def _from_control(cls, obj: Any, name: str, proper: bool) -> TransferFunction:
         import control
 
-        kind = type(obj).__name__
-        if not isinstance(obj, (control.TransferFunction, control.StateSpace)):
-            raise InvalidTypeError(f"python-control {kind} objects are not supported; give a TransferFunction "
-                                   "or a StateSpace")
-        dt = obj.dt
-        if not (dt is None or (not isinstance(dt, bool) and dt == 0)):
-            raise InvalidValueError(f"the python-control {kind} is discrete-time (dt = {dt}); only "
-                                    "continuous-time systems (dt = 0) are supported")
+        kind = check_control_system(obj)
         if (obj.ninputs, obj.noutputs) != (1, 1):
             raise InvalidValueError(f"the python-control {kind} has {obj.ninputs} inputs and {obj.noutputs} "
                                     "outputs; only single-input single-output systems are supported")

@@ -7,7 +7,9 @@ of a retarded or neutral quasi-polynomial in a rectangle (the compiled inner loo
 :mod:`.sampled` gives the exact discrete-time model and poles of loops with a sampled (zero-order hold) controller
 and :mod:`.discrete_margins` their frequency response and margins, and
 :mod:`.jitter` the jitter margin: stability for a delay that varies arbitrarily fast within bounds.
-This layer reads models only; it is a peer of :mod:`delaykit.simulate` and neither imports the other.
+:mod:`.systems` gives the poles, stability, H-infinity norm, Nyquist count and loop-at-a-time margins of the
+delay systems of :mod:`delaykit.systems`.
+This layer reads models and systems only; it is a peer of :mod:`delaykit.simulate` and neither imports the other.
 
 The names are imported on first use (as in :mod:`delaykit.simulate`): ``from delaykit.spectrum import margins``
 loads the frequency-domain modules, not the sampled-loop ones nor the root finder's compiled kernels until a
@@ -26,6 +28,8 @@ _SOURCES = {
                          "compare_sampling"],
     "frequency": ["FrequencyResponse", "Margins", "Crossover", "frequency_response", "frequency_grid", "margins"],
     "jitter": ["JitterMargin", "jitter_margin", "stable_for", "jitter_bound"],
+    "systems": ["poles", "is_stable", "hinfnorm", "HinfNorm", "nyquist_count", "NyquistCount", "loop_margins",
+                "LoopMargins"],
 }
 
 __all__ = [
@@ -37,6 +41,7 @@ __all__ = [
     "sampled_spectrum", "sampled_frequency_response", "sampled_margins", "compare_sampling",
     "FrequencyResponse", "Margins", "Crossover", "frequency_response", "frequency_grid", "margins",
     "JitterMargin", "jitter_margin", "stable_for", "jitter_bound",
+    "poles", "is_stable", "hinfnorm", "HinfNorm", "nyquist_count", "NyquistCount", "loop_margins", "LoopMargins",
 ]
 
 

@@ -1,0 +1,29 @@
+"""Systems: MIMO linear systems with internal delays, their algebra and their exact frequency response.
+
+:class:`DelayLTI` (:mod:`.lti`) is a continuous-time system in linear-fractional form (a delay-free part closed
+through a diagonal block of delays), :mod:`.algebra` combines systems (series, parallel, feedback, named
+interconnection) without approximating a delay, and :mod:`.build` makes them (``tf``, ``ss``, ``delay``,
+python-control objects, a :class:`~delaykit.models.Loop`) and turns them back into python-control objects with
+Padé approximations.  This layer reads :mod:`delaykit.models` only; the poles, stability, H-infinity norm and
+margins of a system are in :mod:`delaykit.spectrum.systems`.
+
+Examples
+--------
+>>> from delaykit.systems import tf, feedback
+>>> feedback(tf("exp(-0.2*s)/s"), 1).ndelays
+1
+"""
+
+from .._lazy import by_module, lazy_exports
+
+_SOURCES = {
+    "lti": ["DelayLTI", "SystemResponse"],
+    "algebra": ["append", "series", "parallel", "feedback", "interconnect", "summing_junction", "gain"],
+    "build": ["tf", "ss", "delay", "to_control", "from_loop"],
+}
+
+__all__ = ["DelayLTI", "SystemResponse", "append", "series", "parallel", "feedback", "interconnect",
+           "summing_junction", "gain", "tf", "ss", "delay", "to_control", "from_loop"]
+
+
+__getattr__, __dir__ = lazy_exports(__name__, by_module(_SOURCES), globals())

@@ -1,0 +1,340 @@
+"""Making delay systems: ``tf``, ``ss``, ``delay``, from and to python-control, and a ``Loop`` as a system.
+
+Names and conventions follow python-control (``tf``, ``ss``, signal names ``u[i]`` and ``y[i]``).  A delay is
+kept exact: ``tf("12.8*exp(-s)/(16.7*s+1)")`` is the rational part realised in controllable canonical form with one
+delay channel on its input.  A transfer matrix is realised entry by entry (each entry its own states and delay),
+which keeps every dead time of, say, the Wood-Berry column as it is; the realisation is not minimal in the states
+(a MIMO minimal realisation with delays does not exist in general).
+
+Examples
+--------
+>>> G = tf([["12.8*exp(-s)/(16.7*s+1)", "-18.9*exp(-3*s)/(21*s+1)"],
+...         ["6.6*exp(-7*s)/(10.9*s+1)", "-19.4*exp(-3*s)/(14.4*s+1)"]])
+>>> G
+DelayLTI(2 inputs ['u[0]', 'u[1]'] -> 2 outputs ['y[0]', 'y[1]'], 4 states, delays [1, 3, 7, 3] s)
+>>> G.dcgain().round(12).tolist()
+[[12.8, -18.9], [6.6, -19.4]]
+"""
+
+from __future__ import annotations
+
+import numbers
+import reprlib
+from typing import Any
+
+import numpy as np
+
+from ..errors import InvalidTypeError, InvalidValueError, MissingDependencyError, check_real
+from ..models.transfer import TransferFunction, check_control_system
+from .algebra import append, close, gain, interconnect, summing_junction
+from .lti import DelayLTI
+
+__all__ = ["tf", "ss", "delay", "to_control", "from_loop"]
+
+
+def _rename(sys: DelayLTI, inputs: Any, outputs: Any, name: str | None) -> DelayLTI:
+    if inputs is None and outputs is None and name is None:
+        return sys
+    return DelayLTI(sys.A, sys.B1, sys.B2, sys.C1, sys.C2, sys.D11, sys.D12, sys.D21, sys.D22, delays=sys.delays,
+                    inputs=sys.inputs if inputs is None else inputs,
+                    outputs=sys.outputs if outputs is None else outputs, name=sys.name if name is None else name)
+
+
+def _rational(g: TransferFunction, T: float = 0.0) -> DelayLTI:
+    """``g(s) exp(-s T)``: ``g`` in controllable canonical form, the delay on its input."""
+    A, B, C, D = g.state_space()
+    n = A.shape[0]
+    B, C = B.reshape(n, 1), C.reshape(1, n)
+    if T == 0.0:
+        return DelayLTI(A=A, B1=B, C1=C, D11=[[D]])
+    return DelayLTI(A=A, B1=np.zeros((n, 1)), B2=B, C1=C, D11=[[0.0]], D12=[[D]], C2=np.zeros((1, n)),
+                    D21=[[1.0]], D22=[[0.0]], delays=[T])
+
+
+def _is_number_list(x: Any) -> bool:
+    if isinstance(x, (numbers.Real, np.ndarray)) and not isinstance(x, (bool, np.bool_)):
+        return True
+    return isinstance(x, (list, tuple)) and all(isinstance(c, numbers.Real) and not isinstance(c, bool) for c in x)
+
+
+def _siso(spec: Any, where: str) -> DelayLTI:
+    """One entry: text, ``(num, den)``, ``(num, den, delay)``, a number, a TransferFunction or a SISO system."""
+    if isinstance(spec, DelayLTI):
+        if (spec.ninputs, spec.noutputs) != (1, 1):
+            raise InvalidValueError(f"{where}: a transfer-matrix entry must have one input and one output, got "
+                                    f"{spec!r}")
+        return spec
+    if isinstance(spec, str):
+        try:
+            g, T = TransferFunction.parse_with_delay(spec)
+        except (InvalidValueError, InvalidTypeError) as exc:
+            raise type(exc)(f"{where}: {exc}") from exc
+        return _rational(g, T)
+    if isinstance(spec, TransferFunction):
+        return _rational(TransferFunction.coerce(spec, name=where))
+    if isinstance(spec, tuple) and len(spec) in (2, 3) and _is_number_list(spec[0]) and _is_number_list(spec[1]):
+        T = 0.0 if len(spec) == 2 else check_real(f"{where}: delay", spec[2], minimum=0.0)
+        try:
+            return _rational(TransferFunction(spec[0], spec[1]), T)
+        except (InvalidValueError, InvalidTypeError) as exc:
+            raise type(exc)(f"{where}: {exc}") from exc
+    if isinstance(spec, numbers.Real) and not isinstance(spec, bool):
+        return gain(float(spec))
+    raise InvalidTypeError(f"{where}: expected text such as '2*exp(-s)/(s+1)', a pair (num, den), a number or a "
+                           f"TransferFunction, got {reprlib.repr(spec)} ({type(spec).__name__})")
+
+
+def _matrix_of(rows: list, where: str) -> DelayLTI:
+    """A transfer matrix from rows of SISO entries: every entry realised on its own, then summed along rows."""
+    if not rows or not all(isinstance(r, (list, tuple)) and r for r in rows):
+        raise InvalidValueError(f"{where}: a transfer matrix is a non-empty list of non-empty rows")
+    nu = len(rows[0])
+    if any(len(r) != nu for r in rows):
+        raise InvalidValueError(f"{where}: the rows have different lengths {[len(r) for r in rows]}")
+    ny = len(rows)
+    entries = [_siso(rows[i][j], f"{where}, entry [{i}][{j}]") for i in range(ny) for j in range(nu)]
+    P = append(*entries)
+    k = ny * nu
+    F = np.zeros((k, k))
+    G = np.zeros((k, nu))
+    H = np.zeros((ny, k))
+    for i in range(ny):
+        for j in range(nu):
+            G[i * nu + j, j] = 1.0
+            H[i, i * nu + j] = 1.0
+    return close(P, F, G, H, np.zeros((ny, nu)))
+
+
+def _from_control(obj: Any) -> DelayLTI:
+    import control
+
+    check_control_system(obj)
+    ins, outs = list(getattr(obj, "input_labels", [])) or None, list(getattr(obj, "output_labels", [])) or None
+    if isinstance(obj, control.StateSpace):
+        return ss(obj.A, obj.B, obj.C, obj.D, inputs=ins, outputs=outs)
+    num, den = getattr(obj, "num_array", obj.num), getattr(obj, "den_array", obj.den)
+    rows = [[(np.asarray(num[i][j], float).tolist(), np.asarray(den[i][j], float).tolist())
+             for j in range(obj.ninputs)] for i in range(obj.noutputs)]
+    sys = _matrix_of(rows, "the python-control TransferFunction")
+    return _rename(sys, ins, outs, None)
+
+
+def tf(spec: Any, *, inputs: Any = None, outputs: Any = None, name: str | None = None) -> DelayLTI:
+    """A system from a transfer function or matrix with dead times, kept exact.
+
+    Parameters
+    ----------
+    spec
+        One of: text with ``exp(-T*s)`` factors (``"12.8*exp(-s)/(16.7*s+1)"``, the grammar of
+        :meth:`~delaykit.models.TransferFunction.parse_with_delay`); a pair ``(num, den)`` or a triple
+        ``(num, den, delay)``; a number; a :class:`~delaykit.models.TransferFunction`; a list of rows of these
+        (a transfer matrix); a python-control ``TransferFunction`` or ``StateSpace`` (MIMO too); a
+        :class:`DelayLTI` (renamed).
+    inputs, outputs : list of str or str, optional
+        Signal names (python-control's ``u[i]`` and ``y[i]`` by default).
+    name : str, optional
+        A label.
+
+    Returns
+    -------
+    DelayLTI
+
+    Raises
+    ------
+    InvalidValueError, InvalidTypeError
+        For text that is not a transfer function, an improper one, a negative delay, ragged rows, a
+        discrete-time python-control system, ...
+
+    See Also
+    --------
+    ss, delay, feedback
+
+    Examples
+    --------
+    >>> tf("12.8*exp(-s)/(16.7*s+1)", inputs="u", outputs="y", name="G11")
+    DelayLTI(G11: 1 input ['u'] -> 1 output ['y'], 1 state, delays [1] s)
+    >>> tf(([2.0], [1.0, 1.0], 0.5)).delays
+    (0.5,)
+    """
+    if isinstance(spec, list):
+        sys = _matrix_of(spec, "tf")
+    elif (type(spec).__module__ or "").split(".")[0] == "control":
+        sys = _from_control(spec)
+    else:
+        sys = _siso(spec, "tf")
+    return _rename(sys, inputs, outputs, name)
+
+
+def ss(A: Any, B: Any, C: Any, D: Any = None, *, inputs: Any = None, outputs: Any = None, name: str = "") -> DelayLTI:
+    """A delay-free state-space system ``x' = A x + B u``, ``y = C x + D u`` (as python-control's ``ss``).
+
+    Delays are added by algebra (``ss(...) * delay(0.3)``) or :func:`interconnect`.
+
+    Examples
+    --------
+    >>> ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]]) * delay(0.2)
+    DelayLTI(1 input ['u[0]'] -> 1 output ['y[0]'], 1 state, delays [0.2] s)
+    """
+    if (type(A).__module__ or "").split(".")[0] == "control":
+        return tf(A, inputs=inputs, outputs=outputs, name=name or None)
+    try:
+        A = np.atleast_2d(np.array(A, dtype=float)) if np.size(A) else np.zeros((0, 0))
+        n = A.shape[0]
+        B = np.array(B, dtype=float).reshape(n, -1) if n else np.zeros((0, 0))
+        C = np.array(C, dtype=float).reshape(-1, n) if n else np.zeros((0, 0))
+    except (TypeError, ValueError) as exc:
+        raise InvalidValueError(f"ss: A, B, C must be real matrices of matching sizes ({exc})") from None
+    if D is None:
+        D = np.zeros((C.shape[0], B.shape[1]))
+    D = np.atleast_2d(np.array(D, dtype=float))
+    if n == 0:
+        return DelayLTI(D11=D, inputs=inputs, outputs=outputs, name=name)
+    if D.size == 1 and (C.shape[0], B.shape[1]) != (1, 1) and not D.any():
+        D = np.zeros((C.shape[0], B.shape[1]))
+    return DelayLTI(A=A, B1=B, C1=C, D11=D, inputs=inputs, outputs=outputs, name=name)
+
+
+def delay(T: float, *, inputs: Any = None, outputs: Any = None, name: str = "") -> DelayLTI:
+    """The pure delay ``exp(-s T)``: ``y(t) = u(t - T)`` (a gain of 1 for ``T = 0``).
+
+    Examples
+    --------
+    >>> delay(0.3)
+    DelayLTI(1 input ['u[0]'] -> 1 output ['y[0]'], 0 states, delays [0.3] s)
+    >>> delay(-1)
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.InvalidValueError: delay (s) must be at least 0, got -1
+    """
+    T = check_real("delay (s)", T, minimum=0.0)
+    if T == 0.0:
+        return gain(1.0, inputs=inputs, outputs=outputs, name=name)
+    return DelayLTI(D12=[[1.0]], D21=[[1.0]], D11=[[0.0]], D22=[[0.0]], delays=[T], inputs=inputs,
+                    outputs=outputs, name=name)
+
+
+def _pade_block(T: float, order: int, control: Any) -> DelayLTI:
+    num, den = control.pade(T, order)
+    return _rational(TransferFunction(num, den))
+
+
+def to_control(sys: DelayLTI, pade_order: int | None = None) -> Any:
+    """The system as a python-control ``StateSpace``, each delay channel replaced by a Padé approximation.
+
+    Parameters
+    ----------
+    sys : DelayLTI
+    pade_order : int, optional
+        The order (at least 1) of ``control.pade`` for every delay; required when the system has a delay.
+
+    Raises
+    ------
+    InvalidValueError
+        For a delayed system without ``pade_order``.
+    MissingDependencyError
+        When python-control is not installed.
+
+    Examples
+    --------
+    >>> from delaykit import tf
+    >>> G = to_control(tf("exp(-s)/(s+1)"), pade_order=3)
+    >>> G.nstates, float(G.dcgain())
+    (4, 1.0)
+    """
+    if not isinstance(sys, DelayLTI):
+        raise InvalidTypeError(f"to_control takes a DelayLTI, got {type(sys).__name__}")
+    try:
+        import control
+    except ImportError as exc:
+        raise MissingDependencyError("to_control() needs python-control, which is not installed "
+                                     "(pip install control)") from exc
+    live = [t for t in sys.delays if t > 0]
+    if live and pade_order is None:
+        raise InvalidValueError(f"the system has delays {list(sys.delays)} s, which python-control cannot represent "
+                                "exactly: give pade_order=n for an n-th order Padé approximation of each")
+    if live:
+        if isinstance(pade_order, bool) or not isinstance(pade_order, numbers.Integral) or pade_order < 1:
+            raise InvalidValueError(f"pade_order must be an integer of at least 1, got {pade_order!r}")
+    m, nu, ny = sys.ndelays, sys.ninputs, sys.noutputs
+    if m:
+        P = DelayLTI(sys.A, np.hstack([sys.B1, sys.B2]), None, np.vstack([sys.C1, sys.C2]), None,
+                     np.block([[sys.D11, sys.D12], [sys.D21, sys.D22]]))
+        pades = [_pade_block(t, int(pade_order), control) if t > 0 else gain(1.0) for t in sys.delays]
+        # blocks: P (inputs u, w; outputs y, z) and the approximations (inputs z; outputs w)
+        F = np.zeros((nu + 2 * m, ny + 2 * m))
+        F[nu:nu + m, ny + m:] = np.eye(m)  # w = approximation outputs
+        F[nu + m:, ny:ny + m] = np.eye(m)  # approximation inputs = z
+        G = np.zeros((nu + 2 * m, nu))
+        G[:nu] = np.eye(nu)
+        H = np.zeros((ny, ny + 2 * m))
+        H[:, :ny] = np.eye(ny)
+        sys = close(append(P, *pades), F, G, H, np.zeros((ny, nu)), inputs=sys.inputs, outputs=sys.outputs,
+                    what="the Padé approximation")
+    return control.ss(sys.A, sys.B1, sys.C1, sys.D11, inputs=list(sys.inputs), outputs=list(sys.outputs))
+
+
+def from_loop(loop: Any, *, ignore_limits: bool = False) -> DelayLTI:
+    """The closed loop of a continuous :class:`~delaykit.models.Loop` (or ``AltitudeLoop``) as a system.
+
+    Inputs ``["r", "d"]`` (the reference and the load disturbance at the plant input, after the input delay) and
+    outputs ``["y", "u"]`` (the plant output and the command); the blocks are the controller's realisation, the
+    plant, and the input, output and (for a predictor) model delays, connected by :func:`interconnect`.
+
+    Parameters
+    ----------
+    loop : Loop or AltitudeLoop
+        A continuous loop (no sampling period).
+    ignore_limits : bool
+        A loop with actuator limits is refused (saturation is not linear, and this step records no saturation
+        channels); True drops the limits, for the linear analysis of small signals.
+
+    Examples
+    --------
+    >>> from delaykit import AltitudeLoop
+    >>> T = from_loop(AltitudeLoop(kp=1.31, delay=0.368, vmax=None))
+    >>> T
+    DelayLTI(loop: 2 inputs ['r', 'd'] -> 2 outputs ['y', 'u'], 1 state, delays [0.368] s)
+    >>> float(T.dcgain()[0, 0])
+    1.0
+    """
+    from ..models.altitude import as_loop
+
+    try:
+        lp = as_loop(loop)
+    except (InvalidTypeError, InvalidValueError, AttributeError):
+        raise InvalidTypeError(f"from_loop takes a Loop or an AltitudeLoop, got {type(loop).__name__}") from None
+    if lp.sampled:
+        raise InvalidValueError(f"the loop samples its controller (period {lp.period:g} s), which is not a "
+                                "continuous LTI system; give a continuous loop")
+    if lp.saturated and not ignore_limits:
+        raise InvalidValueError(f"the loop limits its command to [{lp.umin:g}, {lp.umax:g}]; saturation is not "
+                                "linear: pass ignore_limits=True for the loop without its limits")
+    r = lp.controller.realisation()
+    velocity = bool(np.any(r.Bcv) or r.dvv)
+    cols, ins, dv = [r.Bcr, r.Bcy], ["r", "ym"], [r.dvr, r.dvy]
+    if velocity:
+        cols, ins, dv = cols + [r.Bcv], ins + ["vm"], dv + [r.dvv]
+    if r.Bcu is not None and np.any(r.Bcu):
+        cols, ins, dv = cols + [r.Bcu], ins + ["u"], dv + [0.0]
+    blocks = []
+    if r.Bcm is not None and np.any(r.Bcm):
+        cols, ins, dv = cols + [r.Bcm], ins + ["u_model"], dv + [0.0]
+        blocks.append(delay(r.model_delay, inputs="u", outputs="u_model", name="model delay"))
+    k = r.order
+    B = np.column_stack(cols) if k else np.zeros((0, len(ins)))
+    blocks.append(ss(r.Ac, B, np.asarray(r.Cc, float).reshape(1, k), [dv], inputs=ins, outputs=["u"],
+                     name="controller"))
+    A, Bp, Cp, Dp = lp.plant.state_space()
+    n = A.shape[0]
+    Bp, Cp = Bp.reshape(n, 1), Cp.reshape(1, n)
+    if velocity:  # the output and its derivative (the plant is strictly proper: Loop checks it)
+        plant = ss(A, Bp, np.vstack([Cp, Cp @ A]), [[Dp], [float(Cp @ Bp)]], inputs="up", outputs=["y", "ydot"],
+                   name="plant")
+        blocks.append(delay(lp.output_delay, inputs="ydot", outputs="vm", name="velocity delay"))
+    else:
+        plant = ss(A, Bp, Cp, [[Dp]], inputs="up", outputs="y", name="plant")
+    blocks += [plant, delay(lp.delay, inputs="u", outputs="ud", name="input delay"),
+               summing_junction(["ud", "d"], "up"), delay(lp.output_delay, inputs="y", outputs="ym",
+                                                           name="output delay")]
+    return interconnect(blocks, inputs=["r", "d"], outputs=["y", "u"], name="loop")
+

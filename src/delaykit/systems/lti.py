@@ -1,0 +1,549 @@
+"""A continuous-time MIMO linear system with internal delays, in linear-fractional (LFT) form.
+
+::
+
+    x'(t) = A  x(t) + B1  u(t) + B2  w(t)
+    y(t)  = C1 x(t) + D11 u(t) + D12 w(t)
+    z(t)  = C2 x(t) + D21 u(t) + D22 w(t)
+    w_j(t) = z_j(t - tau_j),   tau_j >= 0
+
+``u`` are the inputs, ``y`` the outputs, and the pairs ``(z_j, w_j)`` the delay channels: the system is the
+delay-free part ``P`` closed through the diagonal delay block ``Delta(s) = diag(exp(-s tau_j))``, so that its
+transfer matrix is the lower linear-fractional transformation
+
+    ``H(s) = P11(s) + P12(s) Delta(s) (I - P22(s) Delta(s))^-1 P21(s)``,  ``Pij(s) = Cij (sI - A)^-1 Bj + Dij``.
+
+This is the form of MATLAB's ``delayss`` and of ControlSystems.jl's ``DelayLtiSystem``: every interconnection of
+delays and rational blocks (series, parallel, feedback) stays in it (:mod:`delaykit.systems.algebra`).  With
+``D22 = 0`` the system is retarded; otherwise the delay channels feed each other directly (a difference equation
+inside), the neutral case.
+
+Build systems with :func:`delaykit.tf`, :func:`delaykit.ss` and :func:`delaykit.delay` rather than by hand.
+
+Examples
+--------
+>>> import numpy as np
+>>> g = DelayLTI(A=[[-1.0]], B1=[[0.0]], B2=[[1.0]], C1=[[2.0]], D11=[[0.0]], D12=[[0.0]],
+...              C2=[[0.0]], D21=[[1.0]], D22=[[0.0]], delays=[0.5])
+>>> g
+DelayLTI(1 input ['u[0]'] -> 1 output ['y[0]'], 1 state, delays [0.5] s)
+>>> h = g.frequency_response([1.0]).response[0, 0, 0]
+>>> bool(abs(h - 2 * np.exp(-0.5j) / (1j + 1)) < 1e-15)
+True
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import reprlib
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..errors import InvalidTypeError, InvalidValueError
+
+__all__ = ["DelayLTI", "SystemResponse", "as_frequencies"]
+
+
+def _matrix(name: str, value: Any, shape: tuple[int, int]) -> np.ndarray:
+    """``value`` as a read-only real finite float matrix of ``shape`` (None or an empty value: zeros)."""
+    if value is None:
+        out = np.zeros(shape)
+    else:
+        try:
+            out = np.array(value, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InvalidTypeError(f"{name} must be a real matrix, got {reprlib.repr(value)}") from exc
+        if out.size == 0:
+            out = np.zeros(shape)
+        elif out.ndim < 2 and out.size == shape[0] * shape[1] and (1 in shape or out.ndim == 0):
+            out = out.reshape(shape)
+        if out.shape != shape:
+            raise InvalidValueError(f"{name} must have shape {shape}, got {out.shape}")
+        if not np.all(np.isfinite(out)):
+            raise InvalidValueError(f"{name} must be finite, got {out.tolist()}")
+    out.setflags(write=False)
+    return out
+
+
+def _names(what: str, names: Any, n: int, default: str) -> tuple[str, ...]:
+    """``n`` distinct signal names (``default[i]`` when ``names`` is None; a single text for ``n = 1``)."""
+    if names is None:
+        return tuple(f"{default}[{i}]" for i in range(n))
+    if isinstance(names, str):
+        names = [names]
+    try:
+        names = list(names)
+    except TypeError:
+        raise InvalidTypeError(f"{what} must be a list of names, got {reprlib.repr(names)}") from None
+    if len(names) != n:
+        raise InvalidValueError(f"{what}: {n} names expected, got {len(names)} ({names})")
+    for x in names:
+        if not isinstance(x, str) or not x:
+            raise InvalidTypeError(f"{what}: every name must be non-empty text, got {x!r}")
+    dup = sorted({x for x in names if names.count(x) > 1})
+    if dup:
+        raise InvalidValueError(f"{what}: names must be distinct, {dup} repeat")
+    return tuple(names)
+
+
+def check_delays(delays: Any) -> tuple[float, ...]:
+    """Delays as a tuple of finite non-negative floats (an error names the bad one)."""
+    try:
+        arr = [d for d in np.atleast_1d(np.asarray(delays, dtype=object)).ravel()]
+    except TypeError:
+        raise InvalidTypeError(f"delays must be a list of numbers, got {reprlib.repr(delays)}") from None
+    out = []
+    for j, d in enumerate(arr):
+        if isinstance(d, (bool, np.bool_)) or not isinstance(d, numbers.Real):
+            raise InvalidTypeError(f"delay {j} must be a real number of seconds, got {d!r}")
+        d = float(d)
+        if not math.isfinite(d) or d < 0:
+            raise InvalidValueError(f"delay {j} must be finite and >= 0 s, got {d:g}")
+        out.append(d)
+    return tuple(out)
+
+
+def as_frequencies(w: Any, name: str = "w") -> np.ndarray:
+    """Frequencies (rad/s) as a 1-D float array of finite values >= 0.
+
+    Examples
+    --------
+    >>> as_frequencies(2.0).tolist()
+    [2.0]
+    """
+    try:
+        arr = np.atleast_1d(np.asarray(w, dtype=float))
+    except (TypeError, ValueError) as exc:
+        raise InvalidTypeError(f"{name} must be frequencies in rad/s (numbers), got {reprlib.repr(w)}") from exc
+    if arr.ndim != 1 or arr.size == 0:
+        raise InvalidValueError(f"{name} must be a non-empty 1-D list of frequencies, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)) or np.any(arr < 0):
+        raise InvalidValueError(f"{name} must be finite and >= 0 rad/s, got {reprlib.repr(arr.tolist())}")
+    return arr
+
+
+@dataclass(frozen=True, repr=False)
+class SystemResponse:
+    """The frequency response of a :class:`DelayLTI`: ``response[i, j, k]`` is ``H_ij(j omega_k)``.
+
+    Shaped ``(outputs, inputs, len(omega))`` as python-control's ``frequency_response``.
+
+    Examples
+    --------
+    >>> from delaykit import tf
+    >>> r = tf("exp(-s)/(s+1)").frequency_response([0.0, 1.0])
+    >>> r
+    SystemResponse(1 output x 1 input at 2 frequencies, 0 to 1 rad/s)
+    >>> r.magnitude[0, 0].round(4).tolist()
+    [1.0, 0.7071]
+    """
+
+    omega: np.ndarray
+    response: np.ndarray
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+
+    @property
+    def magnitude(self) -> np.ndarray:
+        """``|H(j omega)|``, same shape as :attr:`response`."""
+        return np.abs(self.response)
+
+    @property
+    def phase(self) -> np.ndarray:
+        """Phase (rad), unwrapped along the frequencies, same shape as :attr:`response`."""
+        return np.unwrap(np.angle(self.response), axis=-1)
+
+    def singular_values(self) -> np.ndarray:
+        """Singular values of ``H(j omega)`` at each frequency, largest first: ``(min(outputs, inputs), len(omega))``."""
+        h = np.moveaxis(self.response, -1, 0)
+        with np.errstate(all="ignore"):
+            finite = np.all(np.isfinite(h), axis=(1, 2))
+            sv = np.full((h.shape[0], min(h.shape[1:])), np.inf)
+            if finite.any():
+                sv[finite] = np.linalg.svd(h[finite], compute_uv=False)
+        return sv.T
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready: the frequencies and the real and imaginary parts (``None`` where infinite)."""
+        def clean(a: np.ndarray) -> Any:
+            return [[[float(x) if math.isfinite(x) else None for x in row] for row in m] for m in a]
+
+        return {"omega": self.omega.tolist(), "inputs": list(self.inputs), "outputs": list(self.outputs),
+                "real": clean(self.response.real), "imag": clean(self.response.imag)}
+
+    def __repr__(self) -> str:
+        ny, nu, nw = self.response.shape
+        span = f"{self.omega.min():g} to {self.omega.max():g} rad/s"
+        return (f"SystemResponse({ny} output{'s' * (ny != 1)} x {nu} input{'s' * (nu != 1)} at {nw} "
+                f"frequenc{'ies' if nw != 1 else 'y'}, {span})")
+
+
+@dataclass(frozen=True, repr=False, eq=False)
+class DelayLTI:
+    """A linear time-invariant system with internal delays (see the module docstring for the equations).
+
+    Parameters
+    ----------
+    A, B1, B2, C1, C2, D11, D12, D21, D22 : array_like
+        The delay-free part, partitioned by (states, inputs, delay channels) and (states, outputs, delay
+        channels).  ``None`` (or an empty value) is a zero block.  The shapes are taken from ``A`` (states),
+        ``B1`` and ``C1`` (inputs, outputs) and ``delays`` (channels).
+    delays : sequence of float
+        ``tau_j >= 0`` (s), one per delay channel.
+    inputs, outputs : sequence of str, optional
+        Signal names (default ``u[0], u[1], ...`` and ``y[0], ...`` as python-control).
+    name : str
+        A label, shown by ``repr`` and used by :func:`~delaykit.systems.algebra.interconnect` messages.
+
+    Examples
+    --------
+    >>> from delaykit import tf, feedback
+    >>> g = tf("12.8*exp(-s)/(16.7*s+1)", inputs="u", outputs="y")
+    >>> g
+    DelayLTI(1 input ['u'] -> 1 output ['y'], 1 state, delays [1] s)
+    >>> feedback(g, 1).dcgain().round(6).tolist()
+    [[0.927536]]
+    """
+
+    A: np.ndarray
+    B1: np.ndarray
+    B2: np.ndarray
+    C1: np.ndarray
+    C2: np.ndarray
+    D11: np.ndarray
+    D12: np.ndarray
+    D21: np.ndarray
+    D22: np.ndarray
+    delays: tuple[float, ...] = ()
+    inputs: tuple[str, ...] = ()
+    outputs: tuple[str, ...] = ()
+    name: str = ""
+
+    def __init__(self, A: Any = None, B1: Any = None, B2: Any = None, C1: Any = None, C2: Any = None,
+                 D11: Any = None, D12: Any = None, D21: Any = None, D22: Any = None, delays: Sequence[float] = (),
+                 inputs: Any = None, outputs: Any = None, name: str = "") -> None:
+        tau = check_delays(delays)
+        A0 = np.zeros((0, 0)) if A is None else np.array(A, dtype=float) if _is_numeric(A) else A
+        if not _is_numeric(A0):
+            raise InvalidTypeError(f"A must be a real square matrix, got {reprlib.repr(A)}")
+        A0 = np.atleast_2d(A0) if np.size(A0) else np.zeros((0, 0))
+        if A0.ndim != 2 or A0.shape[0] != A0.shape[1]:
+            raise InvalidValueError(f"A must be a square matrix, got shape {A0.shape}")
+        n, m = A0.shape[0], len(tau)
+        nu = _cols("B1", B1, "D11", D11, n)
+        ny = _rows("C1", C1, "D11", D11, n)
+        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
+        for key, val, shape in (("A", A0, (n, n)), ("B1", B1, (n, nu)), ("B2", B2, (n, m)), ("C1", C1, (ny, n)),
+                                ("C2", C2, (m, n)), ("D11", D11, (ny, nu)), ("D12", D12, (ny, m)),
+                                ("D21", D21, (m, nu)), ("D22", D22, (m, m))):
+            set_(key, _matrix(key, val, shape))
+        set_("delays", tau)
+        set_("inputs", _names("inputs", inputs, nu, "u"))
+        set_("outputs", _names("outputs", outputs, ny, "y"))
+        if not isinstance(name, str):
+            raise InvalidTypeError(f"name must be text, got {type(name).__name__}")
+        set_("name", name)
+
+    # -- sizes -------------------------------------------------------------------------------------------
+    @property
+    def nstates(self) -> int:
+        """Number of states."""
+        return self.A.shape[0]
+
+    @property
+    def ninputs(self) -> int:
+        """Number of inputs."""
+        return self.B1.shape[1]
+
+    @property
+    def noutputs(self) -> int:
+        """Number of outputs."""
+        return self.C1.shape[0]
+
+    @property
+    def ndelays(self) -> int:
+        """Number of delay channels."""
+        return len(self.delays)
+
+    @property
+    def is_retarded(self) -> bool:
+        """True when no delay channel feeds another directly (``D22 = 0``): no difference equation inside."""
+        return not self.D22.any()
+
+    # -- values ------------------------------------------------------------------------------------------
+    def evaluate(self, s: Any) -> np.ndarray:
+        """``H(s)`` at complex points: shape ``(outputs, inputs, len(s))``; ``inf`` at a pole.
+
+        Examples
+        --------
+        >>> from delaykit import tf
+        >>> complex(tf("exp(-2*s)/(s+1)").evaluate([1.0])[0, 0, 0]).real.__round__(6)
+        0.067668
+        """
+        try:
+            s = np.atleast_1d(np.asarray(s, dtype=complex)).ravel()
+        except (TypeError, ValueError) as exc:
+            raise InvalidTypeError(f"a system is evaluated at numbers, got {reprlib.repr(s)}") from exc
+        n, nu, ny, m = self.nstates, self.ninputs, self.noutputs, self.ndelays
+        N = s.size
+        # the states and the delayed signals at once: [[sI - A, -B2], [-E C2, I - E D22]] [x; w] = [B1; E D21] u,
+        # singular exactly at the poles of the system (not at those of its delay-free part)
+        E = np.exp(-np.outer(s, self.delays)) if m else np.zeros((N, 0))
+        M = np.zeros((N, n + m, n + m), complex)
+        M[:, :n, :n] = s[:, None, None] * np.eye(n) - self.A
+        M[:, :n, n:] = -self.B2
+        M[:, n:, :n] = -E[:, :, None] * self.C2
+        M[:, n:, n:] = np.eye(m) - E[:, :, None] * self.D22
+        rhs = np.zeros((N, n + m, nu), complex)
+        rhs[:, :n] = self.B1
+        rhs[:, n:] = E[:, :, None] * self.D21
+        out = np.empty((N, ny, nu), complex)
+        with np.errstate(all="ignore"):
+            X = _solve(M, rhs) if n + m else rhs
+            out[:] = self.D11 + np.hstack([self.C1, self.D12]) @ X
+        out[~np.isfinite(out)] = complex(math.inf, 0.0)
+        return np.moveaxis(out, 0, -1)
+
+    def __call__(self, s: Any) -> np.ndarray:
+        """``H(s)`` at one complex point (an ``(outputs, inputs)`` matrix) or at several (see :meth:`evaluate`)."""
+        h = self.evaluate(s)
+        return h[:, :, 0] if np.ndim(s) == 0 else h
+
+    def frequency_response(self, w: Any) -> SystemResponse:
+        """The exact ``H(j w)``: each delay as ``exp(-j w tau)``, the LFT closed at each frequency.
+
+        Parameters
+        ----------
+        w : array_like
+            Frequencies (rad/s), finite and >= 0.
+
+        Returns
+        -------
+        SystemResponse
+            ``response`` shaped ``(outputs, inputs, len(w))``.
+
+        Examples
+        --------
+        >>> from delaykit import tf
+        >>> r = tf("exp(-s)/(s+1)").frequency_response([1.0])
+        >>> round(float(r.phase[0, 0, 0]), 6)   # -pi/4 - 1 rad
+        -1.785398
+        """
+        w = as_frequencies(w)
+        return SystemResponse(w, self.evaluate(1j * w), self.inputs, self.outputs)
+
+    def singular_values(self, w: Any) -> np.ndarray:
+        """Singular values of ``H(j w)``, largest first, shaped ``(min(outputs, inputs), len(w))``.
+
+        Examples
+        --------
+        >>> from delaykit import tf
+        >>> tf([["1", "0"], ["0", "2*exp(-s)"]]).singular_values([0.0]).ravel().tolist()
+        [2.0, 1.0]
+        """
+        return self.frequency_response(w).singular_values()
+
+    def dcgain(self) -> np.ndarray:
+        """``H(0)``, an ``(outputs, inputs)`` matrix (``inf`` entries for an integrator)."""
+        return self.evaluate([0.0])[:, :, 0].real
+
+    # -- the characteristic function -------------------------------------------------------------------
+    def characteristic(self) -> Any:
+        """``det(sI - A) det(I - P22(s) Delta(s))`` as a :class:`~delaykit.models.QuasiPolynomial`.
+
+        The determinant is multilinear in the channels' ``exp(-s tau_j)``, so it is the sum over the subsets
+        ``S`` of channels of ``exp(-s sum_S tau_j)`` times ``det([[sI - A, -B2_S], [-C2_S, -D22_SS]])``; each such
+        polynomial is found by interpolation on a circle of the size of ``A``'s eigenvalues (rounding relative
+        to the largest coefficient times the spread of the eigenvalues).  Its roots are the system's internal
+        poles, hidden modes included (as MATLAB's ``pole`` of a state-space model, but with the delays kept).
+
+        Examples
+        --------
+        >>> from delaykit import tf, feedback
+        >>> feedback(tf("exp(-0.5*s)/s"), 1).characteristic()
+        QuasiPolynomial(s + 1·exp(-0.5 s))
+        """
+        from ..models.quasipolynomial import QuasiPolynomial
+
+        n, m = self.nstates, self.ndelays
+        if m > _MAX_CHANNELS:
+            raise InvalidValueError(f"the characteristic function of {m} delay channels has 2^{m} terms; at most "
+                                    f"{_MAX_CHANNELS} channels are supported")
+        eig = np.linalg.eigvals(self.A) if n else np.zeros(0)
+        radius = float(np.max(np.abs(eig))) if eig.size and np.max(np.abs(eig)) > 0 else 1.0
+        k = np.arange(n + 1)
+        pts = radius * np.exp(2j * np.pi * k / (n + 1))
+        terms = []
+        for mask in range(1 << m):
+            S = [j for j in range(m) if mask >> j & 1]
+            if S and not (self.B2[:, S].any() or self.D22[np.ix_(S, S)].any()):
+                continue
+            top = np.hstack([-self.A, -self.B2[:, S]])
+            bottom = np.hstack([-self.C2[S, :], -self.D22[np.ix_(S, S)]])
+            G = np.vstack([top, bottom])
+            F = np.zeros_like(G)
+            F[:n, :n] = np.eye(n)
+            vals = np.array([np.linalg.det(p * F + G) for p in pts])
+            terms.append((np.fft.fft(vals).real / (n + 1), sum(self.delays[j] for j in S)))
+        # coefficients at rounding level of the largest (scaled) one are noise of the interpolation
+        big = max(float(np.max(np.abs(c))) for c, _ in terms)
+        polys, delays = [], []
+        for c, tau in terms:
+            c = np.where(np.abs(c) <= 1e-12 * big, 0.0, c) / radius ** k  # ascending powers
+            if c.any():
+                polys.append(c[::-1])
+                delays.append(tau)
+        return QuasiPolynomial(polys, delays)
+
+    def poles(self, region: Sequence[float]) -> Any:
+        """Every pole in ``region = (re_min, re_max, im_min, im_max)``, certified: a
+        :class:`~delaykit.spectrum.roots.Spectrum` (see :func:`delaykit.spectrum.systems.poles`).
+
+        Examples
+        --------
+        >>> from delaykit import tf, feedback
+        >>> feedback(tf("exp(-s)/(s+1)"), 1).poles((-1, 1, 0, 3)).roots.round(4).tolist()
+        [(-0.605+1.7882j)]
+        """
+        from ..spectrum.systems import poles
+
+        return poles(self, region)
+
+    def is_stable(self) -> bool:
+        """True when every pole lies left of the imaginary axis (retarded systems; see
+        :func:`delaykit.spectrum.systems.is_stable`).
+
+        Examples
+        --------
+        >>> from delaykit import tf, feedback
+        >>> feedback(tf("exp(-s)/(s+1)"), 1).is_stable()
+        True
+        """
+        from ..spectrum.systems import is_stable
+
+        return is_stable(self)
+
+    def to_control(self, pade_order: int | None = None) -> Any:
+        """A python-control ``StateSpace`` with each delay as a Padé approximation of ``pade_order``
+        (see :func:`delaykit.systems.build.to_control`)."""
+        from .build import to_control
+
+        return to_control(self, pade_order)
+
+    # -- algebra (see delaykit.systems.algebra) ----------------------------------------------------------
+    def __mul__(self, other: Any) -> DelayLTI:
+        from .algebra import series
+
+        return series(self, other)
+
+    def __rmul__(self, other: Any) -> DelayLTI:
+        from .algebra import series
+
+        return series(other, self)
+
+    def __add__(self, other: Any) -> DelayLTI:
+        from .algebra import parallel
+
+        return parallel(self, other)
+
+    def __radd__(self, other: Any) -> DelayLTI:
+        from .algebra import parallel
+
+        return parallel(other, self)
+
+    def __neg__(self) -> DelayLTI:
+        from .algebra import negate
+
+        return negate(self)
+
+    def __sub__(self, other: Any) -> DelayLTI:
+        from .algebra import as_system, parallel
+
+        return parallel(self, -as_system(other))
+
+    def __rsub__(self, other: Any) -> DelayLTI:
+        from .algebra import parallel
+
+        return parallel(other, -self)
+
+    def __getitem__(self, key: Any) -> DelayLTI:
+        from .algebra import select
+
+        return select(self, key)
+
+    def feedback(self, other: Any = 1, sign: int = -1) -> DelayLTI:
+        """The closed loop with ``other`` in the return path (see :func:`~delaykit.systems.algebra.feedback`)."""
+        from .algebra import feedback
+
+        return feedback(self, other, sign)
+
+    # -- output ------------------------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form; ``DelayLTI(**d)`` reads it back.
+
+        Examples
+        --------
+        >>> from delaykit import delay
+        >>> delay(0.5).to_dict()["delays"]
+        [0.5]
+        """
+        d: dict[str, Any] = {k: getattr(self, k).tolist() for k in
+                             ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21", "D22")}
+        d.update(delays=list(self.delays), inputs=list(self.inputs), outputs=list(self.outputs), name=self.name)
+        return d
+
+    def __repr__(self) -> str:
+        def names(x: tuple[str, ...]) -> str:
+            return repr(list(x)) if len(x) <= 6 else f"[{', '.join(map(repr, x[:5]))}, ...]"
+
+        nu, ny, n = self.ninputs, self.noutputs, self.nstates
+        tau = ", ".join(f"{t:g}" for t in self.delays[:8]) + (", ..." if self.ndelays > 8 else "")
+        head = f"{self.name}: " if self.name else ""
+        return (f"DelayLTI({head}{nu} input{'s' * (nu != 1)} {names(self.inputs)} -> {ny} output{'s' * (ny != 1)} "
+                f"{names(self.outputs)}, {n} state{'s' * (n != 1)}, "
+                + (f"delays [{tau}] s" if self.delays else "no delays")
+                + ("" if self.is_retarded else ", neutral") + ")")
+
+
+_MAX_CHANNELS = 14
+
+
+def _is_numeric(x: Any) -> bool:
+    try:
+        np.asarray(x, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def _cols(bname: str, b: Any, dname: str, d: Any, n: int) -> int:
+    """The number of inputs: the columns of ``B1`` (when there are states) or of ``D11`` (2-D values only)."""
+    for v in ((b, d) if n else (d,)):
+        if v is not None and _is_numeric(v) and np.ndim(v) == 2:
+            return int(np.shape(v)[1])
+    return 0
+
+
+def _rows(cname: str, c: Any, dname: str, d: Any, n: int) -> int:
+    """The number of outputs: the rows of ``C1`` (when there are states) or of ``D11`` (2-D values only)."""
+    for v in ((c, d) if n else (d,)):
+        if v is not None and _is_numeric(v) and np.ndim(v) == 2:
+            return int(np.shape(v)[0])
+    return 0
+
+
+def _solve(M: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``M^-1 B`` for a stack of matrices; ``inf`` where a matrix is singular (a pole, an ill-posed loop)."""
+    try:
+        return np.linalg.solve(M, B)
+    except np.linalg.LinAlgError:
+        out = np.empty(B.shape, complex)
+        for i in range(M.shape[0]):
+            try:
+                out[i] = np.linalg.solve(M[i], B[i])
+            except np.linalg.LinAlgError:
+                out[i] = complex(math.inf, 0.0)
+        return out
