@@ -328,7 +328,7 @@ def from_loop(loop: Any, *, ignore_limits: bool = False) -> DelayLTI:
     n = A.shape[0]
     Bp, Cp = Bp.reshape(n, 1), Cp.reshape(1, n)
     if velocity:  # the output and its derivative (the plant is strictly proper: Loop checks it)
-        plant = ss(A, Bp, np.vstack([Cp, Cp @ A]), [[Dp], [float(Cp @ Bp)]], inputs="up", outputs=["y", "ydot"],
+        plant = ss(A, Bp, np.vstack([Cp, Cp @ A]), [[Dp], [float((Cp @ Bp)[0, 0])]], inputs="up", outputs=["y", "ydot"],
                    name="plant")
         blocks.append(delay(lp.output_delay, inputs="ydot", outputs="vm", name="velocity delay"))
     else:
