@@ -287,7 +287,7 @@ def nyquist_count(L: DelayLTI, *, sigma: float | None = None) -> NyquistCount:
     The winding of ``det(I + L(sigma + jw))`` for ``w`` from 0 to infinity (the other half is its conjugate) on a
     grid refined until the phase turns by at most 0.5 rad between points and no point lies near 0; beyond the
     last point ``||(I + L_inf)^-1 (L - L_inf)||`` stays below 1/2, so no winding is left out there.
-    ``sigma`` (default ``1e-7`` times the system's fastest feature) moves the contour right of poles on the
+    ``sigma`` (default ``1e-3`` times the system's slowest feature: eigenvalue of ``A`` or 1/delay) moves the contour right of poles on the
     imaginary axis (integrators); poles closer to the axis than that count as stable.
 
     Raises
@@ -306,7 +306,7 @@ def nyquist_count(L: DelayLTI, *, sigma: float | None = None) -> NyquistCount:
     if L.ninputs != L.noutputs:
         raise InvalidValueError(f"the Nyquist count needs a square loop, got {L!r}")
     lo, hi, feats = _features(L)
-    sigma = 1e-7 * max(feats) if sigma is None else check_real("sigma", sigma, minimum=0.0)
+    sigma = 1e-3 * min(feats) if sigma is None else check_real("sigma", sigma, minimum=0.0)
     m = L.ndelays
     for j in range(m):
         if L.D12[:, j].any() and (L.D21[j, :].any() or L.D22[j, :].any()):
