@@ -237,6 +237,8 @@ def test_names_repr_and_to_dict():
     with pytest.raises(AttributeError):
         g.delays = (2.0,)  # frozen
     assert "neutral" in repr(feedback(delay(1.0), 0.5))
+    renamed = tf(feedback(tf(WB), 1), inputs=["r1", "r2"], name="T")  # a MIMO system renamed
+    assert renamed.inputs == ("r1", "r2") and renamed.outputs == ("y[0]", "y[1]") and renamed.name == "T"
 
 
 # --------------------------------------------------------------------------------------------------- errors
@@ -353,3 +355,14 @@ def test_random_interconnections_against_direct_evaluation(blocks):
         assert close_to(rL[:, :, i], Lm, 1e-10)
         assert close_to(rS[:, :, i], g(s) + h(s), 1e-10)
         assert close_to(rT[:, :, i], np.linalg.solve(M, Lm), 1e-8)
+
+
+def test_the_guide_examples_run():
+    # docs/guide/systems.md shows real output: run its examples as doctests
+    import doctest
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "docs" / "guide" / "systems.md"
+    res = doctest.testfile(str(path), module_relative=False,
+                           optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    assert res.attempted > 10 and res.failed == 0

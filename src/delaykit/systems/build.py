@@ -156,7 +156,9 @@ def tf(spec: Any, *, inputs: Any = None, outputs: Any = None, name: str | None =
     >>> tf(([2.0], [1.0, 1.0], 0.5)).delays
     (0.5,)
     """
-    if isinstance(spec, list):
+    if isinstance(spec, DelayLTI):
+        sys = spec
+    elif isinstance(spec, list):
         sys = _matrix_of(spec, "tf")
     elif (type(spec).__module__ or "").split(".")[0] == "control":
         sys = _from_control(spec)

@@ -47,23 +47,27 @@ from ..errors import InvalidTypeError, InvalidValueError
 __all__ = ["DelayLTI", "SystemResponse", "as_frequencies"]
 
 
+def _real(name: str, value: Any) -> np.ndarray:
+    """``value`` as a float array (complex and non-numeric values refused)."""
+    try:
+        if np.asarray(value).dtype.kind == "c":
+            raise TypeError("complex")
+        return np.array(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidTypeError(f"{name} must be a real matrix, got {reprlib.repr(value)}") from exc
+
+
 def _matrix(name: str, value: Any, shape: tuple[int, int]) -> np.ndarray:
     """``value`` as a read-only real finite float matrix of ``shape`` (None or an empty value: zeros)."""
-    if value is None:
+    out = np.zeros(shape) if value is None else _real(name, value)
+    if out.size == 0:
         out = np.zeros(shape)
-    else:
-        try:
-            out = np.array(value, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise InvalidTypeError(f"{name} must be a real matrix, got {reprlib.repr(value)}") from exc
-        if out.size == 0:
-            out = np.zeros(shape)
-        elif out.ndim < 2 and out.size == shape[0] * shape[1] and (1 in shape or out.ndim == 0):
-            out = out.reshape(shape)
-        if out.shape != shape:
-            raise InvalidValueError(f"{name} must have shape {shape}, got {out.shape}")
-        if not np.all(np.isfinite(out)):
-            raise InvalidValueError(f"{name} must be finite, got {out.tolist()}")
+    elif out.ndim < 2 and out.size == shape[0] * shape[1] and (1 in shape or out.ndim == 0):
+        out = out.reshape(shape)
+    if out.shape != shape:
+        raise InvalidValueError(f"{name} must have shape {shape}, got {out.shape}")
+    if not np.all(np.isfinite(out)):
+        raise InvalidValueError(f"{name} must be finite, got {out.tolist()}")
     out.setflags(write=False)
     return out
 
@@ -89,7 +93,7 @@ def _names(what: str, names: Any, n: int, default: str) -> tuple[str, ...]:
     return tuple(names)
 
 
-def check_delays(delays: Any) -> tuple[float, ...]:
+def _check_delays(delays: Any) -> tuple[float, ...]:
     """Delays as a tuple of finite non-negative floats (an error names the bad one)."""
     try:
         arr = [d for d in np.atleast_1d(np.asarray(delays, dtype=object)).ravel()]
@@ -225,11 +229,9 @@ class DelayLTI:
     def __init__(self, A: Any = None, B1: Any = None, B2: Any = None, C1: Any = None, C2: Any = None,
                  D11: Any = None, D12: Any = None, D21: Any = None, D22: Any = None, delays: Sequence[float] = (),
                  inputs: Any = None, outputs: Any = None, name: str = "") -> None:
-        tau = check_delays(delays)
-        A0 = np.zeros((0, 0)) if A is None else np.array(A, dtype=float) if _is_numeric(A) else A
-        if not _is_numeric(A0):
-            raise InvalidTypeError(f"A must be a real square matrix, got {reprlib.repr(A)}")
-        A0 = np.atleast_2d(A0) if np.size(A0) else np.zeros((0, 0))
+        tau = _check_delays(delays)
+        A0 = np.zeros((0, 0)) if A is None else _real("A", A)
+        A0 = A0.reshape(1, 1) if A0.ndim == 0 else A0 if A0.size else np.zeros((0, 0))
         if A0.ndim != 2 or A0.shape[0] != A0.shape[1]:
             raise InvalidValueError(f"A must be a square matrix, got shape {A0.shape}")
         n, m = A0.shape[0], len(tau)
