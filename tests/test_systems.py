@@ -366,3 +366,52 @@ def test_the_guide_examples_run():
     res = doctest.testfile(str(path), module_relative=False,
                            optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
     assert res.attempted > 10 and res.failed == 0
+
+
+# ------------------------------------------------------------------------------------ zero-order hold
+def _discrete_step(d, j, n):
+    """The response of a DiscreteLTI to a unit step on input j, n samples (iterated by hand)."""
+    x = np.zeros(d.A.shape[0])
+    out = []
+    for _ in range(n):
+        out.append(d.C @ x + d.D[:, j])
+        x = d.A @ x + d.B[:, j]
+    return np.array(out).T
+
+
+@pytest.mark.parametrize("h", [0.1, 0.3, 0.7, 1.0])
+def test_c2d_wood_berry_steps_are_the_sampled_closed_forms(h):
+    # a held step into K e^{-sT}/(tau s + 1) is K (1 - exp(-(t - T)/tau)) for t >= T: exact at every sample,
+    # fractional delays (T/h not an integer) included
+    d = dk.c2d(tf(WB), h)
+    k = np.arange(60)
+    t = k * h
+    params = [[(12.8, 1, 16.7), (-18.9, 3, 21.0)], [(6.6, 7, 10.9), (-19.4, 3, 14.4)]]
+    for j in range(2):
+        y = _discrete_step(d, j, k.size)
+        for i in range(2):
+            K, T, tau = params[i][j]
+            ref = np.where(t >= T, K * (1 - np.exp(-np.maximum(t - T, 0) / tau)), 0.0)
+            assert np.max(np.abs(y[i] - ref)) <= 1e-12 * abs(K)
+
+
+def test_c2d_without_delays_matches_python_control():
+    # reference: python-control's own zero-order-hold c2d of the same state-space system
+    rng = np.random.default_rng(5)
+    c, g = _random_ss(rng, 2, 2)
+    d = dk.c2d(g, 0.2)
+    ref = control.c2d(c, 0.2, method="zoh")
+    w = np.linspace(0.0, math.pi / 0.2, 40)
+    assert close_to(d.frequency_response(w).response, np.asarray(ref(np.exp(1j * w * 0.2), squeeze=False)), 1e-11)
+    assert d.to_control().dt == 0.2
+
+
+def test_c2d_of_a_delayed_feedthrough_and_its_errors():
+    # 2 e^{-0.25 s} sampled every 0.1 s: the output is the input of 3 samples ago (u held, read at t = k h)
+    d = dk.c2d(tf("2*exp(-0.25*s)"), 0.1)
+    y = _discrete_step(d, 0, 6)[0]
+    assert y.tolist() == [0.0, 0.0, 0.0, 2.0, 2.0, 2.0]
+    with pytest.raises(InvalidValueError, match="inside a loop"):
+        dk.c2d(feedback(tf("exp(-s)/(s+1)")), 0.1)
+    with pytest.raises(InvalidValueError, match="period"):
+        dk.c2d(tf("1/(s+1)"), 0.0)

@@ -287,8 +287,8 @@ def nyquist_count(L: DelayLTI, *, sigma: float | None = None) -> NyquistCount:
     The winding of ``det(I + L(sigma + jw))`` for ``w`` from 0 to infinity (the other half is its conjugate) on a
     grid refined until the phase turns by at most 0.5 rad between points and no point lies near 0; beyond the
     last point ``||(I + L_inf)^-1 (L - L_inf)||`` stays below 1/2, so no winding is left out there.
-    ``sigma`` (default ``1e-3`` times the system's slowest feature: eigenvalue of ``A`` or 1/delay) moves the contour right of poles on the
-    imaginary axis (integrators); poles closer to the axis than that count as stable.
+    ``sigma`` (default ``1e-3`` times the system's slowest feature: eigenvalue of ``A`` or 1/delay) moves the
+    contour right of poles on the imaginary axis (integrators); poles closer to the axis than that count as stable.
 
     Raises
     ------

@@ -4,8 +4,9 @@
 through a diagonal block of delays), :mod:`.algebra` combines systems (series, parallel, feedback, named
 interconnection) without approximating a delay, and :mod:`.build` makes them (``tf``, ``ss``, ``delay``,
 python-control objects, a :class:`~delaykit.models.Loop`) and turns them back into python-control objects with
-Padé approximations.  This layer reads :mod:`delaykit.models` only; the poles, stability, H-infinity norm and
-margins of a system are in :mod:`delaykit.spectrum.systems`.
+Padé approximations, and :mod:`.discrete` samples them exactly behind a zero-order hold.  This layer reads
+:mod:`delaykit.models` only; the poles, stability, H-infinity norm and margins of a system are in
+:mod:`delaykit.spectrum.systems`.
 
 Examples
 --------
@@ -20,10 +21,11 @@ _SOURCES = {
     "lti": ["DelayLTI", "SystemResponse"],
     "algebra": ["append", "series", "parallel", "feedback", "interconnect", "summing_junction", "gain"],
     "build": ["tf", "ss", "delay", "to_control", "from_loop"],
+    "discrete": ["DiscreteLTI", "c2d"],
 }
 
 __all__ = ["DelayLTI", "SystemResponse", "append", "series", "parallel", "feedback", "interconnect",
-           "summing_junction", "gain", "tf", "ss", "delay", "to_control", "from_loop"]
+           "summing_junction", "gain", "tf", "ss", "delay", "to_control", "from_loop", "DiscreteLTI", "c2d"]
 
 
 __getattr__, __dir__ = lazy_exports(__name__, by_module(_SOURCES), globals())

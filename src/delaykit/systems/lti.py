@@ -161,7 +161,7 @@ class SystemResponse:
         return np.unwrap(np.angle(self.response), axis=-1)
 
     def singular_values(self) -> np.ndarray:
-        """Singular values of ``H(j omega)`` at each frequency, largest first: ``(min(outputs, inputs), len(omega))``."""
+        """Singular values of ``H(j omega)``, largest first, shaped ``(min(outputs, inputs), len(omega))``."""
         h = np.moveaxis(self.response, -1, 0)
         with np.errstate(all="ignore"):
             finite = np.all(np.isfinite(h), axis=(1, 2))

@@ -1,0 +1,170 @@
+"""Exact zero-order-hold discretisation of a delay system whose delays act on its inputs.
+
+With the inputs held over each period ``h`` (a zero-order hold), a delay channel that reads only the inputs
+(``z_j = D21_j u``: no state, no other channel) delivers a piecewise-constant signal shifted by
+``tau_j = m_j h + f_j``: over each period it is the input of ``m_j + 1`` periods ago for the first ``f_j`` seconds,
+then that of ``m_j`` periods ago.  Integrating the states over the two pieces (:func:`delaykit.models.hold.
+hold_matrices`) and keeping the last inputs in a shift register gives a finite discrete-time system that is exact
+at the sampling instants, fractional delays included (as MATLAB's ``c2d`` of input delays).  Every transfer matrix
+made by :func:`delaykit.tf` has this form (each entry's delay sits on its input).
+
+A delay inside a loop (a channel that reads the states) makes the sampled system infinite-dimensional: such
+systems are refused.  Thiran approximations of internal delays are not provided yet.
+
+Examples
+--------
+>>> from delaykit import tf
+>>> Gd = c2d(tf("exp(-0.25*s)/(s+1)"), 0.1)
+>>> Gd
+DiscreteLTI(1 input ['u[0]'] -> 1 output ['y[0]'], 4 states, period 0.1 s)
+>>> round(float(Gd.frequency_response([0.0]).response[0, 0, 0].real), 12)
+1.0
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import InvalidTypeError, InvalidValueError, MissingDependencyError, check_real
+from ..models.hold import hold_matrices, split_delay
+from .lti import DelayLTI, SystemResponse, as_frequencies
+
+__all__ = ["DiscreteLTI", "c2d"]
+
+
+@dataclass(frozen=True, repr=False, eq=False)
+class DiscreteLTI:
+    """``x[k+1] = A x[k] + B u[k]``, ``y[k] = C x[k] + D u[k]`` with period ``period`` (s), from :func:`c2d`."""
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    period: float
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+
+    def frequency_response(self, w: Any) -> SystemResponse:
+        """``C (zI - A)^-1 B + D`` at ``z = exp(j w h)``, shaped ``(outputs, inputs, len(w))``."""
+        w = as_frequencies(w)
+        z = np.exp(1j * w * self.period)
+        n = self.A.shape[0]
+        with np.errstate(all="ignore"):
+            X = np.linalg.solve(z[:, None, None] * np.eye(n) - self.A,
+                                np.broadcast_to(self.B, (w.size,) + self.B.shape))
+            H = self.C @ X + self.D
+        return SystemResponse(w, np.moveaxis(H, 0, -1), self.inputs, self.outputs)
+
+    def to_control(self) -> Any:
+        """A discrete-time python-control ``StateSpace`` (``dt = period``)."""
+        try:
+            import control
+        except ImportError as exc:
+            raise MissingDependencyError("to_control() needs python-control, which is not installed "
+                                         "(pip install control)") from exc
+        return control.ss(self.A, self.B, self.C, self.D, self.period, inputs=list(self.inputs),
+                          outputs=list(self.outputs))
+
+    def __repr__(self) -> str:
+        nu, ny, n = self.B.shape[1], self.C.shape[0], self.A.shape[0]
+        return (f"DiscreteLTI({nu} input{'s' * (nu != 1)} {list(self.inputs)} -> {ny} output{'s' * (ny != 1)} "
+                f"{list(self.outputs)}, {n} state{'s' * (n != 1)}, period {self.period:g} s)")
+
+
+def c2d(sys: DelayLTI, period: float) -> DiscreteLTI:
+    """The exact zero-order-hold discretisation of a system whose delays act on its inputs.
+
+    Parameters
+    ----------
+    sys : DelayLTI
+        Every delay channel must read the inputs only (``C2 = 0``, ``D22 = 0``), as in every transfer matrix made
+        by :func:`delaykit.tf`.
+    period : float
+        The sampling period ``h`` (s), positive.
+
+    Returns
+    -------
+    DiscreteLTI
+        States: the system's own, then the inputs of the last ``M`` periods (``M`` the longest delay in periods,
+        rounded up); exact at ``t = k h``.
+
+    Raises
+    ------
+    InvalidValueError
+        For a delay inside a loop (no finite exact discretisation) or a period that is not positive.
+
+    References
+    ----------
+    .. [1] K. J. Åström and B. Wittenmark, *Computer-Controlled Systems*, 3rd ed., Prentice Hall, 1997, sec. 2.3
+       (sampling a system with a time delay).
+
+    Examples
+    --------
+    A step into ``exp(-0.25 s)/(s + 1)`` sampled every 0.1 s reads ``1 - exp(-(k h - 0.25))`` once ``k h > 0.25``:
+
+    >>> import math
+    >>> from delaykit import tf
+    >>> d = c2d(tf("exp(-0.25*s)/(s+1)"), 0.1)
+    >>> x = np.zeros(d.A.shape[0]); ys = []
+    >>> for k in range(6):
+    ...     ys.append(float((d.C @ x + d.D[:, 0])[0])); x = d.A @ x + d.B[:, 0]
+    >>> round(ys[5], 12) == round(1 - math.exp(-(0.5 - 0.25)), 12), ys[:3]
+    (True, [0.0, 0.0, 0.0])
+    """
+    if not isinstance(sys, DelayLTI):
+        raise InvalidTypeError(f"c2d takes a DelayLTI, got {type(sys).__name__}")
+    h = check_real("period (s)", period, minimum=0.0, strict=True)
+    internal = [j for j in range(sys.ndelays) if sys.C2[j].any() or sys.D22[j].any()]
+    if internal:
+        taus = [sys.delays[j] for j in internal]
+        raise InvalidValueError(f"the delay channels {internal} (delays {taus} s) read the states: a delay inside a loop has no finite exact zero-order-hold discretisation; "
+                                "discretise the open-loop blocks and close the loop in discrete time")
+    n, nu, ny = sys.nstates, sys.ninputs, sys.noutputs
+    splits = [split_delay(t, h) for t in sys.delays]
+    M = max([m + (1 if f > 0 else 0) for m, f in splits], default=0)
+    # state: [x; u[k-1]; ...; u[k-M]]
+    N = n + M * nu
+    Ad, Bd = np.zeros((N, N)), np.zeros((N, nu))
+    Cd, Dd = np.zeros((ny, N)), sys.D11.copy()
+    Phi, Gam = hold_matrices(sys.A, np.hstack([sys.B1, sys.B2]), h) if n else (np.zeros((0, 0)), np.zeros((0, nu)))
+    Ad[:n, :n] = Phi
+    Cd[:, :n] = sys.C1
+    if n:
+        Bd[:n] += Gam[:, :nu]
+
+    def add_input(rows: slice, M_rows: np.ndarray, lag: int, target: str) -> None:
+        """Add ``M_rows @ u[k - lag]`` to the states (target "x") or the outputs ("y")."""
+        if lag == 0:
+            (Bd if target == "x" else Dd)[rows] += M_rows
+        else:
+            cols = slice(n + (lag - 1) * nu, n + lag * nu)
+            (Ad if target == "x" else Cd)[rows, cols] += M_rows
+
+    for j, (m, f) in enumerate(splits):
+        d21 = sys.D21[j:j + 1]  # w_j = d21 u(t - tau_j)
+        b2 = sys.B2[:, j:j + 1]
+        if n and b2.any():
+            if f > 0:
+                E1, J1 = hold_matrices(sys.A, b2, h - f)  # the later piece, u[k - m]
+                _, Jf = hold_matrices(sys.A, b2, f)  # the first piece, u[k - m - 1], then carried over h - f
+                add_input(slice(0, n), J1 @ d21, m, "x")
+                add_input(slice(0, n), E1 @ Jf @ d21, m + 1, "x")
+            else:
+                add_input(slice(0, n), Gam[:, nu + j:nu + j + 1] @ d21, m, "x")
+        d12 = sys.D12[:, j:j + 1]
+        if d12.any():  # the output reads w_j(k h) = d21 u((k - m) h - f)
+            add_input(slice(0, ny), d12 @ d21, m + (1 if f > 0 else 0), "y")
+    if M:  # the shift register
+        Bd[n:n + nu] = np.eye(nu)
+        for i in range(1, M):
+            Ad[n + i * nu:n + (i + 1) * nu, n + (i - 1) * nu:n + i * nu] = np.eye(nu)
+    for name, mat in (("A", Ad), ("B", Bd), ("C", Cd), ("D", Dd)):
+        if not np.all(np.isfinite(mat)):
+            raise InvalidValueError(f"the discretised {name} overflows: the period {h:g} s is too long for this "
+                                    "system")
+        mat.setflags(write=False)
+    return DiscreteLTI(Ad, Bd, Cd, Dd, h, sys.inputs, sys.outputs)
+
