@@ -229,6 +229,15 @@ def test_to_control_pade_matches_python_control_pade():
     assert close_to(cfr(cT, w), fr(T, w), 1e-7)
 
 
+def test_a_numpy_matrix_times_a_system_is_a_gain():
+    G = tf(WB)
+    M = np.array([[1.0, 2.0], [0.0, -1.0]])
+    assert isinstance(M * G, DelayLTI) and isinstance(G * M, DelayLTI)
+    s = 1j * W[1:]
+    ref = np.array([M @ wood_berry(x) for x in s])
+    assert close_to(fr(M * G, W[1:]), np.moveaxis(ref, 0, -1))
+
+
 def test_names_repr_and_to_dict():
     g = tf("12.8*exp(-s)/(16.7*s+1)", inputs="R", outputs="xD", name="G11")
     assert repr(g) == "DelayLTI(G11: 1 input ['R'] -> 1 output ['xD'], 1 state, delays [1] s)"
@@ -355,6 +364,14 @@ def test_random_interconnections_against_direct_evaluation(blocks):
         assert close_to(rL[:, :, i], Lm, 1e-10)
         assert close_to(rS[:, :, i], g(s) + h(s), 1e-10)
         assert close_to(rT[:, :, i], np.linalg.solve(M, Lm), 1e-8)
+    # the same loop by names, one summing junction per channel, equals feedback(G K, I)
+    ny = sG.noutputs
+    ys, us, es, rs = ([f"{c}{i}" for i in range(n)] for c, n in (("y", ny), ("u", sG.ninputs), ("e", ny), ("r", ny)))
+    blocks = [tf(sG, inputs=us, outputs=ys), tf(sK, inputs=es, outputs=us)]
+    blocks += [summing_junction([rs[i], "-" + ys[i]], es[i]) for i in range(ny)]
+    Tn = interconnect(blocks, inputs=rs, outputs=ys)
+    ok = np.array([np.linalg.cond(np.eye(ny) + g(1j * x) @ k(1j * x)) < 1e8 for x in w])
+    assert close_to(fr(Tn, w)[:, :, ok], rT[:, :, ok], 1e-8)
 
 
 def test_the_guide_examples_run():

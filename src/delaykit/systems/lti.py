@@ -435,7 +435,9 @@ class DelayLTI:
 
         return to_control(self, pade_order)
 
-    # -- algebra (see delaykit.systems.algebra) ----------------------------------------------------------
+    # -- algebra (see delaykit.systems.algebra) ------------------------------------------------------------
+    __array_ufunc__ = None  # ``matrix * sys`` is the gain times the system (numpy defers to __rmul__), not per entry
+
     def __mul__(self, other: Any) -> DelayLTI:
         from .algebra import series
 
