@@ -121,7 +121,8 @@ def c2d(sys: DelayLTI, period: float) -> DiscreteLTI:
     if internal:
         taus = [sys.delays[j] for j in internal]
         raise InvalidValueError(f"the delay channels {internal} (delays {taus} s) read the states: a delay inside a "
-                                "loop has no finite exact zero-order-hold discretisation; discretise the open-loop blocks and close the loop in discrete time")
+                                "loop has no finite exact zero-order-hold discretisation; discretise the open-loop "
+                                "blocks and close the loop in discrete time")
     n, nu, ny = sys.nstates, sys.ninputs, sys.noutputs
     splits = [split_delay(t, h) for t in sys.delays]
     M = max([m + (1 if f > 0 else 0) for m, f in splits], default=0)
