@@ -72,6 +72,17 @@ def test_characteristic_function_equals_the_block_determinant():
         assert abs(q(s) - d) <= 1e-10 * max(abs(d), 1e-6)
 
 
+def test_characteristic_function_of_a_stiff_system():
+    # time scales from 0.01 to 100 s^-1 around a delayed loop: still the block determinant to 1e-11
+    A = np.diag(-np.array([1e-2, 1e-1, 1.0, 10.0, 100.0]))
+    T = feedback(dk.ss(A, np.ones((5, 1)), np.ones((1, 5))) * delay(0.3), 0.5)
+    q = T.characteristic()
+    for s in (0.01j, 0.5 + 0.2j, 50j, -0.02 + 0.001j, -3 + 7j):
+        E = np.exp(-s * np.array(T.delays))
+        d = np.linalg.det(np.block([[s * np.eye(5) - T.A, -T.B2 * E], [-T.C2, np.eye(1) - T.D22 * E]]))
+        assert abs(q(s) - d) <= 1e-11 * abs(d)
+
+
 def test_wood_berry_blt_loop_is_stable_and_five_times_the_gains_is_not():
     # Luyben's BLT settings are detuned for stability; the certified root finder and the Nyquist count agree
     G, K = tf(WB), tf(BLT)

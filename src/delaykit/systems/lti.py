@@ -358,8 +358,9 @@ class DelayLTI:
 
         The determinant is multilinear in the channels' ``exp(-s tau_j)``, so it is the sum over the subsets
         ``S`` of channels of ``exp(-s sum_S tau_j)`` times ``det([[sI - A, -B2_S], [-C2_S, -D22_SS]])``; each such
-        polynomial is found by interpolation on a circle of the size of ``A``'s eigenvalues (rounding relative
-        to the largest coefficient times the spread of the eigenvalues).  Its roots are the system's internal
+        polynomial is found by interpolation on a circle whose radius is the geometric mean of ``A``'s nonzero
+        eigenvalues (rounding relative to the largest scaled coefficient, so a wide spread of time scales costs
+        digits).  Its roots are the system's internal
         poles, hidden modes included (as MATLAB's ``pole`` of a state-space model, but with the delays kept).
 
         Examples
@@ -375,7 +376,8 @@ class DelayLTI:
             raise InvalidValueError(f"the characteristic function of {m} delay channels has 2^{m} terms; at most "
                                     f"{_MAX_CHANNELS} channels are supported")
         eig = np.linalg.eigvals(self.A) if n else np.zeros(0)
-        radius = float(np.max(np.abs(eig))) if eig.size and np.max(np.abs(eig)) > 0 else 1.0
+        mags = np.abs(eig[eig != 0])
+        radius = float(np.exp(np.mean(np.log(mags)))) if mags.size else 1.0  # balances the coefficients' sizes
         k = np.arange(n + 1)
         pts = radius * np.exp(2j * np.pi * k / (n + 1))
         terms = []
