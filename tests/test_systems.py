@@ -273,7 +273,13 @@ def test_names_repr_and_to_dict():
     (lambda: tf("1/s", inputs=["a", "b"]), InvalidValueError, "inputs"),
     (lambda: to_control(tf("exp(-s)/(s+1)")), InvalidValueError, "pade_order"),
     (lambda: to_control(tf("exp(-s)/(s+1)"), pade_order=0), InvalidValueError, "pade_order"),
-    (lambda: from_loop(AltitudeLoop(kp=1.31, delay=0.368)), InvalidValueError, "ignore_limits"),
+    (lambda: from_loop(Loop("1/(s+1)", Controller.pi(1.0, 1.0, antiwindup="clamp"), umax=1.0)), InvalidValueError,
+     "clamping"),
+    (lambda: to_control(dk.saturation(-1, 1)), InvalidValueError, "saturate"),
+    (lambda: dk.c2d(dk.saturation(-1, 1) * tf("1/(s+1)"), 0.1), InvalidValueError, "saturate"),
+    (lambda: dk.saturation(1, 2), InvalidValueError, "lower <= 0 <= upper"),
+    (lambda: DelayLTI(D12=[[1.0]], D21=[[1.0]], D11=[[0.0]], delays=[1.0], limits=[(-1, 1), (-1, 1)]),
+     InvalidValueError, "one per channel"),
     (lambda: from_loop(Loop("1/s", Controller.p(1.0), period=0.1)), InvalidValueError, "samples"),
     (lambda: from_loop("1/s"), InvalidTypeError, "Loop"),
     (lambda: tf("1/(s+1)").frequency_response([-1.0]), InvalidValueError, ">= 0"),
@@ -300,11 +306,29 @@ def test_interconnect_errors_name_the_signal():
                      inputs=["u[0]"], outputs=["a"])
 
 
-def test_saturated_loop_without_its_limits():
+def test_saturated_loop_records_its_limits_and_is_linear_inside_them():
+    # the limits become a saturation channel; the linear analyses are those of the loop without them
     loop = AltitudeLoop(kp=1.31, delay=0.368)  # vmax = 1
-    T = from_loop(loop, ignore_limits=True)
+    T = from_loop(loop)
+    assert T.saturations == (0,) and T.limits[0] == (-1.0, 1.0) and "1 saturation" in repr(T) and T.is_retarded
     w = np.geomspace(1e-2, 10, 20)
     assert close_to(fr(T, w)[0, 0], dk.frequency_response(loop, w).complementary, 1e-12)
+    linear = from_loop(loop, ignore_limits=True)
+    assert not linear.saturations and close_to(fr(linear, w), fr(T, w), 1e-13)
+    again = DelayLTI(**T.to_dict())  # JSON-ready limits (None for no limit) read back
+    assert again.limits == T.limits
+    assert T.without_limits().saturations == ()
+
+
+def test_back_calculation_anti_windup_cancels_inside_the_limits():
+    # reference: the PI loop by hand; the anti-windup term Baw (u - v) is zero while u = v
+    loop = Loop("0.62/(150*s+1)", Controller.pi(2.0, 0.02, antiwindup="backcalc"), delay=8.0, output_delay=4.0,
+                umin=-50, umax=50)
+    T = from_loop(loop)
+    assert T.saturations and T.nstates == 2
+    w = np.geomspace(1e-4, 1.0, 40)
+    ref = _fopdt_loop_by_hand(1j * w, 2.0, 0.02, lambda x: 0.62 / (150 * x + 1), 8.0, 4.0)
+    assert close_to(fr(T, w)[0, 0], ref, 1e-11)
 
 
 # ----------------------------------------------------------------------------- random interconnections

@@ -20,12 +20,12 @@ from .._lazy import by_module, lazy_exports
 _SOURCES = {
     "lti": ["DelayLTI", "SystemResponse"],
     "algebra": ["append", "series", "parallel", "feedback", "interconnect", "summing_junction", "gain"],
-    "build": ["tf", "ss", "delay", "to_control", "from_loop"],
+    "build": ["tf", "ss", "delay", "saturation", "to_control", "from_loop"],
     "discrete": ["DiscreteLTI", "c2d"],
 }
 
 __all__ = ["DelayLTI", "SystemResponse", "append", "series", "parallel", "feedback", "interconnect",
-           "summing_junction", "gain", "tf", "ss", "delay", "to_control", "from_loop", "DiscreteLTI", "c2d"]
+           "summing_junction", "gain", "tf", "ss", "delay", "saturation", "to_control", "from_loop", "DiscreteLTI", "c2d"]
 
 
 __getattr__, __dir__ = lazy_exports(__name__, by_module(_SOURCES), globals())

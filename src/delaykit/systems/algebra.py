@@ -102,7 +102,7 @@ def close(sys: DelayLTI, F: np.ndarray, G: np.ndarray, H: np.ndarray, J: np.ndar
     BF, DF = B1 @ F, D21 @ F
     return DelayLTI(A=A + BF @ Ce, B1=B1 @ G + BF @ Deu, B2=B2 + BF @ Dew, C1=H @ Ce, C2=C2 + DF @ Ce,
                     D11=H @ Deu + J, D12=H @ Dew, D21=D21 @ G + DF @ Deu, D22=D22 + DF @ Dew,
-                    delays=sys.delays, inputs=inputs, outputs=outputs, name=name)
+                    delays=sys.delays, inputs=inputs, outputs=outputs, name=name, limits=sys.limits)
 
 
 def _blockdiag(*ms: np.ndarray) -> np.ndarray:
@@ -138,7 +138,8 @@ def append(*systems: Any) -> DelayLTI:
     blocks = [_blockdiag(*(p[k] for p in parts)) for k in range(9)]
     ins = _distinct_or_none([x for s in ss for x in s.inputs])
     outs = _distinct_or_none([x for s in ss for x in s.outputs])
-    return DelayLTI(*blocks, delays=[t for s in ss for t in s.delays], inputs=ins, outputs=outs)
+    return DelayLTI(*blocks, delays=[t for s in ss for t in s.delays], inputs=ins, outputs=outs,
+                    limits=[p for s in ss for p in s.limits])
 
 
 def _check_sizes(what: str, need: int, got: int, left: DelayLTI, right: DelayLTI) -> None:
@@ -197,7 +198,7 @@ def parallel(G: Any, H: Any) -> DelayLTI:
 def negate(G: DelayLTI) -> DelayLTI:
     """``-G``: the outputs negated."""
     return DelayLTI(G.A, G.B1, G.B2, -G.C1, G.C2, -G.D11, -G.D12, G.D21, G.D22, delays=G.delays, inputs=G.inputs,
-                    outputs=G.outputs, name=G.name)
+                    outputs=G.outputs, name=G.name, limits=G.limits)
 
 
 def feedback(sys1: Any, sys2: Any = 1, sign: int = -1) -> DelayLTI:
@@ -289,7 +290,7 @@ def select(sys: DelayLTI, key: Any) -> DelayLTI:
     rows = _index(key[0], sys.outputs, "output")
     cols = _index(key[1], sys.inputs, "input")
     return DelayLTI(sys.A, sys.B1[:, cols], sys.B2, sys.C1[rows], sys.C2, sys.D11[np.ix_(rows, cols)],
-                    sys.D12[rows], sys.D21[:, cols], sys.D22, delays=sys.delays,
+                    sys.D12[rows], sys.D21[:, cols], sys.D22, delays=sys.delays, limits=sys.limits,
                     inputs=[sys.inputs[j] for j in cols], outputs=[sys.outputs[i] for i in rows], name=sys.name)
 
 

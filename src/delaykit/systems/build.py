@@ -29,13 +29,14 @@ from ..models.transfer import TransferFunction, check_control_system
 from .algebra import append, close, gain, interconnect, summing_junction
 from .lti import DelayLTI
 
-__all__ = ["tf", "ss", "delay", "to_control", "from_loop"]
+__all__ = ["tf", "ss", "delay", "saturation", "to_control", "from_loop"]
 
 
 def _rename(sys: DelayLTI, inputs: Any, outputs: Any, name: str | None) -> DelayLTI:
     if inputs is None and outputs is None and name is None:
         return sys
     return DelayLTI(sys.A, sys.B1, sys.B2, sys.C1, sys.C2, sys.D11, sys.D12, sys.D21, sys.D22, delays=sys.delays,
+                    limits=sys.limits,
                     inputs=sys.inputs if inputs is None else inputs,
                     outputs=sys.outputs if outputs is None else outputs, name=sys.name if name is None else name)
 
@@ -215,6 +216,21 @@ def delay(T: float, *, inputs: Any = None, outputs: Any = None, name: str = "") 
                     outputs=outputs, name=name)
 
 
+def saturation(lower: float, upper: float, *, inputs: Any = None, outputs: Any = None, name: str = "") -> DelayLTI:
+    """The static saturation ``y = min(max(u, lower), upper)``, recorded as a channel with no delay.
+
+    ``lower <= 0 <= upper`` (None or an infinite value for no limit on that side).  The linear analyses take it
+    as the identity (see :class:`~delaykit.systems.lti.DelayLTI`).
+
+    Examples
+    --------
+    >>> saturation(-1, 1)
+    DelayLTI(1 input ['u[0]'] -> 1 output ['y[0]'], 0 states, delays [0] s, 1 saturation)
+    """
+    return DelayLTI(D12=[[1.0]], D21=[[1.0]], D11=[[0.0]], D22=[[0.0]], delays=[0.0], inputs=inputs,
+                    outputs=outputs, name=name, limits=[(lower, upper)])
+
+
 def _pade_block(T: float, order: int, control: Any) -> DelayLTI:
     num, den = control.pade(T, order)
     return _rational(TransferFunction(num, den))
@@ -245,6 +261,9 @@ def to_control(sys: DelayLTI, pade_order: int | None = None) -> Any:
     """
     if not isinstance(sys, DelayLTI):
         raise InvalidTypeError(f"to_control takes a DelayLTI, got {type(sys).__name__}")
+    if sys.saturations:
+        raise InvalidValueError(f"the channels {list(sys.saturations)} saturate, which a python-control LTI system "
+                                "cannot hold: convert sys.without_limits() for the small-signal system")
     try:
         import control
     except ImportError as exc:
@@ -279,7 +298,7 @@ def from_loop(loop: Any, *, ignore_limits: bool = False) -> DelayLTI:
     """The closed loop of a continuous :class:`~delaykit.models.Loop` (or ``AltitudeLoop``) as a system.
 
     Inputs ``["r", "d"]`` (the reference and the load disturbance at the plant input, after the input delay) and
-    outputs ``["y", "u"]`` (the plant output and the command); the blocks are the controller's realisation, the
+    outputs ``["y", "u"]`` (the plant output and the command, after the limits); the blocks are the controller's realisation, the
     plant, and the input, output and (for a predictor) model delays, connected by :func:`interconnect`.
 
     Parameters
@@ -287,8 +306,8 @@ def from_loop(loop: Any, *, ignore_limits: bool = False) -> DelayLTI:
     loop : Loop or AltitudeLoop
         A continuous loop (no sampling period).
     ignore_limits : bool
-        A loop with actuator limits is refused (saturation is not linear, and this step records no saturation
-        channels); True drops the limits, for the linear analysis of small signals.
+        By default the actuator's limits become a saturation channel (with back-calculation anti-windup, if the
+        controller has it, wired to the saturated command; clamping anti-windup is refused); True drops them.
 
     Examples
     --------
@@ -308,9 +327,7 @@ def from_loop(loop: Any, *, ignore_limits: bool = False) -> DelayLTI:
     if lp.sampled:
         raise InvalidValueError(f"the loop samples its controller (period {lp.period:g} s), which is not a "
                                 "continuous LTI system; give a continuous loop")
-    if lp.saturated and not ignore_limits:
-        raise InvalidValueError(f"the loop limits its command to [{lp.umin:g}, {lp.umax:g}]; saturation is not "
-                                "linear: pass ignore_limits=True for the loop without its limits")
+    limited = lp.saturated and not ignore_limits
     r = lp.controller.realisation()
     velocity = bool(np.any(r.Bcv) or r.dvv)
     cols, ins, dv = [r.Bcr, r.Bcy], ["r", "ym"], [r.dvr, r.dvy]
@@ -324,14 +341,27 @@ def from_loop(loop: Any, *, ignore_limits: bool = False) -> DelayLTI:
         blocks.append(delay(r.model_delay, inputs="u", outputs="u_model", name="model delay"))
     k = r.order
     B = np.column_stack(cols) if k else np.zeros((0, len(ins)))
-    blocks.append(ss(r.Ac, B, np.asarray(r.Cc, float).reshape(1, k), [dv], inputs=ins, outputs=["u"],
-                     name="controller"))
+    Ac, Cc = r.Ac, np.asarray(r.Cc, float).reshape(1, k)
+    if limited:
+        if getattr(lp.controller, "antiwindup", "none") == "clamp" and k:
+            raise InvalidValueError("clamping anti-windup (integration stopped at a limit) is not a saturation "
+                                    "channel of a linear system; use antiwindup='backcalc' or ignore_limits=True")
+        # back-calculation Baw (u - v): v = Cc xc + dv [inputs], u the saturated command
+        Baw = np.asarray(r.Baw, float).reshape(k, 1)
+        if Baw.any():
+            Ac, B = Ac - Baw @ Cc, B - Baw @ np.array([dv])
+            if "u" in ins:  # a predictor reads the command already
+                B[:, ins.index("u")] += Baw[:, 0]
+            else:
+                B, ins, dv = np.hstack([B, Baw]), ins + ["u"], dv + [0.0]
+        blocks.append(saturation(lp.umin, lp.umax, inputs="v", outputs="u", name="actuator limits"))
+    blocks.append(ss(Ac, B, Cc, [dv], inputs=ins, outputs=["v" if limited else "u"], name="controller"))
     A, Bp, Cp, Dp = lp.plant.state_space()
     n = A.shape[0]
     Bp, Cp = Bp.reshape(n, 1), Cp.reshape(1, n)
     if velocity:  # the output and its derivative (the plant is strictly proper: Loop checks it)
-        plant = ss(A, Bp, np.vstack([Cp, Cp @ A]), [[Dp], [float((Cp @ Bp)[0, 0])]], inputs="up", outputs=["y", "ydot"],
-                   name="plant")
+        plant = ss(A, Bp, np.vstack([Cp, Cp @ A]), [[Dp], [float((Cp @ Bp)[0, 0])]], inputs="up",
+                   outputs=["y", "ydot"], name="plant")
         blocks.append(delay(lp.output_delay, inputs="ydot", outputs="vm", name="velocity delay"))
     else:
         plant = ss(A, Bp, Cp, [[Dp]], inputs="up", outputs="y", name="plant")

@@ -117,6 +117,9 @@ def c2d(sys: DelayLTI, period: float) -> DiscreteLTI:
     if not isinstance(sys, DelayLTI):
         raise InvalidTypeError(f"c2d takes a DelayLTI, got {type(sys).__name__}")
     h = check_real("period (s)", period, minimum=0.0, strict=True)
+    if sys.saturations:
+        raise InvalidValueError(f"the channels {list(sys.saturations)} saturate: c2d samples linear systems only; "
+                                "discretise sys.without_limits() for the small-signal system")
     internal = [j for j in range(sys.ndelays) if sys.C2[j].any() or sys.D22[j].any()]
     if internal:
         taus = [sys.delays[j] for j in internal]

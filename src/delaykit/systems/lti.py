@@ -18,6 +18,11 @@ delays and rational blocks (series, parallel, feedback) stays in it (:mod:`delay
 ``D22 = 0`` the system is retarded; otherwise the delay channels feed each other directly (a difference equation
 inside), the neutral case.
 
+A channel may also carry limits: ``w_j(t) = sat(z_j(t - tau_j), lower_j, upper_j)`` (a saturation channel; with
+``tau_j = 0``, a plain saturation such as an actuator's).  The limits are recorded and kept by the algebra; every
+linear analysis here (frequency response, poles, norms) is of the small-signal system, each saturation taken as
+the identity (:meth:`DelayLTI.without_limits`), which is what the system does while no limit is reached.
+
 Build systems with :func:`delaykit.tf`, :func:`delaykit.ss` and :func:`delaykit.delay` rather than by hand.
 
 Examples
@@ -107,6 +112,30 @@ def _check_delays(delays: Any) -> tuple[float, ...]:
         if not math.isfinite(d) or d < 0:
             raise InvalidValueError(f"delay {j} must be finite and >= 0 s, got {d:g}")
         out.append(d)
+    return tuple(out)
+
+
+def _check_limits(limits: Any, m: int) -> tuple[tuple[float, float], ...]:
+    """One ``(lower, upper)`` per channel with ``lower <= 0 <= upper``, ``lower < upper`` (None: no limit)."""
+    if limits is None:
+        return ((-math.inf, math.inf),) * m
+    try:
+        pairs = [tuple(p) for p in limits]
+    except TypeError:
+        raise InvalidTypeError(f"limits must be one (lower, upper) pair per channel, got {reprlib.repr(limits)}") from None
+    if len(pairs) != m or any(len(p) != 2 for p in pairs):
+        raise InvalidValueError(f"limits must be {m} (lower, upper) pairs, one per channel, got {reprlib.repr(limits)}")
+    out = []
+    for j, (lo, hi) in enumerate(pairs):
+        lo = -math.inf if lo is None else lo
+        hi = math.inf if hi is None else hi
+        if any(isinstance(x, (bool, np.bool_)) or not isinstance(x, numbers.Real) for x in (lo, hi)):
+            raise InvalidTypeError(f"the limits of channel {j} must be numbers, got ({lo!r}, {hi!r})")
+        lo, hi = float(lo), float(hi)
+        if math.isnan(lo) or math.isnan(hi) or not (lo <= 0.0 <= hi and lo < hi):
+            raise InvalidValueError(f"the limits of channel {j} must satisfy lower <= 0 <= upper and lower < upper (the "
+                                    f"origin at rest inside them), got ({lo:g}, {hi:g})")
+        out.append((lo, hi))
     return tuple(out)
 
 
@@ -201,6 +230,8 @@ class DelayLTI:
         Signal names (default ``u[0], u[1], ...`` and ``y[0], ...`` as python-control).
     name : str
         A label, shown by ``repr`` and used by :func:`~delaykit.systems.algebra.interconnect` messages.
+    limits : sequence of (float, float), optional
+        ``(lower, upper)`` per channel (None or infinite: no limit), with ``lower <= 0 <= upper``.
 
     Examples
     --------
@@ -225,10 +256,11 @@ class DelayLTI:
     inputs: tuple[str, ...] = ()
     outputs: tuple[str, ...] = ()
     name: str = ""
+    limits: tuple[tuple[float, float], ...] = ()
 
     def __init__(self, A: Any = None, B1: Any = None, B2: Any = None, C1: Any = None, C2: Any = None,
                  D11: Any = None, D12: Any = None, D21: Any = None, D22: Any = None, delays: Sequence[float] = (),
-                 inputs: Any = None, outputs: Any = None, name: str = "") -> None:
+                 inputs: Any = None, outputs: Any = None, name: str = "", limits: Any = None) -> None:
         tau = _check_delays(delays)
         A0 = np.zeros((0, 0)) if A is None else _real("A", A)
         A0 = A0.reshape(1, 1) if A0.ndim == 0 else A0 if A0.size else np.zeros((0, 0))
@@ -243,6 +275,7 @@ class DelayLTI:
                                 ("D21", D21, (m, nu)), ("D22", D22, (m, m))):
             set_(key, _matrix(key, val, shape))
         set_("delays", tau)
+        set_("limits", _check_limits(limits, m))
         set_("inputs", _names("inputs", inputs, nu, "u"))
         set_("outputs", _names("outputs", outputs, ny, "y"))
         if not isinstance(name, str):
@@ -271,9 +304,36 @@ class DelayLTI:
         return len(self.delays)
 
     @property
+    def saturations(self) -> tuple[int, ...]:
+        """The channels with a finite limit (saturation channels)."""
+        return tuple(j for j, (lo, hi) in enumerate(self.limits) if math.isfinite(lo) or math.isfinite(hi))
+
+    def without_limits(self) -> DelayLTI:
+        """The same system with every saturation removed: the small-signal system the linear analyses use."""
+        return DelayLTI(self.A, self.B1, self.B2, self.C1, self.C2, self.D11, self.D12, self.D21, self.D22,
+                        delays=self.delays, inputs=self.inputs, outputs=self.outputs, name=self.name)
+
+    @property
     def is_retarded(self) -> bool:
-        """True when no delay channel feeds another directly (``D22 = 0``): no difference equation inside."""
-        return not self.D22.any()
+        """True when no delayed signal feeds itself back without passing a state: every principal minor of the
+        direct coupling between the delayed channels (through the channels without delay) is zero, so
+        ``det(I - D22 Delta(s))`` is 1.  Otherwise the system is neutral (a difference equation inside)."""
+        pos = [j for j, t in enumerate(self.delays) if t > 0]
+        zero = [j for j, t in enumerate(self.delays) if t == 0]
+        D = self.D22
+        try:
+            Deff = D[np.ix_(pos, pos)] + (D[np.ix_(pos, zero)] @ np.linalg.solve(
+                np.eye(len(zero)) - D[np.ix_(zero, zero)], D[np.ix_(zero, pos)]) if zero else 0.0)
+        except np.linalg.LinAlgError:
+            return False  # the channels without delay form an algebraic loop that is not well posed
+        if not Deff.any():
+            return True
+        tol = 1e-12 * max(1.0, float(np.abs(Deff).max()))
+        k = len(pos)
+        if k > _MAX_CHANNELS:
+            return not np.any(np.abs(np.linalg.eigvals(Deff)) > tol)
+        return all(abs(np.linalg.det(Deff[np.ix_(S, S)])) <= tol
+                   for mask in range(1, 1 << k) for S in [[j for j in range(k) if mask >> j & 1]])
 
     # -- values ------------------------------------------------------------------------------------------
     def evaluate(self, s: Any) -> np.ndarray:
@@ -499,6 +559,9 @@ class DelayLTI:
         d: dict[str, Any] = {k: getattr(self, k).tolist() for k in
                              ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21", "D22")}
         d.update(delays=list(self.delays), inputs=list(self.inputs), outputs=list(self.outputs), name=self.name)
+        if self.saturations:  # JSON has no infinity: unlimited sides as None
+            d["limits"] = [[lo if math.isfinite(lo) else None, hi if math.isfinite(hi) else None]
+                           for lo, hi in self.limits]
         return d
 
     def __repr__(self) -> str:
@@ -511,7 +574,8 @@ class DelayLTI:
         return (f"DelayLTI({head}{nu} input{'s' * (nu != 1)} {names(self.inputs)} -> {ny} output{'s' * (ny != 1)} "
                 f"{names(self.outputs)}, {n} state{'s' * (n != 1)}, "
                 + (f"delays [{tau}] s" if self.delays else "no delays")
-                + ("" if self.is_retarded else ", neutral") + ")")
+                + (f", {len(self.saturations)} saturation{'s' * (len(self.saturations) != 1)}" if self.saturations
+                   else "") + ("" if self.is_retarded else ", neutral") + ")")
 
 
 _MAX_CHANNELS = 14
