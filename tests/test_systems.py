@@ -215,6 +215,26 @@ def test_altitude_loop_as_system_matches_its_frequency_response():
     assert mine.size == theirs.size > 0 and np.allclose(np.sort_complex(mine), np.sort_complex(theirs), atol=1e-9)
 
 
+@pytest.mark.parametrize("make", [
+    lambda: dk.Compensator.predictor("1/s", 0.37, closed_loop_time=0.5),
+    lambda: dk.Compensator.smith("0.62/(150*s+1)", 12.0, closed_loop_time=40.0),
+    lambda: dk.Compensator.filtered_smith("1/s", 0.37, closed_loop_time=0.5),
+])
+def test_loop_with_a_compensator_as_system(make):
+    # reference: delaykit.spectrum.compensated's L(jw) (the compensator closed around its own command, broken at
+    # the plant input); the load disturbance reaches the output as y/d = G / (1 + L)
+    from delaykit.spectrum.compensated import compensated_response
+
+    c = make()
+    plant = "1/s" if c.model.order == 1 and c.model.integrators else "0.62/(150*s+1)"
+    loop = Loop(plant, c, delay=c.model_delay)
+    T = from_loop(loop)
+    w = np.geomspace(0.01, 10.0, 40) / (1.0 if plant == "1/s" else 30.0)
+    L = compensated_response(loop, w).L
+    G = loop.plant(1j * w)
+    assert close_to(fr(T["y", "d"], w)[0, 0], G / (1 + L), 1e-10)
+
+
 def test_to_control_pade_matches_python_control_pade():
     # reference: python-control's own product with control.pade(T, n)
     g = tf("2*exp(-0.8*s)/(s+1)")
