@@ -33,10 +33,10 @@ from ..errors import InvalidTypeError, InvalidValueError, MissingDependencyError
 from .altitude import AltitudeLoop, as_loop
 from .loop import Loop
 
-__all__ = ["to_control", "pade_error", "PadeError"]
+__all__ = ["to_control", "pade_error", "PadeError", "require_control"]
 
 
-def _control(what: str) -> Any:
+def require_control(what: str) -> Any:
     """The python-control module, or a MissingDependencyError that says what needed it."""
     try:
         import control
@@ -114,7 +114,7 @@ def to_control(loop: Loop | AltitudeLoop, pade_order: int | None = None) -> Any:
         raise InvalidValueError(
             f"the loop has a delay of {loop.total_delay:g} s, which python-control cannot represent exactly: give "
             "pade_order=n for an n-th order Padé approximation of exp(-s T)")
-    control = _control("to_control()")
+    control = require_control("to_control()")
     num, den = loop.open_loop()
     L = control.tf(num, den)
     if loop.total_delay > 0:

@@ -24,7 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, MissingDependencyError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..models.interop import require_control
 from ..models.transfer import TransferFunction, check_control_system
 from .algebra import append, close, gain, interconnect, summing_junction
 from .lti import DelayLTI
@@ -264,11 +265,7 @@ def to_control(sys: DelayLTI, pade_order: int | None = None) -> Any:
     if sys.saturations:
         raise InvalidValueError(f"the channels {list(sys.saturations)} saturate, which a python-control LTI system "
                                 "cannot hold: convert sys.without_limits() for the small-signal system")
-    try:
-        import control
-    except ImportError as exc:
-        raise MissingDependencyError("to_control() needs python-control, which is not installed "
-                                     "(pip install control)") from exc
+    control = require_control("to_control()")
     live = [t for t in sys.delays if t > 0]
     if live and pade_order is None:
         raise InvalidValueError(f"the system has delays {list(sys.delays)} s, which python-control cannot represent "

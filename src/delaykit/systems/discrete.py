@@ -28,8 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, MissingDependencyError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.hold import hold_matrices, split_delay
+from ..models.interop import require_control
 from .lti import DelayLTI, SystemResponse, as_frequencies
 
 __all__ = ["DiscreteLTI", "c2d"]
@@ -60,11 +61,7 @@ class DiscreteLTI:
 
     def to_control(self) -> Any:
         """A discrete-time python-control ``StateSpace`` (``dt = period``)."""
-        try:
-            import control
-        except ImportError as exc:
-            raise MissingDependencyError("to_control() needs python-control, which is not installed "
-                                         "(pip install control)") from exc
+        control = require_control("to_control()")
         return control.ss(self.A, self.B, self.C, self.D, self.period, inputs=list(self.inputs),
                           outputs=list(self.outputs))
 
