@@ -25,7 +25,8 @@ _SOURCES = {
 }
 
 __all__ = ["DelayLTI", "SystemResponse", "append", "series", "parallel", "feedback", "interconnect",
-           "summing_junction", "gain", "tf", "ss", "delay", "saturation", "to_control", "from_loop", "DiscreteLTI", "c2d"]
+           "summing_junction", "gain", "tf", "ss", "delay", "saturation", "to_control", "from_loop", "DiscreteLTI",
+           "c2d"]
 
 
 __getattr__, __dir__ = lazy_exports(__name__, by_module(_SOURCES), globals())

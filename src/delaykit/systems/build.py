@@ -295,8 +295,9 @@ def from_loop(loop: Any, *, ignore_limits: bool = False) -> DelayLTI:
     """The closed loop of a continuous :class:`~delaykit.models.Loop` (or ``AltitudeLoop``) as a system.
 
     Inputs ``["r", "d"]`` (the reference and the load disturbance at the plant input, after the input delay) and
-    outputs ``["y", "u"]`` (the plant output and the command, after the limits); the blocks are the controller's realisation, the
-    plant, and the input, output and (for a predictor) model delays, connected by :func:`interconnect`.
+    outputs ``["y", "u"]`` (the plant output and the command, after the limits); the blocks are the controller's
+    realisation, the plant, the limits, and the input, output and (for a predictor) model delays, connected by
+    :func:`interconnect`.
 
     A compensator's internal model is part of the realisation: its modes are poles of the system even where they
     cancel in every transfer function (an integrating model's pole at 0: the classical Smith predictor of an

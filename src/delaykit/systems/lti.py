@@ -122,7 +122,8 @@ def _check_limits(limits: Any, m: int) -> tuple[tuple[float, float], ...]:
     try:
         pairs = [tuple(p) for p in limits]
     except TypeError:
-        raise InvalidTypeError(f"limits must be one (lower, upper) pair per channel, got {reprlib.repr(limits)}") from None
+        raise InvalidTypeError(f"limits must be one (lower, upper) pair per channel, got {reprlib.repr(limits)}"
+                               ) from None
     if len(pairs) != m or any(len(p) != 2 for p in pairs):
         raise InvalidValueError(f"limits must be {m} (lower, upper) pairs, one per channel, got {reprlib.repr(limits)}")
     out = []
@@ -133,8 +134,8 @@ def _check_limits(limits: Any, m: int) -> tuple[tuple[float, float], ...]:
             raise InvalidTypeError(f"the limits of channel {j} must be numbers, got ({lo!r}, {hi!r})")
         lo, hi = float(lo), float(hi)
         if math.isnan(lo) or math.isnan(hi) or not (lo <= 0.0 <= hi and lo < hi):
-            raise InvalidValueError(f"the limits of channel {j} must satisfy lower <= 0 <= upper and lower < upper (the "
-                                    f"origin at rest inside them), got ({lo:g}, {hi:g})")
+            raise InvalidValueError(f"the limits of channel {j} must satisfy lower <= 0 <= upper and lower < upper "
+                                    f"(the origin at rest inside them), got ({lo:g}, {hi:g})")
         out.append((lo, hi))
     return tuple(out)
 
