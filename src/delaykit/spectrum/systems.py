@@ -272,8 +272,9 @@ class NyquistCount:
 
 def _rhp_count(sys: DelayLTI, sigma: float) -> int:
     q = _retarded(sys, "the Nyquist count")
-    if q.degree == 0 and len(q.polys) == 1:
-        return 0
+    if q.delays == (0.0,):  # det(I - P22 Delta) = 1 (delays on inputs and outputs only): the poles of A
+        eig = np.linalg.eigvals(sys.A) if sys.nstates else np.zeros(0)
+        return int(np.sum(eig.real > sigma))
     R = root_bound(q, sigma)
     sp = find_roots(q, (sigma, sigma + 2 * R + 1.0, -(R + 1.0), R + 1.0))
     if not sp.certified:
@@ -287,8 +288,9 @@ def nyquist_count(L: DelayLTI, *, sigma: float | None = None) -> NyquistCount:
     The winding of ``det(I + L(sigma + jw))`` for ``w`` from 0 to infinity (the other half is its conjugate) on a
     grid refined until the phase turns by at most 0.5 rad between points and no point lies near 0; beyond the
     last point ``||(I + L_inf)^-1 (L - L_inf)||`` stays below 1/2, so no winding is left out there.
-    ``sigma`` (default ``1e-3`` times the system's slowest feature: eigenvalue of ``A`` or 1/delay) moves the
-    contour right of poles on the imaginary axis (integrators); poles closer to the axis than that count as stable.
+    ``sigma`` (default ``1e-9`` times the system's fastest feature: eigenvalue of ``A`` or 1/delay) moves the
+    contour right of poles on the imaginary axis (integrators); closed-loop poles closer to the axis than that
+    count as stable.
 
     Raises
     ------
@@ -306,7 +308,7 @@ def nyquist_count(L: DelayLTI, *, sigma: float | None = None) -> NyquistCount:
     if L.ninputs != L.noutputs:
         raise InvalidValueError(f"the Nyquist count needs a square loop, got {L!r}")
     lo, hi, feats = _features(L)
-    sigma = 1e-3 * min(feats) if sigma is None else check_real("sigma", sigma, minimum=0.0)
+    sigma = 1e-9 * max(feats) if sigma is None else check_real("sigma", sigma, minimum=0.0)
     m = L.ndelays
     for j in range(m):
         if L.D12[:, j].any() and (L.D21[j, :].any() or L.D22[j, :].any()):
