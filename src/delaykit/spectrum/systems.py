@@ -64,7 +64,7 @@ def poles(sys: DelayLTI, region: Sequence[float]) -> Spectrum:
     --------
     >>> from delaykit import tf, feedback
     >>> sp = poles(feedback(tf("2/(s+1)"), 1), (-5, 1, -1, 1))
-    >>> sp.roots.tolist(), sp.certified
+    >>> sp.roots.round(12).tolist(), sp.certified
     ([(-3+0j)], True)
     """
     return find_roots(_system(sys).characteristic(), region)
