@@ -116,6 +116,38 @@ def test_feedback_of_fopdt_is_g_over_one_plus_g():
     assert close_to(fr(feedback(tf(([K], [tau, 1.0], T)), 1, sign=1))[0, 0], G / (1 - G))
 
 
+TEXTS = {  # text with internal delays -> the same expression evaluated by numpy
+    "12.8*exp(-s)/(16.7*s+1) + 0.5*exp(-3*s)/(s+1)": lambda s: 12.8 * np.exp(-s) / (16.7 * s + 1)
+    + 0.5 * np.exp(-3 * s) / (s + 1),
+    "(1 - exp(-2*s))/(s+1)": lambda s: (1 - np.exp(-2 * s)) / (s + 1),
+    "1/(1 + exp(-s)/(s+1))": lambda s: 1 / (1 + np.exp(-s) / (s + 1)),
+    "2/(s+1)/(1 + 0.5*exp(-0.3*s))": lambda s: 2 / (s + 1) / (1 + 0.5 * np.exp(-0.3 * s)),
+    "-exp(-s)/(s+2) - 1": lambda s: -np.exp(-s) / (s + 2) - 1,
+    "exp(-s)/(s+1)*(2 + exp(-0.5*s))": lambda s: np.exp(-s) / (s + 1) * (2 + np.exp(-0.5 * s)),
+    # a Smith predictor's controller C / (1 + C G0 (1 - exp(-T s))), C = 2, G0 = 1/(s+1), T = 0.37
+    "2/(1 + 2/(s+1)*(1 - exp(-0.37*s)))": lambda s: 2 / (1 + 2 / (s + 1) * (1 - np.exp(-0.37 * s))),
+}
+
+
+@pytest.mark.parametrize("text", sorted(TEXTS))
+def test_text_with_sums_and_quotients_of_delayed_terms(text):
+    w = W[1:]
+    assert close_to(fr(tf(text), w)[0, 0], TEXTS[text](1j * w), 1e-12)
+
+
+@pytest.mark.parametrize("text, words", [
+    ("exp(-s)/(s+1) + s", "improper"),
+    ("1/exp(-s)", "predict"),
+    ("1/(exp(-s)/(s+1))", "predict"),
+    ("exp(2*s) + 1", "prediction"),
+    ("foo + exp(-s)", "unknown name 'foo'"),
+    ("2s + exp(-s)", "write products with"),
+])
+def test_bad_text_names_the_bad_part(text, words):
+    with pytest.raises(InvalidValueError, match=words):
+        tf(text)
+
+
 def test_series_parallel_and_return_path_delays_by_hand():
     # reference: the products, sums and loops written out with numpy
     s = 1j * W

@@ -27,7 +27,7 @@ import numpy as np
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.interop import require_control
 from ..models.transfer import TransferFunction, check_control_system
-from .algebra import append, close, gain, interconnect, summing_junction
+from .algebra import append, close, feedback, gain, interconnect, summing_junction
 from .lti import DelayLTI
 
 __all__ = ["tf", "ss", "delay", "saturation", "to_control", "from_loop"]
@@ -53,6 +53,53 @@ def _rational(g: TransferFunction, T: float = 0.0) -> DelayLTI:
                     D21=[[1.0]], D22=[[0.0]], delays=[T])
 
 
+def _invert(h: DelayLTI, text: str) -> DelayLTI:
+    """``1 / h`` of a SISO system with a feedthrough ``d != 0`` that no delay carries: ``(1/d) / (1 + X/d)`` with
+    ``X = h - d``, the feedback loop of 1 and ``X/d`` (well posed: ``X`` has no undelayed feedthrough)."""
+    d = float(h.D11[0, 0])
+    if d == 0.0:
+        raise InvalidValueError(f"cannot divide by '{text}': it has no direct feedthrough without delay, so its "
+                                "inverse would predict")
+    return (1.0 / d) * feedback(1.0, (h - d) * (1.0 / d))
+
+
+def _text(text: str) -> DelayLTI:
+    """A transfer function as text: read whole as a rational function times delays when it is one, otherwise
+    split at its top operator (sums and quotients of delayed terms: internal delays) and combined by the algebra."""
+    import ast
+
+    try:
+        g, T = TransferFunction.parse_with_delay(text)
+        return _rational(g, T)
+    except (InvalidValueError, InvalidTypeError) as exc:
+        first = exc
+    src = text.replace("^", "**").strip()
+    try:
+        node = ast.parse(src, mode="eval").body
+    except (SyntaxError, ValueError, RecursionError, MemoryError):
+        raise first from None
+
+    def part(n: ast.AST) -> str:
+        return ast.get_source_segment(src, n) or ast.unparse(n)
+
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
+        return -_text(part(node.operand))
+    if not isinstance(node, ast.BinOp) or not isinstance(node.op, (ast.Add, ast.Sub, ast.Mult, ast.Div)):
+        raise first
+    left = _text(part(node.left))
+    if isinstance(node.op, ast.Div):
+        try:  # a rational denominator: multiply by its reciprocal
+            g, T = TransferFunction.parse_with_delay(part(node.right), proper=False)
+        except (InvalidValueError, InvalidTypeError):
+            g, T = None, 0.0
+        if g is not None and T == 0.0 and g.num.any() and g.num.size >= g.den.size:
+            return left * _rational(TransferFunction(g.den, g.num))
+        return left * _invert(_text(part(node.right)), part(node.right))
+    right = _text(part(node.right))
+    return left + right if isinstance(node.op, ast.Add) else left - right if isinstance(node.op, ast.Sub) \
+        else left * right
+
+
 def _is_number_list(x: Any) -> bool:
     if isinstance(x, (numbers.Real, np.ndarray)) and not isinstance(x, (bool, np.bool_)):
         return True
@@ -68,10 +115,9 @@ def _siso(spec: Any, where: str) -> DelayLTI:
         return spec
     if isinstance(spec, str):
         try:
-            g, T = TransferFunction.parse_with_delay(spec)
+            return _text(spec)
         except (InvalidValueError, InvalidTypeError) as exc:
             raise type(exc)(f"{where}: {exc}") from exc
-        return _rational(g, T)
     if isinstance(spec, TransferFunction):
         return _rational(TransferFunction.coerce(spec, name=where))
     if isinstance(spec, tuple) and len(spec) in (2, 3) and _is_number_list(spec[0]) and _is_number_list(spec[1]):
@@ -128,7 +174,8 @@ def tf(spec: Any, *, inputs: Any = None, outputs: Any = None, name: str | None =
     ----------
     spec
         One of: text with ``exp(-T*s)`` factors (``"12.8*exp(-s)/(16.7*s+1)"``, the grammar of
-        :meth:`~delaykit.models.TransferFunction.parse_with_delay`); a pair ``(num, den)`` or a triple
+        :meth:`~delaykit.models.TransferFunction.parse_with_delay`), where delayed terms may also be added and
+        divided (``"1/(1 + exp(-s)/(s+1))"``: internal delays, combined by the algebra); a pair ``(num, den)`` or a triple
         ``(num, den, delay)``; a number; a :class:`~delaykit.models.TransferFunction`; a list of rows of these
         (a transfer matrix); a python-control ``TransferFunction`` or ``StateSpace`` (MIMO too); a
         :class:`DelayLTI` (renamed).
@@ -157,6 +204,8 @@ def tf(spec: Any, *, inputs: Any = None, outputs: Any = None, name: str | None =
     DelayLTI(G11: 1 input ['u'] -> 1 output ['y'], 1 state, delays [1] s)
     >>> tf(([2.0], [1.0, 1.0], 0.5)).delays
     (0.5,)
+    >>> tf("(1 - exp(-2*s))/(s+1)")          # a difference of delayed paths
+    DelayLTI(1 input ['u[0]'] -> 1 output ['y[0]'], 1 state, delays [2] s)
     """
     if isinstance(spec, DelayLTI):
         sys = spec
