@@ -125,6 +125,16 @@ def test_hinfnorm_of_delayed_loops_against_a_finer_grid():
     assert brute <= hs.value * (1 + 1e-9) and hs.value <= brute * (1 + 1e-6)
 
 
+def test_hinfnorm_finds_a_sharp_resonance_of_the_delay_loop():
+    # 1/s with a delay of 1.55 s, just inside its delay margin pi/2: a peak of width ~0.01 rad/s near w = 1;
+    # reference: the max over 200001 points across it
+    T = feedback(tf("exp(-1.55*s)/s"), 1)
+    h = hinfnorm(T)
+    w = np.linspace(0.95, 1.07, 200_001)
+    brute = float(np.max(np.abs(T.frequency_response(w).response[0, 0])))
+    assert brute > 50 and brute <= h.value * (1 + 1e-9) and h.value <= brute * (1 + 1e-7)
+
+
 def test_hinfnorm_high_frequency_limit_and_unstable():
     # 1 - 0.5 exp(-s): sup |1 - 0.5 e^{-jwT}| = 1.5, reached only as a limit of the ripple
     value, w = hinfnorm(1 - 0.5 * delay(1.0))
