@@ -508,3 +508,34 @@ def test_c2d_of_a_delayed_feedthrough_and_its_errors():
         dk.c2d(feedback(tf("exp(-s)/(s+1)")), 0.1)
     with pytest.raises(InvalidValueError, match="period"):
         dk.c2d(tf("1/(s+1)"), 0.0)
+
+
+@pytest.mark.parametrize("D, N", [(2.3, 3), (0.7, 1), (4.5, 4), (6.0, 2)])
+def test_thiran_filter_is_all_pass_with_group_delay_d_at_dc(D, N):
+    # Thiran (1971): maximally flat group delay, exactly D periods at w = 0, and |H| = 1
+    from delaykit.systems.discrete import thiran
+
+    num, den = thiran(D, N)
+    w = np.array([1e-5, 0.3, 1.0, 2.5])
+    H = np.polyval(num, np.exp(1j * w)) / np.polyval(den, np.exp(1j * w))
+    assert np.allclose(np.abs(H), 1.0, atol=1e-13)
+    assert abs(-np.angle(H[0]) / w[0] - D) < 1e-8
+    assert np.all(np.abs(np.roots(den)) < 1)  # stable, D > N - 1
+
+
+def test_c2d_thiran_is_exact_for_whole_periods_and_converges_for_internal_delays():
+    # delays that are whole periods on the inputs: the approximation is the exact discretisation
+    G = tf(WB)
+    w = np.linspace(0.01, math.pi / 0.5, 30)
+    exact = dk.c2d(G, 0.5).frequency_response(w).response
+    approx = dk.c2d(G, 0.5, thiran_order=3).frequency_response(w).response
+    assert close_to(approx, exact, 1e-10)
+    # a delay inside a loop: the error against the exact continuous response falls with the period (first order)
+    T = feedback(tf("2*exp(-0.7*s)/(1.3*s+1)"), 1)
+    w = np.array([0.01, 0.3, 1.0])
+    ref = fr(T, w)[0, 0]
+    errs = [np.max(np.abs(dk.c2d(T, h, thiran_order=3).frequency_response(w).response[0, 0] - ref))
+            for h in (0.1, 0.025)]
+    assert errs[1] < errs[0] / 3 and errs[1] < 0.01
+    with pytest.raises(InvalidValueError, match="thiran_order"):
+        dk.c2d(T, 0.1, thiran_order=-1)

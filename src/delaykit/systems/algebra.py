@@ -28,8 +28,8 @@ import numpy as np
 from ..errors import InvalidTypeError, InvalidValueError
 from .lti import DelayLTI
 
-__all__ = ["as_system", "close", "append", "series", "parallel", "negate", "feedback", "select", "interconnect",
-           "summing_junction", "gain"]
+__all__ = ["as_system", "close", "close_parts", "blockdiag", "append", "series", "parallel", "negate", "feedback",
+           "select", "interconnect", "summing_junction", "gain"]
 
 _COND_LIMIT = 1e12  # I - D11 F with a larger condition number is taken as singular
 
@@ -88,7 +88,17 @@ def close(sys: DelayLTI, F: np.ndarray, G: np.ndarray, H: np.ndarray, J: np.ndar
     >>> T.A.tolist()
     [[-1.0]]
     """
-    A, B1, B2, C1, C2, D11, D12, D21, D22 = _partitions(sys)
+    parts = close_parts(_partitions(sys), F, G, H, J, what)
+    return DelayLTI(*parts, delays=sys.delays, inputs=inputs, outputs=outputs, name=name, limits=sys.limits)
+
+
+def close_parts(parts: Sequence[np.ndarray], F: Any, G: Any, H: Any, J: Any, what: str = "the interconnection"
+                ) -> tuple[np.ndarray, ...]:
+    """The partitioned matrices ``(A, B1, B2, C1, C2, D11, D12, D21, D22)`` closed as :func:`close` does.
+
+    Pure matrix algebra: it holds for a discrete-time system as well (``x[k+1]`` for ``x'``).
+    """
+    A, B1, B2, C1, C2, D11, D12, D21, D22 = parts
     ne, nv = D11.shape
     F, G, H, J = (np.asarray(M, dtype=float) for M in (F, G, H, J))
     M = np.eye(ne) - D11 @ F
@@ -100,12 +110,12 @@ def close(sys: DelayLTI, F: np.ndarray, G: np.ndarray, H: np.ndarray, J: np.ndar
     n, nu = A.shape[0], G.shape[1]
     Ce, Deu, Dew = X[:, :n], X[:, n:n + nu], X[:, n + nu:]
     BF, DF = B1 @ F, D21 @ F
-    return DelayLTI(A=A + BF @ Ce, B1=B1 @ G + BF @ Deu, B2=B2 + BF @ Dew, C1=H @ Ce, C2=C2 + DF @ Ce,
-                    D11=H @ Deu + J, D12=H @ Dew, D21=D21 @ G + DF @ Deu, D22=D22 + DF @ Dew,
-                    delays=sys.delays, inputs=inputs, outputs=outputs, name=name, limits=sys.limits)
+    return (A + BF @ Ce, B1 @ G + BF @ Deu, B2 + BF @ Dew, H @ Ce, C2 + DF @ Ce, H @ Deu + J, H @ Dew,
+            D21 @ G + DF @ Deu, D22 + DF @ Dew)
 
 
-def _blockdiag(*ms: np.ndarray) -> np.ndarray:
+def blockdiag(*ms: np.ndarray) -> np.ndarray:
+    """The matrices on the diagonal of one (any shapes, empty ones included)."""
     rows = sum(m.shape[0] for m in ms)
     cols = sum(m.shape[1] for m in ms)
     out = np.zeros((rows, cols))
@@ -135,7 +145,7 @@ def append(*systems: Any) -> DelayLTI:
         raise InvalidValueError("append needs at least one system")
     ss = [as_system(s, f"system {k}") for k, s in enumerate(systems)]
     parts = [_partitions(s) for s in ss]
-    blocks = [_blockdiag(*(p[k] for p in parts)) for k in range(9)]
+    blocks = [blockdiag(*(p[k] for p in parts)) for k in range(9)]
     ins = _distinct_or_none([x for s in ss for x in s.inputs])
     outs = _distinct_or_none([x for s in ss for x in s.outputs])
     return DelayLTI(*blocks, delays=[t for s in ss for t in s.delays], inputs=ins, outputs=outs,

@@ -9,7 +9,8 @@ at the sampling instants, fractional delays included (as MATLAB's ``c2d`` of inp
 made by :func:`delaykit.tf` has this form (each entry's delay sits on its input).
 
 A delay inside a loop (a channel that reads the states) makes the sampled system infinite-dimensional: such
-systems are refused.  Thiran approximations of internal delays are not provided yet.
+systems are refused, unless ``thiran_order`` asks for the approximation MATLAB makes (the delayed signals taken as
+held, each delay as whole periods times a Thiran all-pass filter for the fraction).
 
 Examples
 --------
@@ -23,6 +24,8 @@ DiscreteLTI(1 input ['u[0]'] -> 1 output ['y[0]'], 4 states, period 0.1 s)
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass
 from typing import Any
 
@@ -31,9 +34,10 @@ import numpy as np
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.hold import hold_matrices, split_delay
 from ..models.interop import require_control
+from .algebra import blockdiag, close_parts
 from .lti import DelayLTI, SystemResponse, as_frequencies
 
-__all__ = ["DiscreteLTI", "c2d"]
+__all__ = ["DiscreteLTI", "c2d", "thiran"]
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -71,16 +75,23 @@ class DiscreteLTI:
                 f"{list(self.outputs)}, {n} state{'s' * (n != 1)}, period {self.period:g} s)")
 
 
-def c2d(sys: DelayLTI, period: float) -> DiscreteLTI:
-    """The exact zero-order-hold discretisation of a system whose delays act on its inputs.
+def c2d(sys: DelayLTI, period: float, *, thiran_order: int | None = None) -> DiscreteLTI:
+    """The exact zero-order-hold discretisation of a system whose delays act on its inputs (or, with
+    ``thiran_order``, an approximate one of any retarded or neutral system).
 
     Parameters
     ----------
     sys : DelayLTI
-        Every delay channel must read the inputs only (``C2 = 0``, ``D22 = 0``), as in every transfer matrix made
-        by :func:`delaykit.tf`.
+        Without ``thiran_order``, every delay channel must read the inputs only (``C2 = 0``, ``D22 = 0``), as in
+        every transfer matrix made by :func:`delaykit.tf`.
     period : float
         The sampling period ``h`` (s), positive.
+    thiran_order : int, optional
+        Approximate instead, as MATLAB's ``c2d`` does for internal delays: the delay-free part is sampled behind
+        a zero-order hold with the delayed signals taken as held too, and each delay of ``D = tau / h`` periods
+        becomes ``z^-k`` times a Thiran all-pass filter of this order (maximally flat group delay, exactly ``D`` at
+        ``w = 0``; :func:`thiran`).  The error shrinks with the period (first order in ``h``: the delayed
+        signals are not piecewise constant).
 
     Returns
     -------
@@ -117,12 +128,14 @@ def c2d(sys: DelayLTI, period: float) -> DiscreteLTI:
     if sys.saturations:
         raise InvalidValueError(f"the channels {list(sys.saturations)} saturate: c2d samples linear systems only; "
                                 "discretise sys.without_limits() for the small-signal system")
+    if thiran_order is not None:
+        return _thiran_c2d(sys, h, thiran_order)
     internal = [j for j in range(sys.ndelays) if sys.C2[j].any() or sys.D22[j].any()]
     if internal:
         taus = [sys.delays[j] for j in internal]
         raise InvalidValueError(f"the delay channels {internal} (delays {taus} s) read the states: a delay inside a "
-                                "loop has no finite exact zero-order-hold discretisation; discretise the open-loop "
-                                "blocks and close the loop in discrete time")
+                                "loop has no finite exact zero-order-hold discretisation; give thiran_order=N for an "
+                                "approximation, or discretise the open-loop blocks and close the loop in discrete time")
     n, nu, ny = sys.nstates, sys.ninputs, sys.noutputs
     splits = [split_delay(t, h) for t in sys.delays]
     M = max([m + (1 if f > 0 else 0) for m, f in splits], default=0)
@@ -169,3 +182,96 @@ def c2d(sys: DelayLTI, period: float) -> DiscreteLTI:
         mat.setflags(write=False)
     return DiscreteLTI(Ad, Bd, Cd, Dd, h, sys.inputs, sys.outputs)
 
+
+
+def thiran(D: float, order: int) -> tuple[np.ndarray, np.ndarray]:
+    """The Thiran all-pass filter of ``order`` for a delay of ``D`` periods, ``(num, den)`` in powers of ``z``.
+
+    ``a_k = (-1)^k C(N, k) prod_{i=0}^{N} (D - N + i) / (D - N + k + i)``; the filter is
+    ``z^-N a(1/z) / a(z)`` normalised, stable for ``D > N - 1``, with a group delay of exactly ``D`` at ``w = 0``.
+
+    References
+    ----------
+    .. [1] J.-P. Thiran, "Recursive digital filters with maximally flat group delay", *IEEE Transactions on
+       Circuit Theory* 18(6), 659-664, 1971.
+
+    Examples
+    --------
+    >>> num, den = thiran(1.5, 1)      # a_1 = -(D - 1)/(D + 1) = -0.2
+    >>> num.round(12).tolist(), den.round(12).tolist()
+    ([-0.2, 1.0], [1.0, -0.2])
+    """
+    N = int(order)
+    if N < 0 or not D > N - 1:
+        raise InvalidValueError(f"a Thiran filter of order {N} needs a delay of more than {N - 1} periods, got {D:g}")
+    a = np.array([1.0] + [(-1) ** k * math.comb(N, k) * math.prod((D - N + i) / (D - N + k + i)
+                                                                  for i in range(N + 1)) for k in range(1, N + 1)])
+    return a[::-1].copy(), a.copy()
+
+
+def _filter(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, ...]:
+    """A proper rational ``num/den`` in ``z`` realised in controllable canonical form: ``(A, B, C, D)``."""
+    from ..models.transfer import TransferFunction
+
+    A, B, C, D = TransferFunction(num, den).state_space()
+    n = A.shape[0]
+    return A, B.reshape(n, 1), C.reshape(1, n), np.array([[D]])
+
+
+def _shift(k: int) -> tuple[np.ndarray, ...]:
+    """``z^-k`` as a shift register of ``k`` states."""
+    A = np.eye(k, k, -1)
+    B = np.zeros((k, 1))
+    C = np.zeros((1, k))
+    if k:
+        B[0, 0], C[0, k - 1] = 1.0, 1.0
+    return A, B, C, np.array([[0.0 if k else 1.0]])
+
+
+def _series(p: tuple[np.ndarray, ...], q: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+    """SISO ``q`` after ``p`` (state-space, discrete or continuous alike)."""
+    A1, B1, C1, D1 = p
+    A2, B2, C2, D2 = q
+    A = np.block([[A1, np.zeros((A1.shape[0], A2.shape[0]))], [B2 @ C1, A2]])
+    return A, np.vstack([B1, B2 @ D1]), np.hstack([D2 @ C1, C2]), D2 @ D1
+
+
+def _thiran_c2d(sys: DelayLTI, h: float, order: Any) -> DiscreteLTI:
+    if isinstance(order, bool) or not isinstance(order, numbers.Integral) or not 0 <= order <= 10:
+        raise InvalidValueError(f"thiran_order must be an integer from 0 to 10, got {order!r}")
+    n, nu, ny, m = sys.nstates, sys.ninputs, sys.noutputs, sys.ndelays
+    # the delay-free part sampled with u and w held: inputs [u; w], outputs [y; z]
+    Phi, Gam = hold_matrices(sys.A, np.hstack([sys.B1, sys.B2]), h) if n else (np.zeros((0, 0)),
+                                                                                  np.zeros((0, nu + m)))
+    P = (Phi, Gam, np.zeros((n, 0)), np.vstack([sys.C1, sys.C2]), np.zeros((0, n)),
+         np.block([[sys.D11, sys.D12], [sys.D21, sys.D22]]), np.zeros((ny + m, 0)), np.zeros((0, nu + m)),
+         np.zeros((0, 0)))
+    filters = []
+    for tau in sys.delays:
+        D = tau / h
+        N = min(int(order), max(int(math.floor(D + 0.5)), 0))  # an order the delay supports (D > N - 1)
+        k = max(int(math.floor(D - N + 0.5)), 0) if N else int(round(D))
+        f = _shift(k)
+        if N:
+            f = _series(f, _filter(*thiran(D - k, N)))
+        filters.append(f)
+    Fa = blockdiag(*(f[0] for f in filters)) if filters else np.zeros((0, 0))
+    Fb = blockdiag(*(f[1] for f in filters)) if filters else np.zeros((0, 0))
+    Fc = blockdiag(*(f[2] for f in filters)) if filters else np.zeros((0, 0))
+    Fd = blockdiag(*(f[3] for f in filters)) if filters else np.zeros((0, 0))
+    nf = Fa.shape[0]
+    # both side by side: inputs [u; w; z_in], outputs [y; z; w_out]; w = w_out, z_in = z
+    parts = (blockdiag(P[0], Fa), blockdiag(P[1], Fb), np.zeros((n + nf, 0)), blockdiag(P[3], Fc),
+             np.zeros((0, n + nf)), blockdiag(P[5], Fd), np.zeros((ny + 2 * m, 0)), np.zeros((0, nu + 2 * m)),
+             np.zeros((0, 0)))
+    F = np.zeros((nu + 2 * m, ny + 2 * m))
+    F[nu:nu + m, ny + m:] = np.eye(m)
+    F[nu + m:, ny:ny + m] = np.eye(m)
+    G = np.zeros((nu + 2 * m, nu))
+    G[:nu] = np.eye(nu)
+    H = np.zeros((ny, ny + 2 * m))
+    H[:, :ny] = np.eye(ny)
+    A, B, _, C, _, Dm, *_ = close_parts(parts, F, G, H, np.zeros((ny, nu)), "the sampled delays")
+    for mat in (A, B, C, Dm):
+        mat.setflags(write=False)
+    return DiscreteLTI(A, B, C, Dm, h, sys.inputs, sys.outputs)
