@@ -176,8 +176,8 @@ def tf(spec: Any, *, inputs: Any = None, outputs: Any = None, name: str | None =
         One of: text with ``exp(-T*s)`` factors (``"12.8*exp(-s)/(16.7*s+1)"``, the grammar of
         :meth:`~delaykit.models.TransferFunction.parse_with_delay`), where delayed terms may also be added and
         divided (``"1/(1 + exp(-s)/(s+1))"``: internal delays, combined by the algebra); a pair ``(num, den)``
-        or a triple ``(num, den, delay)``; a number; a :class:`~delaykit.models.TransferFunction`; a list of rows of these
-        (a transfer matrix); a python-control ``TransferFunction`` or ``StateSpace`` (MIMO too); a
+        or a triple ``(num, den, delay)``; a number; a :class:`~delaykit.models.TransferFunction`; a list of rows
+        of these (a transfer matrix); a python-control ``TransferFunction`` or ``StateSpace`` (MIMO too); a
         :class:`DelayLTI` (renamed).
     inputs, outputs : list of str or str, optional
         Signal names (python-control's ``u[i]`` and ``y[i]`` by default).
