@@ -173,6 +173,9 @@ class SystemResponse:
     SystemResponse(1 output x 1 input at 2 frequencies, 0 to 1 rad/s)
     >>> r.magnitude[0, 0].round(4).tolist()
     [1.0, 0.7071]
+    >>> mag, phase, omega = r          # unpacks as python-control's
+    >>> phase[0, 0, 1].round(6)        # -pi/4 - 1 rad at w = 1
+    np.float64(-1.785398)
     """
 
     omega: np.ndarray
@@ -189,6 +192,9 @@ class SystemResponse:
     def phase(self) -> np.ndarray:
         """Phase (rad), unwrapped along the frequencies, same shape as :attr:`response`."""
         return np.unwrap(np.angle(self.response), axis=-1)
+
+    def __iter__(self):  # mag, phase, omega = sys.frequency_response(w), as python-control's
+        return iter((self.magnitude, self.phase, self.omega))
 
     def singular_values(self) -> np.ndarray:
         """Singular values of ``H(j omega)``, largest first, shaped ``(min(outputs, inputs), len(omega))``."""
