@@ -174,8 +174,8 @@ class SystemResponse:
     >>> r.magnitude[0, 0].round(4).tolist()
     [1.0, 0.7071]
     >>> mag, phase, omega = r          # unpacks as python-control's
-    >>> phase[0, 0, 1].round(6)        # -pi/4 - 1 rad at w = 1
-    np.float64(-1.785398)
+    >>> round(float(phase[0, 0, 1]), 6)        # -pi/4 - 1 rad at w = 1
+    -1.785398
     """
 
     omega: np.ndarray
