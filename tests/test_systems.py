@@ -18,6 +18,7 @@ import delaykit as dk
 from delaykit import (AltitudeLoop, Controller, DelayLTI, InvalidTypeError, InvalidValueError, Loop, append, delay,
                       feedback, from_loop, interconnect, ss, summing_junction, tf)
 from delaykit.systems import gain, to_control
+from delaykit.spectrum import find_roots
 
 control = pytest.importorskip("control")
 
@@ -242,8 +243,8 @@ def test_altitude_loop_as_system_matches_its_frequency_response():
     # the PV loop: its characteristic roots are the loop's own (AltitudeLoop.characteristic, written by hand)
     pv = AltitudeLoop(kp=2.0, kv=0.3, delay=0.37, vmax=None)
     region = (-10, 2, 0, 60)
-    mine = dk.spectrum.find_roots(from_loop(pv).characteristic(), region).roots
-    theirs = dk.spectrum.find_roots(pv.characteristic(), region).roots
+    mine = find_roots(from_loop(pv).characteristic(), region).roots
+    theirs = find_roots(pv.characteristic(), region).roots
     assert mine.size == theirs.size > 0 and np.allclose(np.sort_complex(mine), np.sort_complex(theirs), atol=1e-9)
 
 
@@ -539,3 +540,17 @@ def test_c2d_thiran_is_exact_for_whole_periods_and_converges_for_internal_delays
     assert errs[1] < errs[0] / 3 and errs[1] < 0.01
     with pytest.raises(InvalidValueError, match="thiran_order"):
         dk.c2d(T, 0.1, thiran_order=-1)
+
+
+@pytest.mark.parametrize("loop, region", [
+    (AltitudeLoop(kp=2.0, kv=0.3, delay=0.37, velocity="filtered", vmax=None), (-10, 2, 0, 60)),
+    (Loop("1/(s*(0.05*s+1))", Controller.pid(2.0, 0.5, 0.1, 0.02), delay=0.3, output_delay=0.1), (-10, 2, 0, 60)),
+    (Loop("0.62/(150*s+1)", Controller.pi(2.0, 0.02), delay=8.0, output_delay=4.0), (-0.5, 0.1, 0, 3)),
+], ids=["filtered-pv", "pid", "pi"])
+def test_loop_as_system_has_the_loops_characteristic_roots(loop, region):
+    # reference: the loop's own characteristic quasi-polynomial (Loop.characteristic, from the controller's
+    # feedback polynomials), its roots by the same certified finder
+    mine = find_roots(from_loop(loop).characteristic(), region)
+    theirs = find_roots(loop.characteristic(), region)
+    assert mine.certified and theirs.certified and mine.roots.size == theirs.roots.size > 0
+    assert np.allclose(np.sort_complex(mine.roots), np.sort_complex(theirs.roots), atol=1e-9)

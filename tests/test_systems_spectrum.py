@@ -19,6 +19,7 @@ from scipy.special import lambertw
 import delaykit as dk
 from delaykit import (Controller, InvalidValueError, Loop, delay, feedback, hinfnorm, is_stable, loop_margins,
                       nyquist_count, poles, tf)
+from delaykit.spectrum import find_roots, rightmost, root_bound
 
 control = pytest.importorskip("control")
 
@@ -97,8 +98,8 @@ def test_wood_berry_blt_loop_is_stable_and_five_times_the_gains_is_not():
     assert not is_stable(T3)
     # the Nyquist count equals the number of closed-loop roots right of the axis (certified count)
     q = T3.characteristic()
-    R = dk.spectrum.root_bound(q, 0.0)
-    sp = dk.spectrum.find_roots(q, (nq.sigma, R + 1, -(R + 1), R + 1))
+    R = root_bound(q, 0.0)
+    sp = find_roots(q, (nq.sigma, R + 1, -(R + 1), R + 1))
     assert sp.certified and nq.closed_loop_unstable == int(sp.multiplicities.sum()) > 0
 
 
@@ -216,12 +217,12 @@ def test_nyquist_count_agrees_with_the_certified_roots(L):
     # closed loop's characteristic quasi-polynomial
     T = feedback(L, 1)
     q = T.characteristic()
-    rm = dk.spectrum.rightmost(q)
+    rm = rightmost(q)
     assume(rm.certified and abs(rm.abscissa) > 1e-3)  # a root on the axis is a matter of tolerance
     nq = nyquist_count(L)
     assert nq.stable is rm.stable
-    R = dk.spectrum.root_bound(q, -1e-3)
-    sp = dk.spectrum.find_roots(q, (-1e-3, 2 * R + 1, -(R + 1), R + 1))
+    R = root_bound(q, -1e-3)
+    sp = find_roots(q, (-1e-3, 2 * R + 1, -(R + 1), R + 1))
     # a mode hidden from L (say two integrators where one output sees their sum) stays a root at 0 within rounding
     assume(sp.certified and not np.any((np.abs(sp.roots.real) > 1e-10) & (np.abs(sp.roots.real) < 1e-4)))
     assert nq.closed_loop_unstable == int(sp.multiplicities[sp.roots.real > 1e-4].sum())
