@@ -17,8 +17,8 @@ from hypothesis import strategies as st
 import delaykit as dk
 from delaykit import (AltitudeLoop, Controller, DelayLTI, InvalidTypeError, InvalidValueError, Loop, append, delay,
                       feedback, from_loop, interconnect, ss, summing_junction, tf)
-from delaykit.systems import gain, to_control
 from delaykit.spectrum import find_roots
+from delaykit.systems import gain, to_control
 
 control = pytest.importorskip("control")
 
