@@ -157,6 +157,19 @@ def test_loop_margins_of_a_siso_loop_match_the_loop_margins():
     assert abs(m.gain_crossover - ref.crossover) <= 1e-9 * ref.crossover
 
 
+def test_gain_margin_is_where_the_certified_stability_flips():
+    # an altitude P loop around a PI speed loop with two delays: the closed loop is stable just below
+    # Kp * gain_margin and unstable just above (two independent methods: the Nyquist curve and the roots)
+    blocks = [tf("1/(0.3*s+1)", inputs="a", outputs="v"), tf("2*(1 + 1/(0.5*s))", inputs="ev", outputs="a_req"),
+              delay(0.05, inputs="a_req", outputs="a"), tf("1/s", inputs="v", outputs="z"),
+              delay(0.1, inputs="z", outputs="zm"), dk.summing_junction(["v_ref", "-v"], "ev")]
+    inner = dk.interconnect(blocks, inputs=["v_ref"], outputs=["zm"])
+    m = loop_margins(1.2 * inner)
+    k = 1.2 * m.gain_margin
+    assert is_stable(feedback((k * (1 - 1e-4)) * inner, 1))
+    assert not is_stable(feedback((k * (1 + 1e-4)) * inner, 1))
+
+
 def test_loop_at_a_time_margins_of_wood_berry():
     # loop 1 broken, loop 2 closed: L1 = g11 k1 - g12 k1 g21 k2 / (1 + g22 k2) by hand, at the crossovers found
     m = loop_margins(tf(WB) * tf(BLT), channel=0)
