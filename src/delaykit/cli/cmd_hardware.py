@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Optional
 
 import typer
 
 from ..errors import InvalidValueError, check_real
-from .common import confirm_real, err, fmt_ci, friendly, out, parse_schedule, read_delay_trace
+from .common import (check_output, confirm_real, err, fmt_ci, friendly, out, parse_schedule, print_error, print_json,
+                     read_delay_trace)
 
 __all__ = ["emulate", "fly"]
 
@@ -83,7 +83,7 @@ def emulate(
     finally:
         for sig, handler in old.items():
             signal.signal(sig, signal.SIG_DFL if handler is None else handler)
-    print(json.dumps(summary))
+    print_json(summary, indent=None)
 
 
 def _parse_bursts(specs: list[str], rate: float) -> tuple[tuple[float, float, float], ...]:
@@ -151,6 +151,7 @@ def fly(
     from ..hardware.flight import fly as run
     from ..models.compensators import COMPENSATOR_KINDS
 
+    check_output("--log", log)
     kind = controller.lower().replace("_", "-")
     law = None
     if kind in COMPENSATOR_KINDS:
@@ -190,7 +191,7 @@ def fly(
     res = run(plan, log, host=host, at_port=at_port, navdata_port=navdata_port, confirm=confirm_real(host, yes),
               status=lambda m: err.print(m, highlight=False), monitor=mon)
     if as_json:
-        print(json.dumps(res.to_dict(), indent=2))
+        print_json(res.to_dict())
         if not res.completed:  # a flight that ended early (or never took off) is a failure: status 1
             err.print(f"flight did not complete: {res.reason}", highlight=False)
             raise typer.Exit(1)

@@ -110,7 +110,10 @@ class LambertRoots:
     def rightmost(self) -> Any:
         """The root of largest real part over the computed branches (with Im >= 0 on a tie)."""
         r = self.roots
-        score = r.real + 1e-12 * np.sign(r.imag)
+        with np.errstate(invalid="ignore"):
+            score = r.real + 1e-12 * np.sign(r.imag)
+        # a branch without a root (W_k(0) = -inf + nan j for k != 0, where a1 = 0) is never the rightmost
+        score = np.where(np.isnan(score), -np.inf, score)
         i = np.argmax(score, axis=0)
         out = np.take_along_axis(r, i[None, ...], axis=0)[0]
         return complex(out) if out.ndim == 0 else out
