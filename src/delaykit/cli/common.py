@@ -252,7 +252,8 @@ app = _App(
 
 
 class _NoStatus:
-    """What :meth:`_LazyConsole.status` gives where rich would draw nothing: a context that does nothing."""
+    """What :meth:`_LazyConsole.status` and :func:`progress_bar` give where rich would draw nothing: a context that
+    does nothing."""
 
     def __enter__(self) -> "_NoStatus":
         return self
@@ -261,7 +262,14 @@ class _NoStatus:
         return None
 
     def update(self, *args: Any, **kwargs: Any) -> None:
-        """Ignore a new status message."""
+        """Ignore a new status message (or a task's progress)."""
+
+    def add_task(self, *args: Any, **kwargs: Any) -> int:
+        """A task of a progress bar that is not drawn."""
+        return 0
+
+    def advance(self, *args: Any, **kwargs: Any) -> None:
+        """Ignore a task's progress."""
 
     def start(self) -> None:
         """Nothing to start."""
@@ -480,7 +488,10 @@ def print_json(data: Any, indent: Optional[int] = 2, default: Optional[Callable[
 
 def progress_bar(*, spinner: bool = False) -> Any:
     """A transient rich progress bar on stderr whose task descriptions print as written (never as markup): a bar
-    with the share done and the time left, or with ``spinner`` a spinner and the time elapsed."""
+    with the share done and the time left, or with ``spinner`` a spinner and the time elapsed.  Where rich would
+    draw nothing (stderr not a terminal), one that does nothing: rich's would still leave an empty line behind."""
+    if not err._may_draw():
+        return _NoStatus()
     from rich.progress import (BarColumn, Progress, SpinnerColumn, TaskProgressColumn, TextColumn,
                                TimeElapsedColumn, TimeRemainingColumn)
 

@@ -195,7 +195,14 @@ def lambert_roots(a0: Any, a1: Any, delay: Any, branches: Iterable[int] | int = 
         raise InvalidValueError(f"delay must be at least 0, got {td.min():g}")
     a0b, a1b, tdb = np.broadcast_arrays(a0a, a1a, td)
     shift = bool(np.any(a0a))  # a0 = 0 (the P loop): no exponential factor, no shift of the roots
-    x = tdb * a1b * np.exp(-a0b * tdb) if shift else tdb * a1b
+    with np.errstate(over="ignore", invalid="ignore"):
+        x = tdb * a1b * np.exp(-a0b * tdb) if shift else tdb * a1b
+    if shift:
+        x = np.where(a1b == 0, 0.0, x)  # (a1 = 0 gives 0 whatever the exponential: not inf * 0)
+    if not np.all(np.isfinite(x)):  # beyond floating point: exp(-a0 Td) or the product overflows
+        bad = np.flatnonzero(~np.isfinite(np.broadcast_to(x, x.shape)).ravel())[0]
+        raise InvalidValueError(f"Td a1 exp(-a0 Td) overflows for a0 = {a0b.ravel()[bad]}, a1 = {a1b.ravel()[bad]}, "
+                                f"Td = {tdb.ravel()[bad]} (the exponent -a0 Td may be at most about 709)")
     pos = tdb > 0
     every = bool(np.all(pos))
     safe_td = tdb if every else np.where(pos, tdb, 1.0)
