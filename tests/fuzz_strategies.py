@@ -104,7 +104,8 @@ KNOWN_ISSUES: list[tuple[str, str, Any]] = [
     ("huge gains: the loop's time scale far below its delay (the kernel's tiny-delay case)", "kernel",
      lambda cmd, opt, v: opt in ("--kp", "--kv", "--ki", "--kd", "--a0", "--a1", "--filter-wn", "--step", "--z0",
                                  "--disturbance", "--overshoot", "--peak-time", "--derivative-filter",
-                                 "--tracking-time", "--filter-zeta", "--closed-loop-time", "--gain")
+                                 "--tracking-time", "--filter-zeta", "--closed-loop-time", "--gain", "--u-before",
+                                 "--u0")
      and _big(v, 1e4) and not _big(v, math.inf)),
 ]
 

@@ -22,6 +22,11 @@ def _design_compensator(kind: str, opts: dict[str, Any], uncertainty: float, as_
     from ..design.compensators import design_compensator, robustness_map
     from .loopopts import build_loop
 
+    from ..models.compensators import COMPENSATOR_KINDS
+
+    if kind.lower().replace("_", "-") not in COMPENSATOR_KINDS:
+        raise InvalidValueError(f"--compensator must be one of {' | '.join(COMPENSATOR_KINDS)}, got {kind!r}")
+    kind = kind.lower().replace("_", "-")
     opts = {k: v for k, v in opts.items() if k not in ("controller", "model_delay")}
     if opts.get("delay") is None and opts.get("loop_file") is None:
         raise InvalidValueError("give --delay (the model delay of the design)")

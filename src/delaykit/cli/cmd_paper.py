@@ -8,7 +8,7 @@ from typing import Optional
 import typer
 
 from ..errors import InvalidValueError, check_real
-from .common import check_output, confirm_real, err, fmt_ci, friendly, out, print_json, progress_bar
+from .common import check_output, confirm_real, err, fmt_ci, friendly, out, print_json, progress_bar, warn
 
 __all__ = ["demo", "report", "reproduce"]
 
@@ -117,7 +117,7 @@ def demo(
                   f"{truth}); PV flight predicted within {1e3 * pv['identified_rms']:.1f} mm RMS (the paper model: "
                   f"{1e3 * pv['paper_rms']:.1f} mm).", highlight=False)
     elif ident:
-        out.print(f"[yellow]The plant was not identified:[/] {ident.get('error')}", highlight=False)
+        warn(f"the plant was not identified: {ident.get('error')}")
     out.print(f"PV design: Kp = {rep.pv_kp:g}, Kv = {rep.kv:g} ({rep.kv_source}). Mean settling time: P "
               f"{settling(rep.p_metrics)}, PV {settling(rep.pv_metrics)}.", highlight=False)
     if rep.comp_metrics:
