@@ -188,6 +188,7 @@ def test_cli_reproduce_progress_takes_its_total_from_the_reproduction(tmp_path, 
 
     seen = []
     update = Progress.update
+    monkeypatch.setenv("FORCE_COLOR", "1")  # a bar is drawn (off a terminal, the command draws none)
     monkeypatch.setattr(R, "reproduce", fake)
     monkeypatch.setattr(Progress, "update", lambda self, task, **kw: (seen.append(kw), update(self, task, **kw))[1])
     res = CliRunner().invoke(app, ["reproduce", "--out", str(tmp_path), "--json"])

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any, Optional
 
 import typer
 
 from ..errors import InvalidValueError
-from .common import err, fmt, friendly, out, parse_delays
+from .common import check_output, err, fmt, friendly, out, parse_delays, print_json, progress_bar
 from .loopopts import with_loop
 
 __all__ = ["design"]
@@ -23,6 +22,11 @@ def _design_compensator(kind: str, opts: dict[str, Any], uncertainty: float, as_
     from ..design.compensators import design_compensator, robustness_map
     from .loopopts import build_loop
 
+    from ..models.compensators import COMPENSATOR_KINDS
+
+    if kind.lower().replace("_", "-") not in COMPENSATOR_KINDS:
+        raise InvalidValueError(f"--compensator must be one of {' | '.join(COMPENSATOR_KINDS)}, got {kind!r}")
+    kind = kind.lower().replace("_", "-")
     opts = {k: v for k, v in opts.items() if k not in ("controller", "model_delay")}
     if opts.get("delay") is None and opts.get("loop_file") is None:
         raise InvalidValueError("give --delay (the model delay of the design)")
@@ -31,17 +35,15 @@ def _design_compensator(kind: str, opts: dict[str, Any], uncertainty: float, as_
         d = design_compensator(kind, loop.plant, loop.controller.model_delay, umin=loop.umin, umax=loop.umax,
                                delay_uncertainty=uncertainty, closed_loop_time=opts.get("closed_loop_time"))
     if plot is not None:
-        from rich.progress import Progress
-
         from ..plotting.compensation import plot_robustness_map
 
         dr, gr = np.linspace(0.25, 2.5, 46), np.linspace(0.25, 2.5, 31)
-        with Progress(console=err.console, transient=True) as bar:
+        with progress_bar() as bar:
             task = bar.add_task("robustness map", total=dr.size * gr.size)
             rm = robustness_map(d.compensator, dr, gr, progress=lambda: bar.advance(task))
         plot_robustness_map(rm, path=plot)
     if as_json:
-        print(json.dumps(d.to_dict(), indent=2))
+        print_json(d.to_dict())
         return
     out.print(repr(d.compensator), highlight=False)
     from rich.table import Table
@@ -82,11 +84,10 @@ def design(
     feedback is designed for the plant and delay instead: its parameters, the step metrics of 0.2 and 1 steps,
     the load-disturbance recovery and the range of true-to-model delay ratios it survives.
     """
-    from rich.progress import Progress
-
     from ..design import tuning as D
     from .loopopts import build_loop
 
+    check_output("--plot", plot, "figure")
     if compensator is not None:
         _design_compensator(compensator, dict(loop_options), delay_uncertainty, as_json, plot)
         return
@@ -107,7 +108,7 @@ def design(
             raise InvalidValueError(f"--criterion {criterion} is not available with --delays (the robust search "
                                     "ranks by the worst case over the delays): use settling or abscissa")
         dl = [d + extra for d in D.parse_range(delays_range, "--delays")]
-        with Progress(console=err.console, transient=True) as bar:
+        with progress_bar() as bar:
             task = bar.add_task("gain search", total=None)
             gm = D.gain_search(base, dl, kps, kvs, criterion=criterion, step=step, scheduler=scheduler,
                                progress=lambda k, n: bar.update(task, completed=k, total=n))
@@ -118,12 +119,12 @@ def design(
             plot_stability_map(StabilityMap("kp", "kv", gm.kp, gm.kv, gm.abscissa), plot,
                                title=f"worst-case spectral abscissa over delays {min(dl):g} to {max(dl):g} s")
         if as_json:
-            print(json.dumps(gm.to_dict(), indent=2))
+            print_json(gm.to_dict())
             return
         out.print(repr(gm), highlight=False)
         out.print(f"Best: {gm.best} ({gm.reason})." if gm.best else f"No candidate: {gm.reason}.", highlight=False)
         return
-    with Progress(console=err.console, transient=True) as bar:
+    with progress_bar() as bar:
         task = bar.add_task("evaluating candidates", total=None)
         d = D.design_sweep(base, kps, kvs, step=step, criterion=criterion, overshoot_limit=overshoot_limit,
                            progress=lambda k, n: bar.update(task, completed=k, total=n))
@@ -135,8 +136,8 @@ def design(
                        labels=[f"Kp={r.kp:g}, Kv={r.kv:g}" for r in d.rows], t_max=8.0)
     if as_json:
         rows = [r.to_dict() for r in d.rows]
-        print(json.dumps({"rows": rows, "best": None if d.best is None else d.best.to_dict(),
-                          "criterion": d.criterion, "reason": d.reason}, indent=2))
+        print_json({"rows": rows, "best": None if d.best is None else d.best.to_dict(),
+                    "criterion": d.criterion, "reason": d.reason})
         return
     from rich.table import Table
 

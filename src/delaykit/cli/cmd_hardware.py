@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Optional
 
 import typer
 
 from ..errors import InvalidValueError, check_real
-from .common import confirm_real, err, fmt_ci, friendly, out, parse_schedule, read_delay_trace
+from .common import (check_output, confirm_real, err, fmt_ci, friendly, out, parse_schedule, print_error, print_json,
+                     read_delay_trace)
 
 __all__ = ["emulate", "fly"]
 
@@ -40,7 +40,7 @@ def emulate(
     burst: Optional[list[str]] = typer.Option(None, "--burst", help="The navdata rate falls (a Wi-Fi scan): START:DURATION[:RATE] (s since start, s, Hz below --rate; RATE 0 by default: no navdata). Repeat it, or separate several by commas."),
     duration: float = typer.Option(0.0, "--duration", help="Run this long, s (0 = until Ctrl-C)."),
 ) -> None:
-    """Run the built-in AR.Drone 2.0 emulator (loopback by default) until Ctrl-C, SIGTERM or --duration; then
+    """Run the built-in AR.Drone 2.0 emulator (loopback by default) until Ctrl-C, SIGTERM, SIGHUP or --duration; then
     print its summary (ports, counts, rejections) as JSON."""
     import signal
     import threading
@@ -61,13 +61,14 @@ def emulate(
                          delay_schedule=None if delay_schedule is None else parse_schedule(delay_schedule),
                          delay_trace=None if delay_trace is None else read_delay_trace(delay_trace),
                          bursts=_parse_bursts(burst or [], rate))
-    # Ctrl-C (SIGINT) and SIGTERM end the run alike: the same summary, exit status 0.  Their handler only sets a
-    # flag that the main loop polls: it takes no lock (setting a threading.Event from a handler can deadlock, as the
+    # Ctrl-C (SIGINT), SIGTERM and SIGHUP end the run alike: the same summary, exit status 0.  Their handler only
+    # sets a flag that the main loop polls: it takes no lock (setting a threading.Event from a handler can deadlock, as the
     # handler may run while the main thread holds that Event's own lock) and raises nothing mid-shutdown.
     stop_signal: list[int] = []
     main_thread = threading.current_thread() is threading.main_thread()  # (signal handlers only go there)
     old = ({sig: signal.signal(sig, lambda signum, _frame: stop_signal.append(signum))
-            for sig in (signal.SIGINT, signal.SIGTERM)} if main_thread else {})
+            for sig in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", signal.SIGTERM))}
+           if main_thread else {})
     try:
         with DroneEmulator(cfg) as emu:
             err.print(f"emulated drone on {host}: AT {emu.ports['at']}, navdata {emu.ports['navdata']}, video "
@@ -83,7 +84,7 @@ def emulate(
     finally:
         for sig, handler in old.items():
             signal.signal(sig, signal.SIG_DFL if handler is None else handler)
-    print(json.dumps(summary))
+    print_json(summary, indent=None)
 
 
 def _parse_bursts(specs: list[str], rate: float) -> tuple[tuple[float, float, float], ...]:
@@ -110,6 +111,25 @@ def _parse_bursts(specs: list[str], rate: float) -> tuple[tuple[float, float, fl
             raise InvalidValueError(f"--burst {item!r} is not START:DURATION[:RATE] (s since start, s, Hz), e.g. 5:1 "
                                     "(no navdata for 1 s from 5 s) or 5:1:2") from None
     return check_bursts(bursts, rate, labels=[f"--burst {x!r}" for x in items])
+
+
+def _parse_steps(spec: str) -> tuple[float, ...]:
+    """``--steps``: reference steps in metres separated by commas; an error names the item.
+
+    Examples
+    --------
+    >>> _parse_steps("1, -1,0.5")
+    (1.0, -1.0, 0.5)
+    """
+    items = [x.strip() for x in spec.split(",")]
+    steps = []
+    for k, item in enumerate(items):
+        try:
+            steps.append(float(item))
+        except ValueError:
+            raise InvalidValueError(f"--steps item {k + 1} {item!r} of {spec!r} is not a number: give steps in "
+                                    "metres separated by commas, e.g. 1,-1,1") from None
+    return tuple(steps)
 
 
 @friendly
@@ -147,10 +167,11 @@ def fly(
 
     Exits with status 1 (saying why) if the flight did not complete: a navdata gap, an altitude out of
     bounds, Ctrl-C, or a declined take-off."""
-    from ..hardware.flight import FlightPlan
+    from ..hardware.flight import FlightPlan, land_on_signals
     from ..hardware.flight import fly as run
     from ..models.compensators import COMPENSATOR_KINDS
 
+    check_output("--log", log)
     kind = controller.lower().replace("_", "-")
     law = None
     if kind in COMPENSATOR_KINDS:
@@ -176,7 +197,7 @@ def fly(
                                 f"{controller!r}")
     if not monitor and (design_range or schedule or design_delay is not None or est_lag):
         raise InvalidValueError("--design-range, --design-delay, --schedule and --estimate-lag need --monitor")
-    sts = tuple(float(x) for x in steps.split(",")) if steps else (step,)
+    sts = _parse_steps(steps) if steps is not None else (step,)
     plan = FlightPlan(kp=kp if kp is not None else 0.0, kv=kv, velocity=velocity, vmax=vmax, steps=sts,
                       step_duration=duration, hover_time=hover, controller=law)
     mon = None
@@ -187,12 +208,18 @@ def fly(
         rng = tuple(parse_range(design_range, "--design-range")) if design_range else None
         mon = DelayMonitor(plan.law(), design_delay=design_delay, design_range=rng, lag=est_lag, schedule=schedule,
                            delay_uncertainty=delay_uncertainty)
-    res = run(plan, log, host=host, at_port=at_port, navdata_port=navdata_port, confirm=confirm_real(host, yes),
-              status=lambda m: err.print(m, highlight=False), monitor=mon)
+    try:
+        with land_on_signals():  # SIGTERM and SIGHUP land the drone as Ctrl-C does, and the result says so
+            res = run(plan, log, host=host, at_port=at_port, navdata_port=navdata_port,
+                      confirm=confirm_real(host, yes), status=lambda m: err.print(m), monitor=mon)
+    except KeyboardInterrupt as exc:  # before the flight began: nothing was flown
+        print_error(f"interrupted ({getattr(exc, 'signal_name', 'Ctrl-C')}) before the flight started; nothing was "
+                    "flown")
+        raise typer.Exit(1) from None
     if as_json:
-        print(json.dumps(res.to_dict(), indent=2))
+        print_json(res.to_dict())
         if not res.completed:  # a flight that ended early (or never took off) is a failure: status 1
-            err.print(f"flight did not complete: {res.reason}", highlight=False)
+            print_error(f"flight did not complete: {res.reason}")
             raise typer.Exit(1)
         return
     out.print(f"{'Flight completed' if res.completed else 'Flight ended early: ' + res.reason}; "

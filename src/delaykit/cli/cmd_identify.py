@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any, Optional
 
 import typer
 
 from ..errors import InvalidValueError
-from .common import ci_list, err, fmt, fmt_ci, friendly, out, parse_delays, print_rms
+from .common import (check_output, ci_list, err, fmt, fmt_ci, friendly, out, parse_delays, print_json, print_rms,
+                     progress_bar, warn)
 from .loopopts import build_loop, with_loop
 
 __all__ = ["estimate", "identify", "predict"]
@@ -43,6 +43,7 @@ def estimate(
     from ..models.altitude import AltitudeLoop
     from ..simulate.metrics import step_metrics
 
+    check_output("--plot", plot, "figure")
     methods = ("trajectory", "overshoot", "lambert")
     if method not in methods:
         raise InvalidValueError(f"--method must be one of {', '.join(methods)}; got {method!r}")
@@ -62,14 +63,14 @@ def estimate(
         else:
             raise InvalidValueError("the trajectory method needs flight logs")
         if as_json:
-            print(json.dumps(est.to_dict(), indent=2))
+            print_json(est.to_dict())
             return
         out.print(repr(est), highlight=False)
         out.print("no interval" if est.ci is None else f"95 % interval: {fmt_ci(est.ci)}", highlight=False)
         if est.delay_imag is not None:
             out.print(f"complex delay: {est.delay:.4f} {est.delay_imag:+.4f}j s", highlight=False)
         for w in est.warnings:
-            out.print(f"[yellow]warning:[/] {w}", highlight=False)
+            warn(w)
         return
     kw = {"step_time": step_time} if step_time is not None else {}
     logs = [FlightLog.from_csv(f, skip_bad=skip_bad, **kw) for f in flights]
@@ -104,7 +105,7 @@ def estimate(
         fits = [(log.t, E.fitted_altitude(log, pooled, base, i)) for i, log in enumerate(logs)]
         plot_fit(logs, fits, plot, title=f"pooled delay {pooled.delay:.4f} s")
     if as_json:
-        print(json.dumps(result, indent=2))
+        print_json(result)
         return
     from rich.table import Table
 
@@ -123,7 +124,7 @@ def estimate(
     for r in rows:
         lines += [w if len(rows) == 1 else f"{Path(r['file']).name}: {w}" for w in r["warnings"] if w not in said]
     for w in lines:
-        out.print(f"[yellow]warning:[/] {w}", highlight=False)
+        warn(w)
 
 
 @friendly
@@ -158,6 +159,8 @@ def identify(
     from ..identify.iodata import read_experiment
     from .loopopts import build_loop
 
+    check_output("--plot", plot, "figure")
+    check_output("--save", save)
     given = {k: v for k, v in loop_options.items() if v is not None}
     loop = None
     if closed_loop:
@@ -175,10 +178,7 @@ def identify(
     drive = {"reference": reference} if closed_loop else {"input": input_col, "u_before": u_before}
     cols = [output] + ([rate] if rate else []) + ([command] if command else [])
     exps = [read_experiment(f, outputs=cols, time=time_col, resample=resample, **drive) for f in logs]
-    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
-
-    with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=err.console,
-                  transient=True) as bar:
+    with progress_bar(spinner=True) as bar:
         task = bar.add_task("identifying…", total=None)
         m = run_identify(exps, model=model, loop=loop, outputs=[output], rate=rate,
                          baseline=baseline, fresh_only=fresh_only, u0=u0, command=command,
@@ -190,7 +190,7 @@ def identify(
 
         plot_predictions([run_predict(m, e, u0=u0, command=command) for e in exps], path=plot, title=repr(m))
     if as_json:
-        print(json.dumps(m.to_dict(), indent=2))
+        print_json(m.to_dict())
         return
     from rich.table import Table
 
@@ -209,7 +209,7 @@ def identify(
         out.print(ct)
     print_rms("logs", [(d["file"], d["rms"], d["wander"]) for d in (g.to_dict() for g in m.logs)])
     for w in m.warnings:
-        out.print(f"[yellow]warning:[/] {w}", highlight=False)
+        warn(w)
     if save is not None:
         out.print(f"model written to {save}", highlight=False)
 
@@ -231,6 +231,7 @@ def predict(
     from ..identify.identification import predict as run_predict
     from ..identify.iodata import read_experiment
 
+    check_output("--plot", plot, "figure")
     m = load_model(model_file)
     if (u0 is not None or command is not None) and m.closed_loop is None:
         raise InvalidValueError("--u0 and --command are for a closed-loop model; this one is open loop")
@@ -245,6 +246,6 @@ def predict(
         plot_predictions(preds, path=plot, title=f"{m.model} predicting {len(preds)} log(s)")
     rows = [p.to_dict() for p in preds]
     if as_json:
-        print(json.dumps(rows[0] if len(rows) == 1 else {"logs": rows}, indent=2))
+        print_json(rows[0] if len(rows) == 1 else {"logs": rows})
         return
     print_rms(f"free-run prediction by {m!r}", [(r["file"], r["rms"], r["wander"][m.outputs[0]]) for r in rows])

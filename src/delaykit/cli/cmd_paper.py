@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Optional
 
 import typer
 
 from ..errors import InvalidValueError, check_real
-from .common import confirm_real, err, fmt_ci, friendly, out
+from .common import check_output, confirm_real, err, fmt_ci, friendly, out, print_json, progress_bar, warn
 
 __all__ = ["demo", "report", "reproduce"]
 
@@ -22,10 +21,11 @@ def report(
     """Regenerate only the paper's Table 1, with a figure, into --out (see `reproduce` for everything)."""
     from ..paper.report import table1_markdown, write_report
 
+    check_output("--out", out_dir, "folder")
     with err.status("writing the report…") as status:
         rep = write_report(out_dir, progress=lambda m: status.update(m))
     if as_json:
-        print(json.dumps(rep.to_dict(), indent=2))
+        print_json(rep.to_dict())
         return
     from rich.markdown import Markdown
 
@@ -40,16 +40,15 @@ def reproduce(
     as_json: bool = typer.Option(False, "--json", help="Print the verdicts as JSON."),
 ) -> None:
     """Regenerate the paper's tables and figures, with the paper's values beside delaykit's and a verdict each."""
-    from rich.progress import Progress
-
     from ..paper.reproduce import reproduce as run
 
-    with Progress(console=err.console, transient=True) as bar:
+    check_output("--out", out_dir, "folder")
+    with progress_bar() as bar:
         task = bar.add_task("reproducing the paper", total=None)  # the total comes with the first report
         rep = run(out_dir, progress=lambda name, done, total: bar.update(task, completed=done, total=total,
                                                                            description=name))
     if as_json:
-        print(json.dumps(rep.to_dict(), indent=2))
+        print_json(rep.to_dict())
         return
     from rich.table import Table
 
@@ -81,6 +80,7 @@ def demo(
     compensators, fly them, fly once more while the emulator's delay grows (the delay monitor's alarm), and report."""
     from ..paper.demo import run_demo
 
+    check_output("--out", out_dir, "folder")
     if p_steps < 1:
         raise InvalidValueError(f"--p-steps must be at least 1, got {p_steps}")
     if varying_steps < 0:
@@ -92,7 +92,7 @@ def demo(
                        identify_plant=identify_plant,
                        confirm=confirm_real(host, yes) if host else None, status=lambda m: st.update(m))
     if as_json:
-        print(json.dumps(rep.to_dict(), indent=2, default=str))
+        print_json(rep.to_dict(), default=str)
         return
     e = rep.estimate
     interval = "no interval" if e.ci is None else f"95 % {fmt_ci(e.ci)}"
@@ -117,7 +117,7 @@ def demo(
                   f"{truth}); PV flight predicted within {1e3 * pv['identified_rms']:.1f} mm RMS (the paper model: "
                   f"{1e3 * pv['paper_rms']:.1f} mm).", highlight=False)
     elif ident:
-        out.print(f"[yellow]The plant was not identified:[/] {ident.get('error')}", highlight=False)
+        warn(f"the plant was not identified: {ident.get('error')}")
     out.print(f"PV design: Kp = {rep.pv_kp:g}, Kv = {rep.kv:g} ({rep.kv_source}). Mean settling time: P "
               f"{settling(rep.p_metrics)}, PV {settling(rep.pv_metrics)}.", highlight=False)
     if rep.comp_metrics:

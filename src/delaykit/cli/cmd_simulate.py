@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import csv
-import json
 from pathlib import Path
 from typing import Any, Optional
 
 import typer
 
 from ..errors import InvalidValueError, check_real
-from .common import err, fmt, friendly, out, parse_schedule, read_delay_trace
+from .common import check_output, err, fmt, friendly, out, parse_schedule, print_json, read_delay_trace
 from .loopopts import with_loop
 
 __all__ = ["simulate"]
@@ -60,6 +59,8 @@ def simulate(
     from ..models.signals import LoadStep, Ramp, Step
     from ..simulate.simulation import simulate as sim
 
+    check_output("--plot", plot, "figure")
+    check_output("--csv", csv_path)
     check_real("--dt", dt, minimum=0.0, strict=True)
     if delay_schedule is not None or jitter is not None or delay_trace is not None:
         if ramp is not None or reference_csv is not None or disturbance is not None:
@@ -120,7 +121,7 @@ def simulate(
 
             plot_responses(responses, plot, title=repr(loop) if len(delays) == 1 else None)
         if as_json:
-            print(json.dumps(rows[0] if len(rows) == 1 else rows, indent=2))
+            print_json(rows[0] if len(rows) == 1 else rows)
             return
         title = repr(loop) if len(delays) == 1 else repr(loop).replace(f"delay={loop.delay:.4g} s, ", "")
         from rich.table import Table
@@ -254,7 +255,7 @@ def _simulate_varying(loop: Any, model: Any, keep_order: Optional[bool], *, step
         ax[2].legend(fontsize=8)
         save_figure(fig, plot)
     if as_json:
-        print(json.dumps(row, indent=2))
+        print_json(row)
         return
     from rich.table import Table
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any, Optional
@@ -10,7 +9,7 @@ from typing import Any, Optional
 import typer
 
 from ..errors import DelaykitError, InvalidValueError, check_real
-from .common import friendly, out
+from .common import check_output, friendly, out, print_json
 from .loopopts import with_loop
 
 __all__ = ["lambert", "margins", "roots"]
@@ -37,6 +36,7 @@ def roots(
     from ..spectrum.roots import find_roots
     from ..spectrum.stability import rightmost as rightmost_root
 
+    check_output("--plot", plot, "figure")
     if len(delays) > 1:
         raise InvalidValueError("roots takes one --delay, not a sweep")
     if loop.sampled:
@@ -60,7 +60,7 @@ def roots(
 
         plot_spectrum([sp], plot, labels=[repr(loop)], title=str(q))
     if as_json:
-        print(json.dumps(data, indent=2))
+        print_json(data)
         return
     from rich.table import Table
 
@@ -91,7 +91,7 @@ def _sampled_roots(loop: Any, as_json: bool) -> None:
     data = {**sp.to_dict(), "sampled": True, "abscissa": None if rate is None else rate.real,
             "rightmost": None if rate is None else [rate.real, abs(rate.imag)]}
     if as_json:
-        print(json.dumps(data, indent=2))
+        print_json(data)
         return
     from rich.table import Table
 
@@ -140,6 +140,7 @@ def margins(
     from ..spectrum.frequency import frequency_grid, frequency_response
     from ..spectrum.frequency import margins as loop_margins
 
+    check_output("--plot", plot, "figure")
     if len(delays) > 1:
         raise InvalidValueError("margins takes one --delay, not a sweep")
     lo = None if wmin is None else check_real("--wmin", wmin, minimum=0.0, strict=True)
@@ -196,7 +197,7 @@ def margins(
             data.update(sampled=True, period=loop.period, radius=sampled_spectrum(loop).radius,
                         stability_from="sampled poles")
         data["jitter_margin"] = None if jm is None or not math.isfinite(jm.margin) else jm.margin
-        print(json.dumps(data, indent=2))
+        print_json(data)
         return
 
     def at(w: Optional[float]) -> str:
@@ -274,16 +275,27 @@ def lambert(
     r = lambert_roots(a0, a1, check_real("--delay", delay, minimum=0.0), branches=_parse_branches(branches))
     data = r.to_dict()
     if as_json:
-        print(json.dumps(data, indent=2))
+        print_json(data)
         return
     from rich.table import Table
 
     table = Table(title=f"s - {a0:g} - ({a1:g}) exp(-{delay:g} s) = 0")
     for col in ("branch k", "Re s", "Im s"):
         table.add_column(col, justify="right")
+    none = 0
     for row in data["roots"]:
-        table.add_row(str(row["branch"]), f"{row['re']:.8f}", f"{row['im']:.8f}")
+        if math.isfinite(row["re"]) and math.isfinite(row["im"]):
+            table.add_row(str(row["branch"]), f"{row['re']:.8f}", f"{row['im']:.8f}")
+        else:  # W_k(0) = -inf for k != 0 (the argument Td a1 exp(-a0 Td) is 0, or underflows to 0)
+            none += 1
+            table.add_row(str(row["branch"]), "no root", "")
     out.print(table)
+    if none:
+        out.print(f"{none} branch(es) without a root: W_k of 0 is -inf for k != 0 (with a1 = 0 the equation is "
+                  "s = a0, one root, on branch 0).")
     rm = data["rightmost"]
-    out.print(f"Rightmost root {rm[0]:.8f} {rm[1]:+.8f}j (branch 0; for real coefficients branch -1 is its conjugate).",
-              highlight=False)
+    if math.isfinite(rm[0]) and math.isfinite(rm[1]):
+        out.print(f"Rightmost root {rm[0]:.8f} {rm[1]:+.8f}j (branch 0; for real coefficients branch -1 is its "
+                  "conjugate).")
+    else:
+        out.print("No root on the branches asked for (the root of a1 = 0, s = a0, is on branch 0).")

@@ -10,12 +10,14 @@ from pathlib import Path
 from typing import Any, Callable, Optional
 
 import typer
+from typer.core import TyperGroup
 
 from ..errors import DelaykitError, InvalidValueError, RangeSpecError
 
 __all__ = [
-    "app", "ci_list", "confirm_real", "err", "fmt", "fmt_ci", "friendly", "out", "parse_delays", "parse_schedule",
-    "print_rms", "quick_coercion", "read_delay_trace",
+    "app", "check_output", "ci_list", "confirm_real", "err", "fmt", "fmt_ci", "friendly", "one_line", "out",
+    "parse_delays", "parse_schedule", "print_error", "print_json", "print_rms", "progress_bar", "quick_coercion",
+    "read_delay_trace", "strict_json", "warn",
 ]
 
 _MISSING = object()
@@ -212,16 +214,46 @@ def _function(module: str, name: str) -> Any:
     return getattr(import_module(module), name)
 
 
+class _Group(TyperGroup):
+    """Typer's command group, with its usage errors (a bad option value, an unknown option, a missing one) on one
+    line, ``error: ... (see 'delaykit CMD --help')``, exit status 2, as delaykit's own errors (Typer would draw a
+    box around the message, wrapped to the terminal's width, after two lines of usage)."""
+
+    def main(self, args: Any = None, prog_name: Optional[str] = None, complete_var: Optional[str] = None,
+             standalone_mode: bool = True, **extra: Any) -> Any:
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, standalone_mode, **extra)
+        import sys
+
+        # click's ClickException (Typer's own copy of click, or click itself in older Typer): the base of its errors
+        usage = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
+        try:
+            code = super().main(args, prog_name, complete_var, False, **extra)
+        except usage as exc:
+            if type(exc).__name__ == "NoArgsIsHelpError":  # no command: the help, as Typer shows it
+                return super().main(args, prog_name, complete_var, True, **extra)
+            ctx = getattr(exc, "ctx", None)
+            where = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+            print_error(exc.format_message().rstrip(".") + where)
+            sys.exit(exc.exit_code)
+        except typer.Abort:
+            print_error("aborted")
+            sys.exit(1)
+        sys.exit(code if isinstance(code, int) else 0)
+
+
 app = _App(
     help="delaykit: feedback loops with a time delay (the quadrotor altitude loop of Armah & Yi).",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    cls=_Group,
 )
 
 
 class _NoStatus:
-    """What :meth:`_LazyConsole.status` gives where rich would draw nothing: a context that does nothing."""
+    """What :meth:`_LazyConsole.status` and :func:`progress_bar` give where rich would draw nothing: a context that
+    does nothing."""
 
     def __enter__(self) -> "_NoStatus":
         return self
@@ -230,7 +262,14 @@ class _NoStatus:
         return None
 
     def update(self, *args: Any, **kwargs: Any) -> None:
-        """Ignore a new status message."""
+        """Ignore a new status message (or a task's progress)."""
+
+    def add_task(self, *args: Any, **kwargs: Any) -> int:
+        """A task of a progress bar that is not drawn."""
+        return 0
+
+    def advance(self, *args: Any, **kwargs: Any) -> None:
+        """Ignore a task's progress."""
 
     def start(self) -> None:
         """Nothing to start."""
@@ -268,7 +307,16 @@ class _LazyConsole:
         """``Console.status``, or a context that does nothing where rich's spinner would print nothing."""
         if self._console is None and not self._may_draw():
             return _NoStatus()
-        return self.console.status(*args, **kwargs)
+        from rich.status import Status
+        from rich.text import Text
+
+        class PlainStatus(Status):  # its messages plain text, never markup
+            def update(self, status: Any = None, **kw: Any) -> None:
+                super().update(Text(one_line(status)) if isinstance(status, str) else status, **kw)
+
+        if args and isinstance(args[0], str):
+            args = (Text(one_line(args[0])), *args[1:])
+        return PlainStatus(*args, console=self.console, **kwargs)
 
     def _may_draw(self) -> bool:
         import os
@@ -285,8 +333,40 @@ class _LazyConsole:
             return False
 
 
-out: Any = _LazyConsole(soft_wrap=True)
-err: Any = _LazyConsole(stderr=True)
+# Neither console reads markup (``[b]``, ``[/]``) or emoji codes (``:b:``) in the text it prints, titles and table
+# cells included: that text holds the user's values (a file name, a plant, a range), printed as written; styles come
+# as rich ``Text`` (see print_error and warn).  Neither wraps what it prints: an error stays one line however
+# narrow the terminal, and a message that is not on a terminal is not cut at 80 columns.
+out: Any = _LazyConsole(soft_wrap=True, markup=False, emoji=False, highlight=False)
+err: Any = _LazyConsole(stderr=True, soft_wrap=True, markup=False, emoji=False, highlight=False)
+
+
+def one_line(text: str) -> str:
+    """``text`` as one printable line: control characters (a newline, a tab, a terminal escape) written as Python
+    escapes, every other character as it is.
+
+    Examples
+    --------
+    >>> one_line("a[/]b\\tc\\nd:b:")
+    'a[/]b\\\\tc\\\\nd:b:'
+    """
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
+
+
+def print_error(message: str) -> None:
+    """Print ``error: MESSAGE`` on stderr: one line, the message as it is (no markup, no emoji, no wrapping)."""
+    from rich.text import Text
+
+    err.print(Text.assemble(("error:", "bold red"), " ", one_line(str(message))))
+
+
+def warn(message: str) -> None:
+    """Print ``warning: MESSAGE`` on stdout, among the results: one line, the message as it is."""
+    from rich.text import Text
+
+    out.print(Text.assemble(("warning:", "yellow"), " ", one_line(str(message))))
 
 
 def friendly(fn: Callable[..., Any]) -> Callable[..., Any]:
@@ -297,7 +377,7 @@ def friendly(fn: Callable[..., Any]) -> Callable[..., Any]:
         try:
             return fn(*args, **kwargs)
         except DelaykitError as exc:
-            err.print(f"[bold red]error:[/] {exc}", highlight=False)
+            print_error(str(exc))
             raise typer.Exit(2) from None
 
     return wrapper
@@ -359,6 +439,133 @@ def parse_schedule(spec: str) -> list[tuple[float, float]]:
                                     f"is not after item {k} {items[k - 1]!r} (t = {pairs[-1][0]:g} s)")
         pairs.append((t, d))
     return pairs
+
+
+def strict_json(data: Any) -> Any:
+    """``data`` made fit for strict JSON: every number that is not finite (inf, -inf, nan) becomes ``None``
+    (null), and each dict that held one, directly or in a list, gets a ``status`` (``null_status`` where it has a
+    status of its own) that names the values and what they were.
+
+    Examples
+    --------
+    >>> strict_json({"overshoot": float("inf"), "peak_time": 4.0, "rightmost": [float("-inf"), float("nan")]})
+    {'overshoot': None, 'peak_time': 4.0, 'rightmost': [None, None], 'status': 'not finite, written as null: \
+overshoot = inf, rightmost[0] = -inf, rightmost[1] = nan'}
+    """
+    import numbers
+
+    def walk(v: Any) -> tuple[Any, list[tuple[str, str]]]:
+        if isinstance(v, float) or isinstance(v, numbers.Real) and not isinstance(v, numbers.Integral):
+            x = float(v)
+            return (x, []) if math.isfinite(x) else (None, [("", str(x))])
+        if isinstance(v, dict):
+            clean, said = {}, []
+            for k, x in v.items():
+                clean[k], bad = walk(x)
+                said += [(f"{k}{path}", what) for path, what in bad]
+            if said:
+                key = "null_status" if "status" in clean else "status"
+                clean[key] = "not finite, written as null: " + ", ".join(f"{p} = {w}" for p, w in said)
+            return clean, []
+        if isinstance(v, (list, tuple)):
+            items, said = [], []
+            for i, x in enumerate(v):
+                c, bad = walk(x)
+                items.append(c)
+                said += [(f"[{i}]{path}", what) for path, what in bad]
+            return items, said
+        return v, []
+
+    return walk(data)[0]
+
+
+def print_json(data: Any, indent: Optional[int] = 2, default: Optional[Callable[[Any], Any]] = None) -> None:
+    """Print ``data`` as strict JSON on stdout (see :func:`strict_json`: never NaN or Infinity)."""
+    import json
+
+    print(json.dumps(strict_json(data), indent=indent, allow_nan=False, default=default))
+
+
+def progress_bar(*, spinner: bool = False) -> Any:
+    """A transient rich progress bar on stderr whose task descriptions print as written (never as markup): a bar
+    with the share done and the time left, or with ``spinner`` a spinner and the time elapsed.  Where rich would
+    draw nothing (stderr not a terminal), one that does nothing: rich's would still leave an empty line behind."""
+    if not err._may_draw():
+        return _NoStatus()
+    from rich.progress import (BarColumn, Progress, SpinnerColumn, TaskProgressColumn, TextColumn,
+                               TimeElapsedColumn, TimeRemainingColumn)
+
+    text = TextColumn("{task.description}", style="progress.description", markup=False)
+    columns = ((SpinnerColumn(), text, TimeElapsedColumn()) if spinner
+               else (text, BarColumn(), TaskProgressColumn(), TimeRemainingColumn()))
+    return Progress(*columns, console=err.console, transient=True)
+
+
+_FIGURE_FORMATS: Optional[list[str]] = None
+
+
+def check_output(flag: str, path: Optional[Path], kind: str = "file") -> None:
+    """Check, before any work, that an output path given to ``flag`` can be written; raise
+    :class:`InvalidValueError` naming it if not.
+
+    ``kind`` is ``"file"`` (its folder must exist and be writable, and the path must not be a folder),
+    ``"figure"`` (a file whose suffix matplotlib writes: .png, .pdf, .svg...) or ``"folder"`` (a folder, made
+    with its parents where missing: it must not be a file, nor lie under one).  ``None`` (not given) passes.
+
+    Examples
+    --------
+    >>> check_output("--csv", Path("no-such-folder") / "r.csv")
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.InvalidValueError: --csv 'no-such-folder/r.csv': the folder 'no-such-folder' does not exist
+    """
+    if path is None:
+        return
+    text = str(path)
+    if not text.strip():
+        raise InvalidValueError(f"{flag} is empty: give a {'folder' if kind == 'folder' else 'file'} name")
+    if text == "." and kind != "folder":  # (also what Typer makes of "")
+        raise InvalidValueError(f"{flag} is empty or '.': give a file name")
+    if "\0" in text:
+        raise InvalidValueError(f"{flag} {text!r} holds a NUL character, which no file name may")
+    try:
+        _check_output(flag, Path(path), text, kind)
+    except OSError as exc:  # a name too long, a loop of links...
+        raise InvalidValueError(f"{flag} {text!r} cannot be used: {exc.strerror or exc}") from None
+
+
+def _check_output(flag: str, p: Path, text: str, kind: str) -> None:
+    import os
+
+    global _FIGURE_FORMATS
+    if kind == "folder":
+        if p.exists() and not p.is_dir():
+            raise InvalidValueError(f"{flag} {text!r} is a file, not a folder")
+        up = p
+        while not up.exists():
+            up = up.parent
+        if not up.is_dir():
+            raise InvalidValueError(f"{flag} {text!r}: {str(up)!r} is a file, not a folder")
+        if not os.access(up, os.W_OK | os.X_OK):
+            raise InvalidValueError(f"{flag} {text!r}: the folder {str(up)!r} is not writable")
+        return
+    if p.is_dir():
+        raise InvalidValueError(f"{flag} {text!r} is a folder: give a file name")
+    folder = p.parent
+    if not folder.exists():
+        raise InvalidValueError(f"{flag} {text!r}: the folder {str(folder)!r} does not exist")
+    if not folder.is_dir():
+        raise InvalidValueError(f"{flag} {text!r}: {str(folder)!r} is not a folder")
+    if not os.access(folder, os.W_OK | os.X_OK) or p.exists() and not os.access(p, os.W_OK):
+        raise InvalidValueError(f"{flag} {text!r} cannot be written (no permission)")
+    if kind == "figure" and p.suffix:
+        if _FIGURE_FORMATS is None:
+            from matplotlib.backend_bases import FigureCanvasBase
+
+            _FIGURE_FORMATS = sorted(FigureCanvasBase.get_supported_filetypes())
+        if p.suffix[1:].lower() not in _FIGURE_FORMATS:
+            raise InvalidValueError(f"{flag} {text!r}: {p.suffix!r} is not a figure format; use one of "
+                                    f"{', '.join('.' + f for f in _FIGURE_FORMATS)}")
 
 
 def fmt(x: Optional[float], digits: int = 4) -> str:

@@ -12,7 +12,7 @@ from .ardrone import (ARITY, DEMO_SIZE, HEADER, REF_BASE, REF_EMERGENCY, REF_TAK
                       CtrlState, Demo, Navdata, NavdataError, NavState, ProtocolError, bootstrap_packet,
                       decode_navdata, encode_navdata, float_to_int, int_to_float, parse_at)
 from .emulator import DroneEmulator, EmulatorConfig, PortError
-from .flight import DroneLink, FlightPlan, FlightResult, LinkError, fly
+from .flight import DroneLink, FlightPlan, FlightResult, LinkError, fly, land_on_signals
 from .laws import FlightLaw
 from .stamps import enable_stamps, recv_stamped
 
@@ -28,6 +28,6 @@ __all__ = [
     "NavState", "CtrlState", "Demo", "Navdata", "encode_navdata", "decode_navdata", "bootstrap_packet", "HEADER",
     "REF_BASE", "REF_TAKEOFF", "REF_EMERGENCY", "DEMO_SIZE", "ARITY",
     "EmulatorConfig", "DroneEmulator", "PortError",
-    "LinkError", "DroneLink", "FlightPlan", "FlightResult", "fly", "FlightLaw", "DelayMonitor", "OnlineEstimate",
-    "stable_range", "enable_stamps", "recv_stamped",
+    "LinkError", "DroneLink", "FlightPlan", "FlightResult", "fly", "land_on_signals", "FlightLaw",
+    "DelayMonitor", "OnlineEstimate", "stable_range", "enable_stamps", "recv_stamped",
 ]

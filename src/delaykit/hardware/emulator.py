@@ -128,7 +128,9 @@ class DroneEmulator:
     ports : dict
         The bound ports (``at``, ``navdata``, ``video``, ``control``), useful when 0 asked for free ones.
     stats : dict
-        Counts (a snapshot): ``datagrams``, ``commands``, ``bad`` (rejected), ``navdata_sent``, ``navdata_dropped``.
+        Counts (a snapshot): ``datagrams``, ``commands``, ``bad`` (rejected), ``navdata_sent``, ``navdata_dropped``,
+        ``stale``, ``config_ignored`` (``AT*CONFIG`` of a key the emulated drone does not have: acknowledged, but
+        neither kept nor sent back in the configuration text, as the drone ignores a key it does not know).
     """
 
     def __init__(self, config: EmulatorConfig | None = None, **overrides: Any) -> None:
@@ -142,7 +144,7 @@ class DroneEmulator:
         # everything below that the threads share is guarded by this one lock (see the module docstring)
         self._lock = threading.Lock()
         self._stats = {"datagrams": 0, "commands": 0, "bad": 0, "navdata_sent": 0, "navdata_dropped": 0,
-                       "stale": 0}
+                       "stale": 0, "config_ignored": 0}
         self._t0 = time.monotonic()  # the schedule's clock: reset by start()
         self._last_error = ""
         self.kernel_stamps = False  # whether command arrivals carry the kernel's stamp (set by start())
@@ -252,6 +254,8 @@ class DroneEmulator:
             s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             s.bind((self.config.host, port))
+            if kind == socket.SOCK_STREAM:  # (with SO_REUSEADDR a taken TCP port fails here, not at bind)
+                s.listen(4)
         except OSError as exc:
             s.close()
             if exc.errno == errno.EADDRINUSE:
@@ -276,7 +280,6 @@ class DroneEmulator:
             s.settimeout(0.05)
         self.kernel_stamps = enable_stamps(self._at)  # a command's arrival is when the kernel got it
         for s in (self._video, self._control):
-            s.listen(4)
             s.settimeout(0.1)
         self._phys.t = time.monotonic()
         self._last_cmd = time.monotonic()
@@ -498,9 +501,14 @@ class DroneEmulator:
                     self._watchdog = False
                 elif cmd.name == "CONFIG":
                     key, value = cmd.args
-                    self._config_kv[key] = value
+                    self._ack = True  # (acknowledged, as the drone does, whatever the key)
+                    if key not in self._config_kv:  # a key the drone does not have: ignored, neither kept nor echoed
+                        self._stats["config_ignored"] += 1
+                        self._last_error = f"unknown configuration key {key!r} ignored"
+                        continue
                     if key == "general:navdata_demo":
                         self._demo = value.upper() == "TRUE"
+                        value = "TRUE" if self._demo else "FALSE"
                     elif key in ("control:control_vz_max", "control:altitude_max"):
                         lo, hi = (200.0, 2000.0) if key == "control:control_vz_max" else (500.0, 100000.0)
                         try:
@@ -513,10 +521,12 @@ class DroneEmulator:
                                 self._vz_max = x
                             else:
                                 self._alt_max = x
+                            value = str(int(round(1000 * x)))  # what the drone keeps: the value it uses
                         else:
                             self._stats["bad"] += 1
                             self._last_error = f"{key} must be a finite number of millimetres, got {value!r}"
-                    self._ack = True
+                            continue
+                    self._config_kv[key] = value
                 elif cmd.name == "CTRL":
                     if cmd.args[0] == 5:
                         self._ack = False

@@ -222,6 +222,22 @@ def _check_port(name: str, p: Any) -> int:
     return p
 
 
+def _check_ipv4(name: str, host: Any) -> str:
+    """``host`` if it is not an IPv6 address: the AR.Drone (and so its emulator) speaks IPv4 only."""
+    import ipaddress
+
+    if not isinstance(host, str):
+        raise InvalidTypeError(f"{name} must be an address or a host name (text), got {host!r}")
+    try:
+        v6 = ipaddress.ip_address(host).version == 6
+    except ValueError:
+        v6 = False
+    if v6:
+        raise InvalidValueError(f"{name} {host!r} is an IPv6 address; the AR.Drone speaks IPv4 only: give an IPv4 "
+                                "address such as 127.0.0.1 (loopback) or 192.168.1.1")
+    return host
+
+
 @dataclass(frozen=True)
 class EmulatorConfig:
     """Settings of the emulated drone (see the module docstring).
@@ -284,8 +300,13 @@ class EmulatorConfig:
     wander_time: float = PX4_WANDER_TIME
 
     def __post_init__(self) -> None:
+        _check_ipv4("host", self.host)
         for name in ("at_port", "navdata_port", "video_port", "control_port"):
             _check_port(name, getattr(self, name))
+        for a, b, transport in (("at_port", "navdata_port", "UDP"), ("video_port", "control_port", "TCP")):
+            if getattr(self, a) and getattr(self, a) == getattr(self, b):
+                raise PortNumberError(f"{a} and {b} are both {getattr(self, a)}: two {transport} services cannot "
+                                      "share a port (give different ones, or 0 for any free one)")
         check_real("delay (s)", self.delay, minimum=0.0, maximum=5.0)
         check_real("lag (s)", self.lag, minimum=0.0, maximum=5.0)
         check_real("link_delay (s)", self.link_delay, minimum=0.0, maximum=2.0)

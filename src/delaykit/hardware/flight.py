@@ -19,8 +19,8 @@ Each step is logged to its own CSV (``t, z, z_ref, u, vz, seq, recv_time, latenc
 before the step), flushed every line so a crash loses nothing; ``delaykit estimate`` reads them as they are.
 Arrival times are the kernel's (:mod:`~delaykit.hardware.stamps`).  Packets that arrive while the loop hovers
 to estimate are logged with the hover's command and ``latency_ms`` nan (they were not answered).
-Ctrl-C, a navdata gap longer than ``gap_timeout``, or an altitude outside ``[z_min, z_max]`` makes it hover and
-land at once, and the result says why.  The command never leaves ``±vmax``.  The loop's own latency (packet
+Ctrl-C (or SIGTERM or SIGHUP, within :func:`land_on_signals`), a navdata gap longer than ``gap_timeout``, or an
+altitude outside ``[z_min, z_max]`` makes it hover and land at once, and the result says why.  The command never leaves ``±vmax``.  The loop's own latency (packet
 received to command sent) is measured and reported (median and 99th percentile).
 
 The link binds to an ephemeral local port and talks to ``host``; for the emulator that is 127.0.0.1.
@@ -32,9 +32,10 @@ import ipaddress
 import socket
 import time
 from collections import deque
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 import numpy as np
 
@@ -42,14 +43,14 @@ from ..errors import DelaykitError, InvalidTypeError, InvalidValueError, check_r
 from ..models.compensators import Compensator
 from ..models.controllers import Controller
 from .ardrone import ATEncoder, CtrlState, Navdata, NavState, ProtocolError, decode_navdata
-from .emulator_config import _check_port
+from .emulator_config import _check_ipv4, _check_port
 from .laws import FlightLaw
 from .stamps import enable_stamps, recv_stamped
 
 if TYPE_CHECKING:  # (the monitor pulls in the estimator and the design: imported when a flight uses one)
     from .monitor import DelayMonitor, OnlineEstimate
 
-__all__ = ["LinkError", "DroneLink", "FlightPlan", "FlightResult", "fly"]
+__all__ = ["LinkError", "DroneLink", "FlightPlan", "FlightResult", "fly", "land_on_signals"]
 
 VZ_MAX_LIMIT = 2.0  # m/s: control:control_vz_max accepts at most 2000 mm/s
 
@@ -58,10 +59,66 @@ class LinkError(DelaykitError, RuntimeError):
     """The drone does not answer (no navdata), so nothing flies."""
 
 
+class _SignalInterrupt(KeyboardInterrupt):
+    """A stop signal (SIGTERM, SIGHUP) arrived during a flight: :func:`fly` hovers and lands, as on Ctrl-C, and its
+    result's reason names the signal (``signal_name``).  Raised by the handlers of :func:`land_on_signals`; a
+    KeyboardInterrupt, so that code which lets Ctrl-C through lets it through too."""
+
+    def __init__(self, signal_name: str) -> None:
+        super().__init__(signal_name)
+        self.signal_name = signal_name
+
+
+@contextmanager
+def land_on_signals(names: tuple[str, ...] = ("SIGTERM", "SIGHUP")) -> Iterator[None]:
+    """Within the block, the stop signals ``names`` end a flight as Ctrl-C does: the vehicle lands, and the result
+    says which signal (``interrupted (SIGTERM)``), instead of the process dying in the air.
+
+    The first signal raises a ``KeyboardInterrupt`` whose ``signal_name`` names it, in the main thread; one more while the vehicle lands is
+    ignored (a second SIGTERM would otherwise cut the landing short).  The previous handlers come back at the end.
+    Outside the main thread (where Python cannot handle signals), and for a signal the system does not have,
+    nothing is installed.
+
+    Examples
+    --------
+    >>> import signal
+    >>> before = signal.getsignal(signal.SIGTERM)
+    >>> with land_on_signals():
+    ...     signal.getsignal(signal.SIGTERM) is before
+    False
+    >>> signal.getsignal(signal.SIGTERM) is before
+    True
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    raised: list[str] = []
+
+    def stop(signum: int, _frame: Any) -> None:
+        if not raised:
+            raised.append(signal.Signals(signum).name)
+            raise _SignalInterrupt(raised[0])
+
+    old = {}
+    for name in names:
+        sig = getattr(signal, name, None)
+        if sig is not None:
+            old[sig] = signal.signal(sig, stop)
+    try:
+        yield
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+
+
 class DroneLink:
     """UDP sockets to a drone: AT commands out, navdata in (decoded; malformed packets counted and logged)."""
 
     def __init__(self, host: str, at_port: int = 5556, navdata_port: int = 5554) -> None:
+        _check_ipv4("host", host)
         try:
             ipaddress.ip_address(host)
         except ValueError:
@@ -415,8 +472,9 @@ def fly(
     except _Abort as exc:
         reason, completed = str(exc), False
         events.append(reason)
-    except KeyboardInterrupt:
-        reason, completed = "interrupted (Ctrl-C)", False
+    except KeyboardInterrupt as exc:  # Ctrl-C, or a stop signal (see land_on_signals)
+        reason = f"interrupted ({getattr(exc, 'signal_name', 'Ctrl-C')})"
+        completed = False
         events.append(reason)
     finally:
         # 4. hover and land, whatever happened (if a take-off was begun)

@@ -61,7 +61,7 @@ JITTER_DISTRIBUTIONS = ("uniform", "exponential", "gamma")
 # ------------------------------------------------------------------------------------------ delay models
 def _checked_delays(values: Any, what: str, times: np.ndarray | None = None) -> np.ndarray:
     """``values`` as floats, each finite and >= 0, or an error naming the first bad one."""
-    d = np.asarray(values, dtype=float)
+    d = _floats(values, what)
     bad = ~np.isfinite(d) | (d < 0)
     if np.any(bad):
         i = int(np.flatnonzero(bad.ravel())[0])
@@ -70,8 +70,16 @@ def _checked_delays(values: Any, what: str, times: np.ndarray | None = None) -> 
     return d
 
 
+def _floats(values: Any, what: str) -> np.ndarray:
+    """``values`` as an array of floats, or an :class:`InvalidTypeError` naming ``what`` (text, complex numbers...)."""
+    try:
+        return np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidTypeError(f"{what} must be real numbers (seconds), got {values!r}") from None
+
+
 def _increasing(times: Any, what: str) -> np.ndarray:
-    t = np.asarray(times, dtype=float)
+    t = _floats(times, what)
     if t.ndim != 1 or t.size == 0 or not np.all(np.isfinite(t)):
         raise InvalidValueError(f"{what} must be a non-empty list of finite times, got {times!r}")
     if np.any(np.diff(t) <= 0):

@@ -110,7 +110,10 @@ class LambertRoots:
     def rightmost(self) -> Any:
         """The root of largest real part over the computed branches (with Im >= 0 on a tie)."""
         r = self.roots
-        score = r.real + 1e-12 * np.sign(r.imag)
+        with np.errstate(invalid="ignore"):
+            score = r.real + 1e-12 * np.sign(r.imag)
+        # a branch without a root (W_k(0) = -inf + nan j for k != 0, where a1 = 0) is never the rightmost
+        score = np.where(np.isnan(score), -np.inf, score)
         i = np.argmax(score, axis=0)
         out = np.take_along_axis(r, i[None, ...], axis=0)[0]
         return complex(out) if out.ndim == 0 else out
@@ -192,7 +195,14 @@ def lambert_roots(a0: Any, a1: Any, delay: Any, branches: Iterable[int] | int = 
         raise InvalidValueError(f"delay must be at least 0, got {td.min():g}")
     a0b, a1b, tdb = np.broadcast_arrays(a0a, a1a, td)
     shift = bool(np.any(a0a))  # a0 = 0 (the P loop): no exponential factor, no shift of the roots
-    x = tdb * a1b * np.exp(-a0b * tdb) if shift else tdb * a1b
+    with np.errstate(over="ignore", invalid="ignore"):
+        x = tdb * a1b * np.exp(-a0b * tdb) if shift else tdb * a1b
+    if shift:
+        x = np.where(a1b == 0, 0.0, x)  # (a1 = 0 gives 0 whatever the exponential: not inf * 0)
+    if not np.all(np.isfinite(x)):  # beyond floating point: exp(-a0 Td) or the product overflows
+        bad = np.flatnonzero(~np.isfinite(np.broadcast_to(x, x.shape)).ravel())[0]
+        raise InvalidValueError(f"Td a1 exp(-a0 Td) overflows for a0 = {a0b.ravel()[bad]}, a1 = {a1b.ravel()[bad]}, "
+                                f"Td = {tdb.ravel()[bad]} (the exponent -a0 Td may be at most about 709)")
     pos = tdb > 0
     every = bool(np.all(pos))
     safe_td = tdb if every else np.where(pos, tdb, 1.0)
