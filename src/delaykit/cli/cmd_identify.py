@@ -126,8 +126,12 @@ def estimate(
         out.print(f"[yellow]warning:[/] {w}", highlight=False)
 
 
+# the loop options `identify` leaves out: the plant and its delay are what it finds, a compensator is refused
+_IDENTIFY_OMITS = ("plant", "delay", "output_delay", "model_delay", "closed_loop_time")
+
+
 @friendly
-@with_loop(omit=("plant",))
+@with_loop(omit=_IDENTIFY_OMITS)
 def identify(
     logs: list[Path] = typer.Argument(..., help="Logs (CSV with a header: time, the input or reference, outputs)."),
     closed_loop: bool = typer.Option(False, "--closed-loop", help="Closed-loop fit from the reference through the controller given by the loop options (--controller p | pv | pi | pd | pid | a transfer function, its gains, --umin/--umax, --antiwindup, --period = the log's; pi, pd, pid and tf may be continuous: no --period; p and pv must be sampled)."),
@@ -152,6 +156,7 @@ def identify(
 
     With --model auto every structure is fitted and one is chosen: by leave-one-log-out prediction error with
     two logs or more, by BIC with one. Standard errors allow for coloured residuals (an autoregressive noise model).
+    A delay in a loop file (--loop) is ignored: it is what is identified.
     """
     from ..identify.identification import identify as run_identify
     from ..identify.identification import predict as run_predict
@@ -161,9 +166,7 @@ def identify(
     given = {k: v for k, v in loop_options.items() if v is not None}
     loop = None
     if closed_loop:
-        if given.get("delay") not in (None, "0", "0.0"):
-            raise InvalidValueError("identify finds the delay: do not give --delay")
-        opts = dict(loop_options)
+        opts = {**loop_options, "delay": "0"}
         if str(given.get("controller", "p")).lower() not in ("p", "pv") and "loop_file" not in given:
             opts["plant"] = "1/s"  # (ignored) so that the paper's P/PV loop's +-1 limits are not assumed
         loop, _ = build_loop(opts, parse_delays)
