@@ -2,10 +2,23 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
+from pathlib import Path
+from typing import Any
 
+import numpy as np
 import pytest
+
+from delaykit.identify import Experiment, IdentificationError, identify, read_experiment
+from delaykit.identify.estimation import LAG_FLOOR, estimate_trajectory
+from delaykit.identify.flightlog import synthetic_log
+from delaykit.models.altitude import AltitudeLoop
+from delaykit.models.controllers import Controller
+from delaykit.models.loop import Loop
+from delaykit.models.transfer import TransferFunction
+from delaykit.simulate.discrete import closed_loop_response, held_delay_model, held_response, held_response_at
 
 
 # -- names that are both a subpackage and an exported function -------------------------------------------------
@@ -39,3 +52,126 @@ def test_shared_name_can_be_monkeypatched(monkeypatch: pytest.MonkeyPatch) -> No
     assert delaykit.identify is len
     monkeypatch.undo()
     assert delaykit.identify is original
+
+
+# -- logs on a real (jittery) clock -------------------------------------------------------------------------------
+HEATER = Path(__file__).parent / "data" / "tclab" / "step_test.csv"
+
+
+def _lattice_clock(n: int, seed: int) -> np.ndarray:
+    """Sample times whose intervals are 0.97 to 1.03 s, each a whole number of 0.01 s (indices on that lattice)."""
+    rng = np.random.default_rng(seed)
+    return np.r_[0, np.cumsum(rng.integers(97, 104, n - 1))]
+
+
+def test_held_response_at_is_the_uniform_simulator_on_a_finer_lattice() -> None:
+    # reference: the existing exact one-period map on the 0.01 s lattice that holds every jittered sample time,
+    # the input held between the samples, read at the samples
+    g = TransferFunction.parse("(3*s+1)/((2*s+1)*(0.5*s+1))")
+    k = _lattice_clock(300, seed=0)
+    t = 0.01 * k
+    u = np.random.default_rng(1).normal(size=t.size)
+    fine_u = np.repeat(u[:-1], np.diff(k))
+    fine_u = np.r_[fine_u, u[-1]]
+    for delay in (0.0, 0.37, 1.0, 2.345):
+        got = held_response_at(g, t, u, delay)
+        ref = held_response(held_delay_model(g, 0.01, delay), fine_u)
+        assert np.max(np.abs(got.y - ref.y[k])) < 1e-11
+        assert np.max(np.abs(got.dy - ref.dy[k])) < 1e-11
+
+
+def test_a_jittered_log_of_known_parameters_is_identified_on_its_own_clock() -> None:
+    # the log: fopdt 0.7 / (150 s + 1) with 12.3 s of dead time, simulated exactly on the 0.01 s lattice by the
+    # uniform simulator (the reference above), read at the jittered samples; a heater-like staircase input
+    K, tau, L = 0.7, 150.0, 12.3
+    k = _lattice_clock(900, seed=2)
+    t = 0.01 * k
+    u = np.where(t >= 5.0, 50.0, 0.0) + np.where(t >= 400.0, -20.0, 0.0)
+    fine_u = np.r_[np.repeat(u[:-1], np.diff(k)), u[-1]]
+    g = TransferFunction.parse(f"{K}/({tau}*s+1)")
+    y = 20.0 + held_response(held_delay_model(g, 0.01, L), fine_u).y[k]
+    rng = np.random.default_rng(3)
+    for noise in (0.0, 0.05):
+        e = Experiment.from_arrays(t, {"T": y + rng.normal(0.0, noise, t.size)}, u=u, u_before=0.0)
+        assert not e.uniform
+        # with noise, the output's offset is fitted (the mean of the few samples before the step would carry an
+        # error of its own into the gain, outside the stated intervals)
+        m = identify(e, model="fopdt", baseline="initial" if noise == 0.0 else "fit")
+        if noise == 0.0:  # exact data, exact model: the fit recovers the truth to the solver's tolerance
+            assert m.params["gain"] == pytest.approx(K, rel=1e-6)
+            assert m.params["time_constant"] == pytest.approx(tau, rel=1e-6)
+            assert m.params["delay"] == pytest.approx(L, abs=1e-5)
+        else:
+            for name, true in (("gain", K), ("time_constant", tau), ("delay", L)):
+                lo, hi = m.ci[name]
+                assert lo <= true <= hi, (name, true, m.ci[name])
+
+
+def test_a_jittered_copy_of_the_heater_log_fits_as_the_regular_one() -> None:
+    # the TCLab heater step test, its 1 s clock replaced by intervals of 0.97 to 1.03 s (mean 1 s): the fit on
+    # the jittered clock lands inside the 95 % intervals the regular log's fit states (and no longer refuses)
+    e0 = read_experiment(HEATER, outputs=["z"], input="u", u_before=0.0)
+    m0 = identify(e0, model="fopdt")
+    tj = 0.01 * _lattice_clock(e0.t.size, seed=4)
+    ej = Experiment.from_arrays(tj, {"z": e0.outputs["z"]}, u=e0.u, u_before=0.0, name="jittered")
+    assert not ej.uniform
+    mj = identify(ej, model="fopdt")
+    for name, value in mj.params.items():
+        lo, hi = m0.ci[name]
+        assert lo <= value <= hi, (name, value, m0.ci[name])
+
+
+def test_a_sampled_controller_on_an_irregular_clock_asks_for_resampling() -> None:
+    t = 0.01 * _lattice_clock(200, seed=5)
+    e = Experiment.from_arrays(t, {"z": np.zeros(t.size)}, r=np.where(t > 10, 1.0, 0.0))
+    with pytest.raises(IdentificationError, match="resample=PERIOD"):
+        identify(e, model="ipdt", loop=Loop("1/s", Controller.p(1.0), period=1.0))
+
+
+# -- the delay's error and its interval agree -----------------------------------------------------------------------
+def test_the_delays_error_agrees_with_its_interval_when_the_lag_sits_at_its_floor() -> None:
+    # flights of a loop without a speed lag, fitted with the lag free: the lag goes to its 4 ms floor, whose
+    # column is nearly the delay's; the demo printed "0.4160 s +- 0.5988 (95 % interval 0.3222 to 0.4629)".
+    # The profile interval keeps the bound and is the honest one; delay +- 1.96 stderr must span as much
+    rng = np.random.default_rng(1)
+    lp = AltitudeLoop(kp=1.31, delay=0.3)
+    logs = [synthetic_log(lp, 1.0, noise=0.003, rng=rng) for _ in range(2)]
+    est = estimate_trajectory(logs, 1.31, free=("lag",))
+    assert min(est.params.lag) == pytest.approx(LAG_FLOOR, rel=1e-6)  # the case at hand: a lag at its floor
+    lo, hi = est.ci
+    assert lo < est.delay < hi
+    width = hi - lo
+    assert 0.95 <= 2 * 1.96 * est.stderr / width <= 1.25, (est.stderr, est.ci)
+    assert f"± {est.stderr:.4f}" in repr(est)
+
+
+# -- the command line ----------------------------------------------------------------------------------------------
+def _cli(*args: str) -> Any:
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+
+    return CliRunner().invoke(app, list(args))
+
+
+def test_identify_offers_no_delay_option_it_would_refuse() -> None:
+    res = _cli("identify", "--help")
+    assert res.exit_code == 0
+    for flag in ("--delay", "--output-delay", "--model-delay", "--closed-loop-time", "--plant"):
+        assert flag not in res.output.replace("--closed-loop ", ""), flag
+    assert "--kp" in res.output and "--period" in res.output  # the controller's options stay
+
+
+def test_identify_closed_loop_p_law_needs_no_delay_option(tmp_path: Path) -> None:
+    # the paper's P loop sampled at the log's rate, simulated exactly (the held-input simulator: the reference)
+    h, kp, L = 0.05, 1.0, 0.2
+    t = h * np.arange(400)
+    r = np.where(t >= 1.0, 1.0, 0.0)
+    y = closed_loop_response(held_delay_model(TransferFunction.parse("1/s"), h, L), r, kp=kp).y
+    p = tmp_path / "p.csv"
+    p.write_text("t,z_ref,z\n" + "".join(f"{a:.3f},{b:g},{c:.9f}\n" for a, b, c in zip(t, r, y)))
+    res = _cli("identify", str(p), "--closed-loop", "--kp", str(kp), "--vmax", "none", "--period", str(h),
+               "--model", "ipdt", "--json")
+    assert res.exit_code == 0, res.output
+    got = json.loads(res.stdout)["params"]
+    assert got["delay"] == pytest.approx(L, abs=1e-6) and got["gain"] == pytest.approx(1.0, rel=1e-6)
