@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from delaykit.errors import InvalidTypeError, InvalidValueError
 from delaykit.identify import Experiment, IdentificationError, identify, read_experiment
 from delaykit.identify.estimation import LAG_FLOOR, estimate_trajectory
 from delaykit.identify.flightlog import synthetic_log
@@ -175,3 +176,21 @@ def test_identify_closed_loop_p_law_needs_no_delay_option(tmp_path: Path) -> Non
     assert res.exit_code == 0, res.output
     got = json.loads(res.stdout)["params"]
     assert got["delay"] == pytest.approx(L, abs=1e-6) and got["gain"] == pytest.approx(1.0, rel=1e-6)
+
+
+# -- a controller from a python-control transfer function ----------------------------------------------------------
+def test_controller_of_a_python_control_transfer_function_is_the_transfer_controller() -> None:
+    ct = pytest.importorskip("control")
+    c_tf = ct.tf([2.0, 2.0], [0.1, 1.0])
+    c = Controller(c_tf)
+    assert c == Controller.transfer(c_tf) and c.kind == "tf"
+    # the same law: C(jw) of python-control's object at a few frequencies
+    num, den = c.feedback_polynomials()
+    for w in (0.1, 1.0, 30.0):
+        assert complex(np.polyval(num, 1j * w) / np.polyval(den, 1j * w)) == pytest.approx(complex(c_tf(1j * w)))
+    with pytest.raises(InvalidTypeError, match=r"Controller.transfer"):
+        Controller(object())
+    with pytest.raises(InvalidValueError, match=r"Controller.transfer\('2\*\(s\+1\)'\)"):
+        Controller("2*(s+1)")
+    with pytest.raises(InvalidValueError, match="discrete|continuous"):
+        Controller(ct.tf([1.0], [1.0, 0.5], 0.1))
