@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -19,6 +20,8 @@ from delaykit.models.altitude import AltitudeLoop
 from delaykit.models.controllers import Controller
 from delaykit.models.loop import Loop
 from delaykit.models.transfer import TransferFunction
+from delaykit.simulate.metrics import OVERSHOOT_TOLERANCE, step_metrics
+from delaykit.simulate.simulation import simulate, simulate_many
 from delaykit.simulate.discrete import closed_loop_response, held_delay_model, held_response, held_response_at
 
 
@@ -194,3 +197,23 @@ def test_controller_of_a_python_control_transfer_function_is_the_transfer_contro
         Controller("2*(s+1)")
     with pytest.raises(InvalidValueError, match="discrete|continuous"):
         Controller(ct.tf([1.0], [1.0, 0.5], 0.1))
+
+
+# -- a peak time only where there is an overshoot ------------------------------------------------------------------
+def test_no_peak_time_beside_an_overshoot_within_the_tolerance() -> None:
+    # a first-order response with a bump at t = 8 s that just reaches the reference (overshoot 0 up to rounding),
+    # passes it by 1e-4 % of the step (no overshoot either), or by 0.01 % (one): the peak time flips at
+    # OVERSHOOT_TOLERANCE
+    t = np.linspace(0.0, 10.0, 2001)
+    base = 1.0 - np.exp(-t)
+    for bump, has_peak in ((0.0, False), (1e-6, False), (1e-4, True)):
+        z = base + (math.exp(-8.0) + bump) * np.exp(-((t - 8.0) / 0.3) ** 2)
+        m = step_metrics(t, np.where(t > 0, z, 0.0), step=1.0, step_time=0.0, final="reference")
+        assert (m.peak_time is not None) == has_peak, (bump, m)
+        assert (m.overshoot > OVERSHOOT_TOLERANCE) == has_peak
+    # the same rule in the exact simulator's metrics and its batch: a heater loop that does not overshoot
+    lp = Loop("0.6976/(146.6*s+1)", Controller.pi(2.0, 0.01), delay=16.6)
+    r = simulate(lp, t_end=3000.0)
+    assert (r.metrics.peak_time is None) == (r.metrics.overshoot <= OVERSHOOT_TOLERANCE)
+    b = simulate_many(lp, kp=[0.5, 2.0, 8.0], t_end=3000.0)
+    assert np.array_equal(np.isnan(b.peak_time), b.overshoot <= OVERSHOOT_TOLERANCE)

@@ -4,7 +4,8 @@ Definitions (continuous time, relative to the step time, for steps up and down a
 normalised so that it starts at 0 and its final value is 1):
 
 * overshoot: ``100 * max(0, max w - 1)`` percent of the step;
-* peak time: the time of that maximum (``None`` for a response with no overshoot);
+* peak time: the time of that maximum (``None`` for a response with no overshoot: an overshoot of at most
+  :data:`OVERSHOOT_TOLERANCE`, which is rounding, or a monotone response's last digits);
 * rise time: from the first crossing of ``w = 0.1`` to the first crossing of ``w = 0.9``;
 * settling time: the last time ``|w - 1| >= band`` (2 % by default); ``None`` when the response is still
   outside the band at the end of the record ("never settles" within it);
@@ -35,7 +36,25 @@ import numpy as np
 
 from ..errors import InvalidValueError, check_real
 
-__all__ = ["StepMetrics", "SecondOrder", "step_metrics", "noise_level"]
+__all__ = ["StepMetrics", "SecondOrder", "step_metrics", "noise_level", "OVERSHOOT_TOLERANCE", "peak_time_of"]
+
+OVERSHOOT_TOLERANCE = 1e-3
+"""Percent of the step: an overshoot up to this is no overshoot, and has no peak time (it prints as 0.000 %)."""
+
+
+def peak_time_of(overshoot: Any, peak_time: Any) -> Any:
+    """The peak time where the overshoot (%) exceeds :data:`OVERSHOOT_TOLERANCE`; ``None`` (NaN in arrays) where not.
+
+    Examples
+    --------
+    >>> peak_time_of(2.3, 1.5), peak_time_of(4e-4, 1.5)
+    (1.5, None)
+    >>> peak_time_of(np.array([2.3, 0.0]), np.array([1.5, 9.0])).tolist()
+    [1.5, nan]
+    """
+    if np.ndim(overshoot) == 0:
+        return peak_time if overshoot is not None and overshoot > OVERSHOOT_TOLERANCE else None
+    return np.where(np.asarray(overshoot) > OVERSHOOT_TOLERANCE, peak_time, np.nan)
 
 
 def _fmt(x: float | None, unit: str, digits: int = 4) -> str:
@@ -51,7 +70,7 @@ class StepMetrics:
     overshoot : float
         Percent of the step.
     peak_time : float or None
-        Seconds after the step; ``None`` when there is no overshoot.
+        Seconds after the step; ``None`` when there is no overshoot (none above :data:`OVERSHOOT_TOLERANCE`).
     rise_time : float or None
         10 to 90 % rise time in seconds; ``None`` if the response never reaches 90 %.
     settling_time : float or None
@@ -74,6 +93,9 @@ class StepMetrics:
     peak: float
     band: float = 0.02
     noise: float | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "peak_time", peak_time_of(self.overshoot, self.peak_time))
 
     @property
     def settled(self) -> bool:
