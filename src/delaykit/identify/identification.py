@@ -620,6 +620,12 @@ class Prediction:
     predicted: dict[str, np.ndarray]
     rms: dict[str, float]
     wander: dict[str, float]
+    drive: np.ndarray | None = None
+    """The log's input (open loop) or reference (closed loop), as logged."""
+    drive_name: str = "u"
+    """Its column."""
+    drive_kind: str = "input"
+    """``"input"`` (an open-loop log) or ``"reference"`` (a closed-loop log)."""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (the contract of ``delaykit predict --json``: ``rms`` is the first output's)."""
@@ -674,7 +680,9 @@ def predict(model: IdentifiedModel, experiment: Experiment, *, u0: float | None 
     rms = {o: float(np.sqrt(np.mean((meas[o] - sim[o]) ** 2))) for o in sim}
     pre = experiment.onset if not experiment.starts_moving else 0
     wander = {o: float(np.std(meas[o][:pre])) if pre >= 5 else math.nan for o in sim}
-    return Prediction(experiment.name, experiment.t, meas, sim, rms, wander)
+    return Prediction(experiment.name, experiment.t, meas, sim, rms, wander, drive=experiment.drive,
+                      drive_name=experiment.reference_name if experiment.closed else experiment.input_name,
+                      drive_kind="reference" if experiment.closed else "input")
 
 
 def load_model(path: str | Path) -> IdentifiedModel:
