@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any, Optional
 
@@ -198,23 +199,41 @@ def identify(
     from rich.table import Table
 
     table = Table(title=f"{m.structure.title} ({m.model}), {'closed' if closed_loop else 'open'} loop, {len(exps)} log(s)")
-    for col in ("parameter", "value", "± stderr", "95 % interval"):
+    for col in ("parameter", "unit", "value", "± stderr", "95 % interval"):
         table.add_column(col, justify="right")
-    for p in m.structure.params:
-        table.add_row(p, f"{m.params[p]:.5g}", f"{m.stderr[p]:.2g}", fmt_ci(m.ci[p]))
-    out.print(table)
+    drive_col = reference if closed_loop else input_col
+    for p, unit in zip(m.structure.params, m.structure.units):
+        table.add_row(p, _unit(unit, output, drive_col), f"{m.params[p]:.5g}", f"{m.stderr[p]:.2g}",
+                      fmt_ci(m.ci[p]))
+    out.print(table, highlight=False)
     if m.candidates:
-        ct = Table(title=f"candidates (chosen by {m.criterion})")
-        for col in ("model", "rms", "BIC", "leave-one-out rms"):
+        from rich.markup import escape
+
+        ct = Table(title=f"candidates (chosen by {m.criterion} among those whose status is ok)")
+        for col in ("model", f"rms ({output})", "BIC", f"leave-one-out rms ({output})", "status"):
             ct.add_column(col, justify="right")
         for c in m.candidates:
-            ct.add_row(c.model, f"{c.rms:.4g}", f"{c.bic:.1f}", fmt(c.lolo_rms))
-        out.print(ct)
+            ct.add_row(c.model, f"{c.rms:.4g}", f"{c.bic:.1f}", fmt(c.lolo_rms), c.status)
+        out.print(ct, highlight=False)
+        for c in m.candidates:
+            if c.status != "ok":
+                out.print(f"[yellow]{c.status}:[/] {escape(c.model)}: {escape(c.reason or '')}", highlight=False)
     print_rms("logs", [(d["file"], d["rms"], d["wander"]) for d in (g.to_dict() for g in m.logs)])
     for w in m.warnings:
         out.print(f"[yellow]warning:[/] {w}", highlight=False)
     if save is not None:
         out.print(f"model written to {save}", highlight=False)
+
+
+def _unit(unit: str, output: str, drive: str) -> str:
+    """A structure's unit with its placeholders named: ``y`` the output column's unit, ``u`` the drive's.
+
+    Examples
+    --------
+    >>> _unit("y/(u s)", "z", "u"), _unit("s", "T1", "Q1"), _unit("rad/s", "z", "u")
+    ('z/(u s)', 's', 'rad/s')
+    """
+    return re.sub(r"\b[yu]\b", lambda m_: output if m_.group(0) == "y" else drive, unit)
 
 
 @friendly
