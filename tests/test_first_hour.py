@@ -217,3 +217,81 @@ def test_no_peak_time_beside_an_overshoot_within_the_tolerance() -> None:
     assert (r.metrics.peak_time is None) == (r.metrics.overshoot <= OVERSHOOT_TOLERANCE)
     b = simulate_many(lp, kp=[0.5, 2.0, 8.0], t_end=3000.0)
     assert np.array_equal(np.isnan(b.peak_time), b.overshoot <= OVERSHOOT_TOLERANCE)
+
+
+# -- auto model selection flags candidates it cannot believe -----------------------------------------------------
+def test_auto_selection_flags_implausible_candidates_by_status() -> None:
+    # the heater step test: the integrating structures fit it only with gains of -4e11 (the hover-level column
+    # cancels their ramp) and ipdt_speed with a zero of 161,000 s; each is flagged, with a reason, in the
+    # candidates and their JSON; the chosen model is an ok one
+    e = read_experiment(HEATER, outputs=["z"], input="u", u_before=0.0)
+    m = identify(e, model="auto")
+    status = {c.model: c.status for c in m.candidates}
+    assert status == {"ipdt": "implausible", "ipdt_lag": "implausible", "ipdt_speed": "implausible",
+                      "fopdt": "ok", "sopdt": "ok"}
+    assert status[m.model] == "ok"
+    for c in m.candidates:
+        d = c.to_dict()
+        assert d["status"] == c.status and (d["reason"] is None) == (c.status == "ok")
+    assert json.loads(json.dumps(m.to_dict()))["candidates"][0]["status"] == "implausible"
+
+
+def test_candidate_status_flips_at_the_stated_spans() -> None:
+    from types import SimpleNamespace
+
+    from delaykit.identify.identification import PLAUSIBLE_SPAN, PLAUSIBLE_TIME, candidate_status
+    from delaykit.identify.structures import STRUCTURES
+
+    t = np.arange(0.0, 100.0)
+    u = np.where(t >= 10, 2.0, 0.0)  # a step of 2 held 90 s
+    e = Experiment.from_arrays(t, {"y": np.minimum(t, 50.0)}, u=u)
+    prep = SimpleNamespace(exp=e, drive=u, meas={"y": e.outputs["y"]}, outputs=("y",))
+    span = 50.0
+    fo = STRUCTURES["fopdt"]
+    # self-regulating: gain x 2 against the span 50
+    k_edge = PLAUSIBLE_SPAN * span / 2.0
+    assert candidate_status(fo, np.array([0.99 * k_edge, 10.0, 1.0]), np.eye(3), [prep], False)[0] == "ok"
+    assert candidate_status(fo, np.array([1.01 * k_edge, 10.0, 1.0]), np.eye(3), [prep], False)[0] == "implausible"
+    # integrating: gain x the input's integral (2 x 90 s)
+    k_edge = PLAUSIBLE_SPAN * span / (2.0 * 89.0)
+    ip = STRUCTURES["ipdt"]
+    assert candidate_status(ip, np.array([0.99 * k_edge, 1.0]), np.eye(2), [prep], False)[0] == "ok"
+    assert candidate_status(ip, np.array([1.01 * k_edge, 1.0]), np.eye(2), [prep], False)[0] == "implausible"
+    # a time constant against the log's 99 s; a non-finite error
+    tau_edge = PLAUSIBLE_TIME * 99.0
+    assert candidate_status(fo, np.array([1.0, 0.99 * tau_edge, 1.0]), np.eye(3), [prep], False)[0] == "ok"
+    assert candidate_status(fo, np.array([1.0, 1.01 * tau_edge, 1.0]), np.eye(3), [prep], False)[0] == "implausible"
+    assert candidate_status(fo, np.array([1.0, 10.0, 1.0]), np.full((3, 3), np.nan), [prep], False)[0] == \
+        "undetermined"
+
+
+def test_identify_table_has_units_and_the_candidates_status(tmp_path: Path) -> None:
+    res = _cli("identify", str(HEATER), "--input", "u", "--output", "z", "--u-before", "0",
+               "--model", "auto")
+    assert res.exit_code == 0, res.output
+    assert "unit" in res.output and "z/u" in res.output and "rms (z)" in res.output
+    assert "status" in res.output and "implausible: ipdt: gain" in res.output
+
+
+# -- a load step: the setpoint settling and the load recovery, apart -----------------------------------------------
+def test_a_load_step_reports_setpoint_settling_and_load_recovery_apart() -> None:
+    # the heater under PI with a load step at 1500 s: the run's settling time (the last time out of the band)
+    # is the load's recovery, not the setpoint's; both are reported, each checked against the exact simulator
+    args = ["--plant", "0.6976/(146.6*s+1)", "--controller", "pi", "--kp", "2", "--ki", "0.01", "--delay", "16.6",
+            "--umin", "none", "--umax", "none", "--t-end", "3000"]
+    res = _cli("simulate", *args, "--disturbance", "-5", "--disturbance-time", "1500", "--json")
+    assert res.exit_code == 0, res.output
+    got = json.loads(res.stdout)
+    lp = Loop("0.6976/(146.6*s+1)", Controller.pi(2.0, 0.01), delay=16.6)
+    alone = simulate(lp, t_end=3000.0).metrics
+    assert got["setpoint_settling_time"] == pytest.approx(alone.settling_time, rel=1e-9)
+    # the recovery, from a dense sampling of the exact solution: the last time |z - 1| >= 2 % after the load
+    from delaykit.models.signals import LoadStep
+
+    r = simulate(lp, t_end=3000.0, disturbance=LoadStep(-5.0, 1500.0))
+    t = np.linspace(1500.0, 3000.0, 150_001)
+    out = np.flatnonzero(np.abs(r.altitude(t) - 1.0) >= 0.02)
+    assert got["load_recovery_time"] == pytest.approx(t[out[-1]] - 1500.0, abs=0.02)
+    assert got["settling_time"] > 1500.0 > got["setpoint_settling_time"]  # the combined one, kept in the JSON
+    table = _cli("simulate", *args, "--disturbance", "-5", "--disturbance-time", "1500")
+    assert "setpoint settle s" in table.output and "load recovery s" in table.output

@@ -36,10 +36,31 @@ import numpy as np
 
 from ..errors import InvalidValueError, check_real
 
-__all__ = ["StepMetrics", "SecondOrder", "step_metrics", "noise_level", "OVERSHOOT_TOLERANCE", "peak_time_of"]
+__all__ = ["StepMetrics", "SecondOrder", "step_metrics", "noise_level", "OVERSHOOT_TOLERANCE", "peak_time_of",
+           "load_recovery"]
 
 OVERSHOOT_TOLERANCE = 1e-3
 """Percent of the step: an overshoot up to this is no overshoot, and has no peak time (it prints as 0.000 %)."""
+
+
+def load_recovery(with_load: "StepMetrics", load_time: float) -> float | None:
+    """Seconds from a load step at ``load_time`` (after the reference step) until the response is back in the
+    settling band for good: 0 when the load never pushes it out, ``None`` when it is still out at the end.
+
+    ``with_load`` are the metrics of the run with the load, whose settling time is the last time outside the band
+    over the whole run, the load's excursion included; the setpoint's own settling is that of the run without
+    the load.  A response that has not settled from the step by ``load_time`` counts its remaining settling here.
+
+    Examples
+    --------
+    >>> m = StepMetrics(overshoot=0.0, peak_time=None, rise_time=1.0, settling_time=62.5, steady_state_error=0.0,
+    ...                 peak=1.0)
+    >>> load_recovery(m, 50.0), load_recovery(m, 70.0)
+    (12.5, 0.0)
+    """
+    if with_load.settling_time is None:
+        return None
+    return max(0.0, float(with_load.settling_time) - float(load_time))
 
 
 def peak_time_of(overshoot: Any, peak_time: Any) -> Any:
