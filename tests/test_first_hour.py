@@ -295,3 +295,25 @@ def test_a_load_step_reports_setpoint_settling_and_load_recovery_apart() -> None
     assert got["settling_time"] > 1500.0 > got["setpoint_settling_time"]  # the combined one, kept in the JSON
     table = _cli("simulate", *args, "--disturbance", "-5", "--disturbance-time", "1500")
     assert "setpoint settle s" in table.output and "load recovery s" in table.output
+
+
+# -- a compensator design on a slow plant is simulated long enough -------------------------------------------------
+def test_smith_design_on_a_heater_simulates_past_its_delay_and_recovers() -> None:
+    # with the fixed 15 s horizon the heater's 16.6 s delay left the steps unsettled and the load "recovered never"
+    from delaykit.design.compensators import design_compensator, design_horizon
+    from delaykit.models.signals import LoadStep
+
+    d = design_compensator("smith", "0.6976/(146.6*s+1)", 16.6, umin=0.0, umax=100.0)
+    assert d.horizon == pytest.approx(design_horizon(d.compensator.model, 16.6, d.compensator.closed_loop_time))
+    assert d.horizon > 5 * 146.6 + 10 * 16.6
+    assert all(m is not None and m.settling_time is not None for m in d.steps.values())
+    assert d.disturbance.recovery_time is not None
+    # the recovery against a longer run of the same unsaturated loop, sampled finely (last time above 10 % of peak)
+    lp = d.loop.replace(umin=-math.inf, umax=math.inf)
+    r = simulate(lp, step=0.0, disturbance=LoadStep(0.2, 0.0), t_end=3000.0)
+    t = np.linspace(0.0, 3000.0, 300_001)
+    y = np.abs(r.altitude(t))
+    last = t[np.flatnonzero(y > 0.1 * y.max())[-1]]
+    assert d.disturbance.recovery_time == pytest.approx(last, abs=d.horizon / 4000 + 0.01)
+    # the drone keeps its 15 s
+    assert design_compensator("smith", "1/s", 0.37, umin=-1, umax=1).horizon == 15.0
