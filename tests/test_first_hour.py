@@ -317,3 +317,19 @@ def test_smith_design_on_a_heater_simulates_past_its_delay_and_recovers() -> Non
     assert d.disturbance.recovery_time == pytest.approx(last, abs=d.horizon / 4000 + 0.01)
     # the drone keeps its 15 s
     assert design_compensator("smith", "1/s", 0.37, umin=-1, umax=1).horizon == 15.0
+
+
+# -- the plant is printed as the user wrote it ---------------------------------------------------------------------
+def test_a_plant_read_from_text_is_printed_as_written() -> None:
+    g = TransferFunction.parse("0.6976/(146.6*s+1)")
+    assert repr(g) == "TransferFunction(0.6976/(146.6 s + 1))"
+    assert g.num.tolist() == pytest.approx([0.6976 / 146.6]) and g.den.tolist() == pytest.approx([1.0, 1 / 146.6])
+    # the saved form reads back to the same function, exactly
+    assert TransferFunction.parse(g.to_string(digits=17)) == g
+    lp = Loop("0.6976/(146.6*s+1)", Controller.pi(2.0, 0.01), delay=16.6)
+    assert "plant 0.6976/(146.6 s + 1)" in repr(lp)
+    assert Loop(lp.to_dict()["plant"], Controller.pi(2.0, 0.01), delay=16.6).plant == lp.plant
+    res = _cli("simulate", "--plant", "0.6976/(146.6*s+1)", "--kp", "2", "--delay", "16.6", "--t-end", "100")
+    assert res.exit_code == 0 and "0.6976/(146.6 s + 1)" in res.output and "0.00475853" not in res.output
+    # arithmetic and coefficients give the normalised form
+    assert repr(2 * g) == "TransferFunction(0.00951705/(s + 0.00682128))"
