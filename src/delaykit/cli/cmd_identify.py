@@ -146,7 +146,7 @@ def identify(
     u_before: Optional[float] = typer.Option(None, "--u-before", help="The input before the log, when the log starts with the step (default 0)."),
     u0: Optional[float] = typer.Option(None, "--u0", help="With --closed-loop: the absolute command at rest before the logs, which places the limits (needed for an integrating controller, limits and a self-regulating plant)."),
     command: Optional[str] = typer.Option(None, "--command", help="With --closed-loop: the logs' command column; its value at rest is --u0."),
-    resample: Optional[float] = typer.Option(None, "--resample", help="Put logs with an irregular clock on this uniform period, s (the drive held, the outputs interpolated; timing then known to this period)."),
+    resample: Optional[float] = typer.Option(None, "--resample", help="Put the logs on this uniform period first, s (the drive held, the outputs interpolated; timing then known to this period). Optional: logs are fitted on their own clock, even an irregular one; only a closed loop sampled at the log's samples needs a uniform clock."),
     fresh_only: bool = typer.Option(False, "--fresh-only", help="Count only output samples that changed (a sensor slower than the log repeats its values)."),
     save: Optional[Path] = typer.Option(None, "--save", help="Write the model here (JSON), for `delaykit predict`."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
@@ -244,7 +244,7 @@ def predict(
     u_before: Optional[float] = typer.Option(None, "--u-before", help="The input before the log, when it starts with the step."),
     u0: Optional[float] = typer.Option(None, "--u0", help="A closed-loop model: the absolute command at rest before the logs (see identify --u0)."),
     command: Optional[str] = typer.Option(None, "--command", help="A closed-loop model: the logs' command column; its value at rest is --u0."),
-    resample: Optional[float] = typer.Option(None, "--resample", help="Put logs with an irregular clock on this uniform period, s (the drive held, the outputs interpolated; timing then known to this period)."),
+    resample: Optional[float] = typer.Option(None, "--resample", help="Put the logs on this uniform period first, s (the drive held, the outputs interpolated; timing then known to this period). Optional: logs are fitted on their own clock, even an irregular one; only a closed loop sampled at the log's samples needs a uniform clock."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Overlay each log and the prediction here."),
 ) -> None:
