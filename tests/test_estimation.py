@@ -403,7 +403,7 @@ def test_records_read_as_the_former_dicts():
 def test_cli_estimate_with_no_interval_says_so(tmp_path, monkeypatch):
     from typer.testing import CliRunner
 
-    import delaykit.identify.estimation as E
+    from delaykit.identify import estimation as E  # (delaykit.identify is the function)
     from delaykit.cli import app
 
     p = tmp_path / "flight.csv"

@@ -263,21 +263,23 @@ def test_plot_iterations_shows_both_parts():
 
 def _robustness_map():
     """A map whose abscissa is a plane, 4 (d - g) + 0.2: zero on the line d = g - 0.05 (closed form; a contour of a
-    linear function interpolated linearly is exact), and beyond +-5 in two corners (to see the clipping)."""
+    linear function interpolated linearly is exact), and beyond +-5 in two corners (the colour scale spans it)."""
     from delaykit.design.compensators import RobustnessMap
 
     d, g = np.linspace(0.5, 2.0, 7), np.linspace(0.5, 2.0, 4)
     return RobustnessMap(d, g, 4.0 * (d[:, None] - g[None, :]) + 0.2, "smith")
 
 
-def test_plot_robustness_map_shows_the_clipped_abscissa_the_boundary_and_the_design_point():
+def test_plot_robustness_map_shows_the_abscissa_the_boundary_and_the_design_point():
     rmap = _robustness_map()
     fig = plot_robustness_map(rmap)
     assert isinstance(fig, Figure) and len(fig.axes) == 2  # the map and its colour bar
     ax, bar = fig.axes
     mesh, boundary = ax.collections
-    assert np.abs(rmap.abscissa).max() > 5  # the clipping is exercised
-    assert np.array_equal(np.asarray(mesh.get_array()).reshape(rmap.abscissa.shape), np.clip(rmap.abscissa, -5, 5))
+    assert np.abs(rmap.abscissa).max() > 5  # beyond the former fixed +-5 scale
+    assert np.array_equal(np.asarray(mesh.get_array()).reshape(rmap.abscissa.shape), rmap.abscissa)
+    top = float(np.abs(rmap.abscissa).max())  # a symmetric scale as wide as the data
+    assert (mesh.norm.vmin, mesh.norm.vmax) == (-top, top)
     # each cell is centred on its (gain ratio, delay ratio): the mean of its four corners
     corners = mesh.get_coordinates()
     centres = 0.25 * (corners[:-1, :-1] + corners[1:, :-1] + corners[:-1, 1:] + corners[1:, 1:])
@@ -314,9 +316,22 @@ def test_plot_robustness_map_into_given_axes_and_without_a_boundary():
 
     real = robustness_map(Compensator.smith("1/s", 0.37), [0.8, 1.0, 1.2], [0.9, 1.1])
     fig = plot_robustness_map(real)
-    assert np.array_equal(np.asarray(fig.axes[0].collections[0].get_array()).reshape(3, 2),
-                          np.clip(real.abscissa, -5, 5))
+    assert np.array_equal(np.asarray(fig.axes[0].collections[0].get_array()).reshape(3, 2), real.abscissa)
 
+
+def test_plot_robustness_map_of_a_slow_plant_scales_its_colours_to_the_data():
+    # a heater's roots lie within a few 0.001 1/s of the axis: on the former fixed +-5 1/s scale every cell was
+    # white (|a| / 5 < 0.1 %); the scale now spans the data, so the extreme cells take the extreme colours
+    from delaykit.design.compensators import RobustnessMap
+
+    d, g = np.linspace(0.5, 2.0, 7), np.linspace(0.5, 2.0, 4)
+    a = 0.004 * (d[:, None] - g[None, :]) + 0.0002
+    fig = plot_robustness_map(RobustnessMap(d, g, a, "smith"))
+    mesh = fig.axes[0].collections[0]
+    top = float(np.abs(a).max())
+    assert (mesh.norm.vmin, mesh.norm.vmax) == (-top, top)
+    rgba = mesh.to_rgba(np.asarray(mesh.get_array()))
+    assert np.ptp(rgba[..., :3]) > 0.5  # far from one white
 
 def _online():
     """Three steps of a flight (the monitor's own records): in range, an alarm, and a design range open upwards."""
@@ -401,7 +416,7 @@ def test_plot_predictions_shows_measured_and_predicted_first_outputs():
 
     preds = _predictions()
     fig = plot_predictions(preds, title="fopdt")
-    assert isinstance(fig, Figure) and len(fig.axes) == 1
+    assert isinstance(fig, Figure) and len(fig.axes) == 3  # outputs, residuals, input
     ax = fig.axes[0]
     assert len(ax.lines) == 2 * len(preds)  # a measured and a predicted line per log, the first output only
     assert [ln.get_label() for ln in ax.lines] == ["a.csv measured", "predicted (rms 0.01)",
@@ -413,8 +428,16 @@ def test_plot_predictions_shows_measured_and_predicted_first_outputs():
         assert np.array_equal(predicted.get_ydata(), p.predicted["z"])
         assert predicted.get_color() == measured.get_color() and predicted.get_linestyle() == "--"
     assert ax.lines[0].get_color() != ax.lines[2].get_color()
-    assert (ax.get_xlabel(), ax.get_ylabel(), ax.get_title()) == ("time from the log's start (s)", "z", "fopdt")
+    assert (ax.get_ylabel(), ax.get_title()) == ("z", "fopdt")
+    assert fig.axes[-1].get_xlabel() == "time from the log's start (s)"
     assert len(ax.get_legend().get_texts()) == 4
+    # the residual panel: measured - predicted of the first output, per log
+    res = fig.axes[1]
+    assert res.get_ylabel() == "residual z (measured - predicted)"
+    for i, p in enumerate(preds):
+        assert np.allclose(res.lines[i].get_ydata(), p.measured["z"] - p.predicted["z"])
+    # these hand-made predictions carry no input: the panel says so
+    assert fig.axes[2].get_ylabel() == "input (not logged)" and len(fig.axes[2].lines) == 0
 
 
 def test_plot_predictions_into_given_axes_and_of_a_real_fit(tmp_path):
@@ -442,6 +465,43 @@ def test_plot_predictions_into_given_axes_and_of_a_real_fit(tmp_path):
     measured, predicted = fig.axes[0].lines
     assert np.array_equal(measured.get_ydata(), pred.measured["y"])
     assert np.array_equal(predicted.get_ydata(), pred.predicted["y"])
+    # the input, held between samples, in the third panel, named by its column
+    (drive,) = fig.axes[2].lines
+    assert np.array_equal(drive.get_ydata(), e.u) and drive.get_drawstyle() == "steps-post"
+    assert fig.axes[2].get_ylabel() == "input u"
+
+
+def test_response_labels_come_from_the_loop():
+    # the paper's loop is an altitude in metres driven by a speed command; a heater is neither
+    from delaykit.models.loop import Loop
+
+    drone = plot_responses([simulate(AltitudeLoop(kp=1.31, delay=0.368), t_end=3.0)], dt=0.05)
+    assert [a.get_ylabel() for a in drone.axes] == ["altitude z (m)", "command u (m/s)"]
+    heater = simulate(Loop("0.6976/(146.6*s+1)", delay=16.6), t_end=600.0)
+    fig = plot_responses([heater], dt=5.0)
+    assert [a.get_ylabel() for a in fig.axes] == ["output y", "command u"]
+    assert not any("altitude" in a.get_ylabel() or "m/s" in a.get_ylabel() for a in fig.axes)
+    fig = plot_responses([heater], dt=5.0, output_label="temperature T (°C)", command_label="heater Q (%)")
+    assert [a.get_ylabel() for a in fig.axes] == ["temperature T (°C)", "heater Q (%)"]
+
+
+@pytest.mark.parametrize("width", [4.0, 8.0])
+def test_long_titles_are_wrapped_inside_the_figure(width):
+    # rendered by the Agg canvas (attached to this figure only: the backend is not switched); the title's box
+    # must lie within the figure's
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    title = ("IdentifiedModel(fopdt: gain=0.6976 ± 0.0023, time_constant=146.6 ± 2.3 s, delay=16.63 ± 1.1 s; "
+             "rms=0.2688, 1 log) predicting a second log of the heater")
+    fig = Figure(figsize=(width, 4), layout="tight")
+    ax = fig.subplots()
+    from delaykit.plotting.figures import set_title
+
+    set_title(ax, title)
+    FigureCanvasAgg(fig).draw()
+    box = ax.title.get_window_extent()
+    assert box.x0 >= 0 and box.x1 <= fig.bbox.x1 and box.y1 <= fig.bbox.y1
+    assert ax.get_title().replace("\n", " ") == title
 
 
 # ---- callers: the command line and the paper write their figures through these ----------------------------------

@@ -94,7 +94,10 @@ def test_raw_coefficients_normalise_to_the_parsed_function(text):
 def test_repr_and_to_string():
     g = TransferFunction.parse("1/(s*(0.05*s+1))")
     assert repr(g) == "TransferFunction(20/(s^2 + 20 s))"
-    assert g.to_string() == "20/(s^2 + 20*s)"
+    assert g.to_string() == "20/(s^2 + 20*s)"  # an integrator: the monic form
+    h = TransferFunction.parse("0.6976/(146.6*s+1)")  # a gain and a time constant: as written
+    assert repr(h) == "TransferFunction(0.6976/(146.6 s + 1))" and TransferFunction.parse(h.to_string()) == h
+    assert repr(TransferFunction(h.num, h.den)) == "TransferFunction(0.00475853/(s + 0.00682128))"
     assert TransferFunction([-1, 0, -2.5], [1, 0, 0, 3]).to_string() == "(-s^2 - 2.5)/(s^3 + 3)"
     assert TransferFunction([1, 0], [1, 2, 0]).to_string() == "s/(s^2 + 2*s)"
     assert TransferFunction([3], [1, 0, 0]).to_string() == "3/s^2"

@@ -12,6 +12,7 @@ True
 
 from __future__ import annotations
 
+import os
 import sys
 import types
 from typing import Any
@@ -50,7 +51,7 @@ _LAZY = {
     "Step": ".models.signals", "Ramp": ".models.signals", "Samples": ".models.signals", "LoadStep": ".models.signals",
     "TransferFunction": ".models.transfer", "SecondOrder": ".simulate.metrics", "StepMetrics": ".simulate.metrics",
     "noise_level": ".simulate.metrics", "step_metrics": ".simulate.metrics", "BatchMetrics": ".simulate.simulation",
-    "Response": ".simulate.simulation", "simulate_many": ".simulate.simulation", "RootStatus": ".spectrum.roots",
+    "Response": ".simulate.simulation", "simulate": ".simulate.simulation", "simulate_many": ".simulate.simulation", "RootStatus": ".spectrum.roots",
     "frequency_response": ".spectrum.frequency", "frequency_grid": ".spectrum.frequency",
     "margins": ".spectrum.frequency", "FrequencyResponse": ".spectrum.frequency", "Margins": ".spectrum.frequency",
     "Crossover": ".spectrum.frequency", "to_control": ".models.interop", "pade_error": ".models.interop",
@@ -83,23 +84,38 @@ _LAZY = {
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())
 
 
-class _Package(types.ModuleType):
-    """The package's module type: ``delaykit.simulate`` is the function, though a subpackage shares its name.
+class _Export:
+    """A package attribute that stays the exported function though a subpackage shares its name.
 
-    Importing the subpackage :mod:`delaykit.simulate` makes Python bind it as the package's attribute
-    ``simulate``; this property keeps that name the function (the subpackage stays importable by its
-    full name, ``from delaykit.simulate.simulation import ...``).
+    Importing a subpackage (``delaykit.identify``, say, to reach ``read_experiment``) makes Python bind it as the
+    package's attribute of the same name; this data descriptor on the package's type outranks that binding, so
+    ``delaykit.identify`` and ``from delaykit import identify`` give the function whatever was imported before
+    (the subpackage stays importable by its full name, ``from delaykit.identify.iodata import ...``).  A value
+    that is not a module (a test's monkeypatch) is kept.
     """
 
-    @property
-    def simulate(self) -> Any:
-        from .simulate.simulation import simulate
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
 
-        return simulate
+    def __get__(self, obj: Any, objtype: Any = None) -> Any:
+        if obj is None:
+            return self
+        value = obj.__dict__.get(self.name)
+        return __getattr__(self.name) if value is None or isinstance(value, types.ModuleType) else value
 
-    @simulate.setter
-    def simulate(self, value: Any) -> None:
-        pass  # the import system binding the subpackage: the name stays the function
+    def __set__(self, obj: Any, value: Any) -> None:
+        if not isinstance(value, types.ModuleType):  # the import system binding the subpackage: ignored
+            obj.__dict__[self.name] = value
 
+    def __delete__(self, obj: Any) -> None:
+        obj.__dict__.pop(self.name, None)
+
+
+_SHARED = tuple(name for name in _LAZY if os.path.isdir(os.path.join(os.path.dirname(__file__), name)))
+"""Exported names that are also subpackages' names (``simulate``, ``identify``)."""
+
+_Package = type("_Package", (types.ModuleType,), {
+    "__doc__": "The package's module type: each name of :data:`_SHARED` is the exported function (:class:`_Export`).",
+    **{name: _Export() for name in _SHARED}})
 
 sys.modules[__name__].__class__ = _Package

@@ -59,6 +59,9 @@ def _design_compensator(kind: str, opts: dict[str, Any], uncertainty: float, as_
     out.print(table)
     lo, hi = d.delay_ratio_range
     out.print(f"Stable for true/model delay ratios {lo:.4f} to {hi:.4f}; {d.disturbance!r}.", highlight=False)
+    out.print(f"Steps simulated for {d.horizon:.4g} s, the load recovery for {max(d.horizon, 20.0):.4g} s (from the "
+              "plant's slowest mode, the delay and the design's speed; 'never' means not within that).",
+              highlight=False)
 
 
 @friendly

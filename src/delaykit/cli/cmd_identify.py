@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any, Optional
 
@@ -127,8 +128,12 @@ def estimate(
         warn(w)
 
 
+# the loop options `identify` leaves out: the plant and its delay are what it finds, a compensator is refused
+_IDENTIFY_OMITS = ("plant", "delay", "output_delay", "model_delay", "closed_loop_time")
+
+
 @friendly
-@with_loop(omit=("plant",))
+@with_loop(omit=_IDENTIFY_OMITS)
 def identify(
     logs: list[Path] = typer.Argument(..., help="Logs (CSV with a header: time, the input or reference, outputs)."),
     closed_loop: bool = typer.Option(False, "--closed-loop", help="Closed-loop fit from the reference through the controller given by the loop options (--controller p | pv | pi | pd | pid | a transfer function, its gains, --umin/--umax, --antiwindup, --period = the log's; pi, pd, pid and tf may be continuous: no --period; p and pv must be sampled)."),
@@ -142,7 +147,7 @@ def identify(
     u_before: Optional[float] = typer.Option(None, "--u-before", help="The input before the log, when the log starts with the step (default 0)."),
     u0: Optional[float] = typer.Option(None, "--u0", help="With --closed-loop: the absolute command at rest before the logs, which places the limits (needed for an integrating controller, limits and a self-regulating plant)."),
     command: Optional[str] = typer.Option(None, "--command", help="With --closed-loop: the logs' command column; its value at rest is --u0."),
-    resample: Optional[float] = typer.Option(None, "--resample", help="Put logs with an irregular clock on this uniform period, s (the drive held, the outputs interpolated; timing then known to this period)."),
+    resample: Optional[float] = typer.Option(None, "--resample", help="Put the logs on this uniform period first, s (the drive held, the outputs interpolated; timing then known to this period). Optional: logs are fitted on their own clock, even an irregular one; only a closed loop sampled at the log's samples needs a uniform clock."),
     fresh_only: bool = typer.Option(False, "--fresh-only", help="Count only output samples that changed (a sensor slower than the log repeats its values)."),
     save: Optional[Path] = typer.Option(None, "--save", help="Write the model here (JSON), for `delaykit predict`."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
@@ -153,6 +158,7 @@ def identify(
 
     With --model auto every structure is fitted and one is chosen: by leave-one-log-out prediction error with
     two logs or more, by BIC with one. Standard errors allow for coloured residuals (an autoregressive noise model).
+    A delay in a loop file (--loop) is ignored: it is what is identified.
     """
     from ..identify.identification import identify as run_identify
     from ..identify.identification import predict as run_predict
@@ -164,9 +170,7 @@ def identify(
     given = {k: v for k, v in loop_options.items() if v is not None}
     loop = None
     if closed_loop:
-        if given.get("delay") not in (None, "0", "0.0"):
-            raise InvalidValueError("identify finds the delay: do not give --delay")
-        opts = dict(loop_options)
+        opts = {**loop_options, "delay": "0"}
         if str(given.get("controller", "p")).lower() not in ("p", "pv") and "loop_file" not in given:
             opts["plant"] = "1/s"  # (ignored) so that the paper's P/PV loop's +-1 limits are not assumed
         loop, _ = build_loop(opts, parse_delays)
@@ -195,23 +199,39 @@ def identify(
     from rich.table import Table
 
     table = Table(title=f"{m.structure.title} ({m.model}), {'closed' if closed_loop else 'open'} loop, {len(exps)} log(s)")
-    for col in ("parameter", "value", "± stderr", "95 % interval"):
+    for col in ("parameter", "unit", "value", "± stderr", "95 % interval"):
         table.add_column(col, justify="right")
-    for p in m.structure.params:
-        table.add_row(p, f"{m.params[p]:.5g}", f"{m.stderr[p]:.2g}", fmt_ci(m.ci[p]))
-    out.print(table)
+    drive_col = reference if closed_loop else input_col
+    for p, unit in zip(m.structure.params, m.structure.units):
+        table.add_row(p, _unit(unit, output, drive_col), f"{m.params[p]:.5g}", f"{m.stderr[p]:.2g}",
+                      fmt_ci(m.ci[p]))
+    out.print(table, highlight=False)
     if m.candidates:
-        ct = Table(title=f"candidates (chosen by {m.criterion})")
-        for col in ("model", "rms", "BIC", "leave-one-out rms"):
+        ct = Table(title=f"candidates (chosen by {m.criterion} among those whose status is ok)")
+        for col in ("model", f"rms ({output})", "BIC", f"leave-one-out rms ({output})", "status"):
             ct.add_column(col, justify="right")
         for c in m.candidates:
-            ct.add_row(c.model, f"{c.rms:.4g}", f"{c.bic:.1f}", fmt(c.lolo_rms))
-        out.print(ct)
+            ct.add_row(c.model, f"{c.rms:.4g}", f"{c.bic:.1f}", fmt(c.lolo_rms), c.status)
+        out.print(ct, highlight=False)
+        for c in m.candidates:
+            if c.status != "ok":
+                warn(f"{c.model}: {c.reason or ''}", label=c.status)
     print_rms("logs", [(d["file"], d["rms"], d["wander"]) for d in (g.to_dict() for g in m.logs)])
     for w in m.warnings:
         warn(w)
     if save is not None:
         out.print(f"model written to {save}", highlight=False)
+
+
+def _unit(unit: str, output: str, drive: str) -> str:
+    """A structure's unit with its placeholders named: ``y`` the output column's unit, ``u`` the drive's.
+
+    Examples
+    --------
+    >>> _unit("y/(u s)", "z", "u"), _unit("s", "T1", "Q1"), _unit("rad/s", "z", "u")
+    ('z/(u s)', 's', 'rad/s')
+    """
+    return re.sub(r"\b[yu]\b", lambda m_: output if m_.group(0) == "y" else drive, unit)
 
 
 @friendly
@@ -222,7 +242,7 @@ def predict(
     u_before: Optional[float] = typer.Option(None, "--u-before", help="The input before the log, when it starts with the step."),
     u0: Optional[float] = typer.Option(None, "--u0", help="A closed-loop model: the absolute command at rest before the logs (see identify --u0)."),
     command: Optional[str] = typer.Option(None, "--command", help="A closed-loop model: the logs' command column; its value at rest is --u0."),
-    resample: Optional[float] = typer.Option(None, "--resample", help="Put logs with an irregular clock on this uniform period, s (the drive held, the outputs interpolated; timing then known to this period)."),
+    resample: Optional[float] = typer.Option(None, "--resample", help="Put the logs on this uniform period first, s (the drive held, the outputs interpolated; timing then known to this period). Optional: logs are fitted on their own clock, even an irregular one; only a closed loop sampled at the log's samples needs a uniform clock."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Overlay each log and the prediction here."),
 ) -> None:

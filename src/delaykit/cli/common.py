@@ -362,11 +362,12 @@ def print_error(message: str) -> None:
     err.print(Text.assemble(("error:", "bold red"), " ", one_line(str(message))))
 
 
-def warn(message: str) -> None:
-    """Print ``warning: MESSAGE`` on stdout, among the results: one line, the message as it is."""
+def warn(message: str, label: str = "warning") -> None:
+    """Print ``LABEL: MESSAGE`` (``warning: ...`` by default) on stdout, among the results: one line, the message
+    as it is."""
     from rich.text import Text
 
-    out.print(Text.assemble(("warning:", "yellow"), " ", one_line(str(message))))
+    out.print(Text.assemble((f"{label}:", "yellow"), " ", one_line(str(message))))
 
 
 def friendly(fn: Callable[..., Any]) -> Callable[..., Any]:

@@ -36,7 +36,8 @@ from ..simulate.simulation import simulate
 from ..spectrum.stability import rightmost
 
 __all__ = ["CompensatorDesign", "RobustnessMap", "DisturbanceRecovery", "delay_ratio_range", "robustness_map",
-           "design_compensator", "tune_compensator", "compare_designs", "minimum_settling_time", "disturbance_recovery"]
+           "design_compensator", "tune_compensator", "compare_designs", "minimum_settling_time", "disturbance_recovery",
+           "design_horizon"]
 
 _RATIO_MAX = 4.0
 _SCAN = 0.02
@@ -221,6 +222,8 @@ class CompensatorDesign:
     delay_ratio_range: tuple[float, float]
     disturbance: DisturbanceRecovery
     bounds: dict[float, float] = field(default_factory=dict)
+    horizon: float = 15.0
+    """How long the steps were simulated (s; the load recovery at least 20 s)."""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form: ``compensator``, ``params``, ``steps`` (by step size), ``delay_ratio_range``, ..."""
@@ -232,6 +235,7 @@ class CompensatorDesign:
             "delay_ratio_range": list(self.delay_ratio_range),
             "disturbance": self.disturbance.to_dict(),
             "minimum_settling_time": {f"{k:g}" if k != int(k) else f"{k:.1f}": v for k, v in self.bounds.items()},
+            "horizon": self.horizon,
             "loop": self.loop.to_dict(),
         }
 
@@ -242,13 +246,31 @@ class CompensatorDesign:
         return f"CompensatorDesign({self.compensator.kind}, settling {st}, delay ratio {lo:.3f}..{hi:.3f})"
 
 
+def design_horizon(plant: Any, delay: float, closed_loop_time: float, shortest: float = 15.0) -> float:
+    """How long a compensator design's steps and load recovery are simulated (s): ``10 (Tm + Tc)`` for the
+    reference's response (the compensated loop follows the model with its delay and speed ``Tc``), plus
+    ``5 tau`` for the plant's slowest stable mode ``tau`` (a predictor rejects a load only as fast as the open
+    plant lets it), and at least ``shortest``.  A heater's 150 s lag and 17 s delay need some 1,000 s; the
+    paper's drone keeps ``shortest``.
+
+    Examples
+    --------
+    >>> round(design_horizon("0.6976/(146.6*s+1)", 16.6, 10.0), 1), design_horizon("1/s", 0.37, 0.1)
+    (999.0, 15.0)
+    """
+    g = TransferFunction.coerce(plant, name="plant")
+    rates = [-p.real for p in np.atleast_1d(g.poles()) if p.real < 0]
+    slow = 1.0 / float(min(rates)) if rates else 0.0
+    return max(float(shortest), 10.0 * (float(delay) + float(closed_loop_time)) + 5.0 * slow)
+
+
 def _steps(loop: Loop, sizes: Sequence[float], t_end: float) -> dict[float, StepMetrics | None]:
     return {float(s): simulate(loop, step=s, t_end=t_end).metrics for s in sizes}
 
 
 def design_compensator(kind: str, plant: Any, delay: float, *, umin: float = -math.inf, umax: float = math.inf,
                        closed_loop_time: float | None = None, delay_uncertainty: float = 0.2,
-                       steps: Sequence[float] = (0.2, 1.0), disturbance: float = 0.2, t_end: float = 15.0,
+                       steps: Sequence[float] = (0.2, 1.0), disturbance: float = 0.2, t_end: float | None = None,
                        **options: Any) -> CompensatorDesign:
     """A compensator of ``kind`` for the model ``plant`` with delay ``delay``, and what it achieves.
 
@@ -274,6 +296,10 @@ def design_compensator(kind: str, plant: Any, delay: float, *, umin: float = -ma
         Reference step sizes whose metrics are reported.
     disturbance : float
         Size of the load disturbance for :func:`disturbance_recovery`.
+    t_end : float, optional
+        How long the steps are simulated (s; the load recovery at least 20 s); by default
+        :func:`design_horizon` of the plant, the delay and the design's ``Tc`` (a slow plant is simulated long
+        enough to settle: a fixed 15 s was shorter than a heater's delay).
     **options
         Passed to the compensator's constructor (``filter_time``, ``integral_time``).
 
@@ -294,6 +320,9 @@ def design_compensator(kind: str, plant: Any, delay: float, *, umin: float = -ma
     comp = tune_compensator(kind, plant, delay, closed_loop_time=closed_loop_time,
                             delay_uncertainty=delay_uncertainty, **options)
     g, tm = comp.model, comp.model_delay
+    if t_end is None:
+        t_end = design_horizon(g, tm, comp.closed_loop_time)
+    t_end = check_real("t_end (s)", t_end, minimum=0.0, strict=True)
     loop = Loop(g, comp, delay=tm, umin=umin, umax=umax)
     metrics = _steps(loop, steps, t_end)
     rng = delay_ratio_range(comp, g)
@@ -302,7 +331,7 @@ def design_compensator(kind: str, plant: Any, delay: float, *, umin: float = -ma
     if g.integrators == 1 and g.order == 1 and math.isfinite(umax) and math.isfinite(umin):
         k = float(g.num[-1] / g.den[0])
         bounds = {float(s): minimum_settling_time(tm, s, umax if s * k > 0 else -umin, k) for s in steps}
-    return CompensatorDesign(comp, loop, metrics, rng, rec, bounds)
+    return CompensatorDesign(comp, loop, metrics, rng, rec, bounds, horizon=float(t_end))
 
 
 def tune_compensator(kind: str, plant: Any, delay: float, *, closed_loop_time: float | None = None,

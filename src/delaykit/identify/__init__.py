@@ -7,6 +7,10 @@ trajectory.  :mod:`.iodata` reads any log (input or reference, outputs), :mod:`.
 coloured residuals, :mod:`.experiment` predicts the errors of a planned test, and :mod:`.online` re-estimates the
 delay on a window of a flight from the commands sent (whatever the controller).  It uses the models, simulations
 and spectra of the layers below.
+
+Note that ``delaykit.identify`` as an attribute of the package root is the :func:`identify` function; import this
+layer's modules by their full names, ``from delaykit.identify.iodata import ...`` or
+``from delaykit.identify import iodata``.
 """
 
 from .estimation import (DelayEstimate, EstimationError, estimate_flights, estimate_lambert, estimate_overshoot,

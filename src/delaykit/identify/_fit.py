@@ -130,6 +130,13 @@ def _prepare(exp: Experiment, outputs: tuple[str, ...], rate: str | None, law: A
                                   "(give the loop), or give its input column for an open-loop fit")
     if law is not None and not exp.closed:
         raise IdentificationError(f"{exp.name}: a closed-loop fit needs the reference column; this log has an input")
+    if law is not None and not exp.uniform and getattr(law, "period", None) is not None:
+        dt = np.diff(exp.t)
+        raise IdentificationError(
+            f"{exp.name}: the controller is sampled at the log's samples, but the log's clock is not uniform "
+            f"(intervals {dt.min():.6g} to {dt.max():.6g} s, median {exp.period:.6g} s); put the log on a uniform "
+            f"clock with resample=PERIOD (--resample PERIOD), e.g. {exp.period / 10:.3g} s, or fit open loop "
+            "from the logged command")
     names = outputs + ((rate,) if rate else ())
     base = {o: exp.baseline(o) for o in names}
     meas = {o: exp.outputs[o] - base[o] for o in names}
@@ -164,6 +171,10 @@ def _simulate(prep: _Prepared, plant: TransferFunction, delay: float, law: Any,
         from ._closed_general import simulate
 
         return simulate(prep, plant, delay, law)
+    if law is None and not prep.exp.uniform:
+        from ._clock import simulate as on_its_clock
+
+        return on_its_clock(prep, plant, delay)
     key = (prep.exp.period, delay)
     model = None if cache is None else cache.get(key)
     if model is None:
@@ -198,6 +209,11 @@ class _Problem:
             from ._closed_general import GeneralProblem
 
             cls = GeneralProblem
+        elif cls is _Problem and law is None:
+            from ._clock import ClockProblem, any_clock
+
+            if any_clock(preps, law):
+                cls = ClockProblem
         return super().__new__(cls)
 
     def __init__(self, st: Structure, preps: list[_Prepared], law: _Law | None, weights: dict[str, float],

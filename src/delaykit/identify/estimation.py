@@ -594,7 +594,10 @@ def estimate_trajectory(
         ``stderr`` from the Fisher information (Gauss-Newton), widened by a Newey-West factor when the
         residuals are correlated in time, plus (in quadrature) the timing resolution of rounded altitudes,
         ``q / sqrt(12) / max|z'|``; ``ci`` the 95 % profile-likelihood interval (threshold widened by the same
-        factor, ends by the same resolution); ``diagnostics`` with the residual whiteness test and
+        factor, ends by the same resolution).  A nuisance held at its bound (a lag at its floor) is left out of
+        the Fisher information, and ``stderr`` is then at least the interval's width / (2 x 1.96): the likelihood
+        is one-sided there, and the profile interval, which keeps the bounds, is the honest one.
+        ``diagnostics`` with the residual whiteness test and
         measured-vs-model overshoot and peak time.
 
     Examples
@@ -639,7 +642,12 @@ def estimate_trajectory(
     n, p = r.size, theta.size + 2 * nf  # offsets and scales count as parameters
     rss = float(np.dot(r, r))
     sigma2 = rss / max(n - p, 1)
-    J = fit.jac
+    # a nuisance held at its bound (a lag at its 4 ms floor) is not free: its column, nearly the delay's own (a
+    # short lag looks like extra delay), would make the Fisher information all but singular and the error of the
+    # delay absurd (seconds), though the profile interval below, which keeps the bounds, is a few ms wide
+    held = np.asarray(fit.active_mask) != 0
+    held[0] = False
+    J = fit.jac[:, ~held]
     inflation = 1.0
     try:
         JtJ_inv = np.linalg.inv(J.T @ J)
@@ -689,6 +697,13 @@ def estimate_trajectory(
             except ValueError:
                 ends.append(b)
         ci = (min(ends), max(ends))
+
+    if ci is not None and se is not None and held[1:].any():
+        # with a nuisance at its bound the likelihood is one-sided (the lag can grow as the delay shrinks, not
+        # shrink): the Fisher error of the restricted fit understates the interval; the error reported is then
+        # the one a normal interval as wide as the profile interval would have, so that "delay +- stderr" and
+        # the interval agree
+        se = max(se, (ci[1] - ci[0]) / (2.0 * 1.96))
 
     # rounded altitudes carry a timing resolution of their own: one rounding step takes q / |z'| seconds
     # at the response's fastest; that uniform error (std q / sqrt(12) / max|z'|) is added in quadrature

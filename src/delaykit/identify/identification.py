@@ -50,7 +50,8 @@ from .noise import ar_covariance, cross_correlation, fit_ar, fit_var, ljung_box
 from .structures import STRUCTURES, Structure, structure
 
 __all__ = ["IdentifiedModel", "Candidate", "LogFit", "Prediction", "identify", "predict", "simulate_experiment",
-           "load_model", "IdentificationError", "CORRELATION_WARNING"]
+           "load_model", "IdentificationError", "CORRELATION_WARNING", "candidate_status", "PLAUSIBLE_SPAN",
+           "PLAUSIBLE_TIME"]
 
 CORRELATION_WARNING = 0.9
 """Above this absolute correlation two time parameters are reported as traded against each other."""
@@ -80,7 +81,12 @@ class LogFit:
 
 @dataclass(frozen=True)
 class Candidate:
-    """One structure tried by ``model="auto"``: its fit and the criteria."""
+    """One structure tried by ``model="auto"``: its fit, the criteria, and whether its parameters are believable.
+
+    ``status`` is ``"ok"``, ``"implausible"`` (a parameter the data cannot show: see :func:`candidate_status`) or
+    ``"undetermined"`` (non-finite parameters or errors: the fit did not converge to a point); ``reason`` says why
+    (``None`` when ok).  ``model="auto"`` chooses among the ``ok`` candidates when there are any.
+    """
 
     model: str
     params: dict[str, float]
@@ -89,11 +95,55 @@ class Candidate:
     aic: float
     bic: float
     lolo_rms: float | None = None
+    status: str = "ok"
+    reason: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
         return {"model": self.model, "params": dict(self.params), "k": self.k, "rms": self.rms, "aic": self.aic,
-                "bic": self.bic, "lolo_rms": self.lolo_rms}
+                "bic": self.bic, "lolo_rms": self.lolo_rms, "status": self.status, "reason": self.reason}
+
+
+PLAUSIBLE_SPAN = 100.0
+"""A fitted open-loop model is implausible when its own response to the logged input (|gain| x the input's largest
+deviation from rest; for an integrating plant, x the largest integral of that deviation) would span this many times
+the measured output."""
+
+PLAUSIBLE_TIME = 10.0
+"""A fitted time (a lag, a time constant, a zero; not the delay) over this many times the longest log is implausible:
+the data cannot show it."""
+
+
+def candidate_status(st: Structure, p: np.ndarray, cov: np.ndarray, preps: list[_Prepared],
+                     closed: bool) -> tuple[str, str | None]:
+    """``(status, reason)`` of a fitted structure (see :class:`Candidate`).
+
+    Examples
+    --------
+    >>> import types
+    >>> e = Experiment.from_arrays(np.arange(20.0), {"y": np.arange(20.0)}, u=np.where(np.arange(20) > 2, 1.0, 0.0))
+    >>> prep = types.SimpleNamespace(exp=e, drive=e.u, meas={"y": e.outputs["y"]}, outputs=("y",))
+    >>> candidate_status(STRUCTURES["ipdt"], np.array([1.0, 2.0]), np.eye(2), [prep], False)
+    ('ok', None)
+    >>> candidate_status(STRUCTURES["ipdt"], np.array([-4e11, 1.0]), np.eye(2), [prep], False)[0]
+    'implausible'
+    """
+    se = np.sqrt(np.abs(np.diag(cov))) if cov.size else np.zeros(0)
+    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(se))):
+        return "undetermined", "non-finite parameters or standard errors: the fit did not settle on a point"
+    longest = max(q.exp.duration for q in preps)
+    for name, unit, v in zip(st.params, st.units, p):
+        if unit == "s" and name != "delay" and abs(v) > PLAUSIBLE_TIME * longest:
+            return "implausible", (f"{name} = {v:.4g} s, over {PLAUSIBLE_TIME:g} times the longest log "
+                                   f"({longest:.4g} s): the data cannot show it")
+    if not closed and st.params[0] == "gain":
+        span = max(float(np.ptp(q.meas[q.outputs[0]])) for q in preps)
+        reach = max(float(np.max(np.abs(np.cumsum(q.drive[:-1] * np.diff(q.exp.t)) if st.integrating
+                                        else q.drive))) for q in preps)
+        if span > 0 and abs(p[0]) * reach > PLAUSIBLE_SPAN * span:
+            return "implausible", (f"gain = {p[0]:.4g}: the model's response to the input would span "
+                                   f"{abs(p[0]) * reach / span:.3g} times the measured output")
+    return "ok", None
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -429,7 +479,7 @@ def identify(
     if len({e.closed for e in exps}) > 1:
         raise IdentificationError("the logs mix open-loop (input) and closed-loop (reference) data")
     h0 = exps[0].period
-    for e in exps[1:]:
+    for e in exps[1:] if exps[0].closed else ():  # (open loop: each log is simulated on its own clock)
         if abs(e.period - h0) > 1e-6 * h0:
             raise IdentificationError(f"the logs have different sample clocks: {exps[0].name} every {h0:.6g} s, "
                                       f"{e.name} every {e.period:.6g} s; resample them onto one clock")
@@ -465,17 +515,19 @@ def identify(
         fitted[nm] = _fit_structure(st, preps, law, fit_offset, starts)
     results = {nm: fitted[nm] for nm in names}
     crit = {nm: _criteria(o) for nm, o in results.items()}
+    status = {nm: candidate_status(o.st, o.p, o.cov, preps, law is not None) for nm, o in results.items()}
+    eligible = [nm for nm in names if status[nm][0] == "ok"] or names  # (all flagged: the least bad of them)
     lolo: dict[str, float] = {}
     if len(names) > 1 and len(preps) >= 2:
         for nm in names:
             say(f"leave-one-log-out {nm}")
             lolo[nm] = _leave_one_out(results[nm], preps, law, fit_offset)
-        chosen, criterion = min(names, key=lambda nm: lolo[nm]), "leave-one-log-out"
+        chosen, criterion = min(eligible, key=lambda nm: lolo[nm]), "leave-one-log-out"
     else:
-        chosen, criterion = min(names, key=lambda nm: crit[nm][1]), "bic"
+        chosen, criterion = min(eligible, key=lambda nm: crit[nm][1]), "bic"
     best = results[chosen]
     cands = tuple(Candidate(nm, dict(zip(o.st.params, map(float, o.p))), o.k, o.rms, crit[nm][0], crit[nm][1],
-                            lolo.get(nm)) for nm, o in results.items()) if len(names) > 1 else ()
+                            lolo.get(nm), *status[nm]) for nm, o in results.items()) if len(names) > 1 else ()
     return _assemble(best, preps, law, crit[chosen], cands, criterion, per_log, fit_offset, say)
 
 
@@ -620,6 +672,12 @@ class Prediction:
     predicted: dict[str, np.ndarray]
     rms: dict[str, float]
     wander: dict[str, float]
+    drive: np.ndarray | None = None
+    """The log's input (open loop) or reference (closed loop), as logged."""
+    drive_name: str = "u"
+    """Its column."""
+    drive_kind: str = "input"
+    """``"input"`` (an open-loop log) or ``"reference"`` (a closed-loop log)."""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (the contract of ``delaykit predict --json``: ``rms`` is the first output's)."""
@@ -674,7 +732,9 @@ def predict(model: IdentifiedModel, experiment: Experiment, *, u0: float | None 
     rms = {o: float(np.sqrt(np.mean((meas[o] - sim[o]) ** 2))) for o in sim}
     pre = experiment.onset if not experiment.starts_moving else 0
     wander = {o: float(np.std(meas[o][:pre])) if pre >= 5 else math.nan for o in sim}
-    return Prediction(experiment.name, experiment.t, meas, sim, rms, wander)
+    return Prediction(experiment.name, experiment.t, meas, sim, rms, wander, drive=experiment.drive,
+                      drive_name=experiment.reference_name if experiment.closed else experiment.input_name,
+                      drive_kind="reference" if experiment.closed else "input")
 
 
 def load_model(path: str | Path) -> IdentifiedModel:

@@ -1,6 +1,6 @@
 """Experiment data for identification: a log's time, its input or reference, and its outputs.
 
-An :class:`Experiment` is one log: the sample times (a uniform clock), the signal that drives the system (the
+An :class:`Experiment` is one log: the sample times (a uniform clock or not), the signal that drives the system (the
 plant's command ``u`` for an open-loop fit, or the loop's reference for a closed-loop fit) and one or more outputs
 (altitude ``z``, vertical speed ``vz``, a temperature).  :func:`read_experiment` reads one from a CSV file with
 a header (UTF-8, a byte-order mark and ``\\r\\n`` line ends accepted, commas only), checking every value.
@@ -8,12 +8,15 @@ a header (UTF-8, a byte-order mark and ``\\r\\n`` line ends accepted, commas onl
 Deviation variables: the initial steady state is the mean of each signal before the drive first moves
 (:attr:`Experiment.onset`), or its first sample when the log starts with the move.
 
-A log whose clock is not uniform (a logger that writes when it can) is refused, unless it is put on a uniform
-clock with ``resample=h``: the drive is held (each logged command holds until the next, as a command does) and the
-outputs are interpolated linearly.  Each switch of the drive then moves to the next point of the new grid, so the
-timing of the log is known to within ``h`` only: choose ``h`` well below the delay's wanted precision (a tenth of
-the log's median interval, say).  Linear interpolation errs by at most ``dt^2 max|y''| / 8`` between samples
-``dt`` apart.
+A log whose clock is not uniform (a logger that writes when it can: a heater log at "1 Hz" whose intervals are
+1.01 s, or jitter) is taken as it is: a continuous-time fit simulates the plant at the samples' own times, each
+logged command held until the next (:func:`~delaykit.simulate.discrete.held_response_at`, exact).  Such a log's
+:attr:`Experiment.uniform` is False and its :attr:`Experiment.period` the median interval.  Only a closed-loop fit
+through a controller sampled at the log's samples needs a uniform clock; for it, ``resample=h`` puts the log on
+the clock ``t[0] + k h``: the drive is held and the outputs are interpolated linearly.  Each switch of the drive
+then moves to the next point of the new grid, so the timing of the log is known to within ``h`` only: choose ``h``
+well below the delay's wanted precision (a tenth of the log's median interval, say).  Linear interpolation errs by
+at most ``dt^2 max|y''| / 8`` between samples ``dt`` apart.
 
 Examples
 --------
@@ -40,7 +43,7 @@ from .flightlog import LogError, read_csv_rows
 __all__ = ["Experiment", "read_experiment", "CLOCK_TOLERANCE"]
 
 CLOCK_TOLERANCE = 0.01
-"""Largest allowed departure of a sample interval from the log's period, as a fraction of the period."""
+"""A clock is uniform when no sample interval departs from the median interval by more than this fraction of it."""
 
 MOVE_FRACTION = 0.1
 """The drive has moved once it is this fraction of its range away from its first value."""
@@ -55,9 +58,11 @@ class Experiment:
     name : str
         Where it came from (a file name).
     t : ndarray
-        Sample times (s), uniform to :data:`CLOCK_TOLERANCE` of the period.
+        Sample times (s), increasing.
     period : float
         The sample period (s): the median interval.
+    uniform : bool
+        True when every interval is within :data:`CLOCK_TOLERANCE` of the period (a resampled log is uniform).
     outputs : dict of str to ndarray
         The measured outputs by name.
     u : ndarray or None
@@ -83,6 +88,7 @@ class Experiment:
     u_before: float | None = None
     _onset: int = field(default=0)
     resampled_from: int | None = None
+    uniform: bool = True
 
     @classmethod
     def from_arrays(cls, t: Any, outputs: Mapping[str, Any], *, u: Any = None, r: Any = None, name: str = "data",
@@ -90,13 +96,14 @@ class Experiment:
                     resample: float | None = None) -> "Experiment":
         """Check and wrap arrays (see the class docstring for the fields).
 
-        ``resample``: put a log whose clock is not uniform on the uniform clock ``t[0] + k * resample`` (s), the
-        drive held and the outputs interpolated linearly (see the module docstring); ``None`` refuses such a log.
+        ``resample``: put the log on the uniform clock ``t[0] + k * resample`` (s), the drive held and the outputs
+        interpolated linearly (see the module docstring); ``None`` (the default) keeps the log's own clock,
+        uniform or not.
 
         Raises
         ------
         InvalidValueError
-            Non-finite values, times that are not increasing or not uniform (without ``resample``), arrays of
+            Non-finite values, times that are not increasing, arrays of
             different lengths, no drive or a drive that never moves (nothing to identify), a ``resample`` period
             that is not positive or leaves fewer than 10 samples.
 
@@ -138,12 +145,6 @@ class Experiment:
             uu = None if uu is None else uu[held]
             rr = None if rr is None else rr[held]
             logged, tt, h = tt.size, grid, hr
-        elif np.any(bad):
-            i = int(np.flatnonzero(bad)[0])
-            raise InvalidValueError(
-                f"{name}: the sample clock is not uniform (interval {dt[i]:.6g} s at t = {tt[i]:g} s, period "
-                f"{h:.6g} s, tolerance {CLOCK_TOLERANCE:.0%}); put it on a uniform clock with resample=PERIOD "
-                f"(--resample PERIOD), e.g. {h / 10:.3g} s")
         if (uu is None) == (rr is None):
             raise InvalidValueError(f"{name}: give the input (open-loop fit) or the reference (closed-loop fit), "
                                     "exactly one")
@@ -161,7 +162,7 @@ class Experiment:
         onset = int(np.flatnonzero(np.abs(drive - first) > MOVE_FRACTION * span)[0])
         return cls(name=name, t=tt, period=h, outputs=outs, u=uu, r=rr, input_name=input_name,
                    reference_name=reference_name, u_before=None if u_before is None else float(u_before), _onset=onset,
-                   resampled_from=logged)
+                   resampled_from=logged, uniform=logged is not None or not bool(np.any(bad)))
 
     # -- baselines --------------------------------------------------------------------------------------
     @property
@@ -206,7 +207,10 @@ class Experiment:
 
     def __repr__(self) -> str:
         what = f"input {self.input_name}" if self.u is not None else f"reference {self.reference_name}"
-        return (f"Experiment({self.name!r}: {self.t.size} samples every {self.period:.4g} s, {what}, output"
+        dt = np.diff(self.t)
+        clock = (f"every {self.period:.4g} s" if self.uniform else
+                 f"every {self.period:.4g} s on an irregular clock ({dt.min():.4g} to {dt.max():.4g} s)")
+        return (f"Experiment({self.name!r}: {self.t.size} samples {clock}, {what}, output"
                 f"{'s' if len(self.outputs) > 1 else ''} {', '.join(self.outputs)}, moves at "
                 f"{self.t[self._onset] - self.t[0]:.4g} s"
                 f"{'' if self.resampled_from is None else f', resampled from {self.resampled_from}'})")

@@ -38,7 +38,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..errors import InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real
 from .transfer import TransferFunction
 
 __all__ = ["Controller", "Realisation", "CONTROLLER_KINDS", "ANTIWINDUP_CHOICES", "VELOCITY_CHOICES"]
@@ -89,7 +89,8 @@ class Controller:
     """A controller of a delayed loop (see the module docstring for the laws).
 
     Build one with the named constructors :meth:`p`, :meth:`pv`, :meth:`pi`, :meth:`pd`, :meth:`pid`,
-    :meth:`transfer`, or from a kind and keywords with :meth:`make`.
+    :meth:`transfer`, or from a kind and keywords with :meth:`make`; ``Controller(G)`` with a transfer function
+    ``G`` (delaykit's or python-control's) is ``Controller.transfer(G)``.
 
     Parameters
     ----------
@@ -131,8 +132,20 @@ class Controller:
 
     def __post_init__(self) -> None:
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
+        if not isinstance(self.kind, str) and self.transfer_function is None:
+            # Controller(G) with G a transfer function (delaykit's, python-control's, (num, den)): Controller.transfer
+            try:
+                tf = TransferFunction.coerce(self.kind, name="controller")
+            except (InvalidValueError, InvalidTypeError) as exc:
+                raise type(exc)(f"Controller(...) takes a kind ({', '.join(CONTROLLER_KINDS)}) or a transfer "
+                                f"function (as Controller.transfer(...) does); {exc}") from None
+            set_("kind", "tf")
+            set_("transfer_function", tf)
         if not isinstance(self.kind, str) or self.kind.lower() not in CONTROLLER_KINDS:
-            raise InvalidValueError(f"controller must be one of {', '.join(CONTROLLER_KINDS)}; got {self.kind!r}")
+            hint = (f"; for a transfer function on the error use Controller.transfer({self.kind!r})"
+                    if isinstance(self.kind, str) else "")
+            raise InvalidValueError(f"controller must be one of {', '.join(CONTROLLER_KINDS)}; got "
+                                    f"{self.kind!r}{hint}")
         set_("kind", self.kind.lower())
         for name in ("kp", "ki", "kd", "kv"):
             set_(name, check_real(f"{name} ({_GAIN_NAMES[name]})", getattr(self, name)))

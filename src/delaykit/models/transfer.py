@@ -5,7 +5,8 @@ A :class:`TransferFunction` is a single-input single-output rational function
     ``G(s) = (b_m s^m + ... + b_1 s + b_0) / (s^n + a_(n-1) s^(n-1) + ... + a_0)``
 
 kept as two NumPy float arrays, highest power first (the :func:`numpy.polyval` convention).  The denominator
-is made monic (leading coefficient 1) and leading zeros are stripped, but common factors are *kept*, so
+is made monic (leading coefficient 1) and leading zeros are stripped (a self-regulating plant read from text is
+still printed as the text gave it: ``0.6976/(146.6 s + 1)``), but common factors are *kept*, so
 ``(s+2)/(s^2+3*s+2)`` stays of order 2; :meth:`TransferFunction.minimal` cancels them.  Degrees are at most
 :data:`MAX_ORDER`, and by default only proper functions (``m <= n``) are accepted, since a loop with a delay
 needs a proper plant; ``proper=False`` admits improper controllers such as the PD law ``4*s + 2``.
@@ -359,6 +360,16 @@ class TransferFunction:
         object.__setattr__(self, "num", num)
         object.__setattr__(self, "den", den)
 
+    def _written(self, v: _Val) -> TransferFunction:
+        """Keep the coefficients as the text gave them (before the denominator was made monic), for display, when
+        the text's denominator has a constant term: the gain-and-time-constant form ``K/(T s + 1)`` of a
+        self-regulating plant.  A plant with an integrator prints in the monic form."""
+        num, den = _trim(np.ravel(v.num).astype(float)), _trim(np.ravel(v.den).astype(float))
+        if np.all(np.isfinite(num)) and np.all(np.isfinite(den)) and den[-1] != 0.0:
+            num.flags.writeable = den.flags.writeable = False
+            object.__setattr__(self, "_as_written", (num, den))
+        return self
+
     @classmethod
     def _make(cls, num: np.ndarray, den: np.ndarray, what: str, proper: bool = True) -> TransferFunction:
         tf = object.__new__(cls)
@@ -382,7 +393,7 @@ class TransferFunction:
             raise InvalidValueError(
                 f"the transfer function {_quoted(text)} contains a delay factor exp(-T*s); read it with "
                 "TransferFunction.parse_with_delay, or give the delay through the loop's delay option")
-        return cls._make(v.num, v.den, what, proper)
+        return cls._make(v.num, v.den, what, proper)._written(v)
 
     @classmethod
     def parse_with_delay(cls, text: str, *, proper: bool = True) -> tuple[TransferFunction, float]:
@@ -394,7 +405,7 @@ class TransferFunction:
         (TransferFunction(2/(s + 1)), 0.5)
         """
         v, what = _read(text)
-        return cls._make(v.num, v.den, what, proper), v.delay
+        return cls._make(v.num, v.den, what, proper)._written(v), v.delay
 
     @classmethod
     def from_state_space(cls, A: Any, B: Any, C: Any, D: Any = 0.0) -> TransferFunction:
@@ -697,19 +708,25 @@ class TransferFunction:
     def to_string(self, digits: int | None = None, times: str = "*") -> str:
         """``num/den`` as text that :meth:`parse` reads back (with the default ``times``).
 
+        A function read from text whose denominator has a constant term is written as the text gave it
+        (``0.6976/(146.6 s + 1)``, not its monic ``0.00475853/(s + 0.00682128)``); one with an integrator, or
+        built from coefficients or by arithmetic, normalised.
         Coefficients use ``%g``, or ``%.{digits}g`` (17 round-trips floats exactly); coefficients 1 are
         omitted; ``times`` joins a coefficient and its power of ``s`` (``" "`` for display, as in ``repr``).
 
         Examples
         --------
-        >>> TransferFunction.parse("s/(0.02*s+1)").to_string()
-        '50*s/(s + 50)'
+        >>> TransferFunction.parse("s/(0.02*s+1)").to_string(), TransferFunction([1, 0], [0.02, 1]).to_string()
+        ('s/(0.02*s + 1)', '50*s/(s + 50)')
         """
         fmt = "%g" if digits is None else f"%.{int(check_real('digits', digits, minimum=1, maximum=17))}g"
-        num, n_terms = _poly_text(self.num, fmt, times)
-        if self.den.size == 1:
+        a, b = getattr(self, "_as_written", None) or (self.num, self.den)
+        if b.size == 1:  # a constant denominator (4/2): the constant
+            a, b = self.num, self.den
+        num, n_terms = _poly_text(a, fmt, times)
+        if b.size == 1 and b[0] == 1.0:
             return num
-        den, d_terms = _poly_text(self.den, fmt, times)
+        den, d_terms = _poly_text(b, fmt, times)
         return f"{f'({num})' if n_terms > 1 else num}/{f'({den})' if d_terms > 1 else den}"
 
     def __repr__(self) -> str:

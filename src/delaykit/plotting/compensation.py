@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from .figures import _axes, save_figure
+from .figures import _axes, save_figure, set_title
 
 __all__ = ["plot_robustness_map", "plot_online"]
 
@@ -46,17 +46,21 @@ def plot_robustness_map(rmap: Any, path: str | Path | None = None, *, ax: Any = 
     """
     fig, axes, _ = _axes(ax, 1, (6.4, 4.8))
     ax = axes[0]
-    a = np.clip(rmap.abscissa, -5.0, 5.0)
+    a = np.asarray(rmap.abscissa, dtype=float)
+    finite = a[np.isfinite(a)]
+    # a symmetric scale as wide as the data (a heater's roots lie within 0.01 1/s of the axis, a drone's within 5)
+    lim = max(float(np.max(np.abs(finite))), 1e-12) if finite.size else 1.0
+    a = np.clip(a, -lim, lim)
     g, d = np.meshgrid(rmap.gain_ratios, rmap.delay_ratios)
-    mesh = ax.pcolormesh(g, d, a, cmap="RdBu_r", vmin=-5.0, vmax=5.0, shading="auto")
+    mesh = ax.pcolormesh(g, d, a, cmap="RdBu_r", vmin=-lim, vmax=lim, shading="auto")
     if a.shape[0] > 1 and a.shape[1] > 1 and a.min() < 0 < a.max():
         ax.contour(g, d, rmap.abscissa, levels=[0.0], colors="k", linewidths=1.5)
     ax.plot([1.0], [1.0], marker="*", color="gold", markersize=12, markeredgecolor="k", linestyle="none",
             label="design point")
     ax.set_xlabel("true / model gain")
     ax.set_ylabel("true / model delay")
-    ax.set_title(title or f"{rmap.kind}: spectral abscissa (1/s), stable where blue")
-    fig.colorbar(mesh, ax=ax, label="rightmost root real part (clipped to ±5)")
+    set_title(ax, title or f"{rmap.kind}: spectral abscissa (1/s), stable where blue")
+    fig.colorbar(mesh, ax=ax, label="rightmost root real part (1/s)")
     ax.legend(loc="upper right")
     if path is not None:
         save_figure(fig, path)
@@ -114,7 +118,7 @@ def plot_online(online: Any, path: str | Path | None = None, *, ax: Any = None, 
         ax.step(ts + [end], ds + [ds[-1]], where="post", color="k", linestyle="--", label="true delay")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("loop delay (s)")
-    ax.set_title(title or "the delay re-estimated after each step")
+    set_title(ax, title or "the delay re-estimated after each step")
     ax.legend(loc="best", fontsize="small")
     if path is not None:
         save_figure(fig, path)

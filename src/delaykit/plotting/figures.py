@@ -29,7 +29,7 @@ from ..errors import InvalidTypeError, InvalidValueError
 from ..simulate.simulation import Response
 
 __all__ = ["plot_responses", "plot_spectrum", "plot_z_spectrum", "plot_stability_map", "plot_fit",
-           "plot_filter_bode", "plot_iterations", "save_figure"]
+           "plot_filter_bode", "plot_iterations", "save_figure", "set_title", "signal_labels"]
 
 DPI = 120
 
@@ -52,6 +52,41 @@ def save_figure(fig: Figure, path: str | Path | None, dpi: int = DPI) -> Figure:
         root = fig if isinstance(fig, Figure) else fig.figure  # axes given on a subfigure: save the whole figure
         root.savefig(path, dpi=dpi)
     return fig
+
+
+def set_title(ax: Axes, text: str, **kw: Any) -> None:
+    """Set ``ax``'s title wrapped to the figure's width, so that a long title is never clipped.
+
+    Examples
+    --------
+    >>> ax = Figure(figsize=(4, 3)).subplots()
+    >>> set_title(ax, "a title far longer than a figure four inches wide can hold on a single line of text")
+    >>> len(ax.get_title().splitlines())
+    3
+    """
+    size = kw.get("fontsize", 12.0)
+    size = float(size) if isinstance(size, (int, float)) else 12.0
+    width = ax.figure.get_figwidth() * 0.9 * 72.0  # points across, less the margins
+    chars = max(20, int(width / (0.6 * size)))  # an average character is about 0.6 of the font size wide
+    ax.set_title("\n".join(textwrap.fill(line, chars) for line in str(text).split("\n")), **kw)
+
+
+def signal_labels(loop: Any) -> tuple[str, str]:
+    """The output's and the command's axis labels for a loop's response: the paper's altitude loop draws
+    ``altitude z (m)`` and ``command u (m/s)``; any other loop ``output y`` and ``command u`` (a transfer function
+    carries no units: give the labels to the plot to name them).
+
+    Examples
+    --------
+    >>> from delaykit import AltitudeLoop, Loop
+    >>> signal_labels(AltitudeLoop(kp=1.31, delay=0.368)), signal_labels(Loop("0.7/(150*s+1)", delay=16))
+    (('altitude z (m)', 'command u (m/s)'), ('output y', 'command u'))
+    """
+    from ..models.altitude import AltitudeLoop
+
+    if isinstance(loop, AltitudeLoop):
+        return "altitude z (m)", "command u (m/s)"
+    return "output y", "command u"
 
 
 def _axes(ax: Any, panels: int, figsize: tuple[float, float], **grid: Any) -> tuple[Figure, list[Axes], bool]:
@@ -86,6 +121,8 @@ def plot_responses(
     title: str | None = None,
     dt: float = 0.005,
     t_max: float | None = None,
+    output_label: str | None = None,
+    command_label: str | None = None,
 ) -> Figure:
     """Output and command of one or more responses: one line per response in each panel, the reference (dashed)
     and the first response's settling band (shaded).
@@ -106,6 +143,9 @@ def plot_responses(
         Drawing resolution, seconds.
     t_max : float, optional
         Draw up to this time after the step (default: each response's whole length).
+    output_label, command_label : str, optional
+        The panels' axis labels, with units (``"temperature T (°C)"``, ``"heater Q (%)"``); by default those of
+        the first loop (:func:`signal_labels`).
 
     Returns
     -------
@@ -141,16 +181,17 @@ def plot_responses(
     if t_max is not None:
         for a in axes:
             a.set_xlim(-0.05 * t_max, t_max)
-    ax1.set_ylabel("altitude z (m)")
+    y_label, u_label = signal_labels(responses[0].loop) if responses else ("output y", "command u")
+    ax1.set_ylabel(output_label or y_label)
     last = ax2 if ax2 is not None else ax1
     last.set_xlabel("time after the step (s)")
     ax1.grid(alpha=0.3)
     if ax2 is not None:
-        ax2.set_ylabel("command u (m/s)")
+        ax2.set_ylabel(command_label or u_label)
         ax2.grid(alpha=0.3)
     ax1.legend(fontsize=8, ncol=2)
     if title:
-        ax1.set_title(title)
+        set_title(ax1, title)
     return save_figure(fig, path)
 
 
@@ -225,7 +266,7 @@ def plot_spectrum(
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="best")
     if title:
-        ax.set_title(title)
+        set_title(ax, title)
     return save_figure(fig, path)
 
 
@@ -302,7 +343,7 @@ def plot_z_spectrum(
     verdict = (f"spectral radius {radius:.6f} < 1: stable" if result.stable
                else f"spectral radius {radius:.6f} >= 1: UNSTABLE")
     verdict += f" (h = {result.period:g} s)"
-    ax.set_title(f"{textwrap.fill(title, 64)}\n{verdict}" if title else verdict, fontsize=10)
+    set_title(ax, f"{title}\n{verdict}" if title else verdict, fontsize=10)
     return save_figure(fig, path)
 
 
@@ -346,7 +387,7 @@ def plot_stability_map(smap: Any, path: str | Path | None = None, *, ax: Axes | 
         ax.contour(smap.x, smap.y, a, levels=[0.0], colors="k", linewidths=1.5)
     ax.set_xlabel(smap.x_name)
     ax.set_ylabel(smap.y_name)
-    ax.set_title(title or "stability map (black line: stability boundary)")
+    set_title(ax, title or "stability map (black line: stability boundary)")
     return save_figure(fig, path)
 
 
@@ -403,7 +444,7 @@ def plot_fit(logs: Sequence, fits: Sequence, path: str | Path | None = None, *,
     ax1.set_ylabel("altitude z (m)")
     ax1.grid(alpha=0.3)
     ax1.legend(fontsize=7, ncol=2)
-    ax1.set_title(title or "data (dots) and fitted model (lines)")
+    set_title(ax1, title or "data (dots) and fitted model (lines)")
     if ax2 is not None:
         ax2.set_ylabel(lower_label)
         ax2.axhline(0, color="k", lw=0.6)
@@ -458,7 +499,7 @@ def plot_filter_bode(report: Any, path: str | Path | None = None, *,
         axes[1].set_ylabel("phase lag (deg)")
     axes[-1].set_xlabel("frequency (rad/s)")
     axes[0].legend(fontsize=8)
-    axes[0].set_title(f"derivative filter wf = {report.wn:g} rad/s, zf = {report.zeta:g}")
+    set_title(axes[0], f"derivative filter wf = {report.wn:g} rad/s, zf = {report.zeta:g}")
     return save_figure(fig, path, dpi=110)
 
 
@@ -502,7 +543,7 @@ def plot_iterations(iterations: Sequence[complex], path: str | Path | None = Non
         ax.axhline(reference, color="k", ls=":", lw=0.8, label=f"{reference_label}: {reference:g} s")
     ax.set_xlabel(f"iteration (from Td = {z[0].real:g} s)" if z.size else "iteration")
     ax.set_ylabel("Td (s)")
-    ax.set_title(title or "the iterates of the delay")
+    set_title(ax, title or "the iterates of the delay")
     ax.legend()
     ax.grid(alpha=0.3)
     return save_figure(fig, path, dpi=110)

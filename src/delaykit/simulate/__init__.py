@@ -23,7 +23,8 @@ Examples
 from .._lazy import by_module, lazy_exports
 
 _SOURCES = {
-    "metrics": ["StepMetrics", "SecondOrder", "step_metrics", "noise_level"],
+    "metrics": ["StepMetrics", "SecondOrder", "step_metrics", "noise_level", "OVERSHOOT_TOLERANCE", "peak_time_of",
+                "load_recovery"],
     "simulation": ["Response", "BatchMetrics", "Sampler", "simulate", "simulate_many", "as_loop", "SWEEPABLE"],
     "varying": ["DelayModel", "DelaySchedule", "Jitter", "Burst", "DelayTrace", "CombinedDelay", "as_delay_model",
                 "arrival_plan", "VaryingResponse", "simulate_varying"],
@@ -31,7 +32,7 @@ _SOURCES = {
 }
 
 __all__ = [
-    "StepMetrics", "SecondOrder", "step_metrics", "noise_level",
+    "StepMetrics", "SecondOrder", "step_metrics", "noise_level", "OVERSHOOT_TOLERANCE", "peak_time_of", "load_recovery",
     "Response", "BatchMetrics", "Sampler", "simulate", "simulate_many", "as_loop", "SWEEPABLE",
     "DelayModel", "DelaySchedule", "Jitter", "Burst", "DelayTrace", "CombinedDelay", "as_delay_model", "arrival_plan",
     "VaryingResponse", "simulate_varying", "MonteCarlo", "monte_carlo", "DelayDistribution",

@@ -18,6 +18,10 @@ loop with a static sampled law ``u = sat(kp (r - y) - kv y')`` (the paper's P an
 and the PX4 vehicle's outer loop), where the controller samples at the same instants as the log.  Both work in
 deviation variables from rest: the state starts at zero and commands issued before the first sample are zero.
 
+A log on a real clock (a logger that writes at 1.01 s instead of 1 s, or with jitter) has no one-period map:
+:func:`held_response_at` steps the plant from event to event, the samples and the instants at which each held
+command reaches the plant, with one exponential per stretch: exact on any increasing clock.
+
 Examples
 --------
 >>> import numpy as np
@@ -41,7 +45,7 @@ from ..models.hold import hold_matrices, split_delay
 from ..models.transfer import TransferFunction
 
 __all__ = ["HeldDelayModel", "HeldResponse", "held_delay_model", "held_response", "closed_loop_response",
-           "held_matrices_of"]
+           "held_matrices_of", "held_response_at"]
 
 
 STIFF = 1e6
@@ -416,3 +420,114 @@ def closed_loop_response(model: HeldDelayModel, r: np.ndarray, *, kp: float, kv:
     y, dy, uu = _run(model.phi, model.g_early, model.g_late, model.c, model.d, model.ca, model.cb, model.m,
                      model.fractional, a, True, kp, kv, lo, hi)
     return HeldResponse(y=y, dy=dy, u=uu)
+
+
+@njit(cache=True)
+def _advance(A, B, dt, v, x, xn, E):  # pragma: no cover (compiled)
+    """``x <- Phi(dt) x + Gamma(dt) v`` (``E``: work matrix of order n + 1)."""
+    n = A.shape[0]
+    if dt <= 0.0:
+        return
+    _aug_expm(A, B, dt, E)
+    for i in range(n):
+        s = E[i, n] * v
+        for q in range(n):
+            s += E[i, q] * x[q]
+        xn[i] = s
+    for i in range(n):
+        x[i] = xn[i]
+
+
+@njit(cache=True)
+def _run_at_into(A, B, c, d, ca, cb, delay, tol, t, drive, y, dy):  # pragma: no cover (compiled)
+    """One log from rest on its own clock ``t``: ``drive[k]`` held from ``t[k]`` reaches the plant at
+    ``t[k] + delay``; an arrival within ``tol`` of a sample acts at that sample."""
+    n = A.shape[0]
+    N = t.shape[0]
+    x = np.zeros(n)
+    xn = np.zeros(n)
+    E = np.empty((n + 1, n + 1))
+    tau = t[0]
+    j = -1  # the last command that has reached the plant (-1: none yet, the input is 0)
+    v = 0.0
+    for i in range(N):
+        while j + 1 < N and t[j + 1] + delay <= t[i] + tol:
+            s = min(t[j + 1] + delay, t[i])
+            _advance(A, B, s - tau, v, x, xn, E)
+            tau = max(tau, s)
+            j += 1
+            v = drive[j]
+        _advance(A, B, t[i] - tau, v, x, xn, E)
+        tau = t[i]
+        yk = d * v
+        dk = cb * v
+        for q in range(n):
+            yk += c[q] * x[q]
+            dk += ca[q] * x[q]
+        y[i] = yk
+        dy[i] = dk
+
+
+@njit(cache=True)
+def _run_at_logs(A, B, c, d, ca, cb, delay, tol, t, drive, starts, unit, y, dy, uy, udy):  # pragma: no cover
+    """Several logs laid end to end (as :func:`_run_logs`, each on its own clock ``t[starts[i]:starts[i + 1]]``);
+    with ``unit``, also each log's response to a held unit command into ``uy`` and ``udy``."""
+    ones = np.ones(drive.shape[0])
+    for i in range(starts.shape[0] - 1):
+        a = starts[i]
+        b = starts[i + 1]
+        _run_at_into(A, B, c, d, ca, cb, delay, tol, t[a:b], drive[a:b], y[a:b], dy[a:b])
+        if unit:
+            _run_at_into(A, B, c, d, ca, cb, delay, tol, t[a:b], ones[a:b], uy[a:b], udy[a:b])
+
+
+def held_response_at(plant: TransferFunction, t: np.ndarray, u: np.ndarray, delay: float = 0.0) -> HeldResponse:
+    """The plant's output at the sample times ``t`` (any increasing clock) when ``u[k]`` is held from ``t[k]``
+    to ``t[k + 1]`` and reaches the plant ``delay`` seconds later.
+
+    Exact (one matrix exponential per stretch between a sample and a command's arrival); on a uniform clock it
+    is :func:`held_response`.  Deviation variables from rest, as there: the state is zero at ``t[0]`` and
+    earlier commands are zero.
+
+    Parameters
+    ----------
+    plant : TransferFunction
+        A proper plant.
+    t : array_like
+        Sample times (s), increasing.
+    u : array_like
+        The command issued at each sample, as long as ``t``.
+    delay : float
+        The delay (s), >= 0.
+
+    Returns
+    -------
+    HeldResponse
+
+    Examples
+    --------
+    >>> t = np.array([0.0, 0.4, 1.1, 1.5, 2.3])                   # a clock that is not uniform
+    >>> r = held_response_at(TransferFunction.parse("1/s"), t, np.ones(5), delay=0.5)
+    >>> r.y.round(12).tolist()                                     # a ramp from t = 0.5 s
+    [0.0, 0.0, 0.6, 1.0, 1.8]
+    """
+    if not isinstance(plant, TransferFunction):
+        raise InvalidValueError(f"plant must be a TransferFunction, got {type(plant).__name__}")
+    tt = _drive("t (the sample times)", t)
+    if tt.size > 1 and not np.all(np.diff(tt) > 0.0):
+        i = int(np.flatnonzero(np.diff(tt) <= 0.0)[0])
+        raise InvalidValueError(f"t (the sample times) must increase; t[{i + 1}] = {tt[i + 1]:g} s follows "
+                                f"t[{i}] = {tt[i]:g} s")
+    a = _drive("u (the held command)", u)
+    if a.size != tt.size:
+        raise InvalidValueError(f"u has {a.size} values for {tt.size} sample times")
+    T = check_real("delay (s)", delay, minimum=0.0)
+    A, B, C, D = plant.state_space()
+    A = np.ascontiguousarray(np.atleast_2d(A), dtype=float).reshape(len(B), len(B))
+    B = np.ascontiguousarray(B, dtype=float).ravel()
+    C = np.ascontiguousarray(C, dtype=float).ravel()
+    y, dy = np.empty(tt.size), np.empty(tt.size)
+    tol = 1e-12 * max(abs(float(tt[-1])), T, 1.0)
+    _run_at_into(A, B, C, float(D), np.ascontiguousarray(C @ A if A.size else np.zeros(0)),
+                 float(C @ B) if A.size else 0.0, T, tol, tt, a, y, dy)
+    return HeldResponse(y=y, dy=dy, u=a.copy())

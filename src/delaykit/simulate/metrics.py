@@ -4,7 +4,8 @@ Definitions (continuous time, relative to the step time, for steps up and down a
 normalised so that it starts at 0 and its final value is 1):
 
 * overshoot: ``100 * max(0, max w - 1)`` percent of the step;
-* peak time: the time of that maximum (``None`` for a response with no overshoot);
+* peak time: the time of that maximum (``None`` for a response with no overshoot: an overshoot of at most
+  :data:`OVERSHOOT_TOLERANCE`, which is rounding, or a monotone response's last digits);
 * rise time: from the first crossing of ``w = 0.1`` to the first crossing of ``w = 0.9``;
 * settling time: the last time ``|w - 1| >= band`` (2 % by default); ``None`` when the response is still
   outside the band at the end of the record ("never settles" within it);
@@ -35,7 +36,46 @@ import numpy as np
 
 from ..errors import InvalidValueError, check_real
 
-__all__ = ["StepMetrics", "SecondOrder", "step_metrics", "noise_level"]
+__all__ = ["StepMetrics", "SecondOrder", "step_metrics", "noise_level", "OVERSHOOT_TOLERANCE", "peak_time_of",
+           "load_recovery"]
+
+OVERSHOOT_TOLERANCE = 1e-3
+"""Percent of the step: an overshoot up to this is no overshoot, and has no peak time (it prints as 0.000 %)."""
+
+
+def load_recovery(with_load: "StepMetrics", load_time: float) -> float | None:
+    """Seconds from a load step at ``load_time`` (after the reference step) until the response is back in the
+    settling band for good: 0 when the load never pushes it out, ``None`` when it is still out at the end.
+
+    ``with_load`` are the metrics of the run with the load, whose settling time is the last time outside the band
+    over the whole run, the load's excursion included; the setpoint's own settling is that of the run without
+    the load.  A response that has not settled from the step by ``load_time`` counts its remaining settling here.
+
+    Examples
+    --------
+    >>> m = StepMetrics(overshoot=0.0, peak_time=None, rise_time=1.0, settling_time=62.5, steady_state_error=0.0,
+    ...                 peak=1.0)
+    >>> load_recovery(m, 50.0), load_recovery(m, 70.0)
+    (12.5, 0.0)
+    """
+    if with_load.settling_time is None:
+        return None
+    return max(0.0, float(with_load.settling_time) - float(load_time))
+
+
+def peak_time_of(overshoot: Any, peak_time: Any) -> Any:
+    """The peak time where the overshoot (%) exceeds :data:`OVERSHOOT_TOLERANCE`; ``None`` (NaN in arrays) where not.
+
+    Examples
+    --------
+    >>> peak_time_of(2.3, 1.5), peak_time_of(4e-4, 1.5)
+    (1.5, None)
+    >>> peak_time_of(np.array([2.3, 0.0]), np.array([1.5, 9.0])).tolist()
+    [1.5, nan]
+    """
+    if np.ndim(overshoot) == 0:
+        return peak_time if overshoot is not None and overshoot > OVERSHOOT_TOLERANCE else None
+    return np.where(np.asarray(overshoot) > OVERSHOOT_TOLERANCE, peak_time, np.nan)
 
 
 def _fmt(x: float | None, unit: str, digits: int = 4) -> str:
@@ -51,7 +91,7 @@ class StepMetrics:
     overshoot : float
         Percent of the step.
     peak_time : float or None
-        Seconds after the step; ``None`` when there is no overshoot.
+        Seconds after the step; ``None`` when there is no overshoot (none above :data:`OVERSHOOT_TOLERANCE`).
     rise_time : float or None
         10 to 90 % rise time in seconds; ``None`` if the response never reaches 90 %.
     settling_time : float or None
@@ -74,6 +114,9 @@ class StepMetrics:
     peak: float
     band: float = 0.02
     noise: float | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "peak_time", peak_time_of(self.overshoot, self.peak_time))
 
     @property
     def settled(self) -> bool:

@@ -33,7 +33,7 @@ from ..models.signals import LoadStep, Ramp, Samples, Step, as_reference
 from . import _jit
 from . import _layout as K
 from ._layout import LoopMatrices, fastest_rate, loop_matrices, param_row
-from .metrics import StepMetrics
+from .metrics import StepMetrics, peak_time_of
 
 __all__ = ["Response", "BatchMetrics", "Sampler", "simulate", "simulate_many", "as_loop", "SWEEPABLE"]
 
@@ -489,7 +489,8 @@ def simulate_many(loop: Any, *, t_end: float = 15.0, band: float = 0.02, **sweep
     col = lambda name: out[:, o[name]].reshape(shape)  # noqa: E731
     params = {k: np.broadcast_to(a, shape).copy() for k, a in arrays.items()}
     return BatchMetrics(
-        params=params, overshoot=col("overshoot"), peak_time=col("peak_time"), rise_time=col("rise_time"),
+        params=params, overshoot=col("overshoot"), peak_time=peak_time_of(col("overshoot"), col("peak_time")),
+        rise_time=col("rise_time"),
         settling_time=col("settling_time"), steady_state_error=col("final_error"),
         truncation=float(np.max(out[:, o["truncation"]])) if m else 0.0,
     )
