@@ -1,0 +1,61 @@
+"""Sphinx configuration of delaykit's documentation site (``make docs`` builds it into docs/_build/html).
+
+The API reference is generated from the package itself at every build (``_apiref.py``): one page per public
+module, listing every name of its ``__all__``. Tutorials in ``tutorials/`` are MyST Markdown notebooks, executed
+by myst-nb at build time (cached in ``_build/.jupyter_cache``). Nothing is fetched from the network.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).parent
+sys.path.insert(0, str(HERE))
+
+import delaykit  # noqa: E402
+
+from _apiref import write_api_pages  # noqa: E402
+
+project = "delaykit"
+author = "the delaykit developers"
+copyright = "2026, the delaykit developers"
+release = version = delaykit.__version__
+
+extensions = [
+    "myst_nb",
+    "numpydoc",
+    "sphinx.ext.autodoc",
+    "sphinx.ext.autosummary",
+]
+
+source_suffix = {".rst": "restructuredtext", ".md": "myst-nb"}
+exclude_patterns = ["_build", "**.ipynb_checkpoints", "Thumbs.db", ".DS_Store"]
+root_doc = "index"
+
+html_theme = "furo"
+html_title = f"delaykit {release}"
+html_static_path: list[str] = []
+
+# MyST: Markdown pages and the tutorials' notebooks
+myst_enable_extensions = ["colon_fence", "deflist"]
+myst_heading_anchors = 3
+nb_execution_mode = "cache"          # a notebook runs again only when its code changed
+nb_execution_timeout = 300
+nb_execution_raise_on_error = True   # a tutorial that fails to run fails the build
+nb_execution_show_tb = True
+nb_merge_streams = True
+
+# the API reference: autodoc + numpydoc
+autodoc_member_order = "bysource"
+autodoc_typehints = "signature"
+autodoc_preserve_defaults = True
+numpydoc_show_class_members = False
+numpydoc_class_members_toctree = False
+numpydoc_xref_param_type = False
+numpydoc_validation_checks: set[str] = set()
+
+# no network access at build time: no intersphinx inventories are fetched
+intersphinx_mapping: dict = {}
+
+write_api_pages(HERE / "api")
