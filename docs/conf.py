@@ -7,6 +7,8 @@ by myst-nb at build time (cached in ``_build/.jupyter_cache``). Nothing is fetch
 
 from __future__ import annotations
 
+import hashlib
+import shutil
 import sys
 from pathlib import Path
 
@@ -40,7 +42,8 @@ html_static_path: list[str] = []
 # MyST: Markdown pages and the tutorials' notebooks
 myst_enable_extensions = ["colon_fence", "deflist"]
 myst_heading_anchors = 3
-nb_execution_mode = "cache"          # a notebook runs again only when its code changed
+nb_execution_mode = "cache"          # a notebook runs again only when its code, or delaykit (below), changed
+nb_execution_cache_path = str(HERE / "_build" / ".jupyter_cache")
 nb_execution_timeout = 300
 nb_execution_raise_on_error = True   # a tutorial that fails to run fails the build
 nb_execution_show_tb = True
@@ -55,7 +58,24 @@ numpydoc_class_members_toctree = False
 numpydoc_xref_param_type = False
 numpydoc_validation_checks: set[str] = set()
 
-# no network access at build time: no intersphinx inventories are fetched
-intersphinx_mapping: dict = {}
+# no network access at build time: sphinx.ext.intersphinx is not loaded, so no inventory is fetched
 
 write_api_pages(HERE / "api")
+
+
+def _forget_stale_executions() -> None:
+    """myst-nb's cache knows a notebook's code, not the library it calls: when delaykit's source or the shipped
+    data change, the cached outputs are dropped and every tutorial runs again."""
+    root = HERE.parent
+    digest = hashlib.sha256()
+    for path in sorted([*(root / "src" / "delaykit").rglob("*.py"), *(root / "tests" / "data").rglob("*")]):
+        if path.is_file():
+            digest.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes())
+    cache, stamp = Path(nb_execution_cache_path), Path(nb_execution_cache_path + ".source")
+    if cache.exists() and (not stamp.exists() or stamp.read_text() != digest.hexdigest()):
+        shutil.rmtree(cache)
+    stamp.parent.mkdir(parents=True, exist_ok=True)
+    stamp.write_text(digest.hexdigest())
+
+
+_forget_stale_executions()
