@@ -122,7 +122,8 @@ def test_index_renders_in_headless_chromium(site, tmp_path):
     assert re.search(r"<title>[^<]*delaykit", dom), dom[:500]
     assert "<h1>delaykit" in dom
     # the navigation links to the API reference, the tutorials and the guide, and the targets exist
-    for href in ("api/index.html", "tutorials/paper.html", "howto/identify.html", "guide/roots.html", "benchmarks.html"):
+    for href in ("api/index.html", "tutorials/paper.html", "howto/identify.html", "guide/roots.html",
+                 "benchmarks.html"):
         assert f'href="{href}' in dom, href
         assert (site / href).exists()
 
