@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN = $(VENV)/bin
 OUT ?= out
 
-.PHONY: run test bench bench-estimate clean
+.PHONY: run test docs bench bench-estimate clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -16,7 +16,7 @@ $(VENV)/.installed: $(BIN)/python pyproject.toml
 	touch $@
 
 $(VENV)/.test-installed: $(VENV)/.installed
-	$(BIN)/pip install -q -e '.[test,bench,cluster]'
+	$(BIN)/pip install -q -e '.[test,bench,cluster,docs]'
 	# Debian's chromium for the test that renders the report page (the test skips, saying why, without it)
 	command -v chromium >/dev/null 2>&1 || (timeout 900 sh -c 'apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium' >/dev/null 2>&1 || echo "chromium could not be installed; the page-rendering test will be skipped")
 	touch $@
@@ -26,9 +26,18 @@ run: $(VENV)/.installed
 	$(BIN)/delaykit demo --out $(OUT)/demo
 
 # the real-time flights measure timing: they run alone, after the rest, with no other worker taking the CPU
+# the docs are built last, when the tests have compiled and cached the kernels their tutorials run; then the
+# tests marked docs read the built site
 test: $(VENV)/.test-installed
-	$(BIN)/python -m pytest -n 2 -q -m "not realtime"
+	$(BIN)/python -m pytest -n 2 -q -m "not realtime and not docs"
 	$(BIN)/python -m pytest -q -m realtime
+	$(MAKE) docs
+	$(BIN)/python -m pytest -q -m docs tests/test_docs.py
+
+# the documentation site, into docs/_build/html; warnings are errors, nothing is fetched from the network, and
+# the tutorials run only when their code changed (myst-nb's cache in docs/_build/.jupyter_cache)
+docs: $(VENV)/.test-installed
+	$(BIN)/python -m sphinx -b html -E -W --keep-going -q docs docs/_build/html
 
 bench: $(VENV)/.test-installed
 	$(BIN)/python benchmarks/bench_simulate.py
@@ -41,4 +50,4 @@ bench-estimate: $(VENV)/.test-installed
 	$(BIN)/python benchmarks/bench_estimate.py
 
 clean:
-	rm -rf $(VENV) $(OUT) .pytest_cache .hypothesis
+	rm -rf $(VENV) $(OUT) .pytest_cache .hypothesis docs/_build docs/api docs/jupyter_execute

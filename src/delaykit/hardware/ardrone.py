@@ -173,7 +173,7 @@ class ATEncoder:
 
     def pcmd(self, roll: float = 0.0, pitch: float = 0.0, gaz: float = 0.0, yaw: float = 0.0, *,
              progressive: bool = True) -> bytes:
-        """Move: ``gaz`` is the vertical speed as a fraction of control_vz_max (|x| <= 1); flag 0 = hover."""
+        """Move: ``gaz`` is the vertical speed as a fraction of control_vz_max (``|gaz| <= 1``); flag 0 = hover."""
         for name, v in (("roll", roll), ("pitch", pitch), ("gaz", gaz), ("yaw", yaw)):
             if not (math.isfinite(v) and -1.0 <= v <= 1.0):
                 raise ATError(f"PCMD {name} must be in [-1, 1], got {v}")

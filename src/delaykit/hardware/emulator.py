@@ -10,7 +10,7 @@ effect ``delay`` seconds after the command arrives (the actuator delay), plus ``
 and the actual speed follows it through the vehicle's speed loop, ``vehicle``:
 
 * ``"speed_loop"`` (the default): the closed second-order speed loop with a zero that delaykit identifies from
-  the PX4 flights (README, "Identifying a plant and its delay from real data"),
+  the PX4 flights (docs/guide/identification.md),
   ``v/v_cmd = wn^2 (Tz s + 1)/(s^2 + 2 zeta wn s + wn^2)`` (``speed_wn``, ``speed_zeta``, ``speed_zero``;
   defaults wn 1.53 rad/s, zeta 2.4, Tz 3.9 s), with unit DC gain, so that ``control_vz_max`` keeps meaning the
   speed reached at ``gaz = 1`` (the PX4 fit's gain 0.79 belongs to that vehicle's own command chain, not to a

@@ -3,7 +3,7 @@
 :mod:`.flightlog` reads, checks and writes flight logs (and makes synthetic ones), and :mod:`.estimation` estimates
 the paper's loop delay from them: from the overshoot, with the paper's Lambert-W iteration, or by fitting the whole
 trajectory.  :mod:`.iodata` reads any log (input or reference, outputs), :mod:`.structures` names the plant families,
-:mod:`.identification` fits them open or closed loop with honest errors and chooses among them, :mod:`.noise` models
+:mod:`.identify.identification` fits them open or closed loop with honest errors and chooses among them, :mod:`.noise` models
 coloured residuals, :mod:`.experiment` predicts the errors of a planned test, and :mod:`.online` re-estimates the
 delay on a window of a flight from the commands sent (whatever the controller).  It uses the models, simulations
 and spectra of the layers below.

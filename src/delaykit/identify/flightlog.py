@@ -66,7 +66,7 @@ class LogError(InvalidValueError):
 def read_csv_rows(path: Path) -> tuple[list[str], list[tuple[list[str], int]]]:
     """A CSV file's header and its non-blank rows, each with the file line it starts on.
 
-    The file must be UTF-8 text (a byte-order mark and ``\r\n`` line ends, as spreadsheets save, are fine)
+    The file must be UTF-8 text (a byte-order mark and ``\\r\\n`` line ends, as spreadsheets save, are fine)
     separated by commas: a semicolon- or tab-separated header is refused with an error saying the separator
     must be a comma (it is not guessed, so a decimal comma is never misread).
 
@@ -250,7 +250,7 @@ class FlightLog:
     ) -> "FlightLog":
         """Read a CSV flight log.
 
-        The file must be UTF-8 text (a byte-order mark and ``\r\n`` line ends, as spreadsheets save, are fine)
+        The file must be UTF-8 text (a byte-order mark and ``\\r\\n`` line ends, as spreadsheets save, are fine)
         separated by commas: a semicolon- or tab-separated header is refused with an error saying the
         separator must be a comma (it is not guessed, so a decimal comma is never misread).  Every value is
         checked (finite, within the bounds of the module docstring) and errors name the file, row and column.

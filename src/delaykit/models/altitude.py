@@ -13,7 +13,7 @@ between samples.  Before the step (t < 0) the drone hovers: u = 0 and z = z0.
 The derivative filter is a second-order low-pass filter in series with a differentiator.  It is the
 transfer function whose poles are the paper's "-38 repeated" (wf = 38 rad/s, zf = 1), it has unit gain
 at low frequency (so it measures the velocity and the loop keeps the same steady state), it is proper, and
-as wf grows it tends to the true velocity.  See the README for how the paper's "cutoff 5.68 rad/s" fits.
+as wf grows it tends to the true velocity.  See docs/guide/loops.md for how the paper's "cutoff 5.68 rad/s" fits.
 
 Examples
 --------

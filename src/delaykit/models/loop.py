@@ -12,7 +12,7 @@
 * the **input delay** ``delay`` (``Ti``) acts on the command, the **output delay** ``output_delay`` (``To``) on
   the measurement.  They are equivalent (the output is the same, shifted by ``To``) when nothing enters
   the loop between them: with a load disturbance at the plant input, or a measured output read before
-  the output delay, they differ (see the README);
+  the output delay, they differ (see docs/guide/loops.md);
 * the **controller** is a :class:`~delaykit.models.controllers.Controller`;
 * the **actuator** clips the command to ``[umin, umax]`` (either may be infinite; ``umin <= 0 <= umax``
   so that rest is an equilibrium);

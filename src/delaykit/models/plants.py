@@ -1,17 +1,17 @@
 """The plant families users ask for, as transfer functions (the dead time is the loop's ``delay``).
 
-=================================  ==========================================================  ==========
-family                             transfer function                                           parameters
-=================================  ==========================================================  ==========
-:func:`integrator`                 ``K / s`` (the paper's drone)                                K
-:func:`integrator_lag`             ``K / (s (T s + 1))`` (a first-order speed loop)             K, T
-:func:`integrator_speed_loop`      ``K (kp s + ki) b / (s (s^2 + kp b s + ki b))``: an          K, kp, ki, b
+=================================  ==============================================================  ============
+family                             transfer function                                               parameters
+=================================  ==============================================================  ============
+:func:`integrator`                 ``K / s`` (the paper's drone)                                   K
+:func:`integrator_lag`             ``K / (s (T s + 1))`` (a first-order speed loop)                K, T
+:func:`integrator_speed_loop`      ``K (kp s + ki) b / (s (s^2 + kp b s + ki b))``: an             K, kp, ki, b
                                    integrator behind a closed PI speed loop on ``b / s``
                                    (the PX4 vehicle)
-:func:`first_order`                ``K / (T s + 1)`` (with the loop's delay: FOPDT)             K, T
-:func:`second_order`               ``K / ((T1 s + 1)(T2 s + 1))`` (SOPDT)                       K, T1, T2
-:func:`second_order_wn`            ``K wn^2 / (s^2 + 2 zeta wn s + wn^2)`` (SOPDT, underdamped) K, wn, zeta
-=================================  ==========================================================  ==========
+:func:`first_order`                ``K / (T s + 1)`` (with the loop's delay: FOPDT)                K, T
+:func:`second_order`               ``K / ((T1 s + 1)(T2 s + 1))`` (SOPDT)                          K, T1, T2
+:func:`second_order_wn`            ``K wn^2 / (s^2 + 2 zeta wn s + wn^2)`` (SOPDT, underdamped)    K, wn, zeta
+=================================  ==============================================================  ============
 
 An integrating plant plus dead time is :func:`integrator` with the loop's delay.
 

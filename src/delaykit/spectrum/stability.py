@@ -43,7 +43,7 @@ class Rightmost:
 
     ``abscissa`` is the supremum of the real parts of all roots: the rightmost root's real part, or a neutral
     line if that lies further right (root chains approach it).  ``stable`` means ``abscissa < 0``; for a
-    neutral loop that also requires the neutral line to lie left of the imaginary axis (|Kv| < 1 for the PV loop).
+    neutral loop that also requires the neutral line to lie left of the imaginary axis (``|Kv| < 1`` for the PV loop).
     """
 
     root: complex | None

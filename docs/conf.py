@@ -1,0 +1,99 @@
+"""Sphinx configuration of delaykit's documentation site (``make docs`` builds it into docs/_build/html).
+
+The API reference is generated from the package itself at every build (``_apiref.py``): one page per public
+module, listing every name of its ``__all__``. Tutorials in ``tutorials/`` are MyST Markdown notebooks, executed
+by myst-nb at build time (cached in ``_build/.jupyter_cache``). Nothing is fetched from the network.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import shutil
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).parent
+sys.path.insert(0, str(HERE))
+
+import delaykit  # noqa: E402
+
+from _apiref import write_api_pages  # noqa: E402
+
+project = "delaykit"
+author = "the delaykit developers"
+copyright = "2026, the delaykit developers"
+release = version = delaykit.__version__
+
+extensions = [
+    "myst_nb",
+    "numpydoc",
+    "sphinx.ext.autodoc",
+    "sphinx.ext.autosummary",
+]
+
+source_suffix = {".rst": "restructuredtext", ".md": "myst-nb"}
+exclude_patterns = ["_build", "**.ipynb_checkpoints", "Thumbs.db", ".DS_Store"]
+root_doc = "index"
+
+html_theme = "furo"
+html_title = f"delaykit {release}"
+html_static_path: list[str] = []
+
+# MyST: Markdown pages and the tutorials' notebooks
+myst_enable_extensions = ["colon_fence", "deflist"]
+myst_heading_anchors = 3
+# a guide page whose headings skip a level still reads well; every other warning stays an error under -W
+suppress_warnings = ["myst.header"]
+nb_execution_mode = "cache"          # a notebook runs again only when its code, or delaykit (below), changed
+nb_execution_cache_path = str(HERE / "_build" / ".jupyter_cache")
+nb_execution_timeout = 300
+nb_execution_raise_on_error = True   # a tutorial that fails to run fails the build
+nb_execution_show_tb = True
+nb_merge_streams = True
+
+# the API reference: autodoc + numpydoc
+autodoc_member_order = "bysource"
+autodoc_typehints = "signature"
+autodoc_preserve_defaults = True
+numpydoc_show_class_members = False
+numpydoc_class_members_toctree = False
+numpydoc_xref_param_type = False
+numpydoc_validation_checks: set[str] = set()
+
+# no network access at build time: sphinx.ext.intersphinx is not loaded, so no inventory is fetched
+
+write_api_pages(HERE / "api")
+
+
+def _forget_stale_executions() -> None:
+    """myst-nb's cache knows a notebook's code, not the library it calls: when delaykit's source or the shipped
+    data change, the cached outputs are dropped and every tutorial runs again."""
+    root = HERE.parent
+    digest = hashlib.sha256()
+    for path in sorted([*(root / "src" / "delaykit").rglob("*.py"), *(root / "tests" / "data").rglob("*")]):
+        if path.is_file():
+            digest.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes())
+    cache, stamp = Path(nb_execution_cache_path), Path(nb_execution_cache_path + ".source")
+    if cache.exists() and (not stamp.exists() or stamp.read_text() != digest.hexdigest()):
+        shutil.rmtree(cache)
+    stamp.parent.mkdir(parents=True, exist_ok=True)
+    stamp.write_text(digest.hexdigest())
+
+
+_forget_stale_executions()
+
+
+def _guide_pages(app, docname: str, source: list[str]) -> None:
+    """The index's guide toctree lists some pages first, for their order, and ends with ``guide/*`` for every
+    other page of docs/guide/; the glob is spelled out here, because Sphinx warns (an error under -W) about a
+    glob that matches nothing new."""
+    if docname != "index":
+        return
+    text = source[0]
+    listed = {line.strip() for line in text.splitlines() if line.strip().startswith("guide/")}
+    rest = sorted(f"guide/{p.stem}" for p in (HERE / "guide").glob("*.md") if f"guide/{p.stem}" not in listed)
+    source[0] = text.replace("\nguide/*\n", "\n" + "".join(f"{d}\n" for d in rest))
+
+
+def setup(app):
+    app.connect("source-read", _guide_pages)
