@@ -17,7 +17,7 @@ import types
 from typing import Any
 
 from ._lazy import lazy_exports
-from .errors import (DelaykitError, FlightError, InvalidTypeError, InvalidValueError, MissingDependencyError,
+from .errors import (DelaykitError, DelaykitWarning, FlightError, InvalidTypeError, InvalidValueError, MissingDependencyError,
                      PortError, PortNumberError, RangeSpecError)
 
 __all__ = [
@@ -38,6 +38,8 @@ __all__ = [
     "Compensator", "design_compensator", "delay_ratio_range", "simulate_varying", "monte_carlo", "DelayDistribution",
     "DelaySchedule",
     "Jitter", "Burst", "DelayTrace", "jitter_margin", "stable_for",
+    # PID tuning
+    "tune", "Tuning", "TuningWarning", "DelaykitWarning",
 ]
 __version__ = "0.1.0"
 
@@ -67,6 +69,7 @@ _LAZY = {
     "DelaySchedule": ".simulate.varying", "Jitter": ".simulate.varying",
     "Burst": ".simulate.varying", "DelayTrace": ".simulate.varying", "jitter_margin": ".spectrum.jitter",
     "stable_for": ".spectrum.jitter",
+    "tune": ".design.pid", "Tuning": ".design.pid", "TuningWarning": ".design.pid_rules",
 }
 
 

@@ -310,7 +310,7 @@ class Loop:
 
 
 _CONTROLLER_FIELDS = ("kp", "ki", "kd", "kv", "derivative_filter", "velocity", "filter_wn", "filter_zeta",
-                      "antiwindup", "tracking_time")
+                      "antiwindup", "tracking_time", "setpoint_weight", "derivative_weight")
 LOOP_KEYS = ("plant", "controller", "delay", "output_delay", "umin", "umax", "vmax", "period", "sample_offset",
              "name") + _CONTROLLER_FIELDS
 
