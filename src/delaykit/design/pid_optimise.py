@@ -45,7 +45,7 @@ from ..models.controllers import Controller
 from ..models.loop import Loop
 from ..models.transfer import TransferFunction
 
-__all__ = ["OBJECTIVES", "Solution", "PlantPoint", "optimise", "plant_points", "controller_of", "peak_gains",
+__all__ = ["OBJECTIVES", "Solution", "ms_map", "load_iae", "PlantPoint", "optimise", "plant_points", "controller_of", "peak_gains",
            "controller_response"]
 
 OBJECTIVES = ("ki", "iae-load", "abscissa")
@@ -342,16 +342,30 @@ def _migo(pb: _Problem) -> tuple[float, float, float, float | None]:
 # ------------------------------------------------------------------------------------------ other objectives
 def _iae(response: Any, t_end: float, ref: float = 0.0) -> float:
     """``∫ |ref - y| dt`` up to ``t_end`` (the error after a step of the reference to ``ref``, or after a load step
-    with ``ref = 0``), piece by piece: a 16-point Gauss-Legendre rule on each polynomial piece of the exact
-    solution."""
-    x, wq = np.polynomial.legendre.leggauss(16)
-    x, wq = 0.5 * (x + 1.0), 0.5 * wq
-    coeffs, lengths = response.coeffs, response.lengths
-    vals = np.zeros((coeffs.shape[0], x.size))
-    for j in range(coeffs.shape[1] - 1, -1, -1):
-        vals = vals * x + coeffs[:, j:j + 1]
-    keep = response.starts < t_end
-    return float(np.sum(np.abs(ref - vals[keep]) @ wq * lengths[keep]))
+    with ``ref = 0``), exactly: each polynomial piece of the exact solution integrated by its antiderivative,
+    split at the roots of the error inside it."""
+    coeffs = response.coeffs[response.starts < t_end].copy()  # coeffs[:, j] multiplies x^j, x in [0, 1]
+    lengths = response.lengths[response.starts < t_end]
+    coeffs[:, 0] = ref - coeffs[:, 0]
+    coeffs[:, 1:] = -coeffs[:, 1:]
+    j = np.arange(coeffs.shape[1])
+    anti = coeffs / (j + 1)  # the antiderivative's coefficients of x^(j+1)
+
+    def prim(rows: np.ndarray, x: np.ndarray) -> np.ndarray:
+        return np.sum(anti[rows] * x[..., None] ** (j + 1), axis=-1)
+
+    x = np.linspace(0.0, 1.0, 33)
+    vals = coeffs @ x[None, :] ** j[:, None]
+    whole = np.sum(anti, axis=1)  # the integral over [0, 1]
+    change = np.any(np.sign(vals[:, :-1]) * np.sign(vals[:, 1:]) < 0, axis=1)
+    total = np.abs(whole)
+    for i in np.flatnonzero(change):
+        r = np.roots(coeffs[i, ::-1][np.argmax(coeffs[i, ::-1] != 0):]) if np.any(coeffs[i, 1:]) else np.zeros(0)
+        r = np.sort(r.real[(np.abs(r.imag) <= 1e-12) & (r.real > 0) & (r.real < 1)])
+        edges = np.concatenate([[0.0], r, [1.0]])
+        p = prim(np.full(edges.size, i), edges)
+        total[i] = np.sum(np.abs(np.diff(p)))
+    return float(np.sum(total * lengths))
 
 
 def load_iae(loop: Loop, size: float, t_end: float) -> float:
@@ -483,3 +497,28 @@ def optimise(kind: str, points: Sequence[PlantPoint], *, ms: float = 1.4, mt: fl
         kp2, ki2, td2, val = kp, ki, td, start_cost
     return Solution(kind, kp2, ki2, kp2 * td2, pb.tf_of(td2) if kind in ("pd", "pid") else 0.0, objective, val,
                     None, pb.evaluations)
+
+
+def ms_map(loop: Loop, kps: Any, kis: Any) -> np.ndarray:
+    """The peak sensitivity of ``loop`` with its PI gains replaced by each ``(kp, ki)`` (rows ``ki``, columns ``kp``),
+    on the dense grid of :func:`optimise` (``inf`` where ``1 + L`` vanishes on it); stability is not judged here
+    (:func:`~delaykit.spectrum.stability.stability_map` does).
+
+    Examples
+    --------
+    >>> loop = Loop("1/s", Controller.pi(0.76, 0.31), delay=0.37)
+    >>> ms_map(loop, [0.7624137], [0.3055775]).round(4).tolist()
+    [[1.4]]
+    """
+    kps, kis = np.asarray(kps, float).ravel(), np.asarray(kis, float).ravel()
+    pts = [(loop.plant, loop.total_delay)]
+    t, _ = _scales(pts)
+    w = _grid(pts, t)
+    P = _values(pts, w)[0]
+    s = 1j * w
+    out = np.empty((kis.size, kps.size))
+    with np.errstate(all="ignore"):
+        for i, ki in enumerate(kis):
+            L = P * (kps[:, None] + ki / s)
+            out[i] = np.max(1.0 / np.abs(1.0 + L), axis=1)
+    return out
