@@ -33,7 +33,7 @@ from ..models.transfer import TransferFunction
 from .pid_optimise import OBJECTIVES, _iae, controller_of, optimise, plant_points
 from .pid_rules import RULES, ReducedModel, TuningWarning, UltimatePoint, rule_gains
 
-__all__ = ["Tuning", "SetpointReport", "LoadReport", "RobustPoint", "tune", "METHODS", "TUNE_CONTROLLERS"]
+__all__ = ["Tuning", "SetpointReport", "LoadReport", "RobustPoint", "tune", "assess", "METHODS", "TUNE_CONTROLLERS"]
 
 METHODS = ("migo",)
 TUNE_CONTROLLERS = ("p", "pi", "pd", "pid", "pv")
@@ -450,6 +450,32 @@ def tune(plant: Any, controller: str = "pi", *, delay: float | None = None, rule
                    model=model, ultimate=ult, points=(ds, gs))
 
 
+def assess(loop: Any, *, step: float = 1.0, load: float | None = None, t_end: float | None = None,
+           how: str = "given") -> Tuning:
+    """The checks of :func:`tune` (exact margins, Ms, Mt, setpoint and load responses) for a loop tuned elsewhere.
+
+    Without integral action a load step leaves a steady error (``load / kp`` on an integrating plant), so the load's
+    IAE grows with ``t_end`` and its recovery time is None.
+
+    Examples
+    --------
+    >>> from delaykit import AltitudeLoop
+    >>> a = assess(AltitudeLoop(kp=1.31, delay=0.368))      # the paper's P loop
+    >>> round(a.ms, 3), a.kind, a.load.recovery_time is None
+    (1.561, 'p', True)
+    """
+    from ..models.altitude import as_loop
+
+    lp = as_loop(loop)
+    c = lp.controller
+    if not hasattr(c, "feedback_polynomials") or c.kind == "tf":
+        raise InvalidValueError("assess takes a p, pv, pi, pd or pid loop")
+    size = (0.5 * min(abs(lp.umin), lp.umax) if math.isfinite(min(abs(lp.umin), lp.umax)) else 1.0) if load is None \
+        else check_real("load", load)
+    return _report(lp, how=how, kind=c.kind, step=check_real("step", step), size=size, t_end=t_end, overshoot=None,
+                   notes=[], ms_limit=None, mt_limit=None, model=None, ultimate=None, points=(None, None))
+
+
 def _report(loop: Loop, *, how: str, kind: str, step: float, size: float, t_end: float | None,
             overshoot: float | None, notes: list[str], ms_limit: float | None, mt_limit: float | None,
             model: ReducedModel | None, ultimate: UltimatePoint | None,
@@ -487,6 +513,7 @@ def _report(loop: Loop, *, how: str, kind: str, step: float, size: float, t_end:
     if not m.stable:
         notes.append("the tuned loop is UNSTABLE (certified roots)")
     kd = getattr(c, "kv", 0.0) if kind == "pv" else c.kd
+    b = analysed.controller.setpoint_weight
     return Tuning(how=how, kind=kind, kp=c.kp, ki=c.ki, kd=kd, tf=c.derivative_filter, b=b,
                   c=c.derivative_weight, loop=loop, ms=m.ms, mt=_mt(analysed) if m.stable else math.nan,
                   gain_margin=m.gain_margin, phase_margin=m.phase_margin, delay_margin=m.delay_margin,
