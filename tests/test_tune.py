@@ -364,3 +364,42 @@ def test_bench_tune_quick_reaches_the_brute_force_optimum(tmp_path):
     res = json.loads(out.read_text())
     for row in res.values():  # no timing asserted: the optimum against the brute force's (its grid is coarse)
         assert 0 <= row["relative_difference"] < 2e-2
+
+
+# ---------------------------------------------------------------------------------------------------- relay
+def test_relay_cycle_of_an_integrator_with_delay_is_the_exact_triangle():
+    from delaykit.design.relay import relay_cycle
+
+    k, theta, d = 2.0, 0.37, 0.5
+    c = relay_cycle(integrator(k), theta, amplitude=d)
+    # the triangle: period 4θ (= Pu), amplitude K d θ; describing function 4d/(pi a) = 4/(pi K θ) against the exact
+    # Ku = pi/(2 K θ): 8/pi^2 = 0.81, 19 % low
+    assert (c.period, c.output_amplitude) == pytest.approx((4 * theta, k * d * theta), rel=1e-12)
+    assert c.ku_describing / c.ultimate.ku == pytest.approx(8 / math.pi ** 2, rel=1e-12)
+    assert c.period == pytest.approx(c.ultimate.pu, rel=1e-12)
+
+
+def test_relay_cycle_of_fopdt_with_hysteresis_is_the_closed_form():
+    from delaykit.design.relay import relay_cycle
+
+    K, tau, theta, d, eps = 1.5, 2.0, 0.7, 1.0, 0.1
+    c = relay_cycle(first_order(K, tau), theta, amplitude=d, hysteresis=eps)
+    # from y(0) = -eps under -Kd for θ, then +Kd until y = eps (the first-order solution written out)
+    y_theta = -K * d + (-eps + K * d) * math.exp(-theta / tau)
+    h = theta + tau * math.log((K * d - y_theta) / (K * d - eps))
+    assert c.period == pytest.approx(2 * h, rel=1e-12)
+    assert c.output_amplitude == pytest.approx(-y_theta, rel=1e-9)
+
+
+def test_relay_cycle_matches_a_high_gain_saturated_simulation():
+    from delaykit.design.relay import relay_cycle
+
+    plant, theta = "1/(s*(0.5*s+1))", 0.2  # integrating: the cycle around a step's new level stays symmetric
+    c = relay_cycle(plant, theta)
+    # the relay as P control with a huge gain between the limits +-1 (a 1e-5 wide linear band), simulated exactly
+    r = simulate(Loop(plant, Controller.p(1e5), delay=theta, umin=-1, umax=1), 1.0, t_end=40.0)
+    t = np.linspace(20.0, 40.0, 400001)
+    y = r.output(t) - 1.0
+    up = t[1:][(y[:-1] < 0) & (y[1:] >= 0)]
+    assert np.diff(up).mean() == pytest.approx(c.period, rel=1e-3)
+    assert 0.5 * (y.max() - y.min()) == pytest.approx(c.output_amplitude, rel=1e-3)

@@ -39,7 +39,7 @@ __all__ = [
     "DelaySchedule",
     "Jitter", "Burst", "DelayTrace", "jitter_margin", "stable_for",
     # PID tuning
-    "tune", "assess", "Tuning", "TuningWarning", "DelaykitWarning",
+    "tune", "assess", "Tuning", "TuningWarning", "DelaykitWarning", "relay_cycle",
 ]
 __version__ = "0.1.0"
 
@@ -69,7 +69,7 @@ _LAZY = {
     "DelaySchedule": ".simulate.varying", "Jitter": ".simulate.varying",
     "Burst": ".simulate.varying", "DelayTrace": ".simulate.varying", "jitter_margin": ".spectrum.jitter",
     "stable_for": ".spectrum.jitter",
-    "tune": ".design.pid", "assess": ".design.pid", "Tuning": ".design.pid", "TuningWarning": ".design.pid_rules",
+    "tune": ".design.pid", "assess": ".design.pid", "relay_cycle": ".design.relay", "Tuning": ".design.pid", "TuningWarning": ".design.pid_rules",
 }
 
 
