@@ -334,9 +334,9 @@ def test_cli_tune_json_save_and_errors(tmp_path):
                        (["--delay", "0.3", "--plant", "1/s^2", "--rule", "simc"], "double-integrating")]:
         r = runner.invoke(app, ["tune", *args])
         assert r.exit_code == 2, (args, r.output)
-        assert "Traceback" not in r.output and word in r.output
+        assert "Traceback" not in r.output and word in " ".join(r.output.split())
     r = runner.invoke(app, ["design", "--controller", "pi", "--delay", "0.37"])
-    assert r.exit_code == 2 and "kv" not in r.output and "delaykit tune" in r.output
+    assert r.exit_code == 2 and "kv" not in r.output and "delaykit tune" in " ".join(r.output.split())
 
 
 @pytest.mark.slow
@@ -403,3 +403,48 @@ def test_relay_cycle_matches_a_high_gain_saturated_simulation():
     up = t[1:][(y[:-1] < 0) & (y[1:] >= 0)]
     assert np.diff(up).mean() == pytest.approx(c.period, rel=1e-3)
     assert 0.5 * (y.max() - y.min()) == pytest.approx(c.output_amplitude, rel=1e-3)
+
+
+def test_migo_pid_beats_pi_and_meets_the_limit_exactly():
+    pi = optimise("pi", [(integrator(), 0.37)], ms=1.4)
+    pid = optimise("pid", [(integrator(), 0.37)], ms=1.4)
+    assert pid.ki >= pi.ki  # PID with Td = 0 is PI: its optimum cannot be lower
+    m = margins(Loop(integrator(), Controller.pid(pid.kp, pid.ki, pid.kd, pid.tf), delay=0.37))
+    assert m.stable and m.ms == pytest.approx(1.4, rel=1e-6)
+
+
+def test_tuning_figures(tmp_path):
+    from delaykit.plotting.tuning import plot_stable_region, plot_tuning, plot_tuning_nyquist
+
+    t = tune("1/s", "pi", delay=0.37, ms=1.4)
+    fig = plot_tuning_nyquist(t)
+    circle = [ln for ln in fig.axes[0].lines if ln.get_label().startswith("|1 + L|")][0]
+    x, y = circle.get_data()
+    assert np.allclose(np.hypot(x + 1, y), 1 / 1.4)  # the Ms circle: centre -1, radius 1/Ms
+    fig = plot_stable_region(t, n=7)
+    assert fig.axes[0].get_xlabel() == "kp"
+    plot_tuning(t, tmp_path / "t.png")
+    assert (tmp_path / "t.png").stat().st_size > 0
+    with pytest.raises(InvalidValueError, match="pi tuning"):
+        plot_stable_region(tune("1/s", "pd", delay=0.37))
+
+
+def test_cli_tune_from_a_saved_identified_model(tmp_path):
+    from typer.testing import CliRunner
+
+    from delaykit.cli.app import app
+
+    runner = CliRunner()
+    model = tmp_path / "heater.json"
+    data = __import__("pathlib").Path(__file__).parent / "data" / "tclab" / "step_test.csv"
+    r = runner.invoke(app, ["identify", str(data), "--u-before", "0", "--model", "fopdt", "--save", str(model)])
+    assert r.exit_code == 0, r.output
+    r = runner.invoke(app, ["tune", "--model", str(model), "--rule", "simc", "--umin", "-50", "--umax", "50",
+                            "--json", "--plot", str(tmp_path)])
+    assert r.exit_code == 2 and "is a folder" in " ".join(r.output.split())  # paths checked before the work
+    r = runner.invoke(app, ["tune", "--model", str(model), "--rule", "simc", "--umin", "-50", "--umax", "50", "--json"])
+    d = json.loads(r.stdout)
+    m = json.loads(model.read_text())
+    K, tau, theta = (m["params"][k] for k in ("gain", "time_constant", "delay"))
+    assert d["kp"] == pytest.approx(tau / (K * 2 * theta), rel=1e-12)  # SIMC on the identified K, tau, theta
+    assert d["loop"]["umax"] == 50.0

@@ -16,13 +16,17 @@ __all__ = ["tune"]
 
 
 def _check_output(flag: str, path: Optional[Path]) -> None:
-    """An output path whose folder exists and that is not a folder (checked before the work starts)."""
+    """An output path that is not a folder, nor under a file (checked before the work starts; missing folders are
+    made when the file is written, as for every figure)."""
     if path is None:
         return
     if path.is_dir():
         raise InvalidValueError(f"{flag} {str(path)!r} is a folder; give a file name")
-    if not path.parent.exists():
-        raise InvalidValueError(f"{flag} {str(path)!r}: the folder {str(path.parent)!r} does not exist")
+    for parent in path.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise InvalidValueError(f"{flag} {str(path)!r}: {str(parent)!r} is a file, not a folder")
+            break
 
 
 def _base(opts: dict[str, Any], model: Optional[Path]) -> Any:
@@ -103,6 +107,7 @@ def tune(
     if save is not None:
         from ..models.loop import loop_to_toml
 
+        save.parent.mkdir(parents=True, exist_ok=True)
         save.write_text(loop_to_toml(t.loop))
     if plot is not None:
         from ..plotting.tuning import plot_tuning

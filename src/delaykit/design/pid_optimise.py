@@ -291,9 +291,9 @@ class _Problem:
 
 def _outer_grid(pb: _Problem) -> tuple[np.ndarray, np.ndarray]:
     """The outer parameters' grid: ``kp`` (pi, pid) and ``Td`` (pd, pid, pv)."""
-    kps = np.geomspace(1e-3, 3.0 if pb.kind == "pi" else 10.0, 121 if pb.kind == "pi" else 61) * pb.k0
-    tds = (np.concatenate([[0.0], np.geomspace(1e-2, 8.0, 27)]) * pb.t if pb.kind in ("pd", "pid", "pv")
-           else np.zeros(1))
+    kps = np.geomspace(1e-3, 3.0 if pb.kind == "pi" else 10.0, 121 if pb.kind == "pi" else 36) * pb.k0
+    tds = (np.concatenate([[0.0], np.geomspace(1e-2, 8.0, 27 if pb.kind != "pid" else 16)]) * pb.t
+           if pb.kind in ("pd", "pid", "pv") else np.zeros(1))
     if pb.kind not in ("pi", "pid"):
         kps = np.zeros(1)
     return kps, tds
