@@ -73,6 +73,7 @@ def tune(
     delays_range: Optional[str] = typer.Option(None, "--delays", help="Robust design over delays: START:STOP:N or a comma list (s)."),
     gains_range: Optional[str] = typer.Option(None, "--gains", help="Robust design over gain factors: START:STOP:N or a comma list."),
     overshoot: Optional[float] = typer.Option(None, "--overshoot", help="Setpoint-overshoot target, %: sets the setpoint weight b (pi, pid)."),
+    derivative_weight: float = typer.Option(0.0, "--derivative-weight", help="Setpoint weight c of the derivative (pid; 0: derivative on the measurement)."),
     filter_ratio: float = typer.Option(10.0, "--filter-ratio", help="N: the derivative filter's time constant is Td/N."),
     model: Optional[Path] = typer.Option(None, "--model", help="A saved identified model (identify --save) instead of --plant."),
     step: float = typer.Option(1.0, "--step", help="Setpoint step of the report."),
@@ -103,6 +104,7 @@ def tune(
     with err.status("tuning…"):
         t = tune_(base, controller, rule=rule, method=method, objective=objective, ms=ms, mt=mt, tau_c=tau_c,
                   delays=delays, gains=gains, overshoot=overshoot, filter_ratio=filter_ratio, step=step, load=load,
+                  derivative_weight=derivative_weight,
                   antiwindup=loop_options.get("antiwindup") or "none")
     if save is not None:
         from ..models.loop import loop_to_toml
@@ -123,7 +125,7 @@ def tune(
 def _table(t: Any) -> None:
     from rich.table import Table
 
-    out.print(repr(t.loop), highlight=False)
+    out.print(repr(t.loop), highlight=False, markup=False)
     table = Table(title=f"{t.how} {t.kind} tuning" + ("" if t.stable else " (UNSTABLE)"))
     table.add_column("quantity")
     table.add_column("value", justify="right")
@@ -162,8 +164,8 @@ def _table(t: Any) -> None:
                        fmt(p.delay_margin), "yes" if p.stable else "NO", fmt(p.load_iae))
         out.print(rt)
     if t.model is not None:
-        out.print(f"Model: {t.model!r}", highlight=False)
+        out.print(f"Model: {t.model!r}", highlight=False, markup=False)
     if t.ultimate is not None:
-        out.print(f"Ultimate point (exact): {t.ultimate!r}", highlight=False)
+        out.print(f"Ultimate point (exact): {t.ultimate!r}", highlight=False, markup=False)
     for n in t.notes:
-        out.print(f"Note: {n}", highlight=False)
+        out.print(f"Note: {n}", highlight=False, markup=False)
