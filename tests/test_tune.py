@@ -226,7 +226,7 @@ def test_migo_with_an_mt_limit():
     kp_b, ki_b = _brute_migo(pts, 2.0, np.linspace(0.05, 1.5, 30), mt=1.3)
     assert s.ki == pytest.approx(ki_b, rel=1e-2)
     t = tune("1/(s+1)", "pi", delay=1.0, ms=2.0, mt=1.3)
-    assert t.mt <= 1.3 * (1 + 1e-4) and t.ms < 2.0
+    assert t.mt <= 1.3 * (1 + 1e-4) and t.ms <= 2.0 * (1 + 1e-9)
 
 
 def test_iae_load_and_abscissa_objectives_improve_on_their_start_and_keep_the_limit():
@@ -448,3 +448,29 @@ def test_cli_tune_from_a_saved_identified_model(tmp_path):
     K, tau, theta = (m["params"][k] for k in ("gain", "time_constant", "delay"))
     assert d["kp"] == pytest.approx(tau / (K * 2 * theta), rel=1e-12)  # SIMC on the identified K, tau, theta
     assert d["loop"]["umax"] == 50.0
+
+
+@pytest.mark.parametrize("kind,plant,delay", [
+    ("pi", "0.878657/(s^2 + 0.0156423*s + 0.000679671)", 4.913),  # a P loop above its own limit is unstable
+    ("pid", "0.11115/(s^2 + 0.0140802*s)", 0.073),                 # so is a PD loop: both refused as outer gains
+    ("pid", "3.20672/(s^2 + 0.17769*s + 0.0877051)", 0.599),
+    ("pd", "0.133486/(s^2 + 1.39036*s + 5.36972)", 3.786),        # a vanishing derivative is dropped
+])
+def test_migo_is_stable_and_holds_the_exact_limit(kind, plant, delay):
+    t = tune(plant, kind, delay=delay, ms=1.4, step=0.0, load=0.0)
+    # certified roots (stable) and the exact Ms: never above the limit, at it within the polish
+    assert t.stable and 1.4 * (1 - 1e-3) <= t.ms <= 1.4 * (1 + 1e-9)
+
+
+@pytest.mark.slow
+def test_migo_on_random_plants_is_stable_and_holds_the_exact_limit():
+    from delaykit import TransferFunction
+
+    rng = np.random.default_rng(7)
+    for _ in range(16):
+        kind = str(rng.choice(["p", "pi", "pd", "pid"]))
+        tau, th, k = 10 ** rng.uniform(-1, 2), 10 ** rng.uniform(-1.5, 1), 10 ** rng.uniform(-1, 1)
+        den = [np.array([tau, 1.0]), np.polymul([tau, 1], [tau * rng.uniform(0.05, 1), 1]), np.array([tau, 1.0, 0.0]),
+               np.array([1.0, 0.6 / tau, tau ** -2])][rng.integers(0, 4)]
+        t = tune(TransferFunction([k], den), kind, delay=th, ms=1.4, step=0.0, load=0.0)
+        assert t.stable and 1.4 * (1 - 1e-3) <= t.ms <= 1.4 * (1 + 1e-9), (kind, den, th, t)

@@ -435,7 +435,7 @@ def tune(plant: Any, controller: str = "pi", *, delay: float | None = None, rule
         pts = plant_points(tf, theta, ds, gs)
         sol = optimise(kind, pts, ms=ms_, mt=mt_, objective=objective, filter_ratio=n_f, umin=lo, umax=hi,
                        load=size, t_end=t_end)
-        kp, ki, kd, tf_ = sol.kp, sol.ki, sol.kd, sol.tf
+        kp, ki, kd, tf_ = _exact_limit(kind, sol.kp, sol.ki, sol.kd, sol.tf, pts, ms_, notes)
         how = "migo" if objective == "ki" else f"migo {objective}"
         if ds is not None or gs is not None:
             how += " robust"
@@ -474,6 +474,29 @@ def assess(loop: Any, *, step: float = 1.0, load: float | None = None, t_end: fl
         else check_real("load", load)
     return _report(lp, how=how, kind=c.kind, step=check_real("step", step), size=size, t_end=t_end, overshoot=None,
                    notes=[], ms_limit=None, mt_limit=None, model=None, ultimate=None, points=(None, None))
+
+
+def _exact_limit(kind: str, kp: float, ki: float, kd: float, tf: float, points: Sequence[Any], ms: float,
+                 notes: list[str]) -> tuple[float, float, float, float]:
+    """The optimised gains, the last one (``ki``, or ``kp`` and ``kd`` together without integral action) scaled
+    down where the exact Ms (:func:`~delaykit.spectrum.frequency.margins`) at some plant exceeds the limit by more
+    than 1e-9 relative (a peak between the optimiser's grid frequencies), by bisection on the scale to 1e-10."""
+    from ..spectrum.frequency import margins
+
+    def worst(a: float) -> float:
+        g = (kp, a * ki, kd) if kind in ("pi", "pid") else (a * kp, ki, a * kd)
+        c = controller_of(kind, g[0], g[1], g[2], tf)
+        ms_ = [margins(Loop(p, c, delay=d)) for p, d in points]
+        return max(m.ms if m.stable else math.inf for m in ms_)
+
+    if worst(1.0) <= ms * (1 + 1e-9):
+        return kp, ki, kd, tf
+    lo, hi = 0.0, 1.0
+    while hi - lo > 1e-10:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if worst(mid) <= ms else (lo, mid)
+    notes.append(f"the exact Ms exceeded the limit between grid frequencies: the gain scaled by {lo:.8f}")
+    return (kp, lo * ki, kd, tf) if kind in ("pi", "pid") else (lo * kp, ki, lo * kd, tf)
 
 
 def _report(loop: Loop, *, how: str, kind: str, step: float, size: float, t_end: float | None,

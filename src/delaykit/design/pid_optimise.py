@@ -229,10 +229,13 @@ class _Problem:
             return 1.0 + td * self.s
         return np.ones_like(td) * np.ones_like(self.s)
 
-    def best_x(self, kp: np.ndarray, td: np.ndarray, P: np.ndarray | None = None, s: np.ndarray | None = None
-               ) -> tuple[np.ndarray, np.ndarray]:
+    def best_x(self, kp: np.ndarray, td: np.ndarray, P: np.ndarray | None = None, s: np.ndarray | None = None,
+               integral: bool | None = None) -> tuple[np.ndarray, np.ndarray]:
         """MIGO's objective at outer parameters ``(kp, td)`` (arrays of one shape): the largest ki (pi, pid) or
-        kp (p, pd, pv; ``kp`` ignored), and the flat index of the binding (point, frequency)."""
+        kp (p, pd, pv; ``kp`` ignored), and the flat index of the binding (point, frequency).  With
+        ``integral=False`` the largest kp of the structure without its integral (:meth:`kp_limit`)."""
+        if integral is None:
+            integral = self.kind in ("pi", "pid")
         P = self.P if P is None else P
         s = self.s if s is None else s
         kp, td = np.broadcast_arrays(np.asarray(kp, float), np.asarray(td, float))
@@ -245,7 +248,7 @@ class _Problem:
         else:
             d = np.ones(td.shape + s.shape)
         q = P * d[..., None, :]  # (..., points, w): P D
-        if self.kind in ("pi", "pid"):  # 1 + L = (1 + kp P D) + ki P / s
+        if integral:  # 1 + L = (1 + kp P D) + ki P / s
             bc = (P / s).conj()
             k = kp[..., None, None]
             rq = q.real
@@ -260,6 +263,13 @@ class _Problem:
         shape = q.shape[:-2] + (-1,)  # points and frequencies: one axis
         flat = lambda z: np.broadcast_to(z, q.shape).reshape(shape)  # noqa: E731
         return _largest(flat(a2), flat(re_a), flat(ab), flat(re_b), flat(b2), self.ms, self.mt)
+
+    def kp_limit(self, td: np.ndarray | float) -> np.ndarray:
+        """The largest ``kp`` reached from 0 at ``ki = 0`` within the limits, for each ``td``: the outer gains of a
+        PI or PID are admissible only below it.  On the path from ``kp = 0`` (a stable or integrating plant, stable
+        at small gains) ``L`` never touches -1, and then on the path in ``ki`` neither: the loop stays stable.  Above
+        it the P or PD loop may encircle -1 while keeping its distance, unstable with an acceptable Ms on the grid."""
+        return self.best_x(np.zeros(np.shape(td)), np.asarray(td, float), integral=False)[0]
 
     def polish(self, kp: float, td: float) -> tuple[float, float | None]:
         """:meth:`best_x` at one point, the binding frequency refined by a bounded scalar minimisation of the
@@ -290,12 +300,17 @@ class _Problem:
 
 
 def _outer_grid(pb: _Problem) -> tuple[np.ndarray, np.ndarray]:
-    """The outer parameters' grid: ``kp`` (pi, pid) and ``Td`` (pd, pid, pv)."""
-    kps = np.geomspace(1e-3, 3.0 if pb.kind == "pi" else 10.0, 121 if pb.kind == "pi" else 36) * pb.k0
+    """The outer parameters' grid: ``kp`` (pi, pid; rows below :meth:`_Problem.kp_limit` of each ``Td``, shape
+    ``(Td, kp)``) and ``Td`` (pd, pid, pv)."""
     tds = (np.concatenate([[0.0], np.geomspace(1e-2, 8.0, 27 if pb.kind != "pid" else 16)]) * pb.t
            if pb.kind in ("pd", "pid", "pv") else np.zeros(1))
     if pb.kind not in ("pi", "pid"):
-        kps = np.zeros(1)
+        return np.zeros((tds.size, 1)), tds
+    lim = pb.kp_limit(tds)
+    n = 121 if pb.kind == "pi" else 36
+    lo = 1e-3 * pb.k0
+    kps = np.array([np.geomspace(min(lo, 0.5 * k), k * (1 - 1e-9), n) if np.isfinite(k) and k > 0
+                    else np.full(n, np.nan) for k in lim])
     return kps, tds
 
 
@@ -304,8 +319,10 @@ def _migo(pb: _Problem) -> tuple[float, float, float, float | None]:
     from scipy.optimize import minimize, minimize_scalar
 
     kps, tds = _outer_grid(pb)
-    K, D = np.meshgrid(kps, tds, indexing="ij")
-    x, _ = pb.best_x(K, D)
+    K, D = kps, np.broadcast_to(tds[:, None], kps.shape)
+    with np.errstate(invalid="ignore"):
+        x, _ = pb.best_x(np.nan_to_num(K, nan=0.0), D)
+    x = np.where(np.isfinite(K), x, -np.inf)
     if not np.isfinite(x).any() or np.nanmax(x) <= 0:
         raise InvalidValueError(
             f"no {pb.kind} gains meet Ms <= {pb.ms:g}" + (f" and Mt <= {pb.mt:g}" if pb.mt else "")
@@ -313,14 +330,16 @@ def _migo(pb: _Problem) -> tuple[float, float, float, float | None]:
     i, j = np.unravel_index(int(np.argmax(x)), x.shape)
     integral = pb.kind in ("pi", "pid")
     if pb.kind == "pi":  # one outer parameter: a bounded search between the grid neighbours
-        lo, hi = kps[max(i - 1, 0)], kps[min(i + 1, kps.size - 1)]
+        lo, hi = K[0, max(j - 1, 0)], K[0, min(j + 1, K.shape[1] - 1)]
         r = minimize_scalar(lambda k: -float(pb.best_x(np.array(k), np.array(0.0))[0]), bounds=(lo, hi),
                             method="bounded", options={"xatol": 1e-10 * hi})
         kp, td = float(r.x), 0.0
     elif pb.kind in ("pid", "pd", "pv"):
         def f(v: np.ndarray) -> float:
-            k = math.exp(v[0]) if integral else 0.0
             t = math.exp(v[-1])
+            k = math.exp(v[0]) if integral else 0.0
+            if integral and not k < float(pb.kp_limit(t)):
+                return 1e300  # beyond the P/PD loop's own limit: not reached from zero gain
             val = float(pb.best_x(np.array(k), np.array(t))[0])
             return -val if math.isfinite(val) else 1e300
 
@@ -333,6 +352,8 @@ def _migo(pb: _Problem) -> tuple[float, float, float, float | None]:
             kp, td = float(K[i, j]), float(D[i, j])
     else:
         kp, td = 0.0, 0.0
+    if td < 1e-4 * pb.t:
+        td = 0.0  # a vanishing derivative is none (its filter would be vanishingly fast)
     best, where = pb.polish(kp, td)
     if integral:
         return kp, best, td, where
@@ -402,6 +423,8 @@ def _search(pb: _Problem, start: tuple[float, float, float], cost: Callable[[flo
         k = math.exp(v[0]) if integral else 0.0
         td = math.exp(v[int(integral)]) if deriv else 0.0
         f = min(1.0, math.exp(v[-1]))
+        if integral and not k < float(pb.kp_limit(td)):
+            return k, 0.0, td, False  # beyond the P/PD loop's own limit: not reached from zero gain
         x = float(pb.best_x(np.array(k), np.array(td))[0])
         if not (math.isfinite(x) and x > 0):
             return k, 0.0, td, False
@@ -418,6 +441,9 @@ def _search(pb: _Problem, start: tuple[float, float, float], cost: Callable[[flo
     r = minimize(f, np.array(v0), method="Nelder-Mead",
                  options={"xatol": 1e-4, "fatol": 1e-9, "maxiter": 80 * len(v0)})
     kp, ki, td, _ = unpack(r.x)
+    if deriv and td < 1e-4 * pb.t:
+        td = 0.0
+        kp, ki, td, _ = unpack(np.concatenate([r.x[:int(integral)], [-np.inf], r.x[-1:]]))
     if r.x[-1] >= -1e-3:  # on the limit: the binding frequency polished, as MIGO's
         x, _ = pb.polish(kp, td)
         kp, ki = (kp, x) if integral else (x, ki)
