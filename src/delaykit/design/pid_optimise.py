@@ -21,8 +21,11 @@ How MIGO is solved: the loop transfer function is affine in the gain ``x`` being
 the largest admissible ``x`` reached from ``x = 0`` without crossing an excluded interval is the least lower end of
 those intervals above 0 — over a dense frequency grid, then polished at the binding frequency by a bounded
 one-dimensional minimisation.  On that path ``L`` never touches -1, so no closed-loop root crosses the imaginary
-axis: the loop is as stable as at ``x = 0`` (checked at the end by the certified root count).  The outer
-parameters (``kp``, and ``Td = kd / kp`` for PID) are searched on a grid and refined (Nelder-Mead).
+axis: the loop is as stable as at ``x = 0``.  The outer parameters (``kp``, and ``Td = kd / kp`` for PID) are
+searched on a grid and refined (Nelder-Mead), ``kp`` only below :meth:`_Problem.kp_limit` (the P or PD loop's own
+largest gain from 0), so that the loop at ``x = 0`` is itself reached from zero gain without touching -1: for a
+stable or integrating plant the whole design is then stable (:func:`~delaykit.design.pid.tune` checks it by the
+certified roots and enforces the exact Ms).
 
 Examples
 --------
