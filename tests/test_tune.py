@@ -474,3 +474,22 @@ def test_migo_on_random_plants_is_stable_and_holds_the_exact_limit():
                np.array([1.0, 0.6 / tau, tau ** -2])][rng.integers(0, 4)]
         t = tune(TransferFunction([k], den), kind, delay=th, ms=1.4, step=0.0, load=0.0)
         assert t.stable and 1.4 * (1 - 1e-3) <= t.ms <= 1.4 * (1 + 1e-9), (kind, den, th, t)
+
+
+def test_cli_tune_robust_table_and_bad_objective():
+    from typer.testing import CliRunner
+
+    from delaykit.cli.app import app
+
+    runner = CliRunner()
+    r = runner.invoke(app, ["tune", "--delay", "0.37", "--delays", "0.3:0.45:4", "--gains", "0.9,1.1", "--json"])
+    assert r.exit_code == 0, r.output
+    d = json.loads(r.stdout)
+    assert len(d["robust"]) == 8 and d["worst"]["delay"] == 0.45 and d["worst"]["gain"] == 1.1
+    assert d["worst"]["ms"] == pytest.approx(1.4, rel=1e-5) and d["how"] == "migo robust"
+    r = runner.invoke(app, ["tune", "--delay", "0.37", "--delays", "0.3:0.45:4"])
+    assert r.exit_code == 0 and "robust set" in r.stdout
+    for args, word in [(["--objective", "fastest"], "fastest"), (["--method", "ga"], "ga"),
+                       (["--delays", "-0.1,0.3"], "-0.1"), (["--delay", "0.1:0.3:3"], "--delays")]:
+        r = runner.invoke(app, ["tune", "--delay", "0.37", *args] if args[0] != "--delay" else ["tune", *args])
+        assert r.exit_code == 2 and word in " ".join(r.output.split()), (args, r.output)
