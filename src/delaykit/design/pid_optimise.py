@@ -58,7 +58,7 @@ PlantPoint = tuple[TransferFunction, float]
 """One plant of a robust design: the transfer function (its gain factor applied) and its delay (s)."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Solution:
     """Optimised gains (parallel form): ``kd`` the derivative gain (pd, pid) or the velocity gain ``kv`` (pv),
     ``tf`` the derivative filter's time constant (pd, pid; 0 otherwise), ``value`` the objective reached
@@ -74,6 +74,17 @@ class Solution:
     value: float
     binding: float | None
     evaluations: int
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {"kind": self.kind, "kp": self.kp, "ki": self.ki, "kd": self.kd, "tf": self.tf,
+                "objective": self.objective, "value": self.value, "binding": self.binding,
+                "evaluations": self.evaluations}
+
+    def __repr__(self) -> str:
+        at = "" if self.binding is None else f", binds at {self.binding:.4g} rad/s"
+        return (f"Solution({self.kind} by {self.objective}: kp={self.kp:.6g}, ki={self.ki:.6g}, kd={self.kd:.6g}; "
+                f"value {self.value:.6g}{at})")
 
 
 def plant_points(plant: TransferFunction, delay: float, delays: Sequence[float] | None = None,

@@ -130,6 +130,13 @@ class RuleGains:
         """Derivative time ``kd / kp`` (s)."""
         return self.kd / self.kp if self.kp else 0.0
 
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {"rule": self.rule, "controller": self.controller, "kp": self.kp, "ki": self.ki, "kd": self.kd,
+                "model": None if self.model is None else self.model.to_dict(),
+                "ultimate": None if self.ultimate is None else self.ultimate.to_dict(), "tau_c": self.tau_c,
+                "notes": list(self.notes)}
+
     def __repr__(self) -> str:
         return f"RuleGains({self.rule} {self.controller}: kp={self.kp:.6g}, ki={self.ki:.6g}, kd={self.kd:.6g})"
 
