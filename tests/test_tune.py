@@ -493,3 +493,19 @@ def test_cli_tune_robust_table_and_bad_objective():
                        (["--delays", "-0.1,0.3"], "-0.1"), (["--delay", "0.1:0.3:3"], "--delays")]:
         r = runner.invoke(app, ["tune", "--delay", "0.37", *args] if args[0] != "--delay" else ["tune", *args])
         assert r.exit_code == 2 and word in " ".join(r.output.split()), (args, r.output)
+
+
+def test_cli_relay_cycle_and_its_amplitude_limit():
+    from typer.testing import CliRunner
+
+    from delaykit.cli.app import app
+
+    runner = CliRunner()
+    r = runner.invoke(app, ["tune", "--delay", "0.37", "--relay", "1", "--hysteresis", "0.05", "--json"])
+    assert r.exit_code == 0, r.output
+    d = json.loads(r.stdout)
+    # integrator with hysteresis: falls from -eps for θ at rate d, then rises to +eps: h = 2θ + 2 eps / d
+    assert d["period"] == pytest.approx(2 * (2 * 0.37 + 2 * 0.05), rel=1e-12)
+    assert d["ultimate"]["pu"] == pytest.approx(4 * 0.37, rel=1e-12)
+    r = runner.invoke(app, ["tune", "--delay", "0.37", "--relay", "1.5"])  # the paper's loop: |u| <= 1
+    assert r.exit_code == 2 and "1.5" in r.output and "limit" in r.output

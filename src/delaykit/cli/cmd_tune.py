@@ -78,6 +78,8 @@ def tune(
     model: Optional[Path] = typer.Option(None, "--model", help="A saved identified model (identify --save) instead of --plant."),
     step: float = typer.Option(1.0, "--step", help="Setpoint step of the report."),
     load: Optional[float] = typer.Option(None, "--load", help="Load step at the plant input for the report (default: half the command limit, or 1)."),
+    relay: Optional[float] = typer.Option(None, "--relay", help="Instead of tuning: the exact relay limit cycle of this amplitude (Astrom-Hagglund), its describing-function and exact ultimate points."),
+    hysteresis: float = typer.Option(0.0, "--hysteresis", help="The relay's hysteresis, in the output's units (with --relay)."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
     save: Optional[Path] = typer.Option(None, "--save", help="Write the tuned loop as a loop file (TOML) for simulate, margins and fly."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Nyquist with the Ms circle (and, for pi, the stable (kp, ki) region with the Ms contour)."),
@@ -99,6 +101,9 @@ def tune(
     from ..design.tuning import parse_range
 
     base = _base(dict(loop_options), model)
+    if relay is not None:
+        _relay(base, relay, hysteresis, as_json)
+        return
     delays = None if delays_range is None else parse_range(delays_range, "--delays")
     gains = None if gains_range is None else parse_range(gains_range, "--gains")
     with err.status("tuning…"):
@@ -120,6 +125,25 @@ def tune(
         print(json.dumps(t.to_dict(), indent=2, allow_nan=False))
         return
     _table(t)
+
+
+def _relay(base: Any, amplitude: float, hysteresis: float, as_json: bool) -> None:
+    """``tune --relay``: the exact relay cycle of the loop's plant and delay."""
+    from ..design.relay import relay_cycle
+
+    lim = min(-base.umin, base.umax)
+    if amplitude > lim:
+        raise InvalidValueError(f"--relay {amplitude:g} is beyond the actuator's limit {lim:g}")
+    c = relay_cycle(base.plant, base.total_delay, amplitude, hysteresis)
+    if as_json:
+        print(json.dumps(c.to_dict(), indent=2, allow_nan=False))
+        return
+    out.print(repr(c), highlight=False, markup=False)
+    u = c.ultimate
+    out.print(f"Describing function: ku ~ {c.ku_describing:.6g}, pu ~ {c.pu_describing:.6g} s; model at the cycle's "
+              f"frequency: ku = {c.ku_at_period:.6g}" + ("" if u is None else
+                                                        f"; exact: ku = {u.ku:.6g}, pu = {u.pu:.6g} s"),
+              highlight=False, markup=False)
 
 
 def _table(t: Any) -> None:
