@@ -37,6 +37,9 @@ def test_every_exception_class_is_exported_and_is_a_delaykit_error():
     for name, cls in classes.items():
         assert getattr(delaykit, name) is cls, f"delaykit.{name} is not {cls.__module__}.{name}"
         assert name in delaykit.__all__, f"{name} is not in delaykit.__all__"
+        if issubclass(cls, Warning):  # warnings have their own base class
+            assert issubclass(cls, delaykit.DelaykitWarning), f"{cls.__module__}.{name} is not a DelaykitWarning"
+            continue
         assert issubclass(cls, DelaykitError), f"{cls.__module__}.{name} is not a DelaykitError"
 
 

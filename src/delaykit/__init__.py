@@ -18,7 +18,7 @@ import types
 from typing import Any
 
 from ._lazy import lazy_exports
-from .errors import (DelaykitError, FlightError, InvalidTypeError, InvalidValueError, MissingDependencyError,
+from .errors import (DelaykitError, DelaykitWarning, FlightError, InvalidTypeError, InvalidValueError, MissingDependencyError,
                      PortError, PortNumberError, RangeSpecError)
 
 __all__ = [
@@ -42,6 +42,8 @@ __all__ = [
     # delay systems as objects
     "DelayLTI", "tf", "ss", "delay", "feedback", "append", "interconnect", "summing_junction", "from_loop", "c2d", "saturation",
     "poles", "is_stable", "hinfnorm", "nyquist_count", "loop_margins",
+    # PID tuning
+    "tune", "assess", "Tuning", "TuningWarning", "DelaykitWarning", "relay_cycle",
 ]
 __version__ = "0.1.0"
 
@@ -78,6 +80,7 @@ _LAZY = {
     "poles": ".spectrum.systems",
     "is_stable": ".spectrum.systems", "hinfnorm": ".spectrum.systems", "nyquist_count": ".spectrum.systems",
     "loop_margins": ".spectrum.systems",
+    "tune": ".design.pid", "assess": ".design.pid", "relay_cycle": ".design.relay", "Tuning": ".design.pid", "TuningWarning": ".design.pid_rules",
 }
 
 

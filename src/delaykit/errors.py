@@ -34,12 +34,16 @@ from __future__ import annotations
 import math
 from typing import Any
 
-__all__ = ["DelaykitError", "InvalidValueError", "InvalidTypeError", "RangeSpecError", "PortError",
+__all__ = ["DelaykitError", "DelaykitWarning", "InvalidValueError", "InvalidTypeError", "RangeSpecError", "PortError",
            "PortNumberError", "FlightError", "MissingDependencyError", "check_real"]
 
 
 class DelaykitError(Exception):
     """Base class of delaykit's own errors."""
+
+
+class DelaykitWarning(UserWarning):
+    """Base class of delaykit's warnings (a result is returned, but outside the range its method is meant for)."""
 
 
 class InvalidValueError(DelaykitError, ValueError):

@@ -23,7 +23,7 @@ COMMANDS = (
     ("Simulate and analyse a loop", (("cmd_simulate", "simulate"), ("cmd_spectrum", "roots"),
                                      ("cmd_spectrum", "margins"), ("cmd_spectrum", "lambert"))),
     ("Identify from logs", (("cmd_identify", "estimate"), ("cmd_identify", "identify"), ("cmd_identify", "predict"))),
-    ("Design", (("cmd_design", "design"),)),
+    ("Design", (("cmd_design", "design"), ("cmd_tune", "tune"))),
     ("Fly", (("cmd_hardware", "emulate"), ("cmd_hardware", "fly"))),
     ("The paper", (("cmd_paper", "reproduce"), ("cmd_paper", "report"), ("cmd_paper", "demo"))),
 )

@@ -68,7 +68,7 @@ def _design_compensator(kind: str, opts: dict[str, Any], uncertainty: float, as_
 @with_loop(omit=("kp", "kv"))
 def design(
     kp: str = typer.Option("2.0", "--kp", help="Kp: a value, a comma list or START:STOP:N."),
-    kv: str = typer.Option("0:0.7:8", "--kv", help="Kv: a value, a comma list or START:STOP:N."),
+    kv: Optional[str] = typer.Option(None, "--kv", help="Kv: a value, a comma list or START:STOP:N (default 0:0.7:8 for the PV law)."),
     step: float = typer.Option(1.0, "--step", help="Step size for the simulated metrics."),
     criterion: str = typer.Option("abscissa", "--criterion", help="abscissa | settling | overshoot (overshoot: not with --delays)."),
     overshoot_limit: float = typer.Option(5.0, "--overshoot-limit", help="Overshoot limit for --criterion overshoot, %."),
@@ -95,9 +95,14 @@ def design(
         _design_compensator(compensator, dict(loop_options), delay_uncertainty, as_json, plot)
         return
 
-    kps = D.parse_range(kp, "--kp")
-    kvs = D.parse_range(kv, "--kv")
     opts = dict(loop_options)
+    kind = str(opts.get("controller") or "").lower()
+    if kind in ("pi", "pd", "pid"):
+        raise InvalidValueError(f"design sweeps P and PV gains; for {kind}: delaykit tune --controller {kind}")
+    if kind == "p" and kv is not None and any(D.parse_range(kv, "--kv")):
+        raise InvalidValueError(f"--controller p has no Kv; got --kv {kv} (use --controller pv)")
+    kps = D.parse_range(kp, "--kp")
+    kvs = D.parse_range(kv if kv is not None else ("0" if kind == "p" else "0:0.7:8"), "--kv")
     if opts.get("delay") is None and delays_range is not None and opts.get("loop_file") is None:
         opts["delay"] = str(D.parse_range(delays_range, "--delays")[0])
     if opts.get("loop_file") is None:

@@ -52,11 +52,12 @@ _SPECS: list[tuple[str, Any, Any]] = [
 ]
 LOOP_OPTION_NAMES = tuple(name for name, _, _ in _SPECS)
 _CONTROLLER_KEYS = ("kp", "ki", "kd", "kv", "derivative_filter", "velocity", "filter_wn", "filter_zeta", "antiwindup",
-                    "tracking_time")
+                    "tracking_time", "setpoint_weight", "derivative_weight")
 _KIND_KEYS = {  # the settings each law reads (a transfer-function law reads none)
     "p": ("kp",), "pv": ("kp", "kv", "velocity", "filter_wn", "filter_zeta"),
-    "pi": ("kp", "ki", "antiwindup", "tracking_time"), "pd": ("kp", "kd", "derivative_filter"),
-    "pid": ("kp", "ki", "kd", "derivative_filter", "antiwindup", "tracking_time"),
+    "pi": ("kp", "ki", "antiwindup", "tracking_time", "setpoint_weight"), "pd": ("kp", "kd", "derivative_filter"),
+    "pid": ("kp", "ki", "kd", "derivative_filter", "antiwindup", "tracking_time", "setpoint_weight",
+            "derivative_weight"),
 }
 
 

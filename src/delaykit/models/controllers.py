@@ -108,6 +108,10 @@ class Controller:
     antiwindup : {"none", "clamp", "backcalc"}
     tracking_time : float or None
         Back-calculation tracking time ``Tt`` (s); ``None`` for the default rule.
+    setpoint_weight, derivative_weight : float
+        The 2-DOF weights ``b`` and ``c`` of pi and pid: the proportional part acts on ``b r - ym`` and the
+        derivative (pid) on ``c r - ym``; the integral always on ``r - ym``.  The defaults ``b = 1``, ``c = 0`` are
+        the laws above; the weights change the response to the reference only, not the loop's stability.
 
     Examples
     --------
@@ -129,6 +133,8 @@ class Controller:
     transfer_function: TransferFunction | None = field(default=None)
     antiwindup: Literal["none", "clamp", "backcalc"] = "none"
     tracking_time: float | None = None
+    setpoint_weight: float = 1.0
+    derivative_weight: float = 0.0
 
     def __post_init__(self) -> None:
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
@@ -174,6 +180,14 @@ class Controller:
             raise InvalidValueError(f"anti-windup needs an integrator; a {self.kind} controller has none")
         if self.antiwindup == "backcalc" and self.ki == 0.0:
             raise InvalidValueError("back-calculation anti-windup needs ki != 0")
+        set_("setpoint_weight", check_real("setpoint_weight (b)", self.setpoint_weight, minimum=0.0))
+        set_("derivative_weight", check_real("derivative_weight (c)", self.derivative_weight, minimum=0.0))
+        if self.setpoint_weight != 1.0 and not self.has_integrator:
+            raise InvalidValueError(f"a setpoint weight b needs integral action (pi or pid), or the output settles "
+                                    f"off the reference; a {self.kind} controller has none (b = {self.setpoint_weight:g})")
+        if self.derivative_weight != 0.0 and self.kind != "pid":
+            raise InvalidValueError(f"the derivative weight c is for pid, not {self.kind} "
+                                    f"(c = {self.derivative_weight:g})")
         if self.tracking_time is not None:
             set_("tracking_time", check_real("tracking_time (Tt, s)", self.tracking_time, minimum=0.0, strict=True))
 
@@ -202,7 +216,8 @@ class Controller:
         return cls("pv", kp=kp, kv=kv, velocity=velocity, filter_wn=filter_wn, filter_zeta=filter_zeta)
 
     @classmethod
-    def pi(cls, kp: float, ki: float, *, antiwindup: str = "none", tracking_time: float | None = None) -> "Controller":
+    def pi(cls, kp: float, ki: float, *, antiwindup: str = "none", tracking_time: float | None = None,
+           setpoint_weight: float = 1.0) -> "Controller":
         """PI control ``v = Kp e + Ki \\int e``.
 
         Examples
@@ -210,7 +225,8 @@ class Controller:
         >>> Controller.pi(0.95, 0.1).ki
         0.1
         """
-        return cls("pi", kp=kp, ki=ki, antiwindup=antiwindup, tracking_time=tracking_time)
+        return cls("pi", kp=kp, ki=ki, antiwindup=antiwindup, tracking_time=tracking_time,
+                   setpoint_weight=setpoint_weight)
 
     @classmethod
     def pd(cls, kp: float, kd: float, derivative_filter: float) -> "Controller":
@@ -225,7 +241,8 @@ class Controller:
 
     @classmethod
     def pid(cls, kp: float, ki: float, kd: float, derivative_filter: float, *, antiwindup: str = "none",
-            tracking_time: float | None = None) -> "Controller":
+            tracking_time: float | None = None, setpoint_weight: float = 1.0,
+            derivative_weight: float = 0.0) -> "Controller":
         """PID control, the derivative on the measurement through ``s / (Tf s + 1)``.
 
         Examples
@@ -234,7 +251,7 @@ class Controller:
         2
         """
         return cls("pid", kp=kp, ki=ki, kd=kd, derivative_filter=derivative_filter, antiwindup=antiwindup,
-                   tracking_time=tracking_time)
+                   tracking_time=tracking_time, setpoint_weight=setpoint_weight, derivative_weight=derivative_weight)
 
     @classmethod
     def transfer(cls, tf: Any) -> "Controller":
@@ -328,15 +345,17 @@ class Controller:
         aw = 0.0
         if self.antiwindup == "backcalc":
             aw = 1.0 / (ki * self.default_tracking_time())
+        b, c = self.setpoint_weight, self.derivative_weight
         if self.kind == "pi":
             return Realisation(z((1, 1)), np.array([1.0]), np.array([-1.0]), z(1), np.array([aw]), np.array([ki]),
-                               kp, -kp, 0.0, 0)
+                               b * kp, -kp, 0.0, 0)
         tf = self.derivative_filter
         if self.kind == "pd":
             return Realisation(np.array([[-1.0 / tf]]), z(1), np.array([1.0 / tf]), z(1), z(1), np.array([kd / tf]),
                                kp, -kp - kd / tf, 0.0, -1)
-        return Realisation(np.array([[0.0, 0.0], [0.0, -1.0 / tf]]), np.array([1.0, 0.0]), np.array([-1.0, 1.0 / tf]),
-                           z(2), np.array([aw, 0.0]), np.array([ki, kd / tf]), kp, -kp - kd / tf, 0.0, 0)
+        # the filter state low-passes ym - c r; the derivative is kd/Tf ((ym - c r) filtered minus (ym - c r))
+        return Realisation(np.array([[0.0, 0.0], [0.0, -1.0 / tf]]), np.array([1.0, -c / tf]), np.array([-1.0, 1.0 / tf]),
+                           z(2), np.array([aw, 0.0]), np.array([ki, kd / tf]), b * kp + c * kd / tf, -kp - kd / tf, 0.0, 0)
 
     def feedback_polynomials(self) -> tuple[np.ndarray, np.ndarray]:
         """Numerator and denominator of the feedback part ``Cy(s)`` of the law ``v = ... - Cy(s) ym``
@@ -383,6 +402,10 @@ class Controller:
         if self.kind == "tf":
             d.pop("kp")
             d["transfer_function"] = self.transfer_function.to_dict()
+        if self.setpoint_weight != 1.0:
+            d["setpoint_weight"] = self.setpoint_weight
+        if self.derivative_weight != 0.0:
+            d["derivative_weight"] = self.derivative_weight
         if self.has_integrator:
             d["antiwindup"] = self.antiwindup
             if self.antiwindup == "backcalc":
@@ -401,6 +424,8 @@ class Controller:
         if self.kind == "pv":
             parts.append(f"filtered velocity (wn={self.filter_wn:g} rad/s, zeta={self.filter_zeta:g})"
                          if self.velocity == "filtered" else "true velocity")
+        if self.setpoint_weight != 1.0 or self.derivative_weight != 0.0:
+            parts.append(f"b={self.setpoint_weight:g}" + (f", c={self.derivative_weight:g}" if self.kind == "pid" else ""))
         if self.antiwindup != "none":
             parts.append(f"anti-windup {self.antiwindup}")
         return f"Controller({self.kind}: {', '.join(parts)})"

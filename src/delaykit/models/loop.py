@@ -46,7 +46,7 @@ from .controllers import Controller
 from .quasipolynomial import QuasiPolynomial
 from .transfer import TransferFunction
 
-__all__ = ["Loop", "LOOP_KEYS", "loop_from_dict", "load_loop", "check_sampling"]
+__all__ = ["Loop", "LOOP_KEYS", "loop_from_dict", "load_loop", "loop_to_toml", "check_sampling"]
 
 
 def check_sampling(period: Any, sample_offset: Any) -> tuple[float | None, float]:
@@ -310,7 +310,7 @@ class Loop:
 
 
 _CONTROLLER_FIELDS = ("kp", "ki", "kd", "kv", "derivative_filter", "velocity", "filter_wn", "filter_zeta",
-                      "antiwindup", "tracking_time")
+                      "antiwindup", "tracking_time", "setpoint_weight", "derivative_weight")
 LOOP_KEYS = ("plant", "controller", "delay", "output_delay", "umin", "umax", "vmax", "period", "sample_offset",
              "name") + _CONTROLLER_FIELDS
 
@@ -377,3 +377,34 @@ def load_loop(path: str | Path) -> Loop:
     except tomllib.TOMLDecodeError as exc:
         raise InvalidValueError(f"the loop file {str(p)!r} is not valid TOML: {exc}") from None
     return loop_from_dict(data, source=str(p))
+
+
+def loop_to_toml(loop: Loop) -> str:
+    """A loop file's text (TOML, the flat keys of :func:`loop_from_dict`) that :func:`load_loop` reads back.
+
+    Only a P, PV, PI, PD or PID controller can be written (a transfer-function law or a compensator cannot).
+
+    Examples
+    --------
+    >>> text = loop_to_toml(Loop("1/s", Controller.pi(0.76, 0.31, setpoint_weight=0.5), delay=0.37, umin=-1, umax=1))
+    >>> import tomllib; loop_from_dict(tomllib.loads(text)).controller
+    Controller(pi: kp=0.76, ki=0.31, b=0.5)
+    """
+    import json
+
+    c = loop.controller
+    if not isinstance(c, Controller) or c.kind == "tf":
+        raise InvalidValueError("only a p, pv, pi, pd or pid loop can be written as a loop file")
+    d: dict[str, Any] = {"plant": loop.plant.to_string(digits=17), **{k: v for k, v in c.to_dict().items()}}
+    d["controller"] = d.pop("kind")
+    if c.tracking_time is None:
+        d.pop("tracking_time", None)
+    d.update(delay=loop.delay, output_delay=loop.output_delay)
+    for k in ("umin", "umax"):
+        if math.isfinite(getattr(loop, k)):
+            d[k] = getattr(loop, k)
+    if loop.period is not None:
+        d.update(period=loop.period, sample_offset=loop.sample_offset)
+    if loop.name:
+        d["name"] = loop.name
+    return "".join(f"{k} = {json.dumps(v) if isinstance(v, str) else repr(float(v))}\n" for k, v in d.items())

@@ -1,0 +1,84 @@
+"""The tables of docs/guide/tuning.md, computed: ``python docs/guide/tuning_table.py`` prints them as Markdown.
+
+tests/test_tune.py checks that the tables in the guide are this script's output, so no number there is typed by hand.
+
+* The drone: the paper's altitude loop (``1/s``, delay 0.37 s, command limited to +-1 m/s) tuned by SIMC, AMIGO
+  and MIGO (Ms 1.4; also robust over delays 0.30 to 0.45 s), beside the paper's P (Kp 1.31) and PV (Kp 2, Kv 0.3,
+  filtered velocity) laws, each simulated exactly for a 1 m setpoint step and a 0.5 m/s load step at the plant
+  input.
+* The heater: the TCLab step test's FOPDT model (``identify tests/data/tclab/step_test.csv --model fopdt``:
+  K 0.698 degC/%, tau 146.6 s, theta 16.6 s; heater command limited to +-50 % around its operating point) tuned by
+  every rule and by MIGO, for a 5 degC setpoint step and a 10 % load step.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+from delaykit import AltitudeLoop, TuningWarning, assess, tune
+
+
+def _f(x: float | None, digits: int = 3) -> str:
+    if x is None or not math.isfinite(x):
+        return "–"
+    return f"{x:.{digits}g}"
+
+
+def _row(name: str, t) -> str:
+    gains = f"{_f(t.kp)}" + (f" / {_f(t.ki)}" if t.kind in ("pi", "pid") else " / –")
+    gains += f" / {_f(t.kd)}" if t.kind in ("pd", "pid", "pv") else " / –"
+    sp, ld = t.setpoint, t.load
+    integral = t.kind in ("pi", "pid")
+    load_iae = _f(ld.iae) if integral else f"steady error {_f(ld.size / t.kp)}"
+    return (f"| {name} | {gains} | {_f(t.ms)} | {_f(t.gain_margin)} | {_f(t.phase_margin)} | {_f(t.delay_margin)} | "
+            f"{_f(sp.overshoot)} | {_f(sp.settling_time)} | {_f(sp.iae)} | {_f(ld.peak_error)} | {load_iae} | "
+            f"{_f(ld.recovery_time)} |")
+
+
+HEAD = ("| tuning | kp / ki / kd (kv) | Ms | GM | PM deg | DM s | overshoot % | settling s | setpoint IAE | "
+        "load peak | load IAE | recovery s |\n|---|---|---|---|---|---|---|---|---|---|---|---|")
+
+
+def drone_table() -> str:
+    """The drone's table (Markdown)."""
+    base = dict(delay=0.37, umin=-1.0, umax=1.0, step=1.0, load=0.5)
+    rows = [
+        ("paper P, Kp 1.31", assess(AltitudeLoop(kp=1.31, delay=0.37), step=1.0, load=0.5, t_end=40.0)),
+        ("paper PV, Kp 2, Kv 0.3 (filtered)", assess(AltitudeLoop(kp=2.0, kv=0.3, velocity="filtered", delay=0.37),
+                                                     step=1.0, load=0.5, t_end=40.0)),
+        ("SIMC PI (tau_c = 0.37 s)", tune("1/s", "pi", rule="simc", t_end=40.0, **base)),
+        ("AMIGO PI", tune("1/s", "pi", rule="amigo", t_end=40.0, **base)),
+        ("AMIGO PID", tune("1/s", "pid", rule="amigo", t_end=40.0, **base)),
+        ("MIGO PI, Ms 1.4", tune("1/s", "pi", ms=1.4, t_end=40.0, **base)),
+        ("MIGO PI, Ms 1.4, delays 0.30-0.45 s", tune("1/s", "pi", ms=1.4, delays="0.3:0.45:4", t_end=40.0, **base)),
+        ("MIGO PI, least load IAE", tune("1/s", "pi", ms=1.4, objective="iae-load", t_end=40.0, **base)),
+        ("MIGO PV, Ms 1.4", tune("1/s", "pv", ms=1.4, t_end=40.0, **base)),
+    ]
+    return HEAD + "\n" + "\n".join(_row(n, t) for n, t in rows)
+
+
+def heater_table() -> str:
+    """The heater's table (Markdown)."""
+    plant = "0.698/(146.6*s+1)"
+    base = dict(delay=16.6, umin=-50.0, umax=50.0, step=5.0, load=10.0, t_end=1500.0)
+    rows = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TuningWarning)  # every rule here is inside its range: a warning is a failure
+        for name, kw in [("SIMC PI (tau_c = theta)", dict(rule="simc")), ("AMIGO PI", dict(rule="amigo")),
+                         ("lambda PI (lambda = theta)", dict(rule="lambda")), ("ZN PI", dict(rule="zn")),
+                         ("Tyreus-Luyben PI", dict(rule="tyreus-luyben")), ("MIGO PI, Ms 1.4", dict(ms=1.4)),
+                         ("MIGO PI, Ms 1.4, gains 0.8-1.2, delays 14-20 s",
+                          dict(ms=1.4, gains="0.8:1.2:3", delays="14:20:4"))]:
+            rows.append((name, tune(plant, "pi", **kw, **base)))
+        for name, kw in [("SIMC PID", dict(rule="simc")), ("AMIGO PID", dict(rule="amigo")),
+                         ("MIGO PID, Ms 1.4", dict(ms=1.4))]:
+            rows.append((name, tune(plant, "pid", **kw, **base)))
+    return HEAD + "\n" + "\n".join(_row(n, t) for n, t in rows)
+
+
+if __name__ == "__main__":
+    print("### The drone\n")
+    print(drone_table())
+    print("\n### The heater\n")
+    print(heater_table())
