@@ -41,6 +41,8 @@ __all__ = [
     # delay systems as objects
     "DelayLTI", "tf", "ss", "delay", "feedback", "append", "interconnect", "summing_junction", "from_loop", "c2d", "saturation",
     "poles", "is_stable", "hinfnorm", "nyquist_count", "loop_margins",
+    # decentralised PI for square delay systems: pairing and BLT tuning
+    "blt", "BLTResult", "rga", "niederlinski",
 ]
 __version__ = "0.1.0"
 
@@ -77,6 +79,7 @@ _LAZY = {
     "poles": ".spectrum.systems",
     "is_stable": ".spectrum.systems", "hinfnorm": ".spectrum.systems", "nyquist_count": ".spectrum.systems",
     "loop_margins": ".spectrum.systems",
+    "blt": ".design.mimo", "BLTResult": ".design.mimo", "rga": ".design.mimo", "niederlinski": ".design.mimo",
 }
 
 
