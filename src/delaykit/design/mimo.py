@@ -6,14 +6,17 @@ For a square :class:`~delaykit.systems.DelayLTI` ``G`` (``n`` outputs, ``n`` inp
   exact frequency response (each delay as ``exp(-j w tau)``).
 * :func:`niederlinski`: the Niederlinski index ``det G(0) / prod_i G_{i,p(i)}(0)`` of a pairing ``p``.
 * :func:`blt`: Luyben's (1986) biggest-log-modulus tuning of ``n`` PI loops.  Each paired element's ultimate gain
-  ``Ku`` and period ``Pu`` come from its exact frequency response (the gain margin and phase crossover of
-  :func:`~delaykit.spectrum.systems.loop_margins`, no Padé approximation); the Ziegler-Nichols settings
+  ``Ku`` and period ``Pu`` come from its exact frequency response (its gain margin, the least ``1/|g|`` over the
+  phase crossovers, and the crossover's frequency, no Padé approximation); the Ziegler-Nichols settings
   ``Kzn = Ku / 2.2``, ``tau_zn = Pu / 1.2`` (Luyben's) are detuned by one factor ``F`` for every loop,
   ``Kc = Kzn / F``, ``tau_I = F tau_zn``; ``F`` is the root of ``L_cm(F) = 2n`` dB, where the biggest
   closed-loop log modulus is ``L_cm = max_w 20 log10 |W / (1 + W)|`` with ``W(jw) = -1 + det(I + G(jw) K(jw))``.
 
-How ``L_cm`` is computed: ``G(jw)`` once on the grid of :func:`~delaykit.spectrum.systems.hinfnorm` (200 points a
-decade across the system's features, 16 points per period of its longest delay path), the controller's
+How ``Ku`` and ``L_cm`` are computed: ``G(jw)`` once on the grid of :func:`~delaykit.spectrum.systems.hinfnorm`
+(200 points a decade across the system's features, 16 points per period of its longest delay path).  Each
+element's phase crossovers are located on it, and those whose gain estimate is within 20 % of the least are
+refined by Brent's method to a relative 1e-14 in frequency (as :func:`~delaykit.spectrum.systems.loop_margins`
+does for every crossover).  For ``L_cm``, the controller's
 ``K(jw)`` in closed form for each ``F``; the largest local maxima of ``|W / (1 + W)|`` on the grid (those within
 1 dB of the largest) are refined by a bounded scalar search with ``G`` evaluated exactly, to a relative 1e-10 in
 frequency.  ``F`` is the largest root the scan finds: from ``F = 1`` upwards in steps of ``2^(1/4)`` until
@@ -40,7 +43,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
-from ..spectrum.systems import _features, _grid, is_stable, loop_margins
+from ..spectrum.systems import _features, _grid, is_stable
 from ..systems.algebra import feedback
 from ..systems.build import tf
 from ..systems.lti import DelayLTI, as_frequencies
@@ -263,19 +266,51 @@ def _controller(kp: Sequence[float], ki: Sequence[float], pairing: Sequence[int]
     return tf(rows, inputs=[f"e[{i}]" for i in range(n)], outputs=list(inputs) if inputs else None, name="BLT PI")
 
 
-class _LogModulus:
-    """``L_cm(F)`` for the detuned Ziegler-Nichols PI loops, ``G(jw)`` evaluated once on a fixed grid."""
+class _Loops:
+    """The paired plant ``G_p`` (loop ``i``'s input ``p[i]`` as column ``i``, so the controller is diagonal) on a fixed
+    frequency grid, evaluated once: each element's ultimate point and ``L_cm(F)`` for detuned PI loops."""
 
-    def __init__(self, G: DelayLTI, pairing: tuple[int, ...], kzn: np.ndarray, tzn: np.ndarray) -> None:
-        self.G, self.p, self.kzn, self.tzn = G, pairing, kzn, tzn
+    def __init__(self, G: DelayLTI, pairing: tuple[int, ...]) -> None:
+        self.G, self.p = G, list(pairing)
         lo, hi, _ = _features(G)
         w = _grid(G, lo, hi)
         self.w = w[w > 0]
-        # G with its columns in loop order: loop i's input p[i] as column i, so K(jw) is diagonal
-        self.g = np.moveaxis(G.evaluate(1j * self.w), -1, 0)[:, :, list(pairing)]
+        self.g = self._paired(self.w)
 
-    def _ratio_db(self, g: np.ndarray, w: np.ndarray, F: float) -> np.ndarray:
-        kc, ti = self.kzn / F, self.tzn * F
+    def _paired(self, w: np.ndarray) -> np.ndarray:
+        return np.moveaxis(self.G.evaluate(1j * np.asarray(w, float)), -1, 0)[:, :, self.p]
+
+    def ultimate(self, i: int) -> tuple[float, float]:
+        """``(Ku, Pu)`` of loop ``i``'s element under proportional control alone, ``Ku`` signed as its steady-state
+        gain: the least ``1 / |g|`` over the phase crossovers (``sign * g`` real and negative), each crossover's
+        frequency refined by Brent's method (those whose grid estimate is within 20 % of the least)."""
+        from scipy.optimize import brentq
+
+        j = self.p[i]
+        g0 = complex(self._paired([0.0])[0, i, i]).real
+        if g0 == 0.0 or math.isnan(g0):
+            raise InvalidValueError(f"the element G[{i}, {j}] has no steady-state gain ({g0:g}): it cannot be tuned by "
+                                    "its ultimate point")
+        sign = 1.0 if g0 > 0 else -1.0
+        h = sign * self.g[:, i, i]
+        ok = np.isfinite(h)
+        cross = np.flatnonzero(ok[:-1] & ok[1:] & (np.sign(h.imag[:-1]) * np.sign(h.imag[1:]) < 0)
+                               & (h.real[:-1] + h.real[1:] < 0))
+        if not cross.size:
+            raise InvalidValueError(f"the element G[{i}, {j}] has no ultimate point (its phase never reaches -180 deg, "
+                                    "so proportional control never makes it oscillate): Ziegler-Nichols settings do "
+                                    "not exist for it")
+        est = 2.0 / (np.abs(h[cross]) + np.abs(h[cross + 1]))
+        best, wu = math.inf, math.nan
+        val = lambda x: sign * complex(self._paired([x])[0, i, i])  # noqa: E731
+        for k in cross[est <= 1.2 * est.min()]:
+            x = brentq(lambda t: val(t).imag, self.w[k], self.w[k + 1], xtol=1e-14 * self.w[k])
+            v = val(x)
+            if v.real < 0 and 1.0 / abs(v) < best:
+                best, wu = 1.0 / abs(v), float(x)
+        return sign * best, 2.0 * math.pi / wu
+
+    def _ratio_db(self, g: np.ndarray, w: np.ndarray, kc: np.ndarray, ti: np.ndarray) -> np.ndarray:
         k = kc[None, :] * (1.0 + 1.0 / (1j * w[:, None] * ti[None, :]))  # (len(w), n)
         n = k.shape[1]
         with np.errstate(all="ignore"):
@@ -283,43 +318,22 @@ class _LogModulus:
             r = 20.0 * np.log10(np.abs((d - 1.0) / d))
         return np.where(np.isfinite(r), r, _CAP_DB)  # a closed-loop pole on the axis: an infinite peak, capped
 
-    def _at(self, x: float, F: float) -> float:
-        g = np.moveaxis(self.G.evaluate([1j * x]), -1, 0)[:, :, list(self.p)]
-        return float(self._ratio_db(g, np.array([x]), F)[0])
-
-    def __call__(self, F: float) -> tuple[float, float]:
-        """``(L_cm in dB, frequency of the peak)``."""
+    def lcm(self, kc: np.ndarray, ti: np.ndarray) -> tuple[float, float]:
+        """``(L_cm in dB, frequency of the peak)`` of the PI loops ``kc_i (1 + 1 / (ti_i s))``."""
         from scipy.optimize import minimize_scalar
 
-        r = self._ratio_db(self.g, self.w, F)
+        r = self._ratio_db(self.g, self.w, kc, ti)
         i = int(np.argmax(r))
         best, where = float(r[i]), float(self.w[i])
-        if not math.isfinite(best):
-            return best, where
         k = 1 + np.flatnonzero((r[1:-1] >= r[:-2]) & (r[1:-1] >= r[2:]))
         k = k[r[k] >= best - _REFINE_DB]
         for j in k[np.argsort(r[k])][::-1][:8]:
-            res = minimize_scalar(lambda x: -self._at(x, F), bounds=(self.w[j - 1], self.w[j + 1]), method="bounded",
+            res = minimize_scalar(lambda x: -float(self._ratio_db(self._paired([x]), np.array([x]), kc, ti)[0]),
+                                  bounds=(self.w[j - 1], self.w[j + 1]), method="bounded",
                                   options={"xatol": 1e-10 * self.w[j]})
             if -res.fun > best:
                 best, where = float(-res.fun), float(res.x)
         return best, where
-
-
-def _ultimate(G: DelayLTI, i: int, j: int) -> tuple[float, float]:
-    """``(Ku, Pu)`` of the element ``G[i, j]`` under proportional control, ``Ku`` signed as its steady-state gain."""
-    g = G[i, j]
-    g0 = float(g.dcgain()[0, 0])
-    if g0 == 0.0 or math.isnan(g0):
-        raise InvalidValueError(f"the element G[{i}, {j}] has no steady-state gain ({g0:g}): it cannot be tuned by "
-                                "its ultimate point")
-    sign = 1.0 if g0 > 0 else -1.0
-    m = loop_margins(sign * g)
-    if m.phase_crossover is None or not math.isfinite(m.gain_margin):
-        raise InvalidValueError(f"the element G[{i}, {j}] has no ultimate point (its phase never reaches -180 deg, "
-                                "so proportional control never makes it oscillate): Ziegler-Nichols settings do not "
-                                "exist for it")
-    return sign * m.gain_margin, 2.0 * math.pi / m.phase_crossover
 
 
 def _bracket(excess: Any) -> tuple[float, float]:
@@ -424,20 +438,20 @@ def blt(G: DelayLTI, *, pairing: Sequence[int] | None = None, detune_target_db: 
         raise InvalidValueError(f"zn must be two divisors (of Ku and of Pu), got {zn!r}")
     a = check_real("zn[0]", zn[0], minimum=1e-6)
     b = check_real("zn[1]", zn[1], minimum=1e-6)
-    ult = [_ultimate(G, i, j) for i, j in enumerate(p)]
+    loops = _Loops(G, p)
+    ult = [loops.ultimate(i) for i in range(n)]
     ku = np.array([u[0] for u in ult])
     pu = np.array([u[1] for u in ult])
     kzn, tzn = ku / a, pu / b
-    lcm = _LogModulus(G, p, kzn, tzn)
 
     from scipy.optimize import brentq
 
     def excess(F: float) -> float:
-        return lcm(F)[0] - target
+        return loops.lcm(kzn / F, tzn * F)[0] - target
 
     lo, hi = _bracket(excess)
     F = float(brentq(excess, lo, hi, xtol=1e-12 * hi, rtol=1e-10))
-    value, where = lcm(F)
+    value, where = loops.lcm(kzn / F, tzn * F)
     kp = kzn / F
     ti = tzn * F
     ki = kp / ti
