@@ -261,3 +261,13 @@ def test_the_ultimate_point_is_the_least_gain_over_every_phase_crossover():
     r = blt(g, check_stability=False)
     assert r.ku[0] == pytest.approx(m.gain_margin, rel=1e-10)
     assert r.pu[0] == pytest.approx(2 * math.pi / m.phase_crossover, rel=1e-10)
+
+
+def test_an_integrating_element_with_a_negative_gain():
+    # k exp(-theta s) / s: phase -pi/2 - theta w = -pi at wu = pi / (2 theta), Ku = wu / |k| (closed form), and the
+    # controller's sign follows the gain's
+    k, th = -0.5, 2.0
+    r = blt(tf(f"{k}*exp(-{th}*s)/s"))
+    wu = math.pi / (2 * th)
+    assert r.ku[0] == pytest.approx(-wu / abs(k), rel=1e-10) and r.pu[0] == pytest.approx(2 * math.pi / wu, rel=1e-10)
+    assert r.kp[0] < 0 and r.stable

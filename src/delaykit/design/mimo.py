@@ -248,7 +248,7 @@ class BLTResult:
         return {"detuning": self.detuning, "kp": list(self.kp), "ki": list(self.ki), "ti": list(self.ti),
                 "ku": list(self.ku), "pu": list(self.pu), "lcm_db": self.lcm, "frequency": self.frequency,
                 "target_db": self.target_db, "pairing": list(self.pairing), "zn": list(self.zn),
-                "stable": self.stable}
+                "stable": self.stable, "inputs": list(self.inputs)}
 
     def __repr__(self) -> str:
         f = lambda xs: "[" + ", ".join(f"{x:.4g}" for x in xs) + "]"  # noqa: E731
@@ -288,6 +288,9 @@ class _Loops:
 
         j = self.p[i]
         g0 = complex(self._paired([0.0])[0, i, i]).real
+        if not math.isfinite(g0):  # an integrator: the sign of g(eps) for a small real eps, which goes as k / eps
+            eps = float(self.w[0])
+            g0 = complex(self.G.evaluate([eps])[i, j, 0]).real
         if g0 == 0.0 or math.isnan(g0):
             raise InvalidValueError(f"the element G[{i}, {j}] has no steady-state gain ({g0:g}): it cannot be tuned by "
                                     "its ultimate point")
