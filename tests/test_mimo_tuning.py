@@ -271,3 +271,27 @@ def test_an_integrating_element_with_a_negative_gain():
     wu = math.pi / (2 * th)
     assert r.ku[0] == pytest.approx(-wu / abs(k), rel=1e-10) and r.pu[0] == pytest.approx(2 * math.pi / wu, rel=1e-10)
     assert r.kp[0] < 0 and r.stable
+
+
+def test_three_loops_reach_six_db_by_hand():
+    # N = 3: the target is 2N = 6 dB; L_cm of the returned settings from the nine FOPDT elements evaluated by hand,
+    # det(I + G K) of the 3x3 stack by numpy, and each ultimate point from the closed-form phase condition
+    # (dead times on the diagonal only, which keeps the frequency grid, and the test, small)
+    P = [[(1.0, 2.0, 1.0), (0.3, 3.0, 0.0), (-0.2, 1.0, 0.0)],
+         [(0.4, 1.5, 0.0), (-2.0, 2.5, 0.5), (0.3, 2.0, 0.0)],
+         [(0.2, 1.0, 0.0), (0.5, 4.0, 0.0), (1.5, 1.2, 0.8)]]
+    G = tf([[f"{k}*exp(-{th}*s)/({tau}*s+1)" for k, tau, th in row] for row in P])
+    r = blt(G)
+    assert r.target_db == 6.0 and r.stable
+    for i in range(3):
+        ku, pu = fopdt_ultimate(*P[i][i])
+        assert r.ku[i] == pytest.approx(math.copysign(ku, P[i][i][0]), rel=1e-10)
+        assert r.pu[i] == pytest.approx(pu, rel=1e-10)
+    w = np.linspace(1e-3, 20.0, 400_001)
+    s = 1j * w
+    g = np.stack([np.stack([k * np.exp(-th * s) / (tau * s + 1) for k, tau, th in row], -1) for row in P], -2)
+    k = np.array(r.kp)[None, :] * (1 + 1 / (s[:, None] * np.array(r.ti)[None, :]))
+    d = np.linalg.det(np.eye(3)[None] + g * k[:, None, :])
+    lcm = 20 * np.log10(np.abs((d - 1) / d))
+    assert lcm.max() == pytest.approx(6.0, abs=1e-5)
+    assert w[lcm.argmax()] == pytest.approx(r.frequency, abs=1e-4)
