@@ -460,7 +460,10 @@ def blt(G: DelayLTI, *, pairing: Sequence[int] | None = None, detune_target_db: 
     ki = kp / ti
     stable = None
     if check_stability:
-        stable = bool(is_stable(feedback(G * _controller(kp, ki, p, G.inputs), 1)))
+        try:
+            stable = bool(is_stable(feedback(G * _controller(kp, ki, p, G.inputs), 1)))
+        except InvalidValueError as exc:  # a neutral loop, or a rightmost root that could not be certified
+            raise InvalidValueError(f"{exc}; blt(..., check_stability=False) tunes without the check") from exc
     return BLTResult(F, tuple(map(float, kp)), tuple(map(float, ki)), tuple(map(float, ti)), tuple(map(float, ku)),
                      tuple(map(float, pu)), float(value), float(where), float(target), p, (float(a), float(b)),
                      stable, G.inputs)
