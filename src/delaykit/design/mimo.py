@@ -13,7 +13,12 @@ For a square :class:`~delaykit.systems.DelayLTI` ``G`` (``n`` outputs, ``n`` inp
   closed-loop log modulus is ``L_cm = max_w 20 log10 |W / (1 + W)|`` with ``W(jw) = -1 + det(I + G(jw) K(jw))``.
 
 How ``Ku`` and ``L_cm`` are computed: ``G(jw)`` once on the grid of :func:`~delaykit.spectrum.systems.hinfnorm`
-(200 points a decade across the system's features, 16 points per period of its longest delay path).  Each
+(200 points a decade across the system's features, 16 points per period of its longest delay path), up to 100
+times the fastest feature (eigenvalue of ``A`` or 1/delay) rather than hinfnorm's 1000: beyond it every element
+has reached its high-frequency asymptote (a strictly proper one has fallen a hundredfold past its fastest pole; one
+with delays inside a loop repeats the ripple already on the grid), so no later phase crossover gives a smaller
+ultimate gain and no later point a larger log modulus, and the grid is several times shorter (4,800 points for the
+Wood-Berry column instead of 37,000; the same results to 1e-14).  Each
 element's phase crossovers are located on it, and those whose gain estimate is within 20 % of the least are
 refined by Brent's method to a relative 1e-14 in frequency (as :func:`~delaykit.spectrum.systems.loop_margins`
 does for every crossover).  For ``L_cm``, the controller's
@@ -273,7 +278,7 @@ class _Loops:
     def __init__(self, G: DelayLTI, pairing: tuple[int, ...]) -> None:
         self.G, self.p = G, list(pairing)
         lo, hi, _ = _features(G)
-        w = _grid(G, lo, hi)
+        w = _grid(G, lo, hi / 10)  # 100 times the fastest feature: see the module docstring
         self.w = w[w > 0]
         self.g = self._paired(self.w)
 
