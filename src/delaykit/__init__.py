@@ -44,6 +44,8 @@ __all__ = [
     "poles", "is_stable", "hinfnorm", "nyquist_count", "loop_margins",
     # PID tuning
     "tune", "assess", "Tuning", "TuningWarning", "DelaykitWarning", "relay_cycle",
+    # decentralised PI for square delay systems: pairing and BLT tuning
+    "blt", "BLTResult", "rga", "niederlinski",
 ]
 __version__ = "0.1.0"
 
@@ -81,6 +83,7 @@ _LAZY = {
     "is_stable": ".spectrum.systems", "hinfnorm": ".spectrum.systems", "nyquist_count": ".spectrum.systems",
     "loop_margins": ".spectrum.systems",
     "tune": ".design.pid", "assess": ".design.pid", "relay_cycle": ".design.relay", "Tuning": ".design.pid", "TuningWarning": ".design.pid_rules",
+    "blt": ".design.mimo", "BLTResult": ".design.mimo", "rga": ".design.mimo", "niederlinski": ".design.mimo",
 }
 
 
