@@ -109,10 +109,10 @@ def is_stable(sys: DelayLTI) -> bool:
         na = neutral_abscissa(q)
         if not na.strongly_stable:
             raise InvalidValueError(
-                f"{sys!r} is neutral and its difference operator is not strongly stable: the real parts of its "
-                f"roots reach {na.abscissa:.6g} >= 0 for some small change of the delays (the sum of the moduli of "
-                "its delayed top-degree coefficients is not below the delay-free one), so no stability verdict "
-                "holds")
+                f"{sys!r} is neutral and its difference operator is not shown strongly stable: the polygon bound "
+                f"on the real parts of its roots is {na.abscissa:.6g} >= 0 (the moduli of its delayed top-degree "
+                "coefficients add up to at least the delay-free one's; with independent delays root chains come "
+                "that close to it), so no stability verdict is given")
         if q.degree == 0:
             return True  # only the difference operator's roots, all left of its (negative) abscissa
     if q.degree == 0 and len(q.polys) == 1:
