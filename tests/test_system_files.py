@@ -93,6 +93,31 @@ def test_quadrotor_file_equals_its_loop_built_by_hand():
     assert is_stable(sf.system)
 
 
+def test_wood_berry_file_equals_the_loop_built_by_the_algebra():
+    # the Python construction of docs/guide/systems.md (tf matrices, series, feedback): no interconnect
+    G = tf([["12.8*exp(-s)/(16.7*s+1)", "-18.9*exp(-3*s)/(21*s+1)"],
+            ["6.6*exp(-7*s)/(10.9*s+1)", "-19.4*exp(-3*s)/(14.4*s+1)"]])
+    Kc = tf([["0.375*(1 + 1/(8.29*s))", 0], [0, "-0.075*(1 + 1/(23.6*s))"]])
+    sf = read_system_file(EXAMPLES / "wood-berry.toml")
+    w = np.array([0.003, 0.03, 0.1, 0.3, 1.0])
+    ref = feedback(G * Kc, 1).frequency_response(w).response
+    assert np.allclose(sf.system.frequency_response(w).response, ref, rtol=1e-10, atol=1e-13)
+    for ch, at in enumerate(("R", "S")):
+        # opened at the manipulated variable: K G, whose loop-at-a-time margins are those of G K
+        a, b = loop_margins(sf.loops[ch]), loop_margins(Kc * G, ch)
+        assert sf.breaks[ch] == at
+        for f in ("gain_margin", "phase_margin", "delay_margin"):
+            assert math.isclose(getattr(a, f), getattr(b, f), rel_tol=1e-8), (at, f)
+    assert is_stable(sf.system)
+
+
+def test_margins_need_a_break(tmp_path):
+    p = tmp_path / "nobreak.toml"
+    p.write_text('inputs = "r"\noutputs = "y"\n[[blocks]]\ntf = "1/(s+1)"\ninputs = "r"\noutputs = "y"\n')
+    res = runner.invoke(app, ["margins", "--system", str(p)])
+    assert res.exit_code == 2 and "break" in res.output
+
+
 @pytest.mark.slow
 def test_px4_file_numbers_are_the_identification():
     from delaykit import Controller, Loop

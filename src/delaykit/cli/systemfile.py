@@ -90,13 +90,15 @@ def system_margins(path: Path, as_json: bool) -> None:
     from rich.text import Text
 
     table = Table(title=Text(f"Loop-at-a-time margins of {sf.system!r}"))
-    for col in ("opened at", "gain margin", "phase crossover (rad/s)", "phase margin (deg)", "gain crossover (rad/s)",
-                "delay margin (s)"):
+    for col in ("opened at", "gain margin", "phase crossover", "phase margin (deg)", "gain crossover",
+                "delay margin"):
         table.add_column(col, justify="right")
     f = lambda v, d=4: "none" if v is None else ("inf" if v == math.inf else f"{v:.{d}g}")  # noqa: E731
     for x, m in rows:
         table.add_row(Text(x), f(m.gain_margin), f(m.phase_crossover), f(m.phase_margin), f(m.gain_crossover),
                       f(m.delay_margin))
     out.print(table)
+    out.print("Crossovers in rad per time unit of the file, delay margins in that unit (s unless the file's "
+              "blocks use another).", highlight=False, markup=False)
     verdict = {True: "stable", False: "UNSTABLE"}.get(stable, f"stability not decided: {why}")
     out.print(f"The closed system is {verdict}.", highlight=False, markup=False)
