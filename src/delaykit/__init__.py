@@ -40,7 +40,7 @@ __all__ = [
     "DelaySchedule",
     "Jitter", "Burst", "DelayTrace", "jitter_margin", "stable_for",
     # delay systems as objects
-    "DelayLTI", "tf", "ss", "delay", "feedback", "append", "interconnect", "summing_junction", "from_loop", "c2d", "saturation",
+    "DelayLTI", "tf", "ss", "delay", "feedback", "append", "interconnect", "summing_junction", "from_loop", "c2d", "saturation", "load_system",
     "poles", "is_stable", "hinfnorm", "nyquist_count", "loop_margins",
     # PID tuning
     "tune", "assess", "Tuning", "TuningWarning", "DelaykitWarning", "relay_cycle",
@@ -78,7 +78,7 @@ _LAZY = {
     "DelayLTI": ".systems.lti", "tf": ".systems.build", "ss": ".systems.build", "delay": ".systems.build",
     "feedback": ".systems.algebra", "append": ".systems.algebra", "interconnect": ".systems.algebra",
     "summing_junction": ".systems.algebra", "from_loop": ".systems.build", "c2d": ".systems.discrete",
-    "saturation": ".systems.build",
+    "saturation": ".systems.build", "load_system": ".systems.files",
     "poles": ".spectrum.systems",
     "is_stable": ".spectrum.systems", "hinfnorm": ".spectrum.systems", "nyquist_count": ".spectrum.systems",
     "loop_margins": ".spectrum.systems",

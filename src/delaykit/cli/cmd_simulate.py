@@ -39,6 +39,7 @@ def simulate(
     delay_trace: Optional[Path] = typer.Option(None, "--delay-trace", help="Replay a recorded delay, added to --delay: a CSV with a header t,delay (s), or a flight log of `delaykit fly` (its latency_ms column). Give --delay 0 for a trace of whole delays. Needs --period."),
     keep_order: Optional[bool] = typer.Option(None, "--keep-order/--no-keep-order", help="With a varying delay: packets reach the plant in the order sent (a late one holds back the ones behind it), or (the default) a packet may overtake and one arriving after a newer one is dropped."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed of the --jitter draws (default: new draws every run)."),
+    system: Optional[Path] = typer.Option(None, "--system", help="A delay system file: not yet (its time domain is not available; margins and roots take it)."),
     loop: Any = None,
     delays: Any = None,
 ) -> None:
@@ -55,6 +56,9 @@ def simulate(
     exact between these events; the output adds the smallest and largest delay drawn, the number of packets and
     how many were dropped (overtaken).  A step reference only, with no anti-windup and no compensator.
     """
+    if system is not None:
+        raise InvalidValueError(f"simulate --system {str(system)!r}: the time domain of delay systems is not yet "
+                                "available (margins --system and roots --system analyse it in the frequency domain)")
     from ..models.altitude import AltitudeLoop
     from ..models.signals import LoadStep, Ramp, Step
     from ..simulate.simulation import simulate as sim

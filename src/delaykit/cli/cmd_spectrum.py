@@ -23,6 +23,9 @@ def roots(
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
     plot: Optional[Path] = typer.Option(
         None, "--plot", help="Draw the spectrum (as the paper's Fig. 8) here; a sampled loop's poles in the z-plane."),
+    system: Optional[Path] = typer.Option(
+        None, "--system", help="A delay system from a TOML file of blocks connected by name (instead of a loop): "
+        "its poles in --region and its stability."),
     loop: Any = None,
     delays: Any = None,
 ) -> None:
@@ -33,6 +36,13 @@ def roots(
     spectral radius and stability; "abscissa" and "rightmost" are then the equivalent continuous rate log(z)/h.
     --plot then draws them in the z-plane, with the unit circle.
     """
+    if system is not None:
+        from .systemfile import system_roots
+
+        if plot is not None:
+            raise InvalidValueError("roots --system has no --plot yet")
+        system_roots(system, region, as_json)
+        return
     from ..spectrum.roots import find_roots
     from ..spectrum.stability import rightmost as rightmost_root
 
@@ -62,14 +72,7 @@ def roots(
     if as_json:
         print_json(data)
         return
-    from rich.table import Table
-
-    table = Table(title=f"{q!r} in {tuple(sp.region)}")
-    for col in ("#", "Re s", "Im s", "multiplicity"):
-        table.add_column(col, justify="right")
-    for i, (z, m) in enumerate(zip(sp.roots, sp.multiplicities), 1):
-        table.add_row(str(i), f"{z.real:.6f}", f"{z.imag:.6f}", str(m))
-    out.print(table)
+    print_roots_table(f"{q!r} in {tuple(sp.region)}", sp)
     cert = "certified" if sp.certified else f"NOT certified: {sp.reason}"
     nl = f"; neutral line Re s = {sp.neutral_lines[0]:.6f}" if len(sp.neutral_lines) == 1 else ""
     r = rm.root
@@ -80,6 +83,19 @@ def roots(
     if q.kind == "neutral" and not rm.stable and sp.neutral_lines and max(sp.neutral_lines) >= 0:
         out.print("Warning: this neutral loop's root chains reach the right half-plane (for the paper's loop, "
                   "Kv >= 1): it cannot be stable whatever its other gains.")
+
+
+def print_roots_table(title: str, sp: Any) -> None:
+    """The roots of a :class:`~delaykit.spectrum.roots.Spectrum` as a table (the title is plain text)."""
+    from rich.table import Table
+    from rich.text import Text
+
+    table = Table(title=Text(title))
+    for col in ("#", "Re s", "Im s", "multiplicity"):
+        table.add_column(col, justify="right")
+    for i, (z, m) in enumerate(zip(sp.roots, sp.multiplicities), 1):
+        table.add_row(str(i), f"{z.real:.6f}", f"{z.imag:.6f}", str(m))
+    out.print(table)
 
 
 def _sampled_roots(loop: Any, as_json: bool) -> None:
@@ -117,6 +133,9 @@ def margins(
     wmax: Optional[float] = typer.Option(None, "--wmax", help="Highest frequency of the plot, rad/s (default: from the loop)."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Write a Bode plot, with the Nyquist plot beside it, here."),
+    system: Optional[Path] = typer.Option(
+        None, "--system", help="A delay system from a TOML file of blocks connected by name (instead of a loop): "
+        "loop-at-a-time margins at its break signals and its stability."),
     loop: Any = None,
     delays: Any = None,
 ) -> None:
@@ -137,6 +156,14 @@ def margins(
     range widened by the period).  Also null for an unstable loop, a loop the library's criterion does not take
     (the text output says why), or a margin without bound (no feedback at all).
     """
+    if system is not None:
+        from .systemfile import system_margins
+
+        for flag, v in (("--wmin", wmin), ("--wmax", wmax), ("--plot", plot)):
+            if v is not None:
+                raise InvalidValueError(f"margins --system has no {flag} yet")
+        system_margins(system, as_json)
+        return
     from ..spectrum.frequency import frequency_grid, frequency_response
     from ..spectrum.frequency import margins as loop_margins
 

@@ -203,6 +203,12 @@ def with_loop(fn: Callable[..., Any] | None = None, *, omit: tuple[str, ...] = (
         opts = {name: kwargs.pop(name, None) for name in LOOP_OPTION_NAMES if name not in omit}
         if omit:
             return fn(*args, loop_options=opts, **kwargs)
+        if kwargs.get("system") is not None:  # --system FILE: the model is the file's, no loop is built
+            given = sorted(n for n, v in opts.items() if v is not None)
+            if given:
+                raise InvalidValueError(f"--system reads the whole model from its file; --{given[0].replace('_', '-')} "
+                                        "does not apply to it")
+            return fn(*args, loop=None, delays=None, **kwargs)
         loop, delays = build_loop(opts, parse_delays)
         return fn(*args, loop=loop, delays=delays, **kwargs)
 

@@ -46,7 +46,7 @@ from .controllers import Controller
 from .quasipolynomial import QuasiPolynomial
 from .transfer import TransferFunction
 
-__all__ = ["Loop", "LOOP_KEYS", "loop_from_dict", "load_loop", "loop_to_toml", "check_sampling"]
+__all__ = ["Loop", "LOOP_KEYS", "loop_from_dict", "load_loop", "loop_to_toml", "check_sampling", "read_toml"]
 
 
 def check_sampling(period: Any, sample_offset: Any) -> tuple[float | None, float]:
@@ -363,20 +363,36 @@ def load_loop(path: str | Path) -> Loop:
     1.31
     >>> os.unlink(f.name)
     """
+    return loop_from_dict(read_toml(path, "loop file"), source=str(path))
+
+
+def read_toml(path: str | Path, what: str, *, max_bytes: int | None = None) -> dict[str, Any]:
+    """The contents of a TOML file; every failure an :class:`InvalidValueError` naming ``what`` and the path.
+
+    Examples
+    --------
+    >>> read_toml("/nonexistent.toml", "loop file")
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.InvalidValueError: cannot read the loop file '/nonexistent.toml': No such file or directory
+    """
     import tomllib
 
     p = Path(path)
     try:
+        if max_bytes is not None and p.stat().st_size > max_bytes:
+            raise InvalidValueError(f"the {what} {str(p)!r} is larger than {max_bytes} bytes")
         text = p.read_bytes().decode("utf-8-sig")
     except OSError as exc:
-        raise InvalidValueError(f"cannot read the loop file {str(p)!r}: {exc.strerror or exc}") from None
+        raise InvalidValueError(f"cannot read the {what} {str(p)!r}: {exc.strerror or exc}") from None
     except UnicodeDecodeError:
-        raise InvalidValueError(f"the loop file {str(p)!r} is not UTF-8 text") from None
+        raise InvalidValueError(f"the {what} {str(p)!r} is not UTF-8 text") from None
     try:
-        data = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise InvalidValueError(f"the loop file {str(p)!r} is not valid TOML: {exc}") from None
-    return loop_from_dict(data, source=str(p))
+        raise InvalidValueError(f"the {what} {str(p)!r} is not valid TOML: {exc}") from None
+    except RecursionError:
+        raise InvalidValueError(f"the {what} {str(p)!r} nests its values too deeply to read") from None
 
 
 def loop_to_toml(loop: Loop) -> str:

@@ -28,6 +28,7 @@ import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop, as_loop
+from ..models.compensators import Compensator
 from ..models.loop import Loop
 from ..models.signals import LoadStep, Ramp, Samples, Step, as_reference
 from . import _jit
@@ -418,7 +419,8 @@ def simulate_many(loop: Any, *, t_end: float = 15.0, band: float = 0.02, **sweep
     t_end, band : float
         As in :func:`simulate`, shared by all loops.
     **sweep : array_like
-        Any of ``kp, ki, kd, kv`` (the controller's gains, as the controller uses them), ``delay,
+        Any of ``kp, ki, kd, kv`` (the controller's gains, as the controller uses them; for a
+        :class:`~delaykit.models.Compensator`, its primary controller's, or a predictor's own ``kp, ki``), ``delay,
         output_delay, umin, umax`` (or ``vmax`` for both), ``step`` (default 1) and ``sample_offset``.
 
     Returns
@@ -445,10 +447,14 @@ def simulate_many(loop: Any, *, t_end: float = 15.0, band: float = 0.02, **sweep
     if unknown:
         raise InvalidValueError(f"simulate_many cannot sweep {', '.join(unknown)}; it sweeps {', '.join(SWEEPABLE)}")
     c = gen.controller
+    owner = c.primary if isinstance(c, Compensator) and c.primary is not None else c  # whose gains are swept
+    own = ({"pv": ("kv",), "pi": ("ki",), "pd": ("kd",), "pid": ("ki", "kd")}.get(owner.kind, ())
+           if owner is not c or not isinstance(c, Compensator) else ("ki",))  # a predictor: its kp and ki
     for g in ("ki", "kd", "kv"):
-        if g in sweep and g not in {"pv": ("kv",), "pi": ("ki",), "pd": ("kd",), "pid": ("ki", "kd")}.get(c.kind, ()):
-            raise InvalidValueError(f"a {c.kind} controller has no {g} to sweep")
-    if c.kind == "tf" and "kp" in sweep:
+        if g in sweep and g not in own:
+            what = f"the {c.kind} compensator's {owner.kind} primary controller" if owner is not c else f"a {c.kind} controller"
+            raise InvalidValueError(f"{what} has no {g} to sweep")
+    if owner.kind == "tf" and "kp" in sweep:
         raise InvalidValueError("a tf controller has no kp to sweep")
     if "vmax" in sweep and ("umin" in sweep or "umax" in sweep):
         raise InvalidValueError("sweep vmax or umin/umax, not both")
@@ -474,7 +480,7 @@ def simulate_many(loop: Any, *, t_end: float = 15.0, band: float = 0.02, **sweep
         raise InvalidValueError(f"{', '.join(arrays)} do not broadcast together: {exc}") from None
     flat = {k: np.broadcast_to(a, shape).ravel() for k, a in arrays.items()}
     m = int(np.prod(shape))
-    if c.filtered and "kv" in flat and np.any(flat["kv"] == 0):
+    if not isinstance(c, Compensator) and c.filtered and "kv" in flat and np.any(flat["kv"] == 0):
         # a filtered PV law with Kv = 0 is the P law: those loops get the P structure (no filter states)
         zero = flat["kv"] == 0
         pars = np.empty((m, K.NPAR))
@@ -502,7 +508,15 @@ def _sweep_rows(gen: Loop, m: int, flat: dict[str, np.ndarray], t_end: float, ba
     row0 = param_row(gen, lay, step=1.0, slope=0.0, norm=1.0, t_end=t_end, band=band, dist=None)
     pars = np.repeat(row0[None, :], m, axis=0)
     H = K.HEAD
-    if any(name in flat for name in ("kp", "ki", "kd", "kv")):
+    swept = [name for name in ("kp", "ki", "kd", "kv") if name in flat]
+    lays = [lay] * m
+    if swept and isinstance(gen.controller, Compensator):
+        # a compensator's gains enter its realisation through the model: each variant's row is built whole
+        for i in range(m):
+            v = gen.replace(controller=_with_gains(gen.controller, {k: float(flat[k][i]) for k in swept}))
+            lays[i] = loop_matrices(v)
+            pars[i] = param_row(v, lays[i], step=1.0, slope=0.0, norm=1.0, t_end=t_end, band=band, dist=None)
+    elif swept:
         g = {name: flat.get(name, np.full(m, getattr(gen.controller, name))) for name in ("kp", "ki", "kd", "kv")}
         _gain_columns(gen, lay, pars, g)
     for name, col in (("delay", "ti"), ("output_delay", "to"), ("umin", "umin"), ("umax", "umax"),
@@ -529,10 +543,17 @@ def _sweep_rows(gen: Loop, m: int, flat: dict[str, np.ndarray], t_end: float, ba
     pars[:, H["scale"]] = np.maximum(1.0, np.maximum(np.abs(pars[:, H["dvr"]] * st), np.abs(st)))
     if not gen.sampled:
         for i in np.flatnonzero((pars[:, H["ti"]] + pars[:, H["to"]]) == 0):
-            cv = pars[i, K.OFF_CV:K.OFF_CV + lay.M.shape[0]]
-            rate = fastest_rate(lay, pars[i, H["dvy"]], pars[i, H["dvv"]], cv, True)
+            cv = pars[i, K.OFF_CV:K.OFF_CV + lays[i].M.shape[0]]
+            rate = fastest_rate(lays[i], pars[i, H["dvy"]], pars[i, H["dvv"]], cv, True)
             pars[i, H["hmax"]] = 1.0 / max(rate, 1e-9)
     return pars
+
+
+def _with_gains(c: Compensator, gains: dict[str, float]) -> Compensator:
+    """The compensator with swept gains: its primary controller's (Smith predictors) or its own (predictor)."""
+    if c.primary is not None:
+        return c.replace(primary=c.primary.replace(**gains))
+    return c.replace(**gains)
 
 
 def _gain_columns(loop: Loop, lay: LoopMatrices, pars: np.ndarray, g: dict[str, np.ndarray]) -> None:

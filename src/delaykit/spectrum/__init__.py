@@ -7,6 +7,7 @@ of a retarded or neutral quasi-polynomial in a rectangle (the compiled inner loo
 :mod:`.sampled` gives the exact discrete-time model and poles of loops with a sampled (zero-order hold) controller
 and :mod:`.discrete_margins` their frequency response and margins, and
 :mod:`.jitter` the jitter margin: stability for a delay that varies arbitrarily fast within bounds.
+:mod:`.neutral` bounds the spectrum of a neutral quasi-polynomial's difference operator, and
 :mod:`.systems` gives the poles, stability, H-infinity norm, Nyquist count and loop-at-a-time margins of the
 delay systems of :mod:`delaykit.systems`.
 This layer reads models and systems only; it is a peer of :mod:`delaykit.simulate` and neither imports the other.
@@ -28,6 +29,7 @@ _SOURCES = {
                          "compare_sampling"],
     "frequency": ["FrequencyResponse", "Margins", "Crossover", "frequency_response", "frequency_grid", "margins"],
     "jitter": ["JitterMargin", "jitter_margin", "stable_for", "jitter_bound"],
+    "neutral": ["NeutralAbscissa", "neutral_abscissa", "polygon_abscissa"],
     "systems": ["poles", "is_stable", "hinfnorm", "HinfNorm", "nyquist_count", "NyquistCount", "loop_margins",
                 "LoopMargins"],
 }
@@ -42,6 +44,7 @@ __all__ = [
     "FrequencyResponse", "Margins", "Crossover", "frequency_response", "frequency_grid", "margins",
     "JitterMargin", "jitter_margin", "stable_for", "jitter_bound",
     "poles", "is_stable", "hinfnorm", "HinfNorm", "nyquist_count", "NyquistCount", "loop_margins", "LoopMargins",
+    "NeutralAbscissa", "neutral_abscissa", "polygon_abscissa",
 ]
 
 

@@ -40,6 +40,7 @@ import numpy as np
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.quasipolynomial import QuasiPolynomial
 from . import _rootkernel as RK
+from .neutral import neutral_abscissa
 
 __all__ = ["RootStatus", "Spectrum", "find_roots", "neutral_lines", "root_bound"]
 
@@ -257,9 +258,10 @@ def neutral_lines(q: QuasiPolynomial) -> tuple[float, ...]:
     """The vertical lines Re s = x that the root chains of a neutral quasi-polynomial approach.
 
     With one delay in the top-degree terms, ``a_n + b_n exp(-s tau) = 0`` gives ``x = ln|b_n / a_n| / tau``
-    (for the PV loop, ``ln(Kv) / Td``).  With several, the lines are the real parts of the roots of the
-    exponential polynomial of the top-degree coefficients; they are computed for commensurate-free sets as
-    the real parts of its roots in a tall window.  Retarded quasi-polynomials have none.
+    (for the PV loop, ``ln(Kv) / Td``).  With several, the real parts of the difference operator's roots need not
+    lie on lines; the one value returned is the supremum of their closure by the polygon condition
+    (:func:`~delaykit.spectrum.neutral.neutral_abscissa`): exact for rationally independent delays, an upper bound
+    otherwise, so a verdict drawn from it is conservative.  Retarded quasi-polynomials have none.
 
     Examples
     --------
@@ -275,12 +277,7 @@ def neutral_lines(q: QuasiPolynomial) -> tuple[float, ...]:
     b = [(c, t) for c, t in lead if t > 0.0]
     if len(b) == 1:
         return (math.log(abs(b[0][0] / a[0])) / b[0][1],)
-    # several delays: the roots of a_n + sum b_j exp(-s tau_j) lie in a vertical strip; sample it
-    d = QuasiPolynomial([[a[0]]] + [[c] for c, _ in b], [0.0] + [t for _, t in b])
-    tmin = min(t for _, t in b)
-    span = 40.0 / tmin
-    sp = find_roots(d, (-span, span, 0.0, 20 * math.pi / tmin), certify=False)
-    return tuple(sorted({round(float(x), 6) for x in sp.roots.real}))
+    return (neutral_abscissa(q).abscissa,)
 
 
 @dataclass(frozen=True, repr=False, eq=False)

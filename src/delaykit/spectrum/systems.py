@@ -5,9 +5,9 @@ For a :class:`~delaykit.systems.DelayLTI` ``sys``:
 * :func:`poles` and :func:`is_stable`: the roots of its characteristic quasi-polynomial
   (:meth:`~delaykit.systems.DelayLTI.characteristic`) by the certified root finder
   (:func:`~delaykit.spectrum.roots.find_roots`, :func:`~delaykit.spectrum.stability.rightmost`), for any number of
-  incommensurate delays.  Stability is decided for retarded systems; neutral ones are refused for now (their
-  difference operator's spectrum must be bounded first, which ``neutral_lines`` does not do conservatively for
-  several delays).
+  incommensurate delays.  Stability is decided for retarded systems and for neutral ones whose difference
+  operator is strongly stable (:func:`~delaykit.spectrum.neutral.neutral_abscissa`); other neutral systems are
+  refused with the reason.
 * :func:`hinfnorm`: the peak of the largest singular value of ``H(jw)`` on a grid that resolves every feature
   (the eigenvalues of ``A``, the delays' ripple), each local peak refined by a bounded scalar search; the
   limit as ``w -> inf`` is added.
@@ -37,6 +37,7 @@ import numpy as np
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..systems.algebra import feedback, gain
 from ..systems.lti import DelayLTI
+from .neutral import neutral_abscissa
 from .roots import Spectrum, find_roots, root_bound
 from .stability import rightmost
 
@@ -80,20 +81,40 @@ def _retarded(sys: DelayLTI, what: str) -> Any:
 
 
 def is_stable(sys: DelayLTI) -> bool:
-    """True when every pole of the (retarded) system lies left of the imaginary axis, certified.
+    """True when every pole of the system lies left of the imaginary axis, certified.
+
+    A retarded system is stable when its rightmost pole is (:func:`~delaykit.spectrum.stability.rightmost`).  A
+    neutral one (a delay channel feeds another directly) has chains of poles that accumulate on the spectrum of
+    its difference operator; it must be *strongly stable* (the polygon bound of
+    :func:`~delaykit.spectrum.neutral.neutral_abscissa` below 0: stable under every small change of the delays),
+    and then it is stable when its rightmost pole, searched right of that bound, is.
 
     Raises
     ------
     InvalidValueError
-        For a neutral system (not decided yet), or when the rightmost root cannot be certified.
+        For a neutral system whose difference operator is not strongly stable (the message gives the bound), or
+        when the rightmost root cannot be certified.
 
     Examples
     --------
     >>> from delaykit import tf, feedback
     >>> is_stable(feedback(tf("exp(-2*s)/s"), 1))   # the delay margin of 1/s is pi/2
     False
+    >>> is_stable(feedback(tf("exp(-s)"), 0.5))      # y(t) = u(t-1) - 0.5 y(t-1): poles on Re s = ln(0.5)
+    True
     """
-    q = _retarded(_system(sys), "stability")
+    sys = _system(sys)
+    q = sys.characteristic()
+    if q.kind == "neutral":
+        na = neutral_abscissa(q)
+        if not na.strongly_stable:
+            raise InvalidValueError(
+                f"{sys!r} is neutral and its difference operator is not shown strongly stable: the polygon bound "
+                f"on the real parts of its roots is {na.abscissa:.6g} >= 0 (the moduli of its delayed top-degree "
+                "coefficients add up to at least the delay-free one's; with independent delays root chains come "
+                "that close to it), so no stability verdict is given")
+        if q.degree == 0:
+            return True  # only the difference operator's roots, all left of its (negative) abscissa
     if q.degree == 0 and len(q.polys) == 1:
         return True  # a constant: no poles at all (a static system, pure delays)
     rm = rightmost(q)

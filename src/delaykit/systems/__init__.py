@@ -4,7 +4,8 @@
 through a diagonal block of delays), :mod:`.algebra` combines systems (series, parallel, feedback, named
 interconnection) without approximating a delay, and :mod:`.build` makes them (``tf``, ``ss``, ``delay``,
 python-control objects, a :class:`~delaykit.models.Loop`) and turns them back into python-control objects with
-Padé approximations, and :mod:`.discrete` samples them exactly behind a zero-order hold.  This layer reads
+Padé approximations, and :mod:`.discrete` samples them exactly behind a zero-order hold; :mod:`.files` reads a system from a TOML
+file of blocks connected by name.  This layer reads
 :mod:`delaykit.models` only; the poles, stability, H-infinity norm and margins of a system are in
 :mod:`delaykit.spectrum.systems`.
 
@@ -22,11 +23,12 @@ _SOURCES = {
     "algebra": ["append", "series", "parallel", "feedback", "interconnect", "summing_junction", "gain"],
     "build": ["tf", "ss", "delay", "saturation", "to_control", "from_loop"],
     "discrete": ["DiscreteLTI", "c2d"],
+    "files": ["SystemFile", "read_system_file", "load_system", "system_from_dict"],
 }
 
 __all__ = ["DelayLTI", "SystemResponse", "append", "series", "parallel", "feedback", "interconnect",
            "summing_junction", "gain", "tf", "ss", "delay", "saturation", "to_control", "from_loop", "DiscreteLTI",
-           "c2d"]
+           "c2d", "SystemFile", "read_system_file", "load_system", "system_from_dict"]
 
 
 __getattr__, __dir__ = lazy_exports(__name__, by_module(_SOURCES), globals())
