@@ -2,31 +2,16 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any, Optional
 
 import typer
 
 from ..errors import InvalidValueError
-from .common import err, fmt, friendly, out
+from .common import check_output, err, fmt, friendly, out, print_json
 from .loopopts import with_loop
 
 __all__ = ["tune"]
-
-
-def _check_output(flag: str, path: Optional[Path]) -> None:
-    """An output path that is not a folder, nor under a file (checked before the work starts; missing folders are
-    made when the file is written, as for every figure)."""
-    if path is None:
-        return
-    if path.is_dir():
-        raise InvalidValueError(f"{flag} {str(path)!r} is a folder; give a file name")
-    for parent in path.parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise InvalidValueError(f"{flag} {str(path)!r}: {str(parent)!r} is a file, not a folder")
-            break
 
 
 def _base(opts: dict[str, Any], model: Optional[Path]) -> Any:
@@ -96,8 +81,8 @@ def tune(
     """
     from ..design.pid import tune as tune_
 
-    _check_output("--save", save)
-    _check_output("--plot", plot)
+    check_output("--save", save)
+    check_output("--plot", plot, "figure")
     from ..design.tuning import parse_range
 
     base = _base(dict(loop_options), model)
@@ -114,7 +99,6 @@ def tune(
     if save is not None:
         from ..models.loop import loop_to_toml
 
-        save.parent.mkdir(parents=True, exist_ok=True)
         save.write_text(loop_to_toml(t.loop))
     if plot is not None:
         from ..plotting.tuning import plot_tuning
@@ -122,7 +106,7 @@ def tune(
         with err.status("drawing…"):
             plot_tuning(t, plot)
     if as_json:
-        print(json.dumps(t.to_dict(), indent=2, allow_nan=False))
+        print_json(t.to_dict())
         return
     _table(t)
 
@@ -136,7 +120,7 @@ def _relay(base: Any, amplitude: float, hysteresis: float, as_json: bool) -> Non
         raise InvalidValueError(f"--relay {amplitude:g} is beyond the actuator's limit {lim:g}")
     c = relay_cycle(base.plant, base.total_delay, amplitude, hysteresis)
     if as_json:
-        print(json.dumps(c.to_dict(), indent=2, allow_nan=False))
+        print_json(c.to_dict())
         return
     out.print(repr(c), highlight=False, markup=False)
     u = c.ultimate

@@ -7,34 +7,14 @@ stability of the closed system.  JSON is strict: a non-finite number is printed 
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
 
 from ..errors import InvalidValueError
-from .common import out
+from .common import out, print_json
 
-__all__ = ["strict_json", "system_margins", "system_roots"]
-
-
-def strict_json(data: Any) -> str:
-    """``data`` as strict JSON: NaN and infinities as null.
-
-    Examples
-    --------
-    >>> strict_json({"a": float("inf"), "b": [1.0, float("nan")]})
-    '{\\n  "a": null,\\n  "b": [\\n    1.0,\\n    null\\n  ]\\n}'
-    """
-    def clean(x: Any) -> Any:
-        if isinstance(x, float):
-            return x if math.isfinite(x) else None
-        if isinstance(x, dict):
-            return {k: clean(v) for k, v in x.items()}
-        if isinstance(x, (list, tuple)):
-            return [clean(v) for v in x]
-        return x
-    return json.dumps(clean(data), indent=2, allow_nan=False)
+__all__ = ["system_margins", "system_roots"]
 
 
 def _stability(system: Any) -> tuple[bool | None, str]:
@@ -57,7 +37,7 @@ def system_roots(path: Path, region: tuple[float, float, float, float], as_json:
     if as_json:
         data = {**sp.to_dict(), "system": repr(sf.system), "source": sf.source, "stable": stable,
                 "stability_reason": why or None}
-        print(strict_json(data))
+        print_json(data)
         return
     from .cmd_spectrum import print_roots_table
 
@@ -84,7 +64,7 @@ def system_margins(path: Path, as_json: bool) -> None:
     if as_json:
         data = {"system": repr(sf.system), "source": sf.source, "stable": stable, "stability_reason": why or None,
                 "loops": [{"at": x, **m.to_dict()} for x, m in rows]}
-        print(strict_json(data))
+        print_json(data)
         return
     from rich.table import Table
     from rich.text import Text

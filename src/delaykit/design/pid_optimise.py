@@ -48,7 +48,7 @@ from ..models.controllers import Controller
 from ..models.loop import Loop
 from ..models.transfer import TransferFunction
 
-__all__ = ["OBJECTIVES", "Solution", "ms_map", "load_iae", "PlantPoint", "optimise", "plant_points", "controller_of", "peak_gains",
+__all__ = ["OBJECTIVES", "Solution", "ms_map", "load_iae", "optimise", "plant_points", "controller_of", "peak_gains",
            "controller_response"]
 
 OBJECTIVES = ("ki", "iae-load", "abscissa")

@@ -105,9 +105,9 @@ class Candidate:
 
 
 PLAUSIBLE_SPAN = 100.0
-"""A fitted open-loop model is implausible when its own response to the logged input (|gain| x the input's largest
-deviation from rest; for an integrating plant, x the largest integral of that deviation) would span this many times
-the measured output."""
+"""A fitted open-loop model is implausible when its own response to the logged input (the gain's size times the
+input's largest deviation from rest; for an integrating plant, times the largest integral of that deviation) would
+span this many times the measured output."""
 
 PLAUSIBLE_TIME = 10.0
 """A fitted time (a lag, a time constant, a zero; not the delay) over this many times the longest log is implausible:
