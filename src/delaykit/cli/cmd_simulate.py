@@ -10,6 +10,7 @@ from typing import Any, Optional
 import typer
 
 from ..errors import InvalidValueError, check_real
+from ..models.budget import MAX_SAMPLES, check_count, sample_count
 from .common import err, fmt, friendly, out, parse_schedule, read_delay_trace
 from .loopopts import with_loop
 
@@ -81,6 +82,10 @@ def simulate(
     if extra:
         raise InvalidValueError(f"{extra[0]} goes with a varying delay: add --delay-schedule, --jitter or "
                                 "--delay-trace")
+    if csv_path is not None:  # the record's size, before the work
+        each = sample_count(f"--csv every --dt {dt:g} s over --t-end {t_end:g} s", t_end, dt, "give a larger --dt")
+        check_count(f"--csv of {len(delays)} delays", each * len(delays), MAX_SAMPLES, "samples",
+                    "give a larger --dt or fewer delays")
     from ..simulate import _jit
 
     with _jit.interpreter():  # short runs as plain Python, without numba's start-up; a long one moves to numba
@@ -300,9 +305,11 @@ def _read_reference(path: Path, hold: str) -> Any:
     rows = list(csv.reader(text.splitlines()))
     if not rows or [c.strip() for c in rows[0][:2]] != ["t", "r"]:
         raise InvalidValueError(f"the reference file {str(path)!r} must start with a header row 't,r'")
+    from ..models.ranges import parse_number
+
     try:
-        t = [float(r[0]) for r in rows[1:] if r]
-        v = [float(r[1]) for r in rows[1:] if r]
+        t = [parse_number(r[0]) for r in rows[1:] if r]
+        v = [parse_number(r[1]) for r in rows[1:] if r]
     except (ValueError, IndexError):
         raise InvalidValueError(f"the reference file {str(path)!r} has a row that is not two numbers") from None
     return Samples(t, v, hold=hold)

@@ -248,15 +248,21 @@ def margins(
 
 
 def _parse_branches(spec: str) -> list[int]:
+    from ..models.budget import MAX_RANGE_POINTS, check_count
+    from ..models.ranges import parse_integer
+
     try:
         if ":" in spec:
-            a, b = (int(x) for x in spec.split(":"))
+            a, b = (parse_integer(x) for x in spec.split(":"))
         else:
-            return [int(x) for x in spec.split(",")]
+            items = spec.split(",")
+            check_count(f"--branches {spec!r}", len(items), MAX_RANGE_POINTS, "branches")
+            return [parse_integer(x) for x in items]
     except ValueError:
         raise InvalidValueError(f"--branches {spec!r} must be K1:K2 or a comma list of integers") from None
     if b < a:
         raise InvalidValueError(f"--branches {spec!r}: the range is reversed (K1 must not exceed K2)")
+    check_count(f"--branches {spec!r}", b - a + 1, MAX_RANGE_POINTS, "branches", "ask for fewer branches")
     return list(range(a, b + 1))
 
 

@@ -39,6 +39,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import InvalidValueError, check_real
+from ..models.ranges import parse_number
 
 __all__ = ["FlightLog", "LogError", "REQUIRED", "MAX_ALTITUDE", "MAX_TIME", "read_csv_rows", "write_log",
            "synthetic_log"]
@@ -281,7 +282,11 @@ class FlightLog:
             raise LogError(f"{name}: missing column {mapping['z_ref']!r} (header: {', '.join(header)}); "
                            "without it give the step time and size")
         rows: dict[str, list[float]] = {k: [] for k in idx}
-        others = [h for h in header if h not in {mapping[k] for k in idx}]
+        used = {mapping[k] for k in idx}
+        others: dict[str, int] = {}  # each other column's index (the first, for a repeated name)
+        for j, h in enumerate(header):
+            if h not in used:
+                others.setdefault(h, j)
         extra: dict[str, list[str]] = {h: [] for h in others}
         skipped = 0
         linenos: list[int] = []
@@ -291,7 +296,7 @@ class FlightLog:
             for k, j in idx.items():
                 cell = row[j].strip() if j < len(row) else ""
                 try:
-                    v = float(cell)
+                    v = parse_number(cell)
                 except ValueError:
                     bad = f"{k} is {cell[:40]!r}, not a number"
                     break
@@ -307,8 +312,7 @@ class FlightLog:
             for k, v in vals.items():
                 rows[k].append(v)
             linenos.append(lineno)
-            for h in others:
-                j = header.index(h)
+            for h, j in others.items():
                 extra[h].append(row[j] if j < len(row) else "")
         if not rows["t"]:
             raise LogError(f"{name}: no data rows")

@@ -35,6 +35,8 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..models.budget import sample_count
+from ..models.ranges import parse_number
 from .flightlog import LogError, read_csv_rows
 
 __all__ = ["Experiment", "read_experiment", "CLOCK_TOLERANCE"]
@@ -129,6 +131,8 @@ class Experiment:
         logged = None
         if resample is not None:
             hr = check_real("resample (s)", resample, minimum=0.0, strict=True)
+            sample_count(f"{name}: resample={hr:g} s over the {tt[-1] - tt[0]:g} s log", tt[-1] - tt[0], hr,
+                         "resample on a longer period")
             grid = tt[0] + hr * np.arange(int(np.floor((tt[-1] - tt[0]) / hr * (1 + 1e-12))) + 1)
             if grid.size < 10:
                 raise InvalidValueError(f"{name}: resample={hr:g} s leaves {grid.size} samples of the "
@@ -274,12 +278,12 @@ def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input:
         if col not in header:
             raise LogError(f"{path}: missing column {col!r} (header: {', '.join(header)})")
     cols: dict[str, list[float]] = {c: [] for c in wanted}
+    where = {c: header.index(c) for c in wanted}
     for row, line in records:
-        for c in wanted:
-            j = header.index(c)
+        for c, j in where.items():
             cell = row[j].strip() if j < len(row) else ""
             try:
-                v = float(cell)
+                v = parse_number(cell)
             except ValueError:
                 raise LogError(f"{path}: row {line}: {c} is {cell[:40]!r}, not a number") from None
             if not np.isfinite(v):

@@ -1,0 +1,205 @@
+"""Hostile input (issue 25): work limits refused up front, numbers read as files mean them, and clear errors.
+
+Each case asserts the exit status 2 (command line) or delaykit's exception type (library) and that the message
+names the bad value; or, where a result was silently wrong before, the now-correct result against an independent
+reference.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from delaykit import AltitudeLoop, InvalidTypeError, InvalidValueError, simulate
+from delaykit.cli import app
+from delaykit.identify.flightlog import FlightLog, LogError
+from delaykit.identify.iodata import Experiment, read_experiment
+from delaykit.models.budget import MAX_GRID_POINTS, MAX_RANGE_POINTS, MAX_SAMPLES
+from delaykit.models.ranges import parse_integer, parse_number, parse_range
+
+runner = CliRunner()
+
+
+def run(*args: str):
+    return runner.invoke(app, list(args))
+
+
+def one_line(text: str) -> str:
+    """The output with rich's line wrapping undone (wrapping is not what these tests are about)."""
+    return " ".join(text.split())
+
+
+def refused(res, *fragments: str) -> str:
+    """Assert a one-message refusal with status 2 whose text holds every fragment; return the text."""
+    text = one_line(res.output)
+    assert res.exit_code == 2, res.output
+    assert "Traceback" not in res.output
+    for f in fragments:
+        assert f in text, text
+    return text
+
+
+# -- numbers as text -----------------------------------------------------------------------------------------
+@pytest.mark.parametrize("text", ["1_0", "１２", "٣", "1 0", "0x10", "", "1e", "--1"])
+def test_parse_number_refuses_what_float_reads_but_a_file_does_not_mean(text):
+    with pytest.raises(InvalidValueError, match="not a number"):
+        parse_number(text, "z")
+
+
+@pytest.mark.parametrize("text", ["0", "-1.5", "+2", ".5", "5.", "2e-3", "1E+300", " 7 ", "nan", "-inf"])
+def test_parse_number_reads_ascii_decimal_as_float_does(text):
+    got, want = parse_number(text), float(text)  # Python's own reading, for these plain numbers
+    assert got == want or (math.isnan(got) and math.isnan(want))
+
+
+@pytest.mark.parametrize("text", ["12", "-3", "+4"])
+def test_parse_integer(text):
+    assert parse_integer(text) == int(text)
+
+
+@pytest.mark.parametrize("text", ["1_0", "１２", "1.0", "", "+-1"])
+def test_parse_integer_refuses(text):
+    with pytest.raises(InvalidValueError, match="not an integer"):
+        parse_integer(text)
+
+
+@pytest.mark.parametrize("spec", ["1_0", "１２", "0:1_0:3", "0:1:1_0", "0:1:３", "1,２"])
+def test_ranges_refuse_underscores_and_unicode_digits(spec):
+    from delaykit.errors import RangeSpecError
+
+    with pytest.raises(RangeSpecError, match="START:STOP:N"):
+        parse_range(spec, "kp")
+
+
+@pytest.mark.parametrize("cell", ["1_0", "１２"])
+def test_a_log_cell_that_python_would_read_is_not_a_number(tmp_path, cell):
+    rows = "".join(f"{k * 0.1:.1f},{0.0 if k < 3 else 1.0},{0.1 * k}\n" for k in range(12))
+    p = tmp_path / "log.csv"
+    p.write_text("t,u,y\n" + rows.replace("0.5\n", f"{cell}\n", 1), encoding="utf-8")
+    with pytest.raises(LogError, match=f"row 7: y is '{cell}', not a number"):
+        read_experiment(p, outputs=["y"], input="u")
+    q = tmp_path / "flight.csv"
+    q.write_text("t,z,z_ref\n" + "".join(f"{k * 0.1:.1f},{'0' if k != 4 else cell},{0 if k < 3 else 1}\n"
+                                         for k in range(12)), encoding="utf-8")
+    with pytest.raises(LogError, match=f"row 6: z is '{cell}', not a number"):
+        FlightLog.from_csv(q)
+
+
+def test_a_wide_log_reads_every_column_in_place(tmp_path):
+    """A log with 3,000 columns (reading was quadratic in them): the used columns and every extra column come back
+    as written, each extra kept under its own name (the first of a repeated name)."""
+    ncol, nrow = 3000, 20
+    names = ["t", "z", "z_ref"] + [f"c{j}" for j in range(ncol - 4)] + ["c5"]  # the last repeats c5
+    lines = [",".join(names)]
+    for i in range(nrow):
+        lines.append(",".join([f"{0.1 * i:.1f}", f"{i}", "1" if i >= 5 else "0"]
+                              + [f"{i * 10000 + j}" for j in range(ncol - 3)]))
+    p = tmp_path / "wide.csv"
+    p.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    log = FlightLog.from_csv(p)
+    assert np.array_equal(log.z, np.arange(nrow)) and log.step_time == 0.5
+    assert len(log.extra) == ncol - 4
+    for j in (0, 1, 5, 1234, ncol - 5):
+        assert log.extra[f"c{j}"] == [f"{i * 10000 + j}" for i in range(nrow)]
+    e = read_experiment(p, outputs=["c1234", "c5"], input="z_ref")
+    assert np.array_equal(e.outputs["c1234"], [i * 10000 + 1234 for i in range(nrow)])
+    assert np.array_equal(e.outputs["c5"], [i * 10000 + 5 for i in range(nrow)])
+
+
+# -- ranges and grids ----------------------------------------------------------------------------------------
+def test_a_range_beyond_the_limit_is_refused_before_it_is_built():
+    with pytest.raises(InvalidValueError, match=f"above the limit of {MAX_RANGE_POINTS}"):
+        parse_range("0.2:0.5:100000000", "--delay")
+    assert len(parse_range(f"0:1:{MAX_RANGE_POINTS}")) == MAX_RANGE_POINTS  # the limit itself is allowed
+
+
+@pytest.mark.parametrize("args", [
+    ["simulate", "--kp", "1.31", "--delay", "0.2:0.5:100000000"],
+    ["design", "--kv", "0:0.7:100000000", "--delay", "0.3"],
+])
+def test_cli_range_limit(args):
+    refused(run(*args), "100000000 values", f"above the limit of {MAX_RANGE_POINTS}", "MAX_RANGE_POINTS")
+
+
+def test_design_grid_limit():
+    refused(run("design", "--kv", "0:0.7:10000", "--kp", "0:1:1000", "--delay", "0.3"),
+            "kp x kv: 10000000 candidates", f"above the limit of {MAX_GRID_POINTS}")
+
+
+@pytest.mark.parametrize("spec, fragment", [
+    ("-100000000:100000000", "200000001 branches"),
+    ("99999999999999999999", "branch 99999999999999999999 is out of range"),
+    ("1_0", "--branches '1_0' must be K1:K2"),
+])
+def test_lambert_branches_refused(spec, fragment):
+    refused(run("lambert", "--a1", "-1", "--delay", "0.3", "--branches", spec), fragment)
+
+
+def test_lambert_library_branches():
+    from delaykit.spectrum.lambert import lambert_roots
+
+    with pytest.raises(InvalidValueError, match="above the limit"):
+        lambert_roots(0, -1, 0.3, branches=range(-10**8, 10**8))
+    with pytest.raises(InvalidValueError, match="branch 99999999999999999999"):
+        lambert_roots(0, -1, 0.3, branches=[99999999999999999999])
+    with pytest.raises(InvalidTypeError, match="must be an integer, got 0.5"):
+        lambert_roots(0, -1, 0.3, branches=[0.5])
+
+
+# -- records -------------------------------------------------------------------------------------------------
+def test_csv_sampling_limit_is_checked_before_the_simulation(tmp_path):
+    out = tmp_path / "r.csv"
+    refused(run("simulate", "--kp", "1.31", "--delay", "0.3", "--csv", str(out), "--dt", "1e-9"),
+            "15000000001 samples", f"above the limit of {MAX_SAMPLES}", "--dt")
+    assert not out.exists()
+
+
+def test_response_sample_limit():
+    r = simulate(AltitudeLoop(kp=1.31, delay=0.3), t_end=2.0)
+    with pytest.raises(InvalidValueError, match="MAX_SAMPLES"):
+        r.sample(dt=1e-9)
+    assert r.sample(dt=0.5)["t"].tolist() == [0.0, 0.5, 1.0, 1.5, 2.0]
+
+
+def test_resample_limit():
+    t = np.linspace(0.0, 10.0, 30) ** 1.1
+    with pytest.raises(InvalidValueError, match="resample=1e-09 s.*MAX_SAMPLES"):
+        Experiment.from_arrays(t, {"y": t}, u=(t > 2.0) * 1.0, resample=1e-9)
+
+
+def test_a_simulation_far_beyond_the_piece_limit_is_refused_early():
+    """t_end = 1e7 s of a loop whose pieces are at most one delay (0.3 s) long needs some 3e7 pieces, far above
+    the limit (the workspace would have grown to gigabytes before); the refusal names the estimate."""
+    from delaykit.simulate.simulation import _CAP_MAX
+
+    with pytest.raises(InvalidValueError, match=f"more than {_CAP_MAX} polynomial pieces") as info:
+        simulate(AltitudeLoop(kp=1.31, delay=0.3), t_end=1e7)
+    estimate = float(str(info.value).split("about ")[1].split()[0])
+    assert 1e7 / 0.3 / 2 < estimate < 1e7 / 0.3 * 2  # pieces of about one delay
+
+
+def test_stall_message_names_the_cause():
+    """The stalled status is explained from the loop (its delays and limits), not by one fixed text."""
+    from delaykit.models.loop import loop_from_dict
+    from delaykit.simulate._layout import loop_matrices, param_row
+    from delaykit.simulate.simulation import _stall_message
+
+    def row(loop):
+        return param_row(loop, loop_matrices(loop), step=1.0, slope=0.0, norm=1.0, t_end=15.0, band=0.02,
+                         dist=None)
+
+    tiny = loop_from_dict({"plant": "1/s", "kp": 1.31, "delay": 1e-9})
+    assert "the delay 1e-09 s is too short" in _stall_message(row(tiny), 3.0)
+    limited = loop_from_dict({"plant": "1/s", "kp": 1.31, "delay": 0.3, "vmax": 1.0})
+    assert "switches at its limit" in _stall_message(row(limited), 3.0)
+    free = loop_from_dict({"plant": "1/s", "kp": 1.31, "delay": 0.3})
+    assert "limit" not in _stall_message(row(free), 3.0)
+
+
+# -- seeds ---------------------------------------------------------------------------------------------------
+def test_negative_seed():
+    refused(run("simulate", "--kp", "1.31", "--delay", "0.3", "--period", "0.065", "--jitter", "0.1", "--seed", "-1"),
+            "seed must be at least 0", "-1")
