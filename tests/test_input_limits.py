@@ -203,3 +203,68 @@ def test_stall_message_names_the_cause():
 def test_negative_seed():
     refused(run("simulate", "--kp", "1.31", "--delay", "0.3", "--period", "0.065", "--jitter", "0.1", "--seed", "-1"),
             "seed must be at least 0", "-1")
+
+
+# -- spectra for delays of any size ----------------------------------------------------------------------------
+@pytest.mark.parametrize("delay", [0.0, 1e-12, 1e-9, 1e-6, 1e-3, 0.3])
+def test_rightmost_root_of_the_p_loop_for_tiny_delays(delay):
+    """The P loop s + 2 exp(-T s): its rightmost root is W_0(-2 T) / T (Lambert W, SciPy; -2 at T = 0).  With a
+    delay of 1e-9 s the search started at -1/T and gave an uncertified abscissa of 10.87 (UNSTABLE)."""
+    from scipy.special import lambertw
+
+    from delaykit.spectrum.stability import rightmost
+
+    rm = rightmost(AltitudeLoop(kp=2.0, delay=delay, vmax=None))
+    want = -2.0 if delay == 0 else complex(lambertw(-2.0 * delay, 0)) / delay
+    assert rm.certified and rm.stable
+    assert abs(rm.root - want) <= 1e-9 * abs(want)
+
+
+@pytest.mark.parametrize("delay", ["0", "1e-12", "1e-9"])
+def test_roots_and_margins_agree_for_tiny_delays(delay):
+    import json
+
+    roots = run("roots", "--kp", "2", "--delay", delay, "--json")
+    assert roots.exit_code == 0, roots.output
+    data = json.loads(roots.stdout)
+    assert data["stable"] and data["rightmost_certified"] and abs(data["abscissa"] + 2.0) < 1e-6
+    margins = run("margins", "--kp", "2", "--delay", delay, "--json")
+    assert margins.exit_code == 0, margins.output
+    m = json.loads(margins.stdout)
+    assert m["stable"]
+    if float(delay) > 0:  # the P loop's gain margin pi / (2 Kp T), at w = pi / (2 T) (closed form)
+        assert math.isclose(m["gain_margin"], math.pi / (4 * float(delay)), rel_tol=1e-9)
+
+
+def test_roots_text_says_when_the_rightmost_root_is_not_certified(monkeypatch):
+    """The rightmost root's certificate is printed with the verdict (a search that stops short gives a bound)."""
+    import delaykit.spectrum.stability as S
+
+    real = S.rightmost
+
+    def uncertified(q, **kw):
+        r = real(q, **kw)
+        return S.Rightmost(root=r.root, abscissa=r.abscissa, neutral_lines=r.neutral_lines, certified=False,
+                           spectrum=r.spectrum)
+
+    monkeypatch.setattr(S, "rightmost", uncertified)
+    res = run("roots", "--kp", "2", "--delay", "0.3")
+    assert res.exit_code == 0, res.output
+    assert "stable (NOT certified" in one_line(res.stdout)
+    monkeypatch.setattr(S, "rightmost", real)
+    assert "NOT certified" not in run("roots", "--kp", "2", "--delay", "0.3").stdout
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["roots", "--kp", "2", "--delay", "1e300"], "MAX_ROOT_GRID_POINTS"),
+    (["roots", "--kp", "2", "--delay", "0.3", "--region", "-10", "2", "0", "1e6"], "give a smaller region"),
+    (["margins", "--kp", "2", "--delay", "1e300"], "too many phase crossovers"),
+    (["margins", "--kp", "1e300", "--delay", "0.3"], "(1e+300) is too large"),
+])
+def test_huge_values_in_spectra_are_refused(args, fragment):
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # (NumPy's "invalid value encountered in cast" before)
+        res = run(*args)
+    assert "all-pass" not in refused(res, fragment)
