@@ -268,3 +268,164 @@ def test_huge_values_in_spectra_are_refused(args, fragment):
         warnings.simplefilter("error", RuntimeWarning)  # (NumPy's "invalid value encountered in cast" before)
         res = run(*args)
     assert "all-pass" not in refused(res, fragment)
+
+
+# -- saved models and loop files -------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def fopdt_model():
+    """A first-order-plus-dead-time model identified from an exact, noise-free step (gain 2, lag 10 s, delay 3 s)
+    and the log it came from."""
+    from delaykit.identify.identification import identify
+
+    t = np.arange(0, 60.0, 0.1)
+    e = Experiment.from_arrays(t, {"z": 2 * (1 - np.exp(-np.maximum(t - 8, 0) / 10))},
+                               u=np.where(t >= 5, 1.0, 0.0), name="step")
+    return identify([e], model="fopdt"), e
+
+
+def _saved(tmp_path, fopdt_model, change):
+    import copy
+    import json
+
+    d = copy.deepcopy(fopdt_model[0].to_dict())
+    change(d)
+    p = tmp_path / "model.json"
+    p.write_text(json.dumps(d), encoding="utf-8")
+    return p
+
+
+@pytest.mark.parametrize("change, fragment", [
+    (lambda d: d.update(closed_loop={"kind": "zzz", "kp": 1.0, "kv": 0.0, "umin": None, "umax": None,
+                                     "period": 0.1}), "kind must be 'p' or 'pv'"),
+    (lambda d: d.update(closed_loop={"kind": "p", "kp": -1.0, "kv": 0.0, "umin": None, "umax": None,
+                                     "period": 0.1}), "kp must be at least 0, got -1"),
+    (lambda d: d.update(closed_loop={"kind": "p", "kp": 1.0, "kv": 0.0, "umin": None, "umax": None,
+                                     "period": "0.1"}), "period (s) must be a real number, got '0.1'"),
+    (lambda d: d["params"].update(time_constant=-1.0), "time_constant must be greater than 0, got -1"),
+    (lambda d: d["params"].update(gain=1e300), "badly scaled"),
+    (lambda d: d["params"].update(delay=float("nan")), "delay must be finite"),
+])
+def test_a_saved_model_is_checked_on_load(tmp_path, fopdt_model, change, fragment):
+    from delaykit.identify.identification import IdentificationError, load_model
+
+    with pytest.raises(IdentificationError, match="not a usable delaykit model file") as info:
+        load_model(_saved(tmp_path, fopdt_model, change))
+    assert fragment in str(info.value)
+
+
+def test_predict_cli_refuses_a_bad_model(tmp_path, fopdt_model):
+    p = _saved(tmp_path, fopdt_model, lambda d: d.update(closed_loop={"kind": "zzz", "kp": 1.0}))
+    log = tmp_path / "log.csv"
+    log.write_text("t,u,z\n" + "".join(f"{0.1 * k:.1f},{float(k >= 5)},{0.01 * k}\n" for k in range(30)))
+    refused(run("predict", str(p), str(log)), "got 'zzz'")
+
+
+@pytest.mark.parametrize("text", ["[" * 100_000 + "]" * 100_000, '{"n": ' + "9" * 5000 + "}",
+                                  '{"model": "fopdt", "rms": 1' + "0" * 400 + "}"])
+def test_model_files_that_crashed_the_reader(tmp_path, text):
+    from delaykit.identify.identification import IdentificationError, load_model
+
+    p = tmp_path / "m.json"
+    p.write_text(text, encoding="utf-8")
+    with pytest.raises(IdentificationError, match="m.json"):
+        load_model(p)
+
+
+def test_a_delay_longer_than_the_log_predicts_no_response(tmp_path, fopdt_model):
+    """A delay of 1e300 s (a numba typing error before): nothing arrives within the log, so the prediction is the
+    initial rest and its RMS error that of the data about it (computed here directly)."""
+    from delaykit.identify.identification import load_model, predict
+
+    e = fopdt_model[1]
+    m = load_model(_saved(tmp_path, fopdt_model, lambda d: d["params"].update(delay=1e300)))
+    pred = predict(m, e)
+    y = e.outputs["z"]
+    assert np.array_equal(pred.predicted["z"], np.full(y.size, e.baseline("z")))
+    assert math.isclose(pred.rms["z"], float(np.sqrt(np.mean((y - e.baseline("z")) ** 2))), rel_tol=1e-12)
+
+
+def test_a_deeply_nested_loop_file(tmp_path):
+    p = tmp_path / "deep.toml"
+    p.write_text("a = " + "[" * 100_000 + "]" * 100_000 + "\n", encoding="utf-8")
+    refused(run("simulate", "--loop", str(p)), "nested too deeply")
+
+
+# -- logs ----------------------------------------------------------------------------------------------------
+def test_u_before_must_be_finite():
+    t = np.arange(0.0, 3.0, 0.1)
+    with pytest.raises(InvalidValueError, match="u_before .* must be finite, got nan"):
+        Experiment.from_arrays(t, {"y": t}, u=np.ones(t.size), u_before=math.nan)
+
+
+def test_huge_log_values_are_refused():
+    t = np.arange(0.0, 3.0, 0.1)
+    y = np.where(t > 1.0, 1e300, 0.0)
+    with pytest.raises(InvalidValueError, match="holds 1e\\+300 at sample 11, beyond"):
+        Experiment.from_arrays(t, {"y": y}, u=(t > 0.5) * 1.0)
+
+
+def test_an_output_that_never_moves_is_refused():
+    """Before: a gain of 0 +- 0 with a zero-width interval."""
+    from delaykit.identify.identification import IdentificationError, identify
+
+    t = np.arange(0.0, 30.0, 0.1)
+    e = Experiment.from_arrays(t, {"z": np.full(t.size, 0.25)}, u=(t > 5.0) * 1.0)
+    with pytest.raises(IdentificationError, match="the output 'z' never moves \\(it is 0.25 throughout"):
+        identify([e], model="fopdt")
+
+
+@pytest.mark.parametrize("step_time", [50.0, 500.0])
+def test_a_step_time_outside_the_log_is_refused(step_time):
+    t = np.arange(99.0, 120.0, 0.1)
+    with pytest.raises(LogError, match=f"step time {step_time:g} s is outside the log, which runs from 99 s"):
+        FlightLog.from_arrays(t, np.where(t > 100, 1.0, 0.0), None, step_time=step_time, step=1.0, z0=0.0)
+    # one sample before the first is the log's start (a log that begins with the move), still accepted
+    assert FlightLog.from_arrays(t, np.where(t > 100, 1.0, 0.0), None, step_time=98.95, step=1.0,
+                                 z0=0.0).step_time == 98.95
+
+
+# -- commands that silently did something else ------------------------------------------------------------------
+def test_design_with_a_delay_range_designs_for_every_delay():
+    """design --delay 0.2:0.5:3 designed for 0.2 s alone; now each candidate's score is its worst case over the
+    three delays, here checked against the library's rightmost root of each loop."""
+    import json
+
+    from delaykit.spectrum.stability import rightmost
+
+    res = run("design", "--kp", "2", "--kv", "0,0.3", "--delay", "0.2:0.5:3", "--json")
+    assert res.exit_code == 0, res.output
+    got = json.loads(res.stdout)
+    assert got["delays"] == [0.2, 0.35, 0.5]
+    for i, kv in enumerate((0.0, 0.3)):
+        worst = max(rightmost(AltitudeLoop(kp=2.0, kv=kv, delay=d)).abscissa for d in (0.2, 0.35, 0.5))
+        assert got["abscissa"][i][0] == pytest.approx(worst, rel=1e-9, abs=1e-12)
+    refused(run("design", "--delay", "0.2:0.5:3", "--delays", "0.1:0.2:2"), "not both")
+
+
+@pytest.mark.parametrize("args", [["--plant", "1/(s+1)"], ["--plant", "1/(s+1)", "--controller", "pi", "--ki", "1"]])
+def test_a_gain_law_without_kp_is_refused(args):
+    """--plant without --kp ran the loop open (Kp = 0) and printed 'never' settles."""
+    refused(run("simulate", *args, "--delay", "0.3"), "give --kp", "--kp 0 for none")
+
+
+def test_pure_integral_control_with_kp_0_still_runs():
+    res = run("simulate", "--plant", "1/(s+1)", "--controller", "pi", "--kp", "0", "--ki", "0.5", "--delay", "0.3",
+              "--json")
+    assert res.exit_code == 0, res.output
+
+
+def test_identify_closed_loop_needs_no_delay(tmp_path):
+    """identify --closed-loop --kp ... --period ... asked for --delay and then refused it; the fit finds the delay
+    of an exact simulation of the paper's sampled loop (0.368 s) within its interval."""
+    import json
+
+    from delaykit.identify.flightlog import synthetic_log, write_log
+
+    log = synthetic_log(AltitudeLoop(kp=1.31, delay=0.368, period=0.065), 1.0, noise=0.002,
+                        rng=np.random.default_rng(1))
+    p = tmp_path / "cl.csv"
+    write_log(p, {"t": log.t, "z": log.z, "z_ref": log.z_ref})
+    res = run("identify", str(p), "--closed-loop", "--kp", "1.31", "--period", "0.065", "--model", "ipdt", "--json")
+    assert res.exit_code == 0, res.output
+    lo, hi = json.loads(res.stdout)["ci"]["delay"]
+    assert lo <= 0.368 <= hi and hi - lo < 0.01

@@ -164,6 +164,8 @@ def identify(
         if given.get("delay") not in (None, "0", "0.0"):
             raise InvalidValueError("identify finds the delay: do not give --delay")
         opts = dict(loop_options)
+        if opts.get("delay") is None and "loop_file" not in given:
+            opts["delay"] = "0"  # (the loop is built without a delay: the fit finds it)
         if str(given.get("controller", "p")).lower() not in ("p", "pv") and "loop_file" not in given:
             opts["plant"] = "1/s"  # (ignored) so that the paper's P/PV loop's +-1 limits are not assumed
         loop, _ = build_loop(opts, parse_delays)

@@ -147,6 +147,9 @@ def _build(o: dict[str, Any], parse_delays: Callable[[str], list[float]]) -> tup
             limits.setdefault("umax", "1")
     d.update(o)
     d.setdefault("controller", "pv" if d.get("kv") else "p")
+    if str(d["controller"]).lower() in _KIND_KEYS and "kp" not in d:  # (Kp = 0 would silently open the loop)
+        raise InvalidValueError(f"give --kp, the {str(d['controller']).lower()} controller's proportional gain "
+                                "(--kp 0 for none)")
     if "vmax" in limits:
         v = parse_limit("--vmax", limits["vmax"])
         d["umin"], d["umax"] = (-math.inf, math.inf) if v is None else (-v, v)

@@ -221,6 +221,10 @@ class FlightLog:
             i = moved[0]
             step_time = float(tt[i])
         step_time = check_real("step_time", step_time)
+        h = float(np.median(np.diff(tt))) if n > 1 else 0.0
+        if not tt[0] - h <= step_time <= tt[-1]:  # (a step up to one sample before the first is the log's start)
+            raise LogError(f"{name}: the step time {step_time:g} s is outside the log, which runs from {tt[0]:g} s "
+                           f"to {tt[-1]:g} s")
         if step is None:
             if zr is None:
                 raise LogError(f"{name}: no z_ref column, so the step size must be given")

@@ -39,10 +39,14 @@ from ..models.budget import sample_count
 from ..models.ranges import parse_number
 from .flightlog import LogError, read_csv_rows
 
-__all__ = ["Experiment", "read_experiment", "CLOCK_TOLERANCE"]
+__all__ = ["Experiment", "read_experiment", "CLOCK_TOLERANCE", "MAX_VALUE"]
 
 CLOCK_TOLERANCE = 0.01
 """Largest allowed departure of a sample interval from the log's period, as a fraction of the period."""
+
+MAX_VALUE = 1e100
+"""The largest magnitude of a logged value (times included): beyond it a value is not a measurement, and sums of
+squares of such values overflow (an RMS of ``inf``)."""
 
 MOVE_FRACTION = 0.1
 """The drive has moved once it is this fraction of its range away from its first value."""
@@ -153,6 +157,9 @@ class Experiment:
                                     "exactly one")
         if u_before is not None and uu is None:
             raise InvalidValueError("u_before applies to an open-loop log (with an input column)")
+        if u_before is not None:
+            u_before = check_real("u_before (the input before the log)", u_before, minimum=-MAX_VALUE,
+                                  maximum=MAX_VALUE)
         drive = uu if uu is not None else rr
         what = input_name if uu is not None else reference_name
         first = float(drive[0]) if u_before is None else float(u_before)
@@ -229,6 +236,11 @@ def _array(name: str, col: str, values: Any, n: int | None = None) -> np.ndarray
     if np.any(bad):
         i = int(np.flatnonzero(bad)[0])
         raise InvalidValueError(f"{name}: column {col!r} holds a non-finite value ({a[i]}) at sample {i}")
+    big = np.abs(a) > MAX_VALUE
+    if np.any(big):
+        i = int(np.flatnonzero(big)[0])
+        raise InvalidValueError(f"{name}: column {col!r} holds {a[i]:g} at sample {i}, beyond +-{MAX_VALUE:g} (not "
+                                "a measurement: its square overflows)")
     return a
 
 

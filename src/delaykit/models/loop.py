@@ -376,4 +376,7 @@ def load_loop(path: str | Path) -> Loop:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InvalidValueError(f"the loop file {str(p)!r} is not valid TOML: {exc}") from None
+    except RecursionError:
+        raise InvalidValueError(f"the loop file {str(p)!r} is nested too deeply to read (a loop file is one table "
+                                "of keys)") from None
     return loop_from_dict(data, source=str(p))
