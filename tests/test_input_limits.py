@@ -429,3 +429,24 @@ def test_identify_closed_loop_needs_no_delay(tmp_path):
     assert res.exit_code == 0, res.output
     lo, hi = json.loads(res.stdout)["ci"]["delay"]
     assert lo <= 0.368 <= hi and hi - lo < 0.01
+
+
+@pytest.mark.parametrize("wmin, wmax, fragment", [
+    ("1e-300", "1e300", "600 decades, above the limit of 24"),
+    ("1e-3", "1e14", "its phase w T = 3e+13 rad exceeds 1e+12 rad"),
+])
+def test_margins_frequency_range_limits(tmp_path, wmin, wmax, fragment):
+    refused(run("margins", "--kp", "2", "--delay", "0.3", "--wmin", wmin, "--wmax", wmax, "--plot",
+                str(tmp_path / "b.png")), fragment)
+
+
+def test_bode_plot_of_a_phase_of_billions_of_turns(tmp_path):
+    """Up to w T = 3e11 rad the Bode plot drew one dashed line per -180 + 360 k degrees (5e10 of them: it never
+    finished); now it draws the -180 line alone, as it does beyond four levels."""
+    from delaykit.plotting.frequency import plot_bode
+    from delaykit.spectrum.frequency import frequency_grid, frequency_response
+
+    loop = AltitudeLoop(kp=2.0, delay=0.3)
+    fig = plot_bode(frequency_response(loop, frequency_grid(loop, 200, wmin=1e-10, wmax=1e12)))
+    dashed = [ln for ln in fig.axes[1].lines if ln.get_linestyle() == "--"]
+    assert [tuple(ln.get_ydata()) for ln in dashed] == [(-180.0, -180.0)]

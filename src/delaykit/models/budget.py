@@ -8,6 +8,7 @@ generous (each is far beyond what the paper or a flight needs) and come from mem
   value is a simulation, a root search or a design candidate, some milliseconds to a second each;
 * :data:`MAX_GRID_POINTS` candidates in one gain search (the product of its ranges);
 * :data:`MAX_ROOT_GRID_POINTS` points of a root search's grid, which is finer the longer the delay;
+* :data:`MAX_FREQUENCY_DECADES` decades of a frequency range (a plot);
 * :data:`MAX_SAMPLES` samples in one record (a response sampled every ``dt``, a log put on a uniform clock):
   each sample is some 32 bytes per column in memory and some 60 bytes of CSV, so the limit keeps a record below a
   gigabyte.
@@ -28,7 +29,7 @@ import math
 
 from ..errors import InvalidValueError
 
-__all__ = ["MAX_RANGE_POINTS", "MAX_GRID_POINTS", "MAX_ROOT_GRID_POINTS", "MAX_SAMPLES", "check_count", "sample_count"]
+__all__ = ["MAX_RANGE_POINTS", "MAX_GRID_POINTS", "MAX_ROOT_GRID_POINTS", "MAX_FREQUENCY_DECADES", "MAX_SAMPLES", "check_count", "sample_count"]
 
 MAX_RANGE_POINTS = 10_000
 """Values in one range (a sweep of delays or gains, Lambert branches)."""
@@ -40,11 +41,15 @@ MAX_ROOT_GRID_POINTS = 20_000_000
 """Points of one root search's candidate grid (some six per ``2 pi / delay`` along Im, 24 or more across the
 region): a region that needs more holds more roots than can be listed (a chain puts one every ``2 pi / delay``)."""
 
+MAX_FREQUENCY_DECADES = 24
+"""Decades of one frequency range (a Bode or Nyquist plot, a frequency grid): 1e-12 to 1e12 rad/s."""
+
 MAX_SAMPLES = 10_000_000
 """Samples in one record: a response sampled every ``dt``, a log resampled on a uniform clock."""
 
 _NAMES = {MAX_RANGE_POINTS: "MAX_RANGE_POINTS", MAX_GRID_POINTS: "MAX_GRID_POINTS",
-          MAX_ROOT_GRID_POINTS: "MAX_ROOT_GRID_POINTS", MAX_SAMPLES: "MAX_SAMPLES"}
+          MAX_ROOT_GRID_POINTS: "MAX_ROOT_GRID_POINTS", MAX_FREQUENCY_DECADES: "MAX_FREQUENCY_DECADES",
+          MAX_SAMPLES: "MAX_SAMPLES"}
 
 
 def check_count(what: str, count: float, limit: int, unit: str, hint: str = "") -> int:
