@@ -450,3 +450,32 @@ def test_bode_plot_of_a_phase_of_billions_of_turns(tmp_path):
     fig = plot_bode(frequency_response(loop, frequency_grid(loop, 200, wmin=1e-10, wmax=1e12)))
     dashed = [ln for ln in fig.axes[1].lines if ln.get_linestyle() == "--"]
     assert [tuple(ln.get_ydata()) for ln in dashed] == [(-180.0, -180.0)]
+
+
+# -- one rule for the gains' signs -------------------------------------------------------------------------------
+@pytest.mark.parametrize("kind, gains", [("pi", dict(kp=1.0, ki=-1.0)), ("pid", dict(kp=-1.0, ki=-0.5, kd=0.1)),
+                                         ("pv", dict(kp=1.0, kv=-0.3))])
+def test_gains_of_mixed_signs_are_refused(kind, gains):
+    from delaykit.models.controllers import Controller
+
+    with pytest.raises(InvalidValueError, match="gains must share one sign"):
+        Controller(kind, **gains, derivative_filter=0.02 if kind == "pid" else 0.0)
+
+
+def test_gains_of_one_sign_run_a_reverse_acting_loop():
+    """All gains at most 0 on a plant of negative gain: the same loop as all gains at least 0 on the plant of
+    positive gain (the signs cancel), so the same response."""
+    a = run("simulate", "--plant", "-1/(s+1)", "--controller", "pi", "--kp", "-1", "--ki", "-0.5", "--delay", "0.3",
+            "--json")
+    b = run("simulate", "--plant", "1/(s+1)", "--controller", "pi", "--kp", "1", "--ki", "0.5", "--delay", "0.3",
+            "--json")
+    import json
+
+    assert a.exit_code == 0 and b.exit_code == 0, a.output + b.output
+    ra, rb = json.loads(a.stdout), json.loads(b.stdout)
+    assert rb["settling_time"] is not None
+    for k in ("overshoot", "peak_time", "rise_time", "settling_time"):
+        assert ra[k] == rb[k] or ra[k] == pytest.approx(rb[k], rel=1e-9)
+    refused(run("simulate", "--plant", "1/(s+1)", "--controller", "pi", "--kp", "1", "--ki", "-1", "--delay", "0.3"),
+            "share one sign", "kp=1, ki=-1")
+    assert "share one sign" in one_line(run("simulate", "--help").output)
