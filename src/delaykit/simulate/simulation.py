@@ -39,7 +39,9 @@ from .metrics import StepMetrics
 __all__ = ["Response", "BatchMetrics", "Sampler", "simulate", "simulate_many", "as_loop", "SWEEPABLE"]
 
 _CAP0 = 4096
-_CAP_MAX = 1 << 22
+_CAP_MAX = 1 << 21
+"""The most polynomial pieces one run may use: some 1.3 kB each (the kernel's work arrays and the response's
+copy), so under 3 GB (the work arrays grew eightfold past the old 1 << 22, to 16.8 million pieces and 20 GB)."""
 _NO_T = np.empty(0)
 SWEEPABLE = ("kp", "ki", "kd", "kv", "delay", "output_delay", "umin", "umax", "vmax", "step", "sample_offset")
 """The parameters :func:`simulate_many` sweeps (arrays broadcast together)."""
@@ -93,7 +95,7 @@ class _Workspace:
                     continue  # the interpreter's budget is spent (n = cap): redo the run compiled
             if status == K.STATUS_OK:
                 return n
-            self.cap *= 8
+            self.cap = min(self.cap * 8, _CAP_MAX)
             self._alloc()
 
 
