@@ -503,3 +503,24 @@ def test_ar_noise_fit_of_a_long_series_matches_statsmodels():
     assert ar.order >= 2
     assert np.allclose(ar.coeffs, np.concatenate([[1.0], -rho]), rtol=0, atol=1e-10)
     assert ar.sigma2 == pytest.approx(sigma**2, rel=1e-10)
+
+
+@pytest.mark.parametrize("kp, fragment", [("1" + "0" * 400, "kp (proportional gain) must be finite, got an integer of about 401 digits"),
+                                          ("1" + "0" * 5000, "cannot be read: Exceeds the limit")])
+def test_a_loop_file_with_a_huge_integer(tmp_path, kp, fragment):
+    p = tmp_path / "big.toml"
+    p.write_text(f'plant = "1/s"\nkp = {kp}\ndelay = 0.3\n', encoding="utf-8")
+    refused(run("simulate", "--loop", str(p)), fragment)
+
+
+def test_check_real_of_an_integer_beyond_the_floats():
+    from delaykit.errors import check_real
+
+    with pytest.raises(InvalidValueError, match="x must be finite, got an integer of about 5001 digits"):
+        check_real("x", 10**5000)
+
+
+def test_a_string_period_in_a_loop_file(tmp_path):
+    p = tmp_path / "sp.toml"
+    p.write_text('plant = "1/s"\nkp = 1.31\ndelay = 0.3\nperiod = "0.065"\n', encoding="utf-8")
+    refused(run("roots", "--loop", str(p)), "period (s) must be a real number, got '0.065'")

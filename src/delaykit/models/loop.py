@@ -379,4 +379,6 @@ def load_loop(path: str | Path) -> Loop:
     except RecursionError:
         raise InvalidValueError(f"the loop file {str(p)!r} is nested too deeply to read (a loop file is one table "
                                 "of keys)") from None
+    except ValueError as exc:  # e.g. an integer of thousands of digits (Python's limit on int conversion)
+        raise InvalidValueError(f"the loop file {str(p)!r} cannot be read: {exc}") from None
     return loop_from_dict(data, source=str(p))
