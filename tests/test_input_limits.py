@@ -524,3 +524,11 @@ def test_a_string_period_in_a_loop_file(tmp_path):
     p = tmp_path / "sp.toml"
     p.write_text('plant = "1/s"\nkp = 1.31\ndelay = 0.3\nperiod = "0.065"\n', encoding="utf-8")
     refused(run("roots", "--loop", str(p)), "period (s) must be a real number, got '0.065'")
+
+
+@pytest.mark.parametrize("args, fragment", [(["--vmax", "1_0"], "--vmax must be a number or 'none', got '1_0'"),
+                                            (["--period", "０.065"], "--period must be a number"),
+                                            (["--period", "0.065", "--delay-schedule", "1_0:0.3"],
+                                             "--delay-schedule item 1 '1_0:0.3' is not T:DELAY")])
+def test_option_numbers_are_ascii_decimal(args, fragment):
+    refused(run("simulate", "--kp", "1", "--delay", "0.3", *args), fragment)

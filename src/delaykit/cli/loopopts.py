@@ -68,10 +68,12 @@ def parse_limit(flag: str, text: Optional[str]) -> Optional[float]:
     >>> parse_limit("--vmax", "none") is None, parse_limit("--vmax", "2")
     (True, 2.0)
     """
+    from ..models.ranges import parse_number
+
     if text is None or text.strip().lower() in ("none", "off", "inf"):
         return None
     try:
-        return float(text)
+        return parse_number(text)
     except ValueError:
         raise InvalidValueError(f"{flag} must be a number or 'none', got {text!r}") from None
 
