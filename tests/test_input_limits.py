@@ -532,3 +532,14 @@ def test_a_string_period_in_a_loop_file(tmp_path):
                                              "--delay-schedule item 1 '1_0:0.3' is not T:DELAY")])
 def test_option_numbers_are_ascii_decimal(args, fragment):
     refused(run("simulate", "--kp", "1", "--delay", "0.3", *args), fragment)
+
+
+def test_estimate_step_time_before_the_log(tmp_path):
+    """A log that starts at 99 s and --step-time 50: an answer before, now a refusal naming both."""
+    from delaykit.identify.flightlog import synthetic_log, write_log
+
+    log = synthetic_log(AltitudeLoop(kp=1.31, delay=0.368), 1.0, t0=100.0, rng=np.random.default_rng(0))
+    p = tmp_path / "late.csv"
+    write_log(p, {"t": log.t, "z": log.z, "z_ref": log.z_ref})
+    refused(run("estimate", str(p), "--kp", "1.31", "--step-time", "50"),
+            f"step time 50 s is outside the log, which runs from {log.t[0]:g} s")
