@@ -97,9 +97,21 @@ def simulate(
         elif reference_csv is not None:
             ref = _read_reference(reference_csv, hold)
         dist = LoadStep(disturbance, disturbance_time) if disturbance is not None else None
-        with err.status("simulating (the first run compiles the solver, a few seconds)…"):
-            responses = [sim(loop.replace(delay=d), step, z0=z0, t_end=t_end, band=band, reference=ref,
-                             disturbance=dist) for d in delays]
+        def run(d: float) -> Any:
+            return sim(loop.replace(delay=d), step, z0=z0, t_end=t_end, band=band, reference=ref, disturbance=dist)
+
+        if len(delays) == 1:
+            with err.status("simulating (the first run compiles the solver, a few seconds)…"):
+                responses = [run(delays[0])]
+        else:  # a sweep (up to MAX_RANGE_POINTS delays): a bar that counts them
+            from rich.progress import Progress
+
+            responses = []
+            with Progress(console=err.console, transient=True) as bar:
+                task = bar.add_task(f"simulating {len(delays)} delays", total=len(delays))
+                for d in delays:
+                    responses.append(run(d))
+                    bar.advance(task)
         paper_cfg = isinstance(loop, AltitudeLoop) and isinstance(ref, Step) and step == 1.0 and dist is None
         if paper_cfg:  # the paper's loop: its printed overshoot beside ours (other loops need not load the paper)
             from ..paper.data import paper_loop, table1_overshoot
