@@ -20,6 +20,7 @@ from numba import njit
 
 from ..errors import InvalidValueError, check_real
 from ..models.altitude import as_loop
+from ..models.controllers import Controller
 from ..models.hold import SNAP
 from ..models.loop import Loop
 from ..models.transfer import TransferFunction
@@ -98,10 +99,9 @@ def _law_from_dict(c: dict[str, Any] | None) -> Any:
     if kind not in ("p", "pv"):
         raise InvalidValueError(f"the closed loop's controller kind must be 'p' or 'pv' (or a 'controller' table), "
                                 f"got {kind!r}")
-    kp = check_real("the closed loop's kp", c["kp"], minimum=0.0)  # (the rules of the paper's loop)
-    kv = check_real("the closed loop's kv", c.get("kv") or 0.0, minimum=0.0)
-    if kind == "p" and kv:
-        raise InvalidValueError(f"the closed loop's controller is 'p' but it has kv = {kv:g}")
+    kp = check_real("the closed loop's kp", c["kp"])
+    kv = check_real("the closed loop's kv", c.get("kv") or 0.0)
+    Controller(kind, kp=kp, kv=kv)  # (the controllers' rules: no kv for p, the gains of one sign)
     umin = -math.inf if c.get("umin") is None else check_real("the closed loop's umin", c["umin"])
     umax = math.inf if c.get("umax") is None else check_real("the closed loop's umax", c["umax"])
     if not umin < umax:

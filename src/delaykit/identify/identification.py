@@ -39,7 +39,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 from scipy import stats
 
-from ..errors import DelaykitError, InvalidTypeError, check_real
+from ..errors import DelaykitError, InvalidTypeError, InvalidValueError, check_real
 from ..models.loop import Loop
 from ..models.transfer import TransferFunction
 from ._closed_general import check_rest, from_static, rest_commands
@@ -187,7 +187,11 @@ class IdentifiedModel:
                 if not isinstance(closed, dict):
                     raise InvalidTypeError(f"closed_loop must be a table of the controller's settings, got "
                                            f"{type(closed).__name__}")
-                _law_from_dict(closed)  # the controller it would run, checked as it is built
+                law = _law_from_dict(closed)  # the controller it would run, checked as it is built
+                kp = getattr(law, "kp", None)
+                if kp is not None and "gain" in params and kp * params["gain"] < 0:
+                    raise InvalidValueError(f"the closed loop's kp ({kp:g}) and the plant's gain "
+                                            f"({params['gain']:g}) have opposite signs: positive feedback")
             return cls(model=name, params=params, stderr=stderr, ci=ci, cov=cov, rms=float(d["rms"]),
                        aic=float(d["aic"]), bic=float(d["bic"]), n=int(d["n"]), outputs=tuple(d["outputs"]),
                        rate=d.get("rate"), closed_loop=closed, logs=logs,
