@@ -124,6 +124,10 @@ def check_real(
         raise InvalidTypeError(f"{name} must be a real number, got {value!r} ({type(value).__name__})")
     try:
         x = float(value)
+    except OverflowError:  # an int beyond the floats (10**400)
+        size = f"an integer of about {int(value.bit_length() * 0.30103) + 1} digits" if isinstance(value, int) \
+            else f"a {type(value).__name__} beyond the floats"
+        raise InvalidValueError(f"{name} must be finite, got {size}") from None
     except (TypeError, ValueError) as exc:
         raise InvalidTypeError(f"{name} must be a real number, got {value!r}") from exc
     if math.isnan(x) or (math.isinf(x) and not ((allow_inf and x > 0) or (allow_neg_inf and x < 0))):

@@ -86,6 +86,9 @@ def design(
     --kv are the candidates.  With --compensator, a Smith predictor, filtered Smith predictor or predictor
     feedback is designed for the plant and delay instead: its parameters, the step metrics of 0.2 and 1 steps,
     the load-disturbance recovery and the range of true-to-model delay ratios it survives.
+
+    A range of delays (--delays, or a --delay range such as 0.2:0.5:4) makes it a robust search: each candidate is
+    ranked by its worst case over every delay of the range.
     """
     from ..design import tuning as D
     from .loopopts import build_loop
@@ -111,11 +114,17 @@ def design(
     raw = parse_delays(str(opts["delay"])) if opts.get("delay") is not None else None
     base, base_delays = build_loop(opts, parse_delays)
     extra = base_delays[0] - raw[0] if raw else 0.0  # a dead time in the plant's text adds to --delays too
-    if delays_range is not None:
-        if criterion not in ("abscissa", "settling"):
-            raise InvalidValueError(f"--criterion {criterion} is not available with --delays (the robust search "
-                                    "ranks by the worst case over the delays): use settling or abscissa")
+    dl: Optional[list[float]] = None
+    if len(base_delays) > 1:  # a --delay range: design for all of it (the first alone was designed for before)
+        if delays_range is not None:
+            raise InvalidValueError("give the delays to design for once: a --delay range or --delays, not both")
+        dl = list(base_delays)
+    elif delays_range is not None:
         dl = [d + extra for d in D.parse_range(delays_range, "--delays")]
+    if dl is not None:
+        if criterion not in ("abscissa", "settling"):
+            raise InvalidValueError(f"--criterion {criterion} is not available with a range of delays (the robust "
+                                    "search ranks by the worst case over the delays): use settling or abscissa")
         with progress_bar() as bar:
             task = bar.add_task("gain search", total=None)
             gm = D.gain_search(base, dl, kps, kvs, criterion=criterion, step=step, scheduler=scheduler,

@@ -181,7 +181,8 @@ def identify(
         raise InvalidValueError("--u0 and --command give the command at rest of a closed-loop fit: add --closed-loop")
     drive = {"reference": reference} if closed_loop else {"input": input_col, "u_before": u_before}
     cols = [output] + ([rate] if rate else []) + ([command] if command else [])
-    exps = [read_experiment(f, outputs=cols, time=time_col, resample=resample, **drive) for f in logs]
+    with err.status(f"reading {len(logs)} log(s)…"):  # (a log of millions of rows takes seconds)
+        exps = [read_experiment(f, outputs=cols, time=time_col, resample=resample, **drive) for f in logs]
     with progress_bar(spinner=True) as bar:
         task = bar.add_task("identifying…", total=None)
         m = run_identify(exps, model=model, loop=loop, outputs=[output], rate=rate,
@@ -258,8 +259,9 @@ def predict(
     outs = list(m.outputs) + ([m.rate] if m.rate else []) + ([command] if command else [])
     drive = ({"reference": m.drive_column} if m.closed_loop is not None
              else {"input": m.drive_column, "u_before": u_before})
-    exps = [read_experiment(f, outputs=outs, time=time_col, resample=resample, **drive) for f in logs]
-    preds = [run_predict(m, e, u0=u0, command=command) for e in exps]
+    with err.status(f"reading and predicting {len(logs)} log(s)…"):
+        exps = [read_experiment(f, outputs=outs, time=time_col, resample=resample, **drive) for f in logs]
+        preds = [run_predict(m, e, u0=u0, command=command) for e in exps]
     if plot is not None:
         from ..plotting.identification import plot_predictions
 

@@ -9,6 +9,7 @@ from typing import Any, Optional
 import typer
 
 from ..errors import InvalidValueError, check_real
+from ..models.budget import MAX_SAMPLES, check_count, sample_count
 from .common import check_output, err, fmt, friendly, out, parse_schedule, print_json, read_delay_trace
 from .loopopts import with_loop
 
@@ -86,6 +87,10 @@ def simulate(
     if extra:
         raise InvalidValueError(f"{extra[0]} goes with a varying delay: add --delay-schedule, --jitter or "
                                 "--delay-trace")
+    if csv_path is not None:  # the record's size, before the work
+        each = sample_count(f"--csv every --dt {dt:g} s over --t-end {t_end:g} s", t_end, dt, "give a larger --dt")
+        check_count(f"--csv of {len(delays)} delays", each * len(delays), MAX_SAMPLES, "samples",
+                    "give a larger --dt or fewer delays")
     from ..simulate import _jit
 
     with _jit.interpreter():  # short runs as plain Python, without numba's start-up; a long one moves to numba
@@ -97,9 +102,21 @@ def simulate(
         elif reference_csv is not None:
             ref = _read_reference(reference_csv, hold)
         dist = LoadStep(disturbance, disturbance_time) if disturbance is not None else None
-        with err.status("simulating (the first run compiles the solver, a few seconds)…"):
-            responses = [sim(loop.replace(delay=d), step, z0=z0, t_end=t_end, band=band, reference=ref,
-                             disturbance=dist) for d in delays]
+        def run(d: float) -> Any:
+            return sim(loop.replace(delay=d), step, z0=z0, t_end=t_end, band=band, reference=ref, disturbance=dist)
+
+        if len(delays) == 1:
+            with err.status("simulating (the first run compiles the solver, a few seconds)…"):
+                responses = [run(delays[0])]
+        else:  # a sweep (up to MAX_RANGE_POINTS delays): a bar that counts them
+            from rich.progress import Progress
+
+            responses = []
+            with Progress(console=err.console, transient=True) as bar:
+                task = bar.add_task(f"simulating {len(delays)} delays", total=len(delays))
+                for d in delays:
+                    responses.append(run(d))
+                    bar.advance(task)
         paper_cfg = isinstance(loop, AltitudeLoop) and isinstance(ref, Step) and step == 1.0 and dist is None
         if paper_cfg:  # the paper's loop: its printed overshoot beside ours (other loops need not load the paper)
             from ..paper.data import paper_loop, table1_overshoot
@@ -322,9 +339,11 @@ def _read_reference(path: Path, hold: str) -> Any:
     rows = list(csv.reader(text.splitlines()))
     if not rows or [c.strip() for c in rows[0][:2]] != ["t", "r"]:
         raise InvalidValueError(f"the reference file {str(path)!r} must start with a header row 't,r'")
+    from ..models.ranges import parse_number
+
     try:
-        t = [float(r[0]) for r in rows[1:] if r]
-        v = [float(r[1]) for r in rows[1:] if r]
+        t = [parse_number(r[0]) for r in rows[1:] if r]
+        v = [parse_number(r[1]) for r in rows[1:] if r]
     except (ValueError, IndexError):
         raise InvalidValueError(f"the reference file {str(path)!r} has a row that is not two numbers") from None
     return Samples(t, v, hold=hold)

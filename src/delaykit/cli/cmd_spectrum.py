@@ -64,6 +64,7 @@ def roots(
     data["rightmost"] = None if rm.root is None else [rm.root.real, rm.root.imag]
     data["stable"] = rm.stable
     data["abscissa"] = rm.abscissa
+    data["rightmost_certified"] = rm.certified
     data["rightmost_in_region"] = None if sp.rightmost is None else [sp.rightmost.real, sp.rightmost.imag]
     if plot is not None:
         from ..plotting.figures import plot_spectrum
@@ -77,9 +78,11 @@ def roots(
     nl = f"; neutral line Re s = {sp.neutral_lines[0]:.6f}" if len(sp.neutral_lines) == 1 else ""
     r = rm.root
     out.print(f"{int(sp.multiplicities.sum())} roots, {cert} (argument principle: {sp.count}){nl}.", highlight=False)
-    out.print(f"Rightmost root {r.real:.6f} ± {abs(r.imag):.6f}j; spectral abscissa {rm.abscissa:.6f}: "
-              f"{'stable' if rm.stable else 'UNSTABLE'}." if r is not None else
-              f"Spectral abscissa {rm.abscissa:.6f}: {'stable' if rm.stable else 'UNSTABLE'}.", highlight=False)
+    verdict = "stable" if rm.stable else "UNSTABLE"
+    if not rm.certified:  # the search stopped short: the abscissa is only a bound, the verdict not proven
+        verdict += f" (NOT certified: {rm.spectrum.reason or 'the search for the rightmost root did not finish'})"
+    out.print(f"Rightmost root {r.real:.6f} ± {abs(r.imag):.6f}j; spectral abscissa {rm.abscissa:.6f}: {verdict}."
+              if r is not None else f"Spectral abscissa {rm.abscissa:.6f}: {verdict}.", highlight=False)
     if q.kind == "neutral" and not rm.stable and sp.neutral_lines and max(sp.neutral_lines) >= 0:
         out.print("Warning: this neutral loop's root chains reach the right half-plane (for the paper's loop, "
                   "Kv >= 1): it cannot be stable whatever its other gains.")
@@ -276,15 +279,21 @@ def margins(
 
 
 def _parse_branches(spec: str) -> list[int]:
+    from ..models.budget import MAX_RANGE_POINTS, check_count
+    from ..models.ranges import parse_integer
+
     try:
         if ":" in spec:
-            a, b = (int(x) for x in spec.split(":"))
+            a, b = (parse_integer(x) for x in spec.split(":"))
         else:
-            return [int(x) for x in spec.split(",")]
+            items = spec.split(",")
+            check_count(f"--branches {spec!r}", len(items), MAX_RANGE_POINTS, "branches")
+            return [parse_integer(x) for x in items]
     except ValueError:
         raise InvalidValueError(f"--branches {spec!r} must be K1:K2 or a comma list of integers") from None
     if b < a:
         raise InvalidValueError(f"--branches {spec!r}: the range is reversed (K1 must not exceed K2)")
+    check_count(f"--branches {spec!r}", b - a + 1, MAX_RANGE_POINTS, "branches", "ask for fewer branches")
     return list(range(a, b + 1))
 
 

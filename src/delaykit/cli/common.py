@@ -425,7 +425,9 @@ def parse_schedule(spec: str) -> list[tuple[float, float]]:
         try:
             if len(parts) != 2:
                 raise ValueError
-            t, d = float(parts[0]), float(parts[1])
+            from ..models.ranges import parse_number  # (ASCII decimal: float() also reads 1_0 and '１２')
+
+            t, d = parse_number(parts[0]), parse_number(parts[1])
         except ValueError:
             raise InvalidValueError(f"--delay-schedule item {k + 1} {item!r} is not T:DELAY (seconds since "
                                     "start, delay in seconds), e.g. 20:0.40") from None

@@ -32,10 +32,10 @@ _SPECS: list[tuple[str, Any, Any]] = [
     ("controller", Optional[str], _opt(None, "--controller", "p | pv | pi | pd | pid | smith | filtered-smith | predictor, or a transfer function on the error (default: p, or pv with --kv).")),
     ("model_delay", Optional[float], _opt(None, "--model-delay", "Compensators: the delay the design assumes, s (default: --delay); the loop runs with --delay.")),
     ("closed_loop_time", Optional[float], _opt(None, "--closed-loop-time", "Compensators: the closed-loop time constant Tc, s (default: the fastest that survives a 20 % delay error).")),
-    ("kp", Optional[float], _opt(None, "--kp", "Proportional gain Kp.")),
-    ("ki", Optional[float], _opt(None, "--ki", "Integral gain Ki (1/s), for pi and pid.")),
-    ("kd", Optional[float], _opt(None, "--kd", "Derivative gain Kd (s), for pd and pid.")),
-    ("kv", Optional[float], _opt(None, "--kv", "Velocity gain Kv of the paper's PV law.")),
+    ("kp", Optional[float], _opt(None, "--kp", "Proportional gain Kp. The gains Kp, Ki, Kd and Kv share one sign: all at least 0, or all at most 0 for a plant of negative gain (the paper's loop: at least 0); 0 drops a term.")),
+    ("ki", Optional[float], _opt(None, "--ki", "Integral gain Ki (1/s), for pi and pid; of the sign of the other gains (see --kp).")),
+    ("kd", Optional[float], _opt(None, "--kd", "Derivative gain Kd (s), for pd and pid; of the sign of the other gains (see --kp).")),
+    ("kv", Optional[float], _opt(None, "--kv", "Velocity gain Kv of the paper's PV law, at least 0 (see --kp).")),
     ("derivative_filter", Optional[float], _opt(None, "--derivative-filter", "Time constant Tf (s) of the derivative's filter s/(Tf s + 1), for pd and pid.")),
     ("velocity", Optional[str], _opt(None, "--velocity", "Velocity of the PV law: true | filtered.")),
     ("filter_wn", Optional[float], _opt(None, "--filter-wn", "PV derivative filter natural frequency, rad/s (default 38).")),
@@ -69,10 +69,12 @@ def parse_limit(flag: str, text: Optional[str]) -> Optional[float]:
     >>> parse_limit("--vmax", "none") is None, parse_limit("--vmax", "2")
     (True, 2.0)
     """
+    from ..models.ranges import parse_number
+
     if text is None or text.strip().lower() in ("none", "off", "inf"):
         return None
     try:
-        return float(text)
+        return parse_number(text)
     except ValueError:
         raise InvalidValueError(f"{flag} must be a number or 'none', got {text!r}") from None
 
@@ -148,6 +150,9 @@ def _build(o: dict[str, Any], parse_delays: Callable[[str], list[float]]) -> tup
             limits.setdefault("umax", "1")
     d.update(o)
     d.setdefault("controller", "pv" if d.get("kv") else "p")
+    if str(d["controller"]).lower() in _KIND_KEYS and "kp" not in d:  # (Kp = 0 would silently open the loop)
+        raise InvalidValueError(f"give --kp, the {str(d['controller']).lower()} controller's proportional gain "
+                                "(--kp 0 for none)")
     if "vmax" in limits:
         v = parse_limit("--vmax", limits["vmax"])
         d["umin"], d["umax"] = (-math.inf, math.inf) if v is None else (-v, v)

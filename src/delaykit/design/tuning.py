@@ -27,6 +27,7 @@ import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import PAPER_PERIOD, AltitudeLoop
+from ..models.budget import MAX_GRID_POINTS, check_count
 from ..models.controllers import Controller
 from ..models.loop import Loop
 from ..models.ranges import parse_range
@@ -178,6 +179,8 @@ def design_sweep(
         raise InvalidValueError(f"criterion must be one of {', '.join(CRITERIA)}; got {criterion!r}")
     kps = parse_range(kp if not isinstance(kp, (int, float)) else [kp], "kp")
     kvs = parse_range(kv if not isinstance(kv, (int, float)) else [kv], "kv")
+    check_count("kp x kv", len(kps) * len(kvs), MAX_GRID_POINTS, "candidates",
+                "search a coarser grid")
     step = check_real("step", step)
     if step == 0:
         raise InvalidValueError("step must not be zero")
@@ -262,6 +265,8 @@ def gain_search(
     delays = np.atleast_1d(np.asarray(parse_range(delays if not isinstance(delays, (int, float)) else [delays], "delays")))
     kps = np.asarray(parse_range(kp, "kp"))
     kvs = np.asarray(parse_range(kv, "kv"))
+    check_count("kp x kv x delays", kps.size * kvs.size * delays.size, MAX_GRID_POINTS,
+                "evaluations", "search a coarser grid")
     if criterion not in ("settling", "abscissa"):
         raise InvalidValueError(f"criterion must be 'settling' or 'abscissa' for a gain search; got {criterion!r}")
     cells = [(loop, float(a), float(b), tuple(float(d) for d in delays), step, t_end) for b in kvs for a in kps]

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError
+from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.compensators import Compensator
 from ..models.controllers import Controller
 from ..models.loop import Loop
@@ -524,8 +524,9 @@ def law_from_dict(d: dict[str, Any]) -> GeneralLaw:
         ctrl = Controller.transfer(TransferFunction(**c["transfer_function"]))
     else:
         ctrl = Controller(kind, **c)
-    umin = -math.inf if d.get("umin") is None else float(d["umin"])
-    umax = math.inf if d.get("umax") is None else float(d["umax"])
+    umin = -math.inf if d.get("umin") is None else check_real("umin", d["umin"])  # (numbers, not text)
+    umax = math.inf if d.get("umax") is None else check_real("umax", d["umax"])
     per = d.get("period")
-    return general_law(Loop("1/s", ctrl, umin=umin, umax=umax, period=None if per is None else float(per),
-                            sample_offset=float(d.get("sample_offset") or 0.0)))
+    per = None if per is None else check_real("period", per)
+    return general_law(Loop("1/s", ctrl, umin=umin, umax=umax, period=per,
+                            sample_offset=check_real("sample_offset", d.get("sample_offset") or 0.0)))

@@ -18,8 +18,9 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from ..errors import InvalidValueError
+from ..errors import InvalidValueError, check_real
 from ..models.altitude import as_loop
+from ..models.controllers import Controller
 from ..models.hold import SNAP
 from ..models.loop import Loop
 from ..models.transfer import TransferFunction
@@ -94,8 +95,21 @@ def _law_from_dict(c: dict[str, Any] | None) -> Any:
         from ._closed_general import law_from_dict
 
         return law_from_dict(c)
-    return _Law(float(c["kp"]), float(c.get("kv") or 0.0), -math.inf if c.get("umin") is None else float(c["umin"]),
-                math.inf if c.get("umax") is None else float(c["umax"]), c.get("period"))
+    kind = c.get("kind", "pv" if c.get("kv") else "p")
+    if kind not in ("p", "pv"):
+        raise InvalidValueError(f"the closed loop's controller kind must be 'p' or 'pv' (or a 'controller' table), "
+                                f"got {kind!r}")
+    kp = check_real("the closed loop's kp", c["kp"])
+    kv = check_real("the closed loop's kv", c.get("kv") or 0.0)
+    Controller(kind, kp=kp, kv=kv)  # (the controllers' rules: no kv for p, the gains of one sign)
+    umin = -math.inf if c.get("umin") is None else check_real("the closed loop's umin", c["umin"])
+    umax = math.inf if c.get("umax") is None else check_real("the closed loop's umax", c["umax"])
+    if not umin < umax:
+        raise InvalidValueError(f"the closed loop's umin {umin:g} must be below its umax {umax:g}")
+    period = c.get("period")
+    if period is not None:
+        period = check_real("the closed loop's period (s)", period, minimum=0.0, strict=True)
+    return _Law(kp, kv, umin, umax, period)
 
 
 # -- one log, prepared ------------------------------------------------------------------------------------
@@ -167,6 +181,9 @@ def _prepare(exp: Experiment, outputs: tuple[str, ...], rate: str | None, law: A
 
 def _simulate(prep: _Prepared, plant: TransferFunction, delay: float, law: Any,
               cache: dict | None = None) -> dict[str, np.ndarray]:
+    # nothing sent arrives within the log after more than its length: a longer delay (1e300 s) gives the same
+    # response as this one, whose number of samples is an integer
+    delay = min(delay, prep.exp.duration + 2.0 * prep.exp.period)
     if law is not None and not isinstance(law, _Law):
         from ._closed_general import simulate
 

@@ -39,6 +39,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import InvalidValueError, check_real
+from ..models.ranges import parse_number
 
 __all__ = ["FlightLog", "LogError", "REQUIRED", "MAX_ALTITUDE", "MAX_TIME", "read_csv_rows", "write_log",
            "synthetic_log"]
@@ -220,6 +221,10 @@ class FlightLog:
             i = moved[0]
             step_time = float(tt[i])
         step_time = check_real("step_time", step_time)
+        h = float(np.median(np.diff(tt))) if n > 1 else 0.0
+        if not tt[0] - h <= step_time <= tt[-1]:  # (a step up to one sample before the first is the log's start)
+            raise LogError(f"{name}: the step time {step_time:g} s is outside the log, which runs from {tt[0]:g} s "
+                           f"to {tt[-1]:g} s")
         if step is None:
             if zr is None:
                 raise LogError(f"{name}: no z_ref column, so the step size must be given")
@@ -281,7 +286,11 @@ class FlightLog:
             raise LogError(f"{name}: missing column {mapping['z_ref']!r} (header: {', '.join(header)}); "
                            "without it give the step time and size")
         rows: dict[str, list[float]] = {k: [] for k in idx}
-        others = [h for h in header if h not in {mapping[k] for k in idx}]
+        used = {mapping[k] for k in idx}
+        others: dict[str, int] = {}  # each other column's index (the first, for a repeated name)
+        for j, h in enumerate(header):
+            if h not in used:
+                others.setdefault(h, j)
         extra: dict[str, list[str]] = {h: [] for h in others}
         skipped = 0
         linenos: list[int] = []
@@ -291,7 +300,7 @@ class FlightLog:
             for k, j in idx.items():
                 cell = row[j].strip() if j < len(row) else ""
                 try:
-                    v = float(cell)
+                    v = parse_number(cell)
                 except ValueError:
                     bad = f"{k} is {cell[:40]!r}, not a number"
                     break
@@ -307,8 +316,7 @@ class FlightLog:
             for k, v in vals.items():
                 rows[k].append(v)
             linenos.append(lineno)
-            for h in others:
-                j = header.index(h)
+            for h, j in others.items():
                 extra[h].append(row[j] if j < len(row) else "")
         if not rows["t"]:
             raise LogError(f"{name}: no data rows")

@@ -39,7 +39,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 from scipy import stats
 
-from ..errors import InvalidTypeError
+from ..errors import DelaykitError, InvalidTypeError, InvalidValueError, check_real
 from ..models.loop import Loop
 from ..models.transfer import TransferFunction
 from ._closed_general import check_rest, from_static, rest_commands
@@ -228,13 +228,28 @@ class IdentifiedModel:
             logs = tuple(LogFit(g["file"], dict(g["rms_by_output"]),
                                 {k: math.nan for k in g["rms_by_output"]}, int(g["samples"]), int(g["noise_order"]))
                          for g in d.get("logs", []))
+            for k, positive in zip(st.params, st.positive):  # what a fit can give: finite, the signs it keeps
+                check_real(f"parameter {k}", params[k], minimum=0.0 if positive or k == "delay" else None,
+                           strict=positive)
+            st.plant([params[k] for k in st.params])  # (a plant it can simulate: not badly scaled)
+            closed = d.get("closed_loop")
+            if closed is not None:
+                if not isinstance(closed, dict):
+                    raise InvalidTypeError(f"closed_loop must be a table of the controller's settings, got "
+                                           f"{type(closed).__name__}")
+                law = _law_from_dict(closed)  # the controller it would run, checked as it is built
+                kp = getattr(law, "kp", None)
+                if kp is not None and "gain" in params and kp * params["gain"] < 0:
+                    raise InvalidValueError(f"the closed loop's kp ({kp:g}) and the plant's gain "
+                                            f"({params['gain']:g}) have opposite signs: positive feedback")
             return cls(model=name, params=params, stderr=stderr, ci=ci, cov=cov, rms=float(d["rms"]),
                        aic=float(d["aic"]), bic=float(d["bic"]), n=int(d["n"]), outputs=tuple(d["outputs"]),
-                       rate=d.get("rate"), closed_loop=d.get("closed_loop"), logs=logs,
+                       rate=d.get("rate"), closed_loop=closed, logs=logs,
                        criterion=d.get("criterion", "bic"), warnings=tuple(d.get("warnings", ())),
                        drive_column=str(d.get("drive_column", "u")))
-        except (KeyError, TypeError, ValueError, IndexError) as exc:
-            raise IdentificationError(f"{source}: not a delaykit model file ({type(exc).__name__}: {exc})") from None
+        except (KeyError, TypeError, ValueError, IndexError, OverflowError) as exc:
+            what = str(exc) if isinstance(exc, DelaykitError) else f"{type(exc).__name__}: {exc}"
+            raise IdentificationError(f"{source}: not a usable delaykit model file ({what})") from None
 
     def __repr__(self) -> str:
         parts = []
@@ -500,6 +515,12 @@ def identify(
         outs = tuple([outputs] if isinstance(outputs, str) else outputs)
     if len(outs) != 1:
         raise IdentificationError(f"give one output (and its rate with rate=...), got {list(outs)}")
+    for o in outs:  # an output that never moves in any log: no response, nothing to fit (a gain of 0 +- 0)
+        values = [e.outputs[o] for e in exps if o in e.outputs]
+        if values and all(float(np.ptp(v)) == 0.0 for v in values):
+            raise IdentificationError(f"the output {o!r} never moves (it is {values[0][0]:g} throughout "
+                                      f"{'the log' if len(values) == 1 else 'every log'}): there is nothing to "
+                                      "identify")
     preps = [_prepare(e, outs, rate, law, fresh_only, u0=w) for e, w in zip(exps, rests)]
     if law is not None and not isinstance(law, _Law):
         check_rest(law, preps, names)
@@ -747,10 +768,12 @@ def load_model(path: str | Path) -> IdentifiedModel:
     """
     p = Path(path)
     try:
-        d = json.loads(p.read_text())
+        d = json.loads(p.read_text(encoding="utf-8"))
     except OSError as exc:
         raise IdentificationError(f"{p}: cannot be read ({exc.strerror or exc})") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except RecursionError:
+        raise IdentificationError(f"{p}: not a delaykit model file (nested too deeply to read)") from None
+    except ValueError as exc:  # not UTF-8, not JSON, an integer of thousands of digits
         raise IdentificationError(f"{p}: not a JSON model file ({exc})") from None
     if not isinstance(d, dict):
         raise IdentificationError(f"{p}: not a delaykit model file")

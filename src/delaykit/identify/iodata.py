@@ -38,12 +38,18 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..models.budget import sample_count
+from ..models.ranges import parse_number
 from .flightlog import LogError, read_csv_rows
 
-__all__ = ["Experiment", "read_experiment", "CLOCK_TOLERANCE"]
+__all__ = ["Experiment", "read_experiment", "CLOCK_TOLERANCE", "MAX_VALUE"]
 
 CLOCK_TOLERANCE = 0.01
 """A clock is uniform when no sample interval departs from the median interval by more than this fraction of it."""
+
+MAX_VALUE = 1e100
+"""The largest magnitude of a logged value (times included): beyond it a value is not a measurement, and sums of
+squares of such values overflow (an RMS of ``inf``)."""
 
 MOVE_FRACTION = 0.1
 """The drive has moved once it is this fraction of its range away from its first value."""
@@ -136,6 +142,8 @@ class Experiment:
         logged = None
         if resample is not None:
             hr = check_real("resample (s)", resample, minimum=0.0, strict=True)
+            sample_count(f"{name}: resample={hr:g} s over the {tt[-1] - tt[0]:g} s log", tt[-1] - tt[0], hr,
+                         "resample on a longer period")
             grid = tt[0] + hr * np.arange(int(np.floor((tt[-1] - tt[0]) / hr * (1 + 1e-12))) + 1)
             if grid.size < 10:
                 raise InvalidValueError(f"{name}: resample={hr:g} s leaves {grid.size} samples of the "
@@ -150,6 +158,9 @@ class Experiment:
                                     "exactly one")
         if u_before is not None and uu is None:
             raise InvalidValueError("u_before applies to an open-loop log (with an input column)")
+        if u_before is not None:
+            u_before = check_real("u_before (the input before the log)", u_before, minimum=-MAX_VALUE,
+                                  maximum=MAX_VALUE)
         drive = uu if uu is not None else rr
         what = input_name if uu is not None else reference_name
         first = float(drive[0]) if u_before is None else float(u_before)
@@ -229,6 +240,11 @@ def _array(name: str, col: str, values: Any, n: int | None = None) -> np.ndarray
     if np.any(bad):
         i = int(np.flatnonzero(bad)[0])
         raise InvalidValueError(f"{name}: column {col!r} holds a non-finite value ({a[i]}) at sample {i}")
+    big = np.abs(a) > MAX_VALUE
+    if np.any(big):
+        i = int(np.flatnonzero(big)[0])
+        raise InvalidValueError(f"{name}: column {col!r} holds {a[i]:g} at sample {i}, beyond +-{MAX_VALUE:g} (not "
+                                "a measurement: its square overflows)")
     return a
 
 
@@ -278,12 +294,12 @@ def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input:
         if col not in header:
             raise LogError(f"{path}: missing column {col!r} (header: {', '.join(header)})")
     cols: dict[str, list[float]] = {c: [] for c in wanted}
+    where = {c: header.index(c) for c in wanted}
     for row, line in records:
-        for c in wanted:
-            j = header.index(c)
+        for c, j in where.items():
             cell = row[j].strip() if j < len(row) else ""
             try:
-                v = float(cell)
+                v = parse_number(cell)
             except ValueError:
                 raise LogError(f"{path}: row {line}: {c} is {cell[:40]!r}, not a number") from None
             if not np.isfinite(v):

@@ -143,7 +143,9 @@ def fit_ar(r: np.ndarray, max_order: int = 20) -> ARNoise:
     x = x - x.mean()
     n = x.size
     pmax = int(max(0, min(max_order, n // 10)))
-    full = np.correlate(x, x, mode="full")[n - 1:n + pmax] / n
+    # the biased autocovariances at lags 0..pmax, each a dot product: O(n pmax) (np.correlate's full mode is
+    # O(n^2), hours for a log of millions of samples)
+    full = np.array([np.dot(x[: n - k], x[k:]) for k in range(pmax + 1)]) / n
     if full[0] <= 0.0:
         return ARNoise(np.array([1.0]), 0.0, n)
     best = (n * math.log(full[0]), np.array([1.0]), float(full[0]))

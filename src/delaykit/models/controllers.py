@@ -158,6 +158,11 @@ class Controller:
         for name in ("ki", "kd", "kv"):
             if getattr(self, name) != 0.0 and name not in _USES[self.kind]:
                 raise InvalidValueError(f"a {self.kind} controller has no {name}; got {name}={getattr(self, name):g}")
+        gains = {name: getattr(self, name) for name in ("kp", "ki", "kd", "kv") if getattr(self, name) != 0.0}
+        if any(v > 0 for v in gains.values()) and any(v < 0 for v in gains.values()):
+            raise InvalidValueError(
+                "a controller's gains must share one sign (all at least 0, or all at most 0 for a plant of negative "
+                f"gain); got {', '.join(f'{k}={v:g}' for k, v in gains.items())}")
         if self.kind in ("pd", "pid"):
             set_("derivative_filter", check_real("derivative_filter (Tf, s)", self.derivative_filter,
                                                  minimum=0.0, strict=True))

@@ -16,6 +16,8 @@ Examples
 
 from __future__ import annotations
 
+import math
+
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -109,8 +111,9 @@ def plot_bode(
     ax_mag.axhline(0.0, color="0.4", lw=0.7, ls="--")
     lo = min(float(np.nanmin(r.phase_deg)) for r in items)
     hi = max(float(np.nanmax(r.phase_deg)) for r in items)
-    levels = [-180.0 + 360.0 * k for k in range(int(np.floor((lo - 180) / 360)), int(np.ceil((hi + 180) / 360)) + 1)
-              if lo - 1 <= -180.0 + 360.0 * k <= hi + 1]
+    k0, k1 = math.floor((lo - 180) / 360), math.ceil((hi + 180) / 360)  # (counted before listed: a long delay's
+    levels = [-180.0 + 360.0 * k for k in range(k0, k1 + 1)             # phase spans billions of turns)
+              if lo - 1 <= -180.0 + 360.0 * k <= hi + 1] if k1 - k0 <= 8 else [0.0] * 5
     for level in levels if len(levels) <= 4 else [-180.0]:  # -180 modulo 360, unless that clutters the axes
         ax_ph.axhline(level, color="0.4", lw=0.7, ls="--")
     if margins is not None and margins.stable:

@@ -28,6 +28,7 @@ import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop, as_loop
+from ..models.budget import sample_count
 from ..models.compensators import Compensator
 from ..models.loop import Loop
 from ..models.signals import LoadStep, Ramp, Samples, Step, as_reference
@@ -39,7 +40,9 @@ from .metrics import StepMetrics, peak_time_of
 __all__ = ["Response", "BatchMetrics", "Sampler", "simulate", "simulate_many", "as_loop", "SWEEPABLE"]
 
 _CAP0 = 4096
-_CAP_MAX = 1 << 22
+_CAP_MAX = 1 << 21
+"""The most polynomial pieces one run may use: some 1.3 kB each (the kernel's work arrays and the response's
+copy), so under 3 GB (the work arrays grew eightfold past the old 1 << 22, to 16.8 million pieces and 20 GB)."""
 _NO_T = np.empty(0)
 SWEEPABLE = ("kp", "ki", "kd", "kv", "delay", "output_delay", "umin", "umax", "vmax", "step", "sample_offset")
 """The parameters :func:`simulate_many` sweeps (arrays broadcast together)."""
@@ -76,24 +79,41 @@ class _Workspace:
             kern = _jit.kernel(compiled=not allowed)
             n = kern.run_one(row, *knots, cap, *self.u, *self.y, self.out, self.store, self.t, self.ez)
             status = self.out[K.OUT["status"]]
+            if status == K.STATUS_STALLED:
+                raise InvalidValueError(_stall_message(row, self.out[K.OUT["t_stop"]]))
+            if status == K.STATUS_CAPACITY:  # the pieces a whole run takes at this rate, refused if far too many
+                t_stop, t_end = self.out[K.OUT["t_stop"]], row[K.HEAD["t_end"]]
+                projected = n * t_end / t_stop if t_stop > 0 else math.inf
+                if projected > 4 * _CAP_MAX or n >= _CAP_MAX:  # (the first pieces may be the shortest)
+                    raise InvalidValueError(
+                        f"the response needs more than {_CAP_MAX} polynomial pieces (about {projected:.3g} at the "
+                        f"rate of the first {n}; the loop's fastest rate is {1 / row[K.HEAD['hmax']]:.3g} 1/s over "
+                        f"t_end = {t_end:g} s): the loop is too stiff or too long to simulate exactly; shorten t_end "
+                        "or remove the fast dynamics")
             if allowed:
                 _jit.spend(nstates, n)
                 if status == K.STATUS_CAPACITY and cap < self.cap:
                     continue  # the interpreter's budget is spent (n = cap): redo the run compiled
             if status == K.STATUS_OK:
                 return n
-            if status == K.STATUS_STALLED:
-                raise InvalidValueError(
-                    f"the simulation stalls at t = {self.out[K.OUT['t_stop']]:.6g} s: the command switches at its "
-                    "limit without advancing (report the loop; antiwindup='backcalc' avoids such switching)")
-            if self.cap >= _CAP_MAX:
-                hmax = row[K.HEAD["hmax"]]
-                raise InvalidValueError(
-                    f"the response needs more than {_CAP_MAX} polynomial pieces (the loop's fastest rate is "
-                    f"{1 / hmax:.3g} 1/s over t_end = {row[K.HEAD['t_end']]:g} s): the loop is too stiff or "
-                    "too long to simulate exactly; shorten t_end or remove the fast dynamics")
-            self.cap *= 8
+            self.cap = min(self.cap * 8, _CAP_MAX)
             self._alloc()
+
+
+def _stall_message(row: np.ndarray, t_stop: float) -> str:
+    """Why the kernel stopped advancing (its stalled status): pieces shorter than ``1e-9 max(1, t_end)`` one after
+    another, named from the loop's row: delays that short, or else the command switching at its limits."""
+    t_end = row[K.HEAD["t_end"]]
+    delays = [d for d in (row[K.HEAD["ti"]], row[K.HEAD["to"]]) if d > 0]
+    where = f"the simulation stalls at t = {t_stop:.6g} s"
+    if delays and min(delays) < 1e-6 * max(1.0, t_end):
+        return (f"{where}: the delay {min(delays):.3g} s is too short against t_end = {t_end:g} s for the method of "
+                "steps (each piece is at most one delay long); simulate the loop without the delay (delay=0) if "
+                "so short a delay does not matter")
+    if math.isfinite(row[K.HEAD["umin"]]) or math.isfinite(row[K.HEAD["umax"]]):
+        return (f"{where}: the command switches at its limit without advancing (report the loop; "
+                "antiwindup='backcalc' avoids such switching)")
+    return f"{where}: its pieces shrink to nothing (report the loop)"
 
 
 def _check_run(t_end: float, band: float) -> tuple[float, float]:
@@ -210,6 +230,7 @@ class Response:
         """
         if t is None:
             dt = check_real("dt (s)", dt, minimum=0.0, strict=True)
+            sample_count(f"dt = {dt:g} s over t_end = {self.t_end:g} s", self.t_end, dt, "give a larger dt")
             t = np.arange(0.0, self.t_end + 0.5 * dt, dt)
             t = t[t <= self.t_end + 1e-12]
         t = np.asarray(t, dtype=float)

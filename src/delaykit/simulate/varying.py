@@ -46,6 +46,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..models.ranges import parse_number
 from ..models.altitude import as_loop
 from ..models.controllers import Controller
 from ..models.loop import Loop
@@ -90,8 +91,11 @@ def _increasing(times: Any, what: str) -> np.ndarray:
 
 
 def _check_seed(seed: Any) -> None:
+    """A seed NumPy's generators take: None or an integer >= 0."""
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))):
         raise InvalidTypeError(f"seed must be an integer or None, got {seed!r}")
+    if seed is not None and seed < 0:
+        raise InvalidValueError(f"seed must be at least 0 (NumPy's generators take non-negative seeds), got {seed}")
 
 
 class DelayModel:
@@ -394,7 +398,7 @@ class DelayTrace(DelayModel):
             for col, i in cols.items():
                 cell = row[i].strip() if i < len(row) else ""
                 try:
-                    vals[col] = float(cell)
+                    vals[col] = parse_number(cell)
                 except ValueError:
                     vals[col] = math.nan
                 if not math.isfinite(vals[col]):

@@ -252,6 +252,11 @@ def gain_crossovers(ol: OpenLoop, grid: np.ndarray | None = None, known: np.ndar
     if known is None:
         a, b = ol.squares()
         scale = max(np.abs(a).max(), np.abs(b).max())
+        if not np.isfinite(scale):
+            big = max(float(np.abs(ol.cn).max()), float(np.abs(ol.cd).max()))
+            raise InvalidValueError(f"the margins cannot be computed: a coefficient of the open loop L(s) "
+                                    f"({big:.3g}) is too large for |L(jw)|^2 in double precision; scale the gains "
+                                    "and the plant to sizes below 1e150")
         if np.abs(a - b).max() <= 1e-13 * scale:
             raise InvalidValueError("the margins are undefined: |L(jw)| = 1 at every frequency (an all-pass loop "
                                     "with unit gain), so every frequency is a gain crossover")
@@ -433,10 +438,11 @@ def scan_phase(ol: OpenLoop, grid: np.ndarray, w_hi: float) -> PhaseScan:
         # odd integers m in [lo_u, hi_u]: rule A counts (lo, hi], rule B counts [lo, hi)
         m0 = 2 * np.floor((lo_u - 1) / 2) + 1  # the largest odd integer <= lo_u, then the smallest >= lo_u
         m0 = np.where(m0 < lo_u, m0 + 2, m0)
-        count = np.where(hi_u >= m0, np.floor((hi_u - m0) / 2).astype(int) + 1, 0)
-        count = np.where(ua == ub, 0, count)
-        if count.sum() > 4 * _MAX_PHASE_CROSSOVERS:
+        with np.errstate(invalid="ignore"):  # (counted as floats: a phase of 1e300 half-turns has no int)
+            count_f = np.where((hi_u >= m0) & (ua != ub), np.floor((hi_u - m0) / 2) + 1, 0.0)
+        if not count_f.sum() <= 4 * _MAX_PHASE_CROSSOVERS:
             raise InvalidValueError(f"too many phase crossovers below {w_hi:g} rad/s to list")
+        count = count_f.astype(int)
         iv = np.repeat(np.arange(ua.size), count)
         m = m0[iv] + 2 * (np.arange(iv.size) - np.repeat(np.cumsum(count) - count, count))
         wa, wb, fa, fb = pts[iv], pts[iv + 1], ua[iv], ub[iv]

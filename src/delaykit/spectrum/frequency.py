@@ -55,11 +55,17 @@ import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop, as_loop
+from ..models.budget import MAX_FREQUENCY_DECADES, check_count
 from ..models.loop import Loop
 from ._openloop import (TWO_PI, OpenLoop, PhaseScan, cutoff_frequency, dense_grid, gain_crossovers, scan_phase,
                         newton_bracketed, snap_half_turns)
 
-__all__ = ["FrequencyResponse", "Crossover", "Margins", "frequency_response", "frequency_grid", "margins"]
+__all__ = ["FrequencyResponse", "Crossover", "Margins", "frequency_response", "frequency_grid", "margins",
+           "check_frequency_range", "MAX_DELAY_PHASE"]
+
+MAX_DELAY_PHASE = 1e12
+"""The largest phase ``w T`` (rad) of a delay that a frequency range may reach: its rounding error there, some
+1e-4 rad, is the most a response may carry."""
 
 
 # ---------------------------------------------------------------------------------------------- the loop
@@ -186,7 +192,31 @@ def frequency_grid(loop: Loop | AltitudeLoop, n: int = 500, *, wmin: float | Non
     if not hi > lo:
         raise InvalidValueError(f"the frequency range is empty or reversed: wmin = {lo:g} rad/s must be below "
                                 f"wmax = {hi:g} rad/s")
+    if wmin is not None or wmax is not None:  # (a range from the loop's own features is left as it is)
+        check_frequency_range(lo, hi, ol.T)
     return np.geomspace(lo, hi, int(n))
+
+
+def check_frequency_range(wmin: float, wmax: float, delay: float) -> None:
+    """Refuse a frequency range wider than :data:`~delaykit.models.budget.MAX_FREQUENCY_DECADES` decades, or one
+    that reaches frequencies where the delay's phase ``w T`` exceeds :data:`MAX_DELAY_PHASE` rad (there its
+    rounding, ``w T`` times 1.1e-16, leaves fewer than four digits: the response would be noise).
+
+    Examples
+    --------
+    >>> check_frequency_range(1e-3, 1e3, 0.37)
+    >>> check_frequency_range(1e-300, 1e300, 0.0)
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.InvalidValueError: the frequency range 1e-300 to 1e+300 rad/s: 600 decades, above the limit of 24 (delaykit.models.budget.MAX_FREQUENCY_DECADES); give a narrower range
+    """
+    check_count(f"the frequency range {wmin:g} to {wmax:g} rad/s", math.log10(wmax) - math.log10(wmin),
+                MAX_FREQUENCY_DECADES,
+                "decades", "give a narrower range")
+    if delay > 0 and wmax * delay > MAX_DELAY_PHASE:
+        raise InvalidValueError(f"wmax {wmax:g} rad/s is too high for the delay {delay:g} s: its phase w T = "
+                                f"{wmax * delay:.3g} rad exceeds {MAX_DELAY_PHASE:g} rad, where rounding leaves it "
+                                f"no precision; give wmax at most {MAX_DELAY_PHASE / delay:.3g} rad/s")
 
 
 def frequency_response(loop: Loop | AltitudeLoop, w: Any = None) -> FrequencyResponse:

@@ -28,12 +28,14 @@ from typing import Any, Iterable
 import numpy as np
 from scipy.special import lambertw
 
-from ..errors import InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real
 
-__all__ = ["LambertRoots", "lambert_w", "lambert_roots", "dominant_root", "kp_delay_for_damping",
+__all__ = ["LambertRoots", "MAX_BRANCH", "lambert_w", "lambert_roots", "dominant_root", "kp_delay_for_damping",
            "delay_for_damping", "complex_delays_for_root"]
 
 _E = math.e
+MAX_BRANCH = 2**31 - 1
+"""The largest branch index in size (SciPy's ``lambertw`` takes a C long, 32 bits on some systems)."""
 _NEAR = 1e-3  # |e x + 1| below this: the branch-point series replaces SciPy's value (see lambert_w)
 
 
@@ -139,12 +141,26 @@ class LambertRoots:
 
 
 def _branches(branches: Iterable[int] | int) -> tuple[int, ...]:
+    """The branch indices: integers of at most :data:`MAX_BRANCH` in size, at most
+    :data:`~delaykit.models.budget.MAX_RANGE_POINTS` of them."""
+    from ..models.budget import MAX_RANGE_POINTS, check_count
+
     if isinstance(branches, (int, np.integer)):
         branches = [int(branches)]
-    out = tuple(int(k) for k in branches)
+    if isinstance(branches, range):  # counted before it is listed (range(-10**8, 10**8) is cheap to hold)
+        check_count("branches", len(branches), MAX_RANGE_POINTS, "branches", "ask for fewer branches")
+    out: list[int] = []
+    for k in branches:
+        if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)):
+            raise InvalidTypeError(f"a Lambert W branch must be an integer, got {k!r} ({type(k).__name__})")
+        if abs(int(k)) > MAX_BRANCH:
+            raise InvalidValueError(f"Lambert W branch {int(k)} is out of range: at most {MAX_BRANCH} in size "
+                                    "(SciPy's lambertw takes a C long)")
+        out.append(int(k))
+        check_count("branches", len(out), MAX_RANGE_POINTS, "branches", "ask for fewer branches")
     if not out:
         raise InvalidValueError("branches must name at least one branch")
-    return out
+    return tuple(out)
 
 
 def _numbers(v: Any) -> np.ndarray:

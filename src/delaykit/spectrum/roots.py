@@ -38,6 +38,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..models.budget import MAX_ROOT_GRID_POINTS, check_count
 from ..models.quasipolynomial import QuasiPolynomial
 from . import _rootkernel as RK
 from .neutral import neutral_abscissa
@@ -557,6 +558,9 @@ def find_roots(
     scale = max(x1 - x0, y1 - y0)
     margin = 0.05 * scale
     search = (x0 - margin, x1 + margin, y0 - margin, y1 + margin)
+    points = ((search[1] - search[0]) / grid[0] + 3.0) * ((search[3] - search[2]) / grid[1] + 3.0)
+    check_count(f"the root search in region {tuple(box)} with the delay {taumax:g} s", points, MAX_ROOT_GRID_POINTS,
+                "grid points", "give a smaller region (the grid has some six points per 2 pi / delay along Im)")
     cand = _grid_candidates(ev, search, grid)
     if ev.real and search[2] <= 0.0 <= search[3]:
         # real roots of a real quasi-polynomial: sign changes of Q along the real axis

@@ -245,11 +245,15 @@ def rightmost(q: QuasiPolynomial | AltitudeLoop | Loop, *, re_min: float | None 
     line = max(lines) if lines else -math.inf
     closest = line + 2e-5 * unit
     x = -unit if re_min is None else check_real("re_min", re_min)
+    step = unit
     if lines:
         x = max(x, line + 0.02 * unit) if re_min is None else max(x, closest)
+    elif re_min is None:
+        free = _delay_free_scale(q)
+        if free < 0.01 * unit:  # delays far shorter than the loop's own time scale: start there, not at -1/T
+            x, step = -free, free
     R = root_bound(q, x)
-    right = max(R, x + unit)  # no root lies right of R
-    step = unit
+    right = max(R, x + step)  # no root lies right of R
     sp = search(q, (x, right, lower(R), R), lines)
     for _ in range(_MAX_STRIPS):
         if sp.roots.size or not sp.certified:
@@ -272,6 +276,21 @@ def rightmost(q: QuasiPolynomial | AltitudeLoop | Loop, *, re_min: float | None 
     return result(_merge(q, sp.region, [], (RootStatus.SAMPLE_BUDGET,
                                              f"no root found in {_MAX_STRIPS} strips down to Re s = {x:.6g}"), lines),
                   x)
+
+
+def _delay_free_scale(q: QuasiPolynomial) -> float:
+    """1 + twice the largest root magnitude of ``q`` with its delays set to 0 (the loop's time scale without the
+    delay: a loop whose delays are far shorter has its rightmost roots near these)."""
+    n = max(len(p) for p in q.polys)
+    total = np.zeros(n, dtype=complex)
+    for p in q.polys:
+        total[n - len(p):] += np.asarray(p, dtype=complex)
+    nz = np.flatnonzero(np.abs(total) > 0)
+    if nz.size == 0:
+        return 1.0
+    r = np.roots(total[nz[0]:])
+    r = r[np.isfinite(r)]
+    return 1.0 + 2.0 * float(np.max(np.abs(r))) if r.size else 1.0
 
 
 @dataclass(frozen=True, repr=False)
