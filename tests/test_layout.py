@@ -15,7 +15,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "delaykit"
 
 LAYERS = {
     "errors": 0, "_lazy": 0,
-    "models": 1,
+    "models": 1, "_native": 1,  # _native: the kernels compiled ahead of time (loads them; uses errors)
     "simulate": 2, "spectrum": 2,  # peers: neither imports the other
     "identify": 3,
     "design": 4,
