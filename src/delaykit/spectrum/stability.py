@@ -29,8 +29,8 @@ from ..models.altitude import AltitudeLoop
 from ..models.loop import Loop
 from ..models.quasipolynomial import QuasiPolynomial
 from .lambert import lambert_roots
-from .roots import (RK, _CAP, _MAX_PHASE, _RELIABLE, RootStatus, Spectrum, _Eval, _nudged_count, find_roots, neutral_lines,
-                    root_bound)
+from .roots import (RK, _CAP, _MAX_PHASE, _RELIABLE, RootStatus, Spectrum, _Eval, _nudged_count, find_roots,
+                    neutral_lines, root_bound)
 
 __all__ = ["Rightmost", "DelayMargin", "StabilityMap", "rightmost", "delay_margin", "stability_map",
            "right_half_plane_count"]
