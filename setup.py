@@ -20,7 +20,9 @@ DIRECTIVES = {"language_level": 3, "boundscheck": False, "wraparound": False, "i
 # -O3 as numba's LLVM; no -march (a wheel runs on every CPU of its platform) and no fast-math (results to rounding)
 ARGS = [] if sys.platform == "win32" else ["-O3", "-g0"]
 
-extensions = [Extension(name, [f"src/{name.replace('.', '/')}.py"], extra_compile_args=ARGS, optional=True)
-              for name in KERNELS]
+extensions = cythonize([Extension(name, [f"src/{name.replace('.', '/')}.py"], extra_compile_args=ARGS)
+                        for name in KERNELS], compiler_directives=DIRECTIVES, quiet=True)
+for ext in extensions:
+    ext.optional = True  # a failed C build warns and goes on (set after cythonize, which does not copy it)
 
-setup(ext_modules=cythonize(extensions, compiler_directives=DIRECTIVES, quiet=True))
+setup(ext_modules=extensions)

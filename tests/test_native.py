@@ -182,3 +182,25 @@ def test_the_side_by_side_benchmark_runs_and_finds_the_modes_equal(tmp_path):
     rows = json.loads(out.read_text())["rows"]
     assert len(rows) == 12 and all(r["cython"] > 0 and r["numba"] > 0 for r in rows)
     assert max(r["difference"] for r in rows) <= 1e-12
+
+
+def test_the_source_runs_where_cython_is_not_installed():
+    # an install without a C compiler has no Cython at run time either: the .py must not need it
+    code = textwrap.dedent("""
+        import sys
+        sys.modules["cython"] = None  # import cython now raises ImportError
+        import numpy as np
+        from delaykit import AltitudeLoop, _native
+        from delaykit.spectrum.roots import _Eval
+        rk = _native.load("delaykit.spectrum", "_rootkernel", "python")
+        ev = _Eval(AltitudeLoop(kp=1.31, delay=0.368).characteristic())
+        s, conv, clean = rk.newton(ev.C, ev.A, ev.tau, np.array([-1.0 + 1.0j]), 60, np.array([-1e300, 1e300] * 2))
+        print("@@", rk.COMPILED, bool(conv[0] and clean[0]), repr(complex(s[0])))
+    """)
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    compiled, converged, root = run.stdout.rpartition("@@")[2].split()
+    assert compiled == "False" and converged == "True"
+    # the root it converged to is a root of s + 1.31 exp(-0.368 s) (the paper's loop), to rounding
+    s = complex(root)
+    assert abs(s + 1.31 * np.exp(-0.368 * s)) < 1e-12
