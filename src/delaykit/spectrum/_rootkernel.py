@@ -6,7 +6,7 @@ A quasi-polynomial is held as arrays: ``C[j, :]`` the coefficients of term j (hi
 One source, three modes (:mod:`delaykit._native` loads them): compiled ahead of time by Cython when the package is
 built (the C types are in ``_rootkernel.pxd``; the extension module it makes is imported in place of this file),
 compiled by numba on first use where no extension was built, or run as plain Python.  So the code here keeps to
-what all three read alike: loops over arrays, ``math``/``cmath`` functions under the names C gives them, and arrays
+what all three read alike: loops over arrays, ``math`` functions under the names C gives them, and arrays
 made with ``np.empty``/``np.zeros`` (their memory written through a typed view when compiled by Cython).
 """
 
