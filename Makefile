@@ -11,7 +11,10 @@ $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 
-$(VENV)/.installed: $(BIN)/python pyproject.toml
+# the kernels Cython compiles at install (setup.py): editing one rebuilds its extension module
+KERNELS = $(wildcard src/delaykit/*/*.pxd) $(patsubst %.pxd,%.py,$(wildcard src/delaykit/*/*.pxd))
+
+$(VENV)/.installed: $(BIN)/python pyproject.toml setup.py $(KERNELS)
 	$(BIN)/pip install -q -e .
 	touch $@
 

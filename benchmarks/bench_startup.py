@@ -18,7 +18,16 @@ Where ``PYTHONDONTWRITEBYTECODE`` is set, Python compiles every delaykit module 
 0.1 s); ``--pycache-prefix DIR`` lets the commands cache their bytecode under DIR instead (not in the source tree),
 as an ordinary installation does. Other work on the machine slows every run: compare figures taken side by side.
 
-Run: ``python benchmarks/bench_startup.py [--runs 7] [--only NAME,...] [--pycache-prefix DIR] [--json FILE]``.
+With ``--first-calls``, the issue-24 table instead: the first call after an install, each in a fresh process with
+an empty numba cache (``NUMBA_CACHE_DIR`` pointed at a new temporary directory, so the tree's own cache is neither
+used nor disturbed), then the same command once more with that cache filled (warm). The calls: ``simulate_many``
+of the paper's 10,000 P loops (Kp = 1.31, delays uniform in [0.2, 0.5] s; import included), ``delaykit identify``
+of the heater log (tests/data/tclab), ``margins`` and ``roots`` of the paper's loop, and the Smith design of
+``1/s`` with delay 0.37 s. Each row gives the cold and warm wall times against the issue's targets; compiled
+(ahead-of-time) kernels need no cache, so for them cold and warm differ only by the disk cache.
+
+Run: ``python benchmarks/bench_startup.py [--runs 7] [--only NAME,...] [--pycache-prefix DIR] [--json FILE]``;
+``python benchmarks/bench_startup.py --first-calls [--runs 1] [--only NAME,...] [--json FILE]``.
 """
 
 from __future__ import annotations
@@ -31,6 +40,7 @@ import shutil
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from collections import Counter
 from pathlib import Path
@@ -52,6 +62,21 @@ TARGET = {"help": 0.5, "simulate": 0.5, "simulate-general": 0.5}  # seconds, fro
 BREAKDOWN = ("help", "simulate", "simulate-general")  # the commands whose imports are broken down
 HEAVY = ("numba", "scipy", "matplotlib", "pydantic", "rich.console")  # not needed by a short simulation
 PACKAGES = ("numpy", "typer", "rich", "pydantic", "delaykit", "numba", "scipy", "matplotlib")
+ROOT = Path(__file__).resolve().parents[1]
+HEATER = ROOT / "tests" / "data" / "tclab" / "step_test.csv"
+P_LOOPS = ("import time; t0 = time.perf_counter(); import numpy as np, delaykit as dk; "
+           "td = np.random.default_rng(2024).uniform(0.2, 0.5, 10_000); "
+           "b = dk.simulate_many(dk.AltitudeLoop(kp=1.31, delay=0.3), delay=td); "
+           "assert b.overshoot.shape == (10_000,); print(time.perf_counter() - t0)")
+FIRST_CALLS = {  # name: (argv after the interpreter or the delaykit command, whether it is delaykit's CLI)
+    "simulate_many": (["-c", P_LOOPS], False),
+    "identify": (["identify", str(HEATER), "--u-before", "0", "--model", "auto", "--json"], True),
+    "margins": (["margins", *LOOP], True),
+    "roots": (["roots", *LOOP], True),
+    "smith": (["design", "--plant", "1/s", "--delay", "0.37", "--compensator", "smith", "--json"], True),
+}
+FIRST_TARGET = {"simulate_many": (5.0, None), "identify": (5.0, 1.0), "margins": (2.0, None), "roots": (2.0, None),
+                "smith": (5.0, None)}  # (cold, warm) seconds, from issue 24
 _IMPORT_LINE = re.compile(r"import time:\s+(\d+) \|\s+(\d+) \| (\s*)(\S+)")
 
 
@@ -103,9 +128,43 @@ def import_breakdown(args: list[str], env: dict[str, str]) -> dict[str, object]:
             "modules": len(names), "heavy_loaded": {h: h in names for h in HEAVY}}
 
 
+def first_calls(names: list[str], runs: int, json_path: Path | None) -> None:
+    """The issue-24 table: each call cold (a fresh, empty numba cache) and then warm (that cache), fresh processes."""
+    base = delaykit_command()
+    results = {}
+    for name in names:
+        tail, cli = FIRST_CALLS[name]
+        argv = (base + tail) if cli else [sys.executable, *tail]
+        cold, warm = [], []
+        for _ in range(runs):
+            with tempfile.TemporaryDirectory(prefix="numba-cold-") as cache:
+                env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+                cold.append(run_once(argv, env)[0])
+                warm.append(run_once(argv, env)[0])
+        results[name] = {"command": " ".join(["delaykit" if cli else "python", *tail[:1 if not cli else None]]),
+                         "cold": statistics.median(cold), "warm": statistics.median(warm), "runs": runs,
+                         "cold_target": FIRST_TARGET[name][0], "warm_target": FIRST_TARGET[name][1]}
+    console = Console(width=max(Console().width, 120))
+    table = Table(title=f"First calls in fresh processes (issue 24): empty numba cache, then warm "
+                        f"(median of {runs}; load {os.getloadavg()[0]:.1f})")
+    for col in ("call", "cold s", "target s", "warm s", "warm target s"):
+        table.add_column(col, justify="left" if col == "call" else "right", overflow="fold")
+    for name, r in results.items():
+        wt = r["warm_target"]
+        table.add_row(name, f"{r['cold']:.2f}", f"{r['cold_target']:.1f}", f"{r['warm']:.2f}",
+                      "–" if wt is None else f"{wt:.1f}")
+    console.print(table)
+    if json_path is not None:
+        doc = {"python": sys.version.split()[0], "load": os.getloadavg(), "first_calls": results}
+        json_path.write_text(json.dumps(doc, indent=2) + "\n")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--runs", type=int, default=7, help="Timed runs per command (after one untimed warm-up run).")
+    ap.add_argument("--first-calls", action="store_true",
+                    help="Time the issue-24 first calls (empty numba cache, then warm) instead of the start-up.")
+    ap.add_argument("--runs", type=int, default=None,
+                    help="Timed runs per command (after one untimed warm-up run); default 7, with --first-calls 1.")
     ap.add_argument("--only", default=None,
                     help=f"Comma-separated commands to time, of {', '.join(COMMANDS)} (default: all).")
     ap.add_argument("--json", type=Path, default=None, help="Also write the results here as JSON.")
@@ -113,8 +172,16 @@ def main() -> None:
                     help="Cache the commands' bytecode under this directory (PYTHONPYCACHEPREFIX), even where "
                          "PYTHONDONTWRITEBYTECODE is set.")
     args = ap.parse_args()
+    if args.runs is None:
+        args.runs = 1 if args.first_calls else 7
     if args.runs < 1:
         ap.error("--runs must be at least 1")
+    if args.first_calls:
+        picked = list(FIRST_CALLS) if args.only is None else [n.strip() for n in args.only.split(",") if n.strip()]
+        if not picked or any(n not in FIRST_CALLS for n in picked):
+            ap.error(f"with --first-calls, --only takes names of {', '.join(FIRST_CALLS)}; got {args.only!r}")
+        first_calls(picked, args.runs, args.json)
+        return
     names = list(COMMANDS) if args.only is None else [n.strip() for n in args.only.split(",") if n.strip()]
     unknown = [n for n in names if n not in COMMANDS]
     if unknown or not names:

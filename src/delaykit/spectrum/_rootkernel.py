@@ -2,24 +2,66 @@
 
 A quasi-polynomial is held as arrays: ``C[j, :]`` the coefficients of term j (highest degree first, padded),
 ``A = |C|``, and ``tau[j]`` its delay.  ``qeval`` returns Q, Q' and a bound on the rounding error of Q.
+
+One source, three modes (:mod:`delaykit._native` loads them): compiled ahead of time by Cython when the package is
+built (the C types are in ``_rootkernel.pxd``; the extension module it makes is imported in place of this file),
+compiled by numba on first use where no extension was built, or run as plain Python.  So the code here keeps to
+what all three read alike: loops over arrays, ``math`` functions under the names C gives them, and arrays
+made with ``np.empty``/``np.zeros`` (their memory written through a typed view when compiled by Cython).
 """
 
 from __future__ import annotations
 
-import cmath
-import math
-
 import numpy as np
-from numba import njit
 
-__all__ = ["qeval", "contour", "newton", "grid_minima"]
+try:
+    import cython
+except ImportError:  # plain Python without Cython installed: only ``cython.compiled`` is read
+    from types import SimpleNamespace
+
+    cython = SimpleNamespace(compiled=False)
+
+if cython.compiled:  # C's own functions (Cython turns these imports into cimports)
+    from cython.cimports.libc.math import HUGE_VAL, atan2, ceil, cos, exp, log, pi, sin
+else:
+    from math import atan2, ceil, cos, exp, log, pi, sin
+    from math import inf as HUGE_VAL
+
+__all__ = ["qeval", "contour", "newton", "grid_minima", "bound", "COMPILED"]
+
+COMPILED: bool = cython.compiled
+"""Whether this module is the extension module Cython built (False: this file, run by Python or numba)."""
 
 _EPS = 2.220446049250313e-16
 
 
-@njit(cache=True)
+def cexp(z):
+    """exp(z) of a complex z from real functions, as C's cexp for finite z (and portable to C compilers without
+    C99's complex functions, such as MSVC)."""
+    r = exp(z.real)
+    return r * cos(z.imag) + 1j * (r * sin(z.imag))
+
+
+def _ipow(a, n):
+    """``a ** n`` for a whole ``n >= 0`` by repeated squaring: the product numba forms for a float to an integer
+    power, written out so that every mode rounds alike (C's ``pow`` rounds otherwise)."""
+    r = 1.0
+    while n != 0:
+        if n & 1:
+            r *= a
+        n >>= 1
+        a *= a
+    return r
+
+
+def clog(z):
+    """The principal log(z) of a complex z, from real functions (as :func:`cexp`)."""
+    return log(abs(z)) + 1j * atan2(z.imag, z.real)
+
+
 def qeval(C, A, tau, s):
-    nt, n1 = C.shape
+    nt = C.shape[0]
+    n1 = C.shape[1]
     Q = 0j
     dQ = 0j
     nz = 0.0
@@ -32,14 +74,13 @@ def qeval(C, A, tau, s):
             dp = dp * s + p
             p = p * s + C[j, k]
             pa = pa * abs_s + A[j, k]
-        e = cmath.exp(-s * tau[j])
+        e = cexp(-s * tau[j])
         Q += p * e
         dQ += (dp - tau[j] * p) * e
         nz += pa * abs(e)
     return Q, dQ, (n1 + 1) * _EPS * nz
 
 
-@njit(cache=True)
 def contour(C, A, tau, corners, n_init, max_phase, reliable, cap, out_s, out_dl):
     """Adaptive phase tracking around the closed polygon ``corners``.
 
@@ -99,7 +140,7 @@ def contour(C, A, tau, corners, n_init, max_phase, reliable, cap, out_s, out_dl)
             qb = wb[top]
             r_a = ra[top]
             r_b = rb[top]
-            dl = cmath.log(qb / qa)
+            dl = clog(qb / qa)
             h = abs(b - a)
             need = max(max(abs(dl.imag), h * max(r_a, r_b)) / max_phase, abs(dl.real) / 2.0)
             if need <= 1.0:
@@ -111,7 +152,7 @@ def contour(C, A, tau, corners, n_init, max_phase, reliable, cap, out_s, out_dl)
                 if m > cap:
                     return 2, total, m, a
                 continue
-            k = int(math.ceil(1.5 * need))
+            k = int(ceil(1.5 * need))
             k = max(2, min(64, k))
             if top + k >= size:  # refinement deeper than 64 levels
                 return 2, total, m, a
@@ -142,26 +183,25 @@ def contour(C, A, tau, corners, n_init, max_phase, reliable, cap, out_s, out_dl)
             wb[top] = nxt_w
             rb[top] = nxt_r
             top += 1
-    return 0, total / (2.0 * math.pi), m, 0j
+    return 0, total / (2.0 * pi), m, 0j
 
 
-@njit(cache=True)
 def newton(C, A, tau, s0, maxit, box):
     """Newton from each start.  Returns points, converged flags, and clean flags (a vanishing step)."""
     n = s0.shape[0]
     out = np.empty(n, np.complex128)
-    conv = np.zeros(n, np.bool_)
-    clean = np.zeros(n, np.bool_)
+    conv = np.zeros(n, np.uint8)  # flags as bytes (Cython writes them through a typed view), bool on return
+    clean = np.zeros(n, np.uint8)
     x0, x1, y0, y1 = box[0], box[1], box[2], box[3]
     for i in range(n):
         s = s0[i]
         for _ in range(maxit):
             Q, dQ, nz = qeval(C, A, tau, s)
             if abs(Q) <= nz:
-                conv[i] = True
+                conv[i] = 1
                 # at the noise floor a simple root still has a tiny Newton step; a multiple root does not
                 if dQ != 0 and abs(Q / dQ) <= 1e-10 * (1.0 + abs(s)):
-                    clean[i] = True
+                    clean[i] = 1
                 break
             if dQ == 0:
                 break
@@ -170,33 +210,33 @@ def newton(C, A, tau, s0, maxit, box):
             if not (abs(s) < 1e8):
                 break
             if abs(step) <= 64 * _EPS * (1.0 + abs(s)):
-                conv[i] = True
-                clean[i] = True
+                conv[i] = 1
+                clean[i] = 1
                 break
             if s.real < x0 or s.real > x1 or s.imag < y0 or s.imag > y1:
                 break
         out[i] = s
-    return out, conv, clean
+    return np.asarray(out), np.asarray(conv) != 0, np.asarray(clean) != 0
 
 
-@njit(cache=True)
 def grid_minima(C, tau, xs, ys):
     """Grid nodes (interior) where |Q| is not larger than at any of the 8 neighbours."""
     nx = xs.shape[0]
     ny = ys.shape[0]
-    nt, n1 = C.shape
+    nt = C.shape[0]
+    n1 = C.shape[1]
     # exp(-(x + i y) tau) = exp(-x tau) exp(-i y tau): one factor per column and one per row
     EX = np.empty((nt, nx))
     EY = np.empty((nt, ny), np.complex128)
     for j in range(nt):
         for ix in range(nx):
-            EX[j, ix] = math.exp(-xs[ix] * tau[j]) if -xs[ix] * tau[j] < 700.0 else np.inf
+            EX[j, ix] = exp(-xs[ix] * tau[j]) if -xs[ix] * tau[j] < 700.0 else HUGE_VAL
         for iy in range(ny):
-            EY[j, iy] = cmath.exp(-1j * ys[iy] * tau[j])
+            EY[j, iy] = cexp(-1j * ys[iy] * tau[j])
     V = np.empty((ny, nx))
     for iy in range(ny):
         for ix in range(nx):
-            s = complex(xs[ix], ys[iy])
+            s = xs[ix] + 1j * ys[iy]
             Q = 0j
             for j in range(nt):
                 p = 0j
@@ -204,13 +244,13 @@ def grid_minima(C, tau, xs, ys):
                     p = p * s + C[j, k]
                 Q += p * (EX[j, ix] * EY[j, iy])
             a = abs(Q)
-            V[iy, ix] = a if a == a and a < np.inf else np.inf
+            V[iy, ix] = a if a == a and a < HUGE_VAL else HUGE_VAL
     out = np.empty(nx * ny, np.complex128)
     k = 0
     for iy in range(1, ny - 1):
         for ix in range(1, nx - 1):
             v = V[iy, ix]
-            if v == np.inf:
+            if v == HUGE_VAL:
                 continue
             ok = True
             for di in range(-1, 2):
@@ -218,6 +258,58 @@ def grid_minima(C, tau, xs, ys):
                     if (di != 0 or dj != 0) and V[iy + di, ix + dj] < v:
                         ok = False
             if ok:
-                out[k] = complex(xs[ix], ys[iy])
+                out[k] = xs[ix] + 1j * ys[iy]
                 k += 1
-    return out[:k]
+    return np.asarray(out)[:k]
+
+
+def bound(C, tau, x):
+    """The smallest ``R`` with ``|Q(s)| > 0`` for ``|s| >= R``, ``Re s >= x`` (Cauchy's form of
+    :func:`~delaykit.spectrum.roots.root_bound`: the positive root of ``lead - sum rest_k r^-k``, which increases
+    in ``r``), or -1 where no such bound exists (no delay-free term of positive degree, neutral chains at or
+    right of ``x``, or an advanced term)."""
+    nt = C.shape[0]
+    n1 = C.shape[1]
+    p0 = np.zeros(n1, np.complex128)
+    oth = np.zeros(n1)
+    for j in range(nt):
+        if tau[j] == 0.0:
+            for k in range(n1):
+                p0[k] += C[j, k]
+        else:
+            g = -x * tau[j]
+            if g > 700.0:
+                return -1.0
+            for k in range(n1):
+                oth[k] += abs(C[j, k]) * exp(g)
+    k0 = -1
+    for k in range(n1):
+        if p0[k] != 0:
+            k0 = k
+            break
+    if k0 < 0 or k0 == n1 - 1:
+        return -1.0
+    for k in range(k0):
+        if oth[k] != 0.0:
+            return -1.0
+    lead = abs(p0[k0]) - oth[k0]
+    if not lead > 0.0:
+        return -1.0
+    hi = 0.0
+    for k in range(1, n1 - k0):  # Fujiwara's bound: g(hi) > 0
+        hi = max(hi, 2.0 * (((abs(p0[k0 + k]) + oth[k0 + k]) / lead) ** (1.0 / k)))
+    if hi == 0.0:
+        return 1e-12
+    lo = 0.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        g = lead
+        for k in range(1, n1 - k0):
+            g -= (abs(p0[k0 + k]) + oth[k0 + k]) * (1.0 / _ipow(mid, k))  # mid ** -k, as numba forms it
+        if g > 0.0:
+            hi = mid
+        else:
+            lo = mid
+        if hi - lo <= 1e-12 * hi:
+            break
+    return hi

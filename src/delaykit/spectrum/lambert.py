@@ -26,7 +26,6 @@ from dataclasses import dataclass
 from typing import Any, Iterable
 
 import numpy as np
-from scipy.special import lambertw
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 
@@ -53,6 +52,8 @@ def lambert_w(x: Any, k: int = 0) -> np.ndarray:
     >>> complex(lambert_w(-1 / np.e, 0)), complex(lambert_w(-1 / np.e, -1))
     ((-1+0j), (-1+0j))
     """
+    from scipy.special import lambertw  # on first use: importing scipy.special costs roots and margins 0.3 to 1 s
+
     x = np.asarray(x)
     if x.dtype.kind not in "fc":
         x = x.astype(float)

@@ -37,11 +37,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from .. import _native
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.budget import MAX_ROOT_GRID_POINTS, check_count
 from ..models.quasipolynomial import QuasiPolynomial
-from . import _rootkernel as RK
 from .neutral import neutral_abscissa
+
+RK = _native.load("delaykit.spectrum", "_rootkernel")  # the compiled root-finding kernels (Cython, else numba)
 
 __all__ = ["RootStatus", "Spectrum", "find_roots", "neutral_lines", "root_bound"]
 

@@ -22,16 +22,15 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
-from numba import njit
 
+from .. import _native
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop
 from ..models.loop import Loop
 from ..models.quasipolynomial import QuasiPolynomial
-from . import _rootkernel as RK
 from .lambert import lambert_roots
-from .roots import (_CAP, _MAX_PHASE, _RELIABLE, RootStatus, Spectrum, _Eval, _nudged_count, find_roots, neutral_lines,
-                    root_bound)
+from .roots import (RK, _CAP, _MAX_PHASE, _RELIABLE, RootStatus, Spectrum, _Eval, _nudged_count, find_roots,
+                    neutral_lines, root_bound)
 
 __all__ = ["Rightmost", "DelayMargin", "StabilityMap", "rightmost", "delay_margin", "stability_map",
            "right_half_plane_count"]
@@ -451,57 +450,6 @@ def _position(grid: np.ndarray, value: Any) -> Any:
 _NOWHERE = np.array([-1e300, 1e300, -1e300, 1e300])
 
 
-@njit(cache=True)
-def _bound_kernel(C, tau, x):  # pragma: no cover - compiled
-    """The smallest ``R`` with ``|Q(s)| > 0`` for ``|s| >= R``, ``Re s >= x`` (Cauchy's form of
-    :func:`~delaykit.spectrum.roots.root_bound`: the positive root of ``lead - sum rest_k r^-k``, which increases
-    in ``r``), or -1 where no such bound exists (no delay-free term of positive degree, neutral chains at or
-    right of ``x``, or an advanced term)."""
-    nt, n1 = C.shape
-    p0 = np.zeros(n1, np.complex128)
-    oth = np.zeros(n1)
-    for j in range(nt):
-        if tau[j] == 0.0:
-            p0 += C[j]
-        else:
-            g = -x * tau[j]
-            if g > 700.0:
-                return -1.0
-            oth += np.abs(C[j]) * math.exp(g)
-    k0 = -1
-    for k in range(n1):
-        if p0[k] != 0:
-            k0 = k
-            break
-    if k0 < 0 or k0 == n1 - 1:
-        return -1.0
-    for k in range(k0):
-        if oth[k] != 0.0:
-            return -1.0
-    lead = abs(p0[k0]) - oth[k0]
-    if not lead > 0.0:
-        return -1.0
-    hi = 0.0
-    for k in range(1, n1 - k0):  # Fujiwara's bound: g(hi) > 0
-        hi = max(hi, 2.0 * (((abs(p0[k0 + k]) + oth[k0 + k]) / lead) ** (1.0 / k)))
-    if hi == 0.0:
-        return 1e-12
-    lo = 0.0
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        g = lead
-        for k in range(1, n1 - k0):
-            g -= (abs(p0[k0 + k]) + oth[k0 + k]) * mid ** (-k)
-        if g > 0.0:
-            hi = mid
-        else:
-            lo = mid
-        if hi - lo <= 1e-12 * hi:
-            break
-    return hi
-
-
-@njit(cache=True, nogil=True)
 def _track(W, nt, n1, k0, starts, nstart, sym, absc, max_phase, reliable, cap):  # pragma: no cover - compiled
     """Points ``k0, k0 + 1, ...`` of ``W`` (one quasi-polynomial a row, as :func:`_flat`), each from Newton's
     method started at the previous point's roots right of its abscissa (``starts[:nstart]``, updated), confirmed by
@@ -521,7 +469,7 @@ def _track(W, nt, n1, k0, starts, nstart, sym, absc, max_phase, reliable, cap): 
                 C[i, j] = complex(W[k, 2 * (i * n1 + j)], W[k, 2 * (i * n1 + j) + 1])
                 A[i, j] = abs(C[i, j])
             tau[i] = W[k, 2 * nt * n1 + i]
-        s, conv, clean = RK.newton(C, A, tau, starts[:nstart], 60, _NOWHERE)
+        s, conv, clean = RKN.newton(C, A, tau, starts[:nstart], 60, _NOWHERE)
         nf = 0
         for i in range(nstart):
             if not (conv[i] and clean[i]):
@@ -545,7 +493,7 @@ def _track(W, nt, n1, k0, starts, nstart, sym, absc, max_phase, reliable, cap): 
             if found[m].real > top.real or (found[m].real == top.real and found[m].imag > top.imag):
                 top = found[m]
         x = top.real - 1e-6 * (1.0 + abs(top))
-        R = _bound_kernel(C, tau, x)
+        R = RKN.bound(C, tau, x)
         if R < 0.0:
             return k, nstart
         R = max(R, abs(top)) * (1.0 + 1e-9) + 1e-12
@@ -557,7 +505,7 @@ def _track(W, nt, n1, k0, starts, nstart, sym, absc, max_phase, reliable, cap): 
             total_init += n_init[e]
         if total_init > cap:
             return k, nstart
-        status, total, _, _ = RK.contour(C, A, tau, cs, n_init, max_phase, reliable, cap, buf, buf2)
+        status, total, _, _ = RKN.contour(C, A, tau, cs, n_init, max_phase, reliable, cap, buf, buf2)
         want = 0
         for m in range(nf):
             if found[m].real > x and found[m].imag > y0:
@@ -571,6 +519,25 @@ def _track(W, nt, n1, k0, starts, nstart, sym, absc, max_phase, reliable, cap): 
                 starts[nstart] = found[m]
                 nstart += 1
     return W.shape[0], nstart
+
+
+RKN: Any = None  # the root kernel compiled by numba, which _track calls (set by _tracker)
+_tracked: list[Callable[..., tuple[int, int]]] = []
+_tracker_lock = threading.Lock()
+
+
+def _tracker() -> Callable[..., tuple[int, int]]:
+    """:func:`_track` compiled by numba on first use (then loaded from numba's cache).  A stability map's loop is
+    still numba's: it calls the root kernel's numba copy (:func:`delaykit._native.load`), so numba is imported only
+    by a stability map, not by roots or margins, which call the kernel compiled ahead of time."""
+    global RKN
+    with _tracker_lock:
+        if not _tracked:
+            from numba import njit
+
+            RKN = _native.load("delaykit.spectrum", "_rootkernel", "numba")
+            _tracked.append(njit(cache=True, nogil=True)(_track))
+    return _tracked[0]
 
 
 def right_half_plane_count(q: QuasiPolynomial) -> int | None:
@@ -591,7 +558,7 @@ def right_half_plane_count(q: QuasiPolynomial) -> int | None:
 
 def _rhp_count(C: np.ndarray, tau: np.ndarray) -> int | None:
     """:func:`right_half_plane_count` on the root finder's arrays (:func:`_arrays`)."""
-    R = _bound_kernel(C, tau, 0.0)
+    R = RK.bound(C, tau, 0.0)
     if R < 0.0:
         return None
     R = R * (1.0 + 1e-9) + 1e-12
@@ -705,7 +672,7 @@ def stability_map(
             sym = not np.any(coef[:, 1:2 * shape[0] * shape[1]:2])
         while k < ii.size:
             if nstart and family is not None:  # as far as the points are confirmed
-                stop, nstart = _track(W, shape[0], shape[1], k, starts, nstart, sym, absc, _MAX_PHASE, _RELIABLE,
+                stop, nstart = track(W, shape[0], shape[1], k, starts, nstart, sym, absc, _MAX_PHASE, _RELIABLE,
                                       _CAP)
                 tick(stop - k)
                 k = stop
@@ -714,7 +681,7 @@ def stability_map(
             C, tau = point(ii[k], jj[k])
             if nstart and family is None:
                 one = np.full(1, np.nan)
-                ok, nstart = _track(_flat(C, tau)[None, :], C.shape[0], C.shape[1], 0, starts, nstart,
+                ok, nstart = track(_flat(C, tau)[None, :], C.shape[0], C.shape[1], 0, starts, nstart,
                                     not np.any(C.imag), one, _MAX_PHASE, _RELIABLE, _CAP)
                 if ok:
                     absc[k] = one[0]
@@ -730,7 +697,8 @@ def stability_map(
             tick(1)
         out[ii, jj] = absc
 
-    _track(np.zeros((0, 2)), 1, 1, 0, np.zeros(1, complex), 0, True, np.zeros(0), _MAX_PHASE, _RELIABLE, _CAP)
+    track = _tracker()
+    track(np.zeros((0, 2)), 1, 1, 0, np.zeros(1, complex), 0, True, np.zeros(0), _MAX_PHASE, _RELIABLE, _CAP)
     if n_workers == 1:
         block(0, ys.size)
     else:

@@ -1,0 +1,176 @@
+"""Benchmark: the root-finding kernel compiled ahead of time by Cython against the same source compiled by numba.
+
+Both are ``spectrum/_rootkernel.py``: the extension module that ``pip install`` builds (:mod:`delaykit._native`,
+``setup.py``) and numba's copy of the same file, side by side in this one process.  For each kernel on a realistic
+input (the quasi-polynomials of the paper's P loop and of a PI loop on a lagged integrator; a contour around a large
+rectangle, Newton from a grid of starts, the grid scan for starting points, the root bound), and for the library
+calls that use them (``find_roots``, ``rightmost``, ``margins``), the table gives the least CPU time of the calling
+thread over ``--repeat`` runs for each (all run on that one thread) and their ratio (numba / Cython: above 1,
+Cython is faster), and the largest difference of the results (relative, over all outputs; the test suite checks
+1e-12).  numba's compilation is timed apart (its first call, cached or not as the cache is), and so is the Cython
+extension's first call.
+
+Other work on the machine slows both (less so their CPU time than their wall time): the ratio, taken side by side,
+is the figure to read.
+
+Run: ``python benchmarks/bench_native.py [--repeat 25] [--json FILE]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+from delaykit import AltitudeLoop, Controller, Loop, _native
+from delaykit.spectrum import roots as R
+from delaykit.spectrum import stability as S
+from delaykit.spectrum.frequency import margins
+from delaykit.spectrum.roots import _Eval
+
+PAPER = AltitudeLoop(kp=1.31, delay=0.368)
+PI_LOOP = Loop("1/(s*(0.05*s+1))", Controller.pi(0.8, 0.15), delay=0.37)
+
+
+def best(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:
+    """Least CPU time of this thread over ``repeat`` calls, and the last result.  (Every case runs on this one
+    thread; its CPU time is far steadier than the wall time on a machine shared with other work.)"""
+    times, out = [], None
+    for _ in range(repeat):
+        t0 = time.thread_time()
+        out = fn()
+        times.append(time.thread_time() - t0)
+    return min(times), out
+
+
+def flat(x: Any) -> np.ndarray:
+    """Every number of a result, as one complex array (for the difference)."""
+    if isinstance(x, (tuple, list)):
+        parts = [flat(v) for v in x]
+        return np.concatenate(parts) if parts else np.zeros(0, complex)
+    if hasattr(x, "to_dict"):
+        return flat([v for v in _numbers(x.to_dict())])
+    return np.atleast_1d(np.asarray(x, dtype=complex)).ravel()
+
+
+def _numbers(d: Any) -> list[Any]:
+    if isinstance(d, dict):
+        return [n for v in d.values() for n in _numbers(v)]
+    if isinstance(d, (list, tuple)):
+        return [n for v in d for n in _numbers(v)]
+    return [d] if isinstance(d, (int, float, complex)) and not isinstance(d, bool) and d is not None else []
+
+
+def difference(a: Any, b: Any) -> float:
+    fa, fb = flat(a), flat(b)
+    if fa.shape != fb.shape:
+        return float("inf")
+    if fa.size == 0:
+        return 0.0
+    both = np.isfinite(fa) & np.isfinite(fb)
+    if not np.array_equal(both, np.isfinite(fa)):
+        return float("inf")
+    return float(np.max(np.abs(fa[both] - fb[both]) / np.maximum(1.0, np.abs(fb[both])), initial=0.0))
+
+
+def kernel_cases(rk: Any) -> dict[str, Callable[[], Any]]:
+    """Each kernel on a large input, for the kernel module ``rk``."""
+    cases: dict[str, Callable[[], Any]] = {}
+    for label, loop in (("paper", PAPER), ("PI", PI_LOOP)):
+        ev = _Eval(loop.characteristic())
+        corners = np.array([-30 - 400j, 5 - 400j, 5 + 400j, -30 + 400j])
+        n_init = np.array([8 + int(abs(corners[(i + 1) % 4] - corners[i]) * (ev.tau.max() + 0.25) / R._MAX_PHASE)
+                           for i in range(4)], dtype=np.int64)
+        size = 4 * int(n_init.sum()) + 4096
+        out_s, out_dl = np.empty(size, complex), np.empty(size, complex)
+        xs, ys = np.linspace(-30, 5, 301), np.linspace(-200, 200, 801)
+        starts = (xs[::10][:, None] + 1j * ys[::10][None, :]).ravel()
+        box = np.array([-1e300, 1e300, -1e300, 1e300])
+        C, A, tau = ev.C, ev.A, ev.tau
+        cases[f"contour ({label}, {size} slots)"] = (
+            lambda C=C, A=A, tau=tau, n_init=n_init, out_s=out_s, out_dl=out_dl, corners=corners:
+            rk.contour(C, A, tau, corners, n_init, R._MAX_PHASE, R._RELIABLE, R._CAP, out_s, out_dl)[:3])
+        cases[f"newton ({label}, {starts.size} starts)"] = (
+            lambda C=C, A=A, tau=tau, starts=starts, box=box: rk.newton(C, A, tau, starts, 60, box))
+        cases[f"grid_minima ({label}, {xs.size}x{ys.size})"] = (
+            lambda C=C, tau=tau, xs=xs, ys=ys: rk.grid_minima(C, tau, xs, ys))
+        cases[f"bound ({label}) x1000"] = lambda C=C, tau=tau: [rk.bound(C, tau, -0.5 * i) for i in range(1000)]
+    return cases
+
+
+def library_cases() -> dict[str, Callable[[], Any]]:
+    """The library calls, with whichever kernel module ``roots.RK`` is now."""
+    return {
+        "find_roots (paper, [-20, 1] x [-60, 60])":
+            lambda: R.find_roots(PAPER.characteristic(), (-20, 1, -60, 60)).roots,
+        "rightmost (PI loop)": lambda: S.rightmost(PI_LOOP),
+        "margins (PI loop)": lambda: margins(PI_LOOP),
+        "margins (paper)": lambda: margins(PAPER),
+    }
+
+
+def use(rk: Any) -> None:
+    R.RK = rk
+    S.RK = rk
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=25, help="Runs of each case; the fastest is kept.")
+    ap.add_argument("--json", type=Path, default=None, help="Also write the results here as JSON.")
+    args = ap.parse_args()
+    if not _native.built("delaykit.spectrum", "_rootkernel"):
+        raise SystemExit("the Cython extension of delaykit.spectrum._rootkernel is not built: run `make` or "
+                         "`pip install -e .` first")
+    cy = _native.load("delaykit.spectrum", "_rootkernel", "cython")
+    t0 = time.perf_counter()
+    next(iter(kernel_cases(cy).values()))()
+    cy_first = time.perf_counter() - t0
+    nb = _native.load("delaykit.spectrum", "_rootkernel", "numba")
+    t0 = time.perf_counter()
+    for fn in kernel_cases(nb).values():  # compiles (or loads from numba's cache) every kernel
+        fn()
+    nb_first = time.perf_counter() - t0
+
+    rows = []
+    for (name, f_cy), f_nb in zip(kernel_cases(cy).items(), kernel_cases(nb).values()):
+        t_cy, r_cy = best(f_cy, args.repeat)
+        t_nb, r_nb = best(f_nb, args.repeat)
+        rows.append({"case": name, "cython": t_cy, "numba": t_nb, "ratio": t_nb / t_cy,
+                     "difference": difference(r_cy, r_nb)})
+    for name in library_cases():
+        use(cy)
+        t_cy, r_cy = best(library_cases()[name], args.repeat)
+        use(nb)
+        t_nb, r_nb = best(library_cases()[name], args.repeat)
+        use(cy)
+        rows.append({"case": name, "cython": t_cy, "numba": t_nb, "ratio": t_nb / t_cy,
+                     "difference": difference(r_cy, r_nb)})
+
+    console = Console(width=max(Console().width, 120))
+    table = Table(title=f"Root kernel: Cython (ahead of time) against numba, same source, least CPU time of "
+                        f"{args.repeat} (load {os.getloadavg()[0]:.1f})")
+    for col in ("case", "Cython ms", "numba ms", "numba / Cython", "largest rel. difference"):
+        table.add_column(col, justify="left" if col == "case" else "right")
+    for r in rows:
+        table.add_row(r["case"], f"{1e3 * r['cython']:.3f}", f"{1e3 * r['numba']:.3f}", f"{r['ratio']:.2f}",
+                      f"{r['difference']:.1e}")
+    console.print(table)
+    console.print(f"first call: Cython {cy_first * 1e3:.1f} ms (nothing compiled); numba {nb_first:.1f} s "
+                  "(compiling, or loading numba's cache where it has the kernels)")
+    if args.json is not None:
+        doc = {"python": sys.version.split()[0], "load": os.getloadavg(), "repeat": args.repeat,
+               "cython_first_call": cy_first, "numba_first_call": nb_first, "rows": rows}
+        args.json.write_text(json.dumps(doc, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()

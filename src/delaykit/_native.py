@@ -1,0 +1,129 @@
+"""Kernels compiled ahead of time: one Python source, run as a Cython extension, by numba, or as plain Python.
+
+A kernel module written for this (``spectrum/_rootkernel.py``: loops over arrays, C's math functions, no
+decorators) sits beside a ``.pxd`` file that gives its C types.  When the package is built (``pip install``,
+``make``), ``setup.py`` has Cython compile it to an extension module, which Python imports in place of the
+``.py``: no compilation at run time, so the first call is as fast as the thousandth.  The same file still runs
+without the extension:
+
+* ``"cython"``: the extension module (:data:`COMPILED` true in it);
+* ``"numba"``: the source loaded under the name ``<module>_numba`` with every function it defines compiled by
+  numba on first use (and cached), as before the extension existed; numba code that calls a kernel (a compiled
+  loop elsewhere) needs this copy;
+* ``"python"``: the source loaded under ``<module>_python`` and run by the interpreter (slow; for checking).
+
+:func:`load` gives the extension where it was built and numba's copy where it was not (an install without a C
+compiler).  The environment variable ``DELAYKIT_KERNELS`` (``cython``, ``numba`` or ``python``) chooses for the
+whole process, for comparisons.  This module is private.
+
+Examples
+--------
+>>> from delaykit import _native
+>>> _native.load("delaykit.spectrum", "_rootkernel", "python").__name__
+'delaykit.spectrum._rootkernel_python'
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import inspect
+import os
+import sys
+import warnings
+from pathlib import Path
+from types import ModuleType
+
+from .errors import InvalidValueError
+
+__all__ = ["MODES", "load", "built", "StaleExtensionWarning"]
+
+MODES = ("cython", "numba", "python")
+_loaded: dict[tuple[str, str], ModuleType] = {}
+
+
+class StaleExtensionWarning(UserWarning):
+    """A kernel's extension module was built from an older source than the one beside it (see :func:`built`)."""
+
+
+def built(package: str, name: str) -> bool:
+    """Whether the kernel module ``package.name`` was compiled to an extension module when the package was built,
+    from its present source.
+
+    An extension older than its ``.py`` or ``.pxd`` (a kernel edited in a working copy since ``make`` built it)
+    does not count: it warns, saying how to rebuild, and numba compiles the source meanwhile.
+
+    Examples
+    --------
+    >>> isinstance(built("delaykit.spectrum", "_rootkernel"), bool)
+    True
+    """
+    mod = importlib.import_module(f"{package}.{name}")
+    if not getattr(mod, "COMPILED", False):
+        return False
+    stale = _newer_sources(Path(mod.__file__ or ""), name)
+    if stale:
+        warnings.warn(f"the compiled {package}.{name} is older than {stale[0]}: rebuild it (`make`, or "
+                      "`pip install -e .`); numba compiles the source until then", StaleExtensionWarning, stacklevel=2)
+        return False
+    return True
+
+
+def _newer_sources(ext: Path, name: str) -> list[str]:
+    """The source files of kernel ``name`` (``.py``, ``.pxd``) written after its extension module ``ext``."""
+    # a wheel's files are all written at its install, within moments of each other: a margin of 2 s
+    return [f.name for f in (ext.with_name(f"{name}.py"), ext.with_name(f"{name}.pxd"))
+            if f.exists() and f.stat().st_mtime > ext.stat().st_mtime + 2.0]
+
+
+def load(package: str, name: str, mode: str | None = None) -> ModuleType:
+    """The kernel module ``package.name`` in ``mode`` (one of :data:`MODES`).
+
+    ``None`` takes ``DELAYKIT_KERNELS`` from the environment where it is set, and otherwise the extension module
+    where it was built, numba's copy where not.
+
+    Examples
+    --------
+    >>> rk = load("delaykit.spectrum", "_rootkernel", "python")
+    >>> rk.COMPILED, rk.qeval.__module__
+    (False, 'delaykit.spectrum._rootkernel_python')
+    """
+    if mode is None:
+        mode = os.environ.get("DELAYKIT_KERNELS") or ("cython" if built(package, name) else "numba")
+    if mode not in MODES:
+        raise InvalidValueError(f"kernel mode must be one of {', '.join(MODES)} (DELAYKIT_KERNELS), got {mode!r}")
+    if mode == "cython":
+        mod = importlib.import_module(f"{package}.{name}")
+        if not getattr(mod, "COMPILED", False):
+            raise InvalidValueError(f"{package}.{name} was not compiled when delaykit was installed (no C compiler?): "
+                                    "reinstall with one, or set DELAYKIT_KERNELS to numba or python")
+        return mod
+    key = (f"{package}.{name}", mode)
+    if key not in _loaded:
+        _loaded[key] = _from_source(package, name, mode)
+    return _loaded[key]
+
+
+def _from_source(package: str, name: str, mode: str) -> ModuleType:
+    """The kernel's ``.py`` file as a module of its own name, its functions compiled by numba in mode numba."""
+    folder = Path(importlib.import_module(package).__file__ or "").parent
+    full = f"{package}.{name}_{mode}"
+    spec = importlib.util.spec_from_file_location(full, folder / f"{name}.py")
+    if spec is None or spec.loader is None:
+        raise FileNotFoundError(f"the source of {package}.{name} is not installed ({folder / (name + '.py')})")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[full] = mod
+    try:
+        spec.loader.exec_module(mod)
+        if mode == "numba":
+            import numba
+
+            # every function the module defines, so that kernels calling one another call compiled code (numba
+            # reads a called function from the module's globals when it compiles the caller, on first use)
+            for attr, fn in list(vars(mod).items()):
+                if inspect.isfunction(fn) and fn.__module__ == full:
+                    setattr(mod, attr, numba.njit(cache=True, nogil=True)(fn))
+    except BaseException:
+        del sys.modules[full]
+        raise
+    return mod
