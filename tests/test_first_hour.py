@@ -127,7 +127,8 @@ def test_a_jittered_copy_of_the_heater_log_fits_as_the_regular_one() -> None:
 
 def test_a_sampled_controller_on_an_irregular_clock_asks_for_resampling() -> None:
     t = 0.01 * _lattice_clock(200, seed=5)
-    e = Experiment.from_arrays(t, {"z": np.zeros(t.size)}, r=np.where(t > 10, 1.0, 0.0))
+    # (an output that moves: one that never does is refused before the clock is looked at)
+    e = Experiment.from_arrays(t, {"z": np.where(t > 11, 0.5, 0.0)}, r=np.where(t > 10, 1.0, 0.0))
     with pytest.raises(IdentificationError, match="resample=PERIOD"):
         identify(e, model="ipdt", loop=Loop("1/s", Controller.p(1.0), period=1.0))
 

@@ -392,7 +392,7 @@ def read_toml(path: str | Path, what: str, *, max_bytes: int | None = None) -> d
     except tomllib.TOMLDecodeError as exc:
         raise InvalidValueError(f"the {what} {str(p)!r} is not valid TOML: {exc}") from None
     except RecursionError:
-        raise InvalidValueError(f"the {what} {str(p)!r} nests its values too deeply to read") from None
+        raise InvalidValueError(f"the {what} {str(p)!r} is nested too deeply to read") from None
     except ValueError as exc:  # e.g. an integer of thousands of digits (Python's limit on int conversion)
         raise InvalidValueError(f"the {what} {str(p)!r} cannot be read: {exc}") from None
 
