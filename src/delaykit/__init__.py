@@ -40,6 +40,7 @@ __all__ = [
     "Jitter", "Burst", "DelayTrace", "jitter_margin", "stable_for",
     # PID tuning
     "tune", "assess", "Tuning", "TuningWarning", "DelaykitWarning", "relay_cycle",
+    "relay_ultimate", "measure_cycle",
 ]
 __version__ = "0.1.0"
 
@@ -70,6 +71,7 @@ _LAZY = {
     "Burst": ".simulate.varying", "DelayTrace": ".simulate.varying", "jitter_margin": ".spectrum.jitter",
     "stable_for": ".spectrum.jitter",
     "tune": ".design.pid", "assess": ".design.pid", "relay_cycle": ".design.relay", "Tuning": ".design.pid", "TuningWarning": ".design.pid_rules",
+    "relay_ultimate": ".design.autotune", "measure_cycle": ".design.autotune",
 }
 
 
