@@ -122,3 +122,28 @@ def test_autotune_on_the_emulator_finds_the_vehicles_exact_ultimate_point(tmp_pa
     flown = got["step_flight"]["controller"]["controller"]
     assert flown["kind"] == "pi" and flown["kp"] == pytest.approx(got["tuning"]["kp"])
     assert flown["ki"] == pytest.approx(got["tuning"]["ki"])
+
+
+def test_relay_law_holds_inside_the_hysteresis_and_follows_a_sent_command():
+    law = Relay(0.4, 0.05).law(umin=-1.0, umax=1.0)
+    assert law.update(0.0, r=1.0, y=0.9) == 0.4            # error 0.1 > 0.05
+    assert law.update(0.1, r=1.0, y=1.03) == 0.4           # inside the band: held
+    assert law.update(0.2, r=1.0, y=1.06) == -0.4          # error -0.06 < -0.05
+    assert law.update(0.3, r=1.0, y=0.97) == -0.4          # held
+    law.record(0.35, 0.0)                                   # a hover sent by the flight loop: held from then
+    assert law.update(0.4, r=1.0, y=1.0) == 0.0
+    assert law.describe()["controller"] == {"kind": "relay", "amplitude": 0.4, "hysteresis": 0.05}
+
+
+def test_the_printed_report_names_both_estimates(capsys):
+    from delaykit.cli.cmd_autotune import _print
+    from delaykit.design.pid import tune
+    from delaykit.hardware.autotune import AutotuneResult
+    from delaykit.hardware.flight import FlightResult
+
+    t, y, u = relay_loop(1.0, 0.0, 0.3, 0.5, 0.0, t_end=8.0)
+    found = relay_ultimate(measure_cycle(t, y, u), "1/s")
+    flight = FlightResult((), "completed", True, 0, 0, None, None, None)
+    _print(AutotuneResult("ok", flight, found, tune(found.plant, "pi", delay=found.delay, rule="zn")))
+    text = capsys.readouterr().out
+    assert f"ku = {found.ku:.6g}" in text and f"ku ~ {found.ku_describing:.6g}" in text and "zn" in text

@@ -109,8 +109,8 @@ class RelayUltimate:
                 "cycle": self.cycle.to_dict()}
 
     def __repr__(self) -> str:
-        return (f"RelayUltimate(ku={self.ku:.5g}, pu={self.pu:.5g} s from {self.gain:.4g}*{self.shape} delay "
-                f"{self.delay:.4g} s; describing ku {self.ku_describing:.4g})")
+        return (f"RelayUltimate(ku={self.ku:.5g}, pu={self.pu:.5g} s of {self.gain:.4g} * ({self.shape}), delay "
+                f"{self.delay:.4g} s; describing function ku {self.ku_describing:.4g})")
 
 
 def measure_cycle(t: Any, y: Any, u: Any, *, skip: int = 2, hysteresis: float = 0.0) -> MeasuredCycle:
