@@ -43,7 +43,7 @@ import numpy as np
 from ..errors import InvalidValueError, check_real
 from ..models.transfer import TransferFunction
 from .pid_rules import UltimatePoint, ultimate_point
-from .relay import _output_over, relay_cycle
+from .relay import _output_over, _times_over, relay_cycle
 
 __all__ = ["MeasuredCycle", "RelayUltimate", "measure_cycle", "relay_ultimate"]
 
@@ -178,7 +178,7 @@ def _rms_of(shape: TransferFunction, theta: float, d: float, eps: float) -> tupl
     A, B, C, _ = shape.state_space()
     A = np.atleast_2d(np.asarray(A, float))
     y = _output_over(A, np.asarray(B, float).ravel(), np.asarray(C, float).ravel(), d, theta, h, n=2000)
-    ts = np.linspace(0.0, h, y.size)  # (the switch of the input is among the points only approximately: fine here)
+    ts = _times_over(theta, h, y.size - 1)
     return c.period, float(math.sqrt(np.trapezoid(y * y, ts) / h))
 
 
