@@ -88,8 +88,16 @@ def test_bad_cycles_and_relays_are_clear_errors():
     with pytest.raises(InvalidValueError, match="relay amplitude"):
         Relay(-0.5)
     res = CliRunner().invoke(app, ["autotune", "--relay", "1.5", "--host", "127.0.0.1"])
+    # one message (rich wraps it at the test runner's 80 columns), no traceback
     assert res.exit_code == 2 and "--relay 1.5" in res.output and "Traceback" not in res.output
-    assert len(res.output.strip().splitlines()) == 1
+    assert res.output.startswith("error:") and res.output.count("error:") == 1
+    # what the analysis and the tuning read is checked before anything flies (no drone listens here: a flight would
+    # first wait for navdata and then fail differently)
+    for args, name in ((["--rule", "nope"], "nope"), (["--shape", "1/(s"], "shape"), (["--controller", "pv"], "pv")):
+        res = CliRunner().invoke(app, ["autotune", "--relay", "0.5", "--host", "127.0.0.1", "--at-port", "9",
+                                       "--navdata-port", "9", *args])
+        assert res.exit_code == 2 and name in " ".join(res.output.split()), res.output
+        assert res.output.startswith("error:") and "Traceback" not in res.output
 
 
 @pytest.mark.realtime

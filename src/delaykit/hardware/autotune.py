@@ -91,7 +91,8 @@ def autotune(relay: Relay, log: str | Path, *, shape: Any = "1/s", rule: str = "
     Raises
     ------
     InvalidValueError
-        A relay amplitude beyond ``vmax`` (before anything flies), or a log without two whole cycles.
+        A relay amplitude beyond ``vmax``, a bad shape, rule or controller (before anything flies), or a log
+        without two whole cycles.
 
     References
     ----------
@@ -113,6 +114,19 @@ def autotune(relay: Relay, log: str | Path, *, shape: Any = "1/s", rule: str = "
     check_real("vmax (m/s)", vmax, minimum=0.0, strict=True)
     if getattr(relay, "amplitude", 0.0) > vmax:  # (FlightPlan says it too; here before anything else is built)
         raise InvalidValueError(f"relay amplitude {relay.amplitude:g} is beyond the actuator's limit vmax = {vmax:g} m/s")
+    # everything the analysis and the tuning will read, checked before anything flies
+    from ..design.pid_rules import RULES
+    from ..models.transfer import TransferFunction
+
+    TransferFunction.coerce(shape, name="shape")
+    if not isinstance(rule, str) or rule.lower().replace("_", "-") not in RULES:
+        raise InvalidValueError(f"rule must be one of {', '.join(RULES)}; got {rule!r}")
+    if controller not in ("p", "pi", "pd", "pid"):
+        raise InvalidValueError(f"controller must be p, pi, pd or pid; got {controller!r}")
+    if tau_c is not None:
+        check_real("tau_c (s)", tau_c, minimum=0.0, strict=True)
+    if isinstance(skip, bool) or not isinstance(skip, int) or skip < 0:
+        raise InvalidValueError(f"skip must be a whole number of cycles, at least 0; got {skip!r}")
     plan = FlightPlan(kp=0.0, controller=relay, vmax=vmax, steps=(offset,), step_duration=relay_duration,
                       hover_time=hover_time)
     if step is not None:
