@@ -93,7 +93,8 @@ def test_bad_cycles_and_relays_are_clear_errors():
     assert res.output.startswith("error:") and res.output.count("error:") == 1
     # what the analysis and the tuning read is checked before anything flies (no drone listens here: a flight would
     # first wait for navdata and then fail differently)
-    for args, name in ((["--rule", "nope"], "nope"), (["--shape", "1/(s"], "shape"), (["--controller", "pv"], "pv")):
+    for args, name in ((["--rule", "nope"], "nope"), (["--shape", "1/(s"], "shape"), (["--controller", "pv"], "pv"),
+                       (["--shape", "(4*s+1)/(s*(s+1)^2)", "--rule", "simc"], "half rule")):
         res = CliRunner().invoke(app, ["autotune", "--relay", "0.5", "--host", "127.0.0.1", "--at-port", "9",
                                        "--navdata-port", "9", *args])
         assert res.exit_code == 2 and name in " ".join(res.output.split()), res.output

@@ -125,6 +125,15 @@ def autotune(relay: Relay, log: str | Path, *, shape: Any = "1/s", rule: str = "
         raise InvalidValueError(f"controller must be p, pi, pd or pid; got {controller!r}")
     if tau_c is not None:
         check_real("tau_c (s)", tau_c, minimum=0.0, strict=True)
+    # the rule must apply to the form (its family does not depend on the gain and delay the flight will find):
+    # tried on the form with a nominal delay, its warnings left for the real tuning
+    import warnings
+
+    from ..design.pid_rules import rule_gains
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rule_gains(rule, controller, shape, 0.3, tau_c=tau_c)
     if isinstance(skip, bool) or not isinstance(skip, int) or skip < 0:
         raise InvalidValueError(f"skip must be a whole number of cycles, at least 0; got {skip!r}")
     plan = FlightPlan(kp=0.0, controller=relay, vmax=vmax, steps=(offset,), step_duration=relay_duration,
