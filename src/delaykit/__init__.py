@@ -46,6 +46,7 @@ __all__ = [
     "tune", "assess", "Tuning", "TuningWarning", "DelaykitWarning", "relay_cycle",
     # decentralised PI for square delay systems: pairing and BLT tuning
     "blt", "BLTResult", "rga", "niederlinski",
+    "relay_ultimate", "measure_cycle",
 ]
 __version__ = "0.1.0"
 
@@ -84,6 +85,7 @@ _LAZY = {
     "loop_margins": ".spectrum.systems",
     "tune": ".design.pid", "assess": ".design.pid", "relay_cycle": ".design.relay", "Tuning": ".design.pid", "TuningWarning": ".design.pid_rules",
     "blt": ".design.mimo", "BLTResult": ".design.mimo", "rga": ".design.mimo", "niederlinski": ".design.mimo",
+    "relay_ultimate": ".design.autotune", "measure_cycle": ".design.autotune",
 }
 
 

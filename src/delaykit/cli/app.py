@@ -24,7 +24,7 @@ COMMANDS = (
                                      ("cmd_spectrum", "margins"), ("cmd_spectrum", "lambert"))),
     ("Identify from logs", (("cmd_identify", "estimate"), ("cmd_identify", "identify"), ("cmd_identify", "predict"))),
     ("Design", (("cmd_design", "design"), ("cmd_tune", "tune"))),
-    ("Fly", (("cmd_hardware", "emulate"), ("cmd_hardware", "fly"))),
+    ("Fly", (("cmd_hardware", "emulate"), ("cmd_hardware", "fly"), ("cmd_autotune", "autotune"))),
     ("The paper", (("cmd_paper", "reproduce"), ("cmd_paper", "report"), ("cmd_paper", "demo"))),
 )
 """The commands under their help headings, each as (module in this package, function)."""

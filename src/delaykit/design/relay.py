@@ -201,17 +201,23 @@ def _output_over(A: np.ndarray, B: np.ndarray, C: np.ndarray, d: float, theta: f
     return np.array(ys)
 
 
+def _times_over(theta: float, h: float, n: int) -> np.ndarray:
+    """The times of :func:`_output_over`'s ``n + 1`` points over the half-period (equal steps on each side of the
+    input's switch)."""
+    ph = (-theta) % (2 * h)
+    t_break = (h - ph) % h if ph % h else h
+    n1 = max(1, int(round(n * t_break / h))) if t_break > 0 else 0
+    if t_break < h:
+        return np.concatenate([np.linspace(0.0, t_break, n1 + 1), np.linspace(t_break, h, n - n1 + 1)[1:]])
+    return np.linspace(0.0, h, n + 1)
+
+
 def _amplitude(A: np.ndarray, B: np.ndarray, C: np.ndarray, d: float, theta: float, h: float, y: np.ndarray) -> float:
     """The largest ``|y|`` over the half-period: the best of the samples (the input's switch among them), refined by
     a bounded scalar search between its neighbours."""
     from scipy.optimize import minimize_scalar
 
-    ph = (-theta) % (2 * h)
-    t_break = (h - ph) % h if ph % h else h
-    n = y.size - 1
-    n1 = max(1, int(round(n * t_break / h))) if t_break > 0 else 0
-    ts = np.concatenate([np.linspace(0.0, t_break, n1 + 1), np.linspace(t_break, h, n - n1 + 1)[1:]]) \
-        if t_break < h else np.linspace(0.0, h, n + 1)
+    ts = _times_over(theta, h, y.size - 1)
     i = int(np.argmax(np.abs(y)))
     best = float(abs(y[i]))
     lo, hi = ts[max(i - 1, 0)], ts[min(i + 1, ts.size - 1)]

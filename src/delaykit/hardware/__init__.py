@@ -2,7 +2,7 @@
 
 :mod:`.ardrone` encodes and decodes the drone's AT commands and navdata, :mod:`.emulator` is a drone on UDP
 (simulated altitude dynamics with a delay) for testing without one, :mod:`.stamps` gives datagrams the kernel's
-arrival time, :mod:`.laws` runs any controller or compensator on packets, :mod:`.monitor` re-estimates the delay
+arrival time, :mod:`.laws` runs any controller or compensator on packets, :mod:`.autotune` flies a relay experiment and tunes from its cycle, :mod:`.monitor` re-estimates the delay
 during a flight (alarm, gain scheduling), and :mod:`.flight` is the real-time loop that flies a plan and logs what
 it saw. It sits above design and identification: its logs feed :mod:`delaykit.identify`.
 """
@@ -13,12 +13,12 @@ from .ardrone import (ARITY, DEMO_SIZE, HEADER, REF_BASE, REF_EMERGENCY, REF_TAK
                       decode_navdata, encode_navdata, float_to_int, int_to_float, parse_at)
 from .emulator import DroneEmulator, EmulatorConfig, PortError
 from .flight import DroneLink, FlightPlan, FlightResult, LinkError, fly, land_on_signals
-from .laws import FlightLaw
+from .laws import FlightLaw, Relay, RelayLaw
 from .stamps import enable_stamps, recv_stamped
 
 # the monitor pulls in the estimator, the design and the simulator (numba): loaded on first use, so that the
 # emulator and the flight loop start without them
-_LAZY = {"DelayMonitor": ".monitor", "OnlineEstimate": ".monitor", "stable_range": ".monitor"}
+_LAZY = {"AutotuneResult": ".autotune", "DelayMonitor": ".monitor", "OnlineEstimate": ".monitor", "stable_range": ".monitor"}
 
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())
@@ -29,5 +29,5 @@ __all__ = [
     "REF_BASE", "REF_TAKEOFF", "REF_EMERGENCY", "DEMO_SIZE", "ARITY",
     "EmulatorConfig", "DroneEmulator", "PortError",
     "LinkError", "DroneLink", "FlightPlan", "FlightResult", "fly", "land_on_signals", "FlightLaw",
-    "DelayMonitor", "OnlineEstimate", "stable_range", "enable_stamps", "recv_stamped",
+    "DelayMonitor", "OnlineEstimate", "stable_range", "enable_stamps", "recv_stamped", "Relay", "RelayLaw", "AutotuneResult",
 ]

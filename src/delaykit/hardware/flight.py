@@ -44,7 +44,7 @@ from ..models.compensators import Compensator
 from ..models.controllers import Controller
 from .ardrone import ATEncoder, CtrlState, Navdata, NavState, ProtocolError, decode_navdata
 from .emulator_config import _check_ipv4, _check_port
-from .laws import FlightLaw
+from .laws import FlightLaw, Relay
 from .stamps import enable_stamps, recv_stamped
 
 if TYPE_CHECKING:  # (the monitor pulls in the estimator and the design: imported when a flight uses one)
@@ -185,9 +185,11 @@ class FlightPlan:
         Gains (m/s per m, and dimensionless) of the paper's P or PV law.
     velocity : {"true", "filtered"}
         The Kv term's velocity: the navdata vertical speed, or the derivative filter of the altitude.
-    controller : Controller or Compensator, optional
+    controller : Controller, Compensator or Relay, optional
         Any other law (PI, PID, a Smith predictor, predictor feedback...), run by
-        :class:`~delaykit.hardware.laws.FlightLaw`; when given, ``kp``, ``kv`` and ``velocity`` are not used.
+        :class:`~delaykit.hardware.laws.FlightLaw`, or a relay experiment
+        (:class:`~delaykit.hardware.laws.Relay`, its amplitude within ``vmax``); when given, ``kp``, ``kv`` and
+        ``velocity`` are not used.
     vmax : float
         Command limit, m/s (at most 2.0, the drone's control_vz_max limit).
     steps : tuple of float
@@ -214,11 +216,11 @@ class FlightPlan:
     z_min: float = 0.15
     z_max: float = 3.5
     gap_timeout: float = 0.5
-    controller: Controller | Compensator | None = None
+    controller: Controller | Compensator | Relay | None = None
 
     def __post_init__(self) -> None:
-        if self.controller is not None and not isinstance(self.controller, (Controller, Compensator)):
-            raise InvalidTypeError(f"controller must be a Controller or a Compensator, got "
+        if self.controller is not None and not isinstance(self.controller, (Controller, Compensator, Relay)):
+            raise InvalidTypeError(f"controller must be a Controller, a Compensator or a Relay, got "
                                    f"{type(self.controller).__name__}")
         check_real("kp", self.kp, minimum=0.0)
         check_real("kv", self.kv, minimum=0.0)
@@ -235,8 +237,11 @@ class FlightPlan:
                 raise InvalidValueError("a step of zero cannot be measured")
         if not self.z_min < self.z_max:
             raise InvalidValueError(f"z_min must be below z_max, got {self.z_min:g} and {self.z_max:g}")
+        if isinstance(self.controller, Relay) and self.controller.amplitude > self.vmax:
+            raise InvalidValueError(f"relay amplitude {self.controller.amplitude:g} is beyond the actuator's limit "
+                                    f"vmax = {self.vmax:g} m/s")
 
-    def law(self) -> Controller | Compensator:
+    def law(self) -> Controller | Compensator | Relay:
         """The controller flown: :attr:`controller`, or the P/PV law of ``kp``, ``kv`` and ``velocity``.
 
         Examples
@@ -336,7 +341,13 @@ def fly(
         from .monitor import DelayMonitor
         if not isinstance(monitor, DelayMonitor):
             raise InvalidTypeError(f"monitor must be a DelayMonitor, got {type(monitor).__name__}")
-    law = FlightLaw(plan.law(), umin=-plan.vmax, umax=plan.vmax)
+    chosen = plan.law()
+    if isinstance(chosen, Relay):
+        if monitor is not None:
+            raise InvalidValueError("a relay experiment cannot be flown with a delay monitor (nothing to re-design)")
+        law: Any = chosen.law(umin=-plan.vmax, umax=plan.vmax)
+    else:
+        law = FlightLaw(chosen, umin=-plan.vmax, umax=plan.vmax)
     flown = law.describe()
     online: list[OnlineEstimate] = []
     # every packet of the steps (arrival, altitude, reference, speed) and every command (sent, value): the

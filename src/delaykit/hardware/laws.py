@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -50,7 +51,7 @@ from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.compensators import Compensator
 from ..models.controllers import Controller
 
-__all__ = ["FlightLaw"]
+__all__ = ["FlightLaw", "Relay", "RelayLaw"]
 
 
 class FlightLaw:
@@ -254,3 +255,83 @@ class FlightLaw:
         1.0
         """
         return {"controller": self.controller.to_dict(), "umin": self.umin, "umax": self.umax}
+
+
+@dataclass(frozen=True)
+class Relay:
+    """An Astrom-Hagglund relay for a relay experiment in flight: ``u = +amplitude`` when the error ``r - y`` is
+    above ``hysteresis``, ``-amplitude`` when it is below ``-hysteresis``, held in between (it starts at
+    ``+amplitude`` when the first error is inside the band).  :meth:`law` gives the packet-by-packet law.
+
+    Examples
+    --------
+    >>> Relay(0.5, 0.01).law(umin=-1.0, umax=1.0).update(0.0, r=1.0, y=0.8)
+    0.5
+    >>> Relay(1.5).law(umin=-1.0, umax=1.0)
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.InvalidValueError: relay amplitude 1.5 is beyond the actuator's limits [-1, 1]
+    """
+
+    amplitude: float
+    hysteresis: float = 0.0
+
+    def __post_init__(self) -> None:
+        check_real("relay amplitude", self.amplitude, minimum=0.0, strict=True)
+        check_real("relay hysteresis", self.hysteresis, minimum=0.0)
+
+    def law(self, *, umin: float, umax: float) -> RelayLaw:
+        """A fresh relay law for a flight whose command stays within ``[umin, umax]``."""
+        return RelayLaw(self, umin=umin, umax=umax)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {"kind": "relay", "amplitude": float(self.amplitude), "hysteresis": float(self.hysteresis)}
+
+
+class RelayLaw:
+    """A :class:`Relay` run on packets, with :class:`FlightLaw`'s interface (``update``, ``record``, ``describe``).
+
+    Raises
+    ------
+    InvalidValueError
+        When the relay's amplitude is beyond the actuator's limits.
+    """
+
+    def __init__(self, relay: Relay, *, umin: float, umax: float) -> None:
+        self.umin = check_real("umin (m/s)", umin)
+        self.umax = check_real("umax (m/s)", umax)
+        if not self.umin < self.umax:
+            raise InvalidValueError(f"umin must be below umax, got {self.umin:g} and {self.umax:g}")
+        if relay.amplitude > min(-self.umin, self.umax):
+            raise InvalidValueError(f"relay amplitude {relay.amplitude:g} is beyond the actuator's limits "
+                                    f"[{self.umin:g}, {self.umax:g}]")
+        self.relay = relay
+        self.controller = relay
+        self._u: float | None = None
+
+    def update(self, t: float, *, r: float, y: float, vm: float = 0.0, sent: float | None = None) -> float:
+        """The relay's command for the packet at ``t`` (``sent``: the command sent instead, which it then holds)."""
+        for name, val in (("t", t), ("r", r), ("y", y)):
+            if not math.isfinite(val):
+                raise InvalidValueError(f"{name} must be finite, got {val!r}")
+        e = r - y
+        d, eps = self.relay.amplitude, self.relay.hysteresis
+        if e > eps:
+            u = d
+        elif e < -eps:
+            u = -d
+        else:
+            u = d if self._u is None else self._u
+        if sent is not None:
+            u = float(sent)
+        self._u = u
+        return u
+
+    def record(self, t: float, u: float) -> None:
+        """A command sent between packets by someone else: the relay holds it."""
+        self._u = float(u)
+
+    def describe(self) -> dict[str, Any]:
+        """The law as JSON."""
+        return {"controller": self.relay.to_dict(), "umin": self.umin, "umax": self.umax}
