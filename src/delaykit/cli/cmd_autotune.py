@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Optional
 
 import typer
 
 from ..errors import InvalidValueError, check_real
-from .common import confirm_real, err, friendly, out
+from .common import check_output, confirm_real, err, friendly, out, print_json
 
 __all__ = ["autotune"]
 
@@ -48,15 +47,14 @@ def autotune(
     if check_real("--relay (m/s)", relay, minimum=0.0, strict=True) > vmax:
         raise InvalidValueError(f"--relay {relay:g} is beyond the actuator's limit --vmax {vmax:g} m/s")
     check_real("--step-duration (s)", step_duration, minimum=0.0)
-    if log.is_dir():
-        raise InvalidValueError(f"--log {str(log)!r} is a folder; give a file name")
+    check_output("--log", log)
     res = run(Relay(relay, hysteresis), log, shape=shape, rule=rule, controller=controller, tau_c=tau_c,
               offset=offset, relay_duration=duration, skip=skip, step=step if step_duration > 0 else None,
               step_duration=step_duration if step_duration > 0 else 1.0, hover_time=hover, vmax=vmax,
               fly_kw=dict(host=host, at_port=at_port, navdata_port=navdata_port, confirm=confirm_real(host, yes)),
               status=lambda m: err.print(m, highlight=False, markup=False))
     if as_json:
-        print(json.dumps(res.to_dict(), indent=2, allow_nan=False))
+        print_json(res.to_dict())
     else:
         _print(res)
     if res.status != "ok":
