@@ -43,7 +43,7 @@ __all__ = [
     "DelayLTI", "tf", "ss", "delay", "feedback", "append", "interconnect", "summing_junction", "from_loop", "c2d", "saturation", "load_system",
     "poles", "is_stable", "hinfnorm", "nyquist_count", "loop_margins",
     # PID tuning
-    "tune", "assess", "Tuning", "TuningWarning", "DelaykitWarning", "relay_cycle",
+    "tune", "assess", "Tuning", "TuningWarning", "DelaykitWarning", "relay_cycle", "StaleExtensionWarning",
     # decentralised PI for square delay systems: pairing and BLT tuning
     "blt", "BLTResult", "rga", "niederlinski",
     "relay_ultimate", "measure_cycle",
@@ -83,7 +83,7 @@ _LAZY = {
     "poles": ".spectrum.systems",
     "is_stable": ".spectrum.systems", "hinfnorm": ".spectrum.systems", "nyquist_count": ".spectrum.systems",
     "loop_margins": ".spectrum.systems",
-    "tune": ".design.pid", "assess": ".design.pid", "relay_cycle": ".design.relay", "Tuning": ".design.pid", "TuningWarning": ".design.pid_rules",
+    "StaleExtensionWarning": "._native", "tune": ".design.pid", "assess": ".design.pid", "relay_cycle": ".design.relay", "Tuning": ".design.pid", "TuningWarning": ".design.pid_rules",
     "blt": ".design.mimo", "BLTResult": ".design.mimo", "rga": ".design.mimo", "niederlinski": ".design.mimo",
     "relay_ultimate": ".design.autotune", "measure_cycle": ".design.autotune",
 }

@@ -34,7 +34,7 @@ import warnings
 from pathlib import Path
 from types import ModuleType
 
-from .errors import InvalidValueError
+from .errors import DelaykitWarning, InvalidValueError
 
 __all__ = ["MODES", "load", "built", "StaleExtensionWarning"]
 
@@ -42,7 +42,7 @@ MODES = ("cython", "numba", "python")
 _loaded: dict[tuple[str, str], ModuleType] = {}
 
 
-class StaleExtensionWarning(UserWarning):
+class StaleExtensionWarning(DelaykitWarning):
     """A kernel's extension module was built from an older source than the one beside it (see :func:`built`)."""
 
 
