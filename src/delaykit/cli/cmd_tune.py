@@ -83,7 +83,7 @@ def tune(
 
     check_output("--save", save)
     check_output("--plot", plot, "figure")
-    from ..design.tuning import parse_range
+    from ..models.ranges import parse_range
 
     base = _base(dict(loop_options), model)
     if relay is not None:
