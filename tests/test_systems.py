@@ -554,3 +554,15 @@ def test_loop_as_system_has_the_loops_characteristic_roots(loop, region):
     theirs = find_roots(loop.characteristic(), region)
     assert mine.certified and theirs.certified and mine.roots.size == theirs.roots.size > 0
     assert np.allclose(np.sort_complex(mine.roots), np.sort_complex(theirs.roots), atol=1e-9)
+
+
+def test_frequencies_as_text_or_complex_are_refused_not_converted():
+    # as_frequencies is the one check of frequencies (the loop analysis's too): "2" was read as 2 rad/s before
+    from delaykit.errors import InvalidTypeError
+    from delaykit.systems.lti import as_frequencies
+
+    g = tf("1/(s+1)")
+    for bad in ("2", ["1", "2"], [1j]):
+        with pytest.raises(InvalidTypeError, match="w must be"):
+            g.frequency_response(bad)
+    assert as_frequencies([0, 2]).tolist() == [0.0, 2.0]

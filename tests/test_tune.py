@@ -509,3 +509,18 @@ def test_cli_relay_cycle_and_its_amplitude_limit():
     assert d["ultimate"]["pu"] == pytest.approx(4 * 0.37, rel=1e-12)
     r = runner.invoke(app, ["tune", "--delay", "0.37", "--relay", "1.5"])  # the paper's loop: |u| <= 1
     assert r.exit_code == 2 and "1.5" in r.output and "limit" in r.output
+
+
+def test_cli_tune_prints_a_tuning_note_once_and_raises_no_python_warning():
+    # ZN on a delay-dominated FOPDT (delay 2 s, time constant 1 s) warns (pid_rules); the command shows that note
+    # once among its results, and no Python warning escapes it (stderr would show the module's source line)
+    from typer.testing import CliRunner
+
+    from delaykit.cli.app import app
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        r = CliRunner().invoke(app, ["tune", "--plant", "1/(s+1)", "--delay", "2", "--rule", "zn"])
+    assert r.exit_code == 0, r.output
+    assert [w for w in caught if issubclass(w.category, TuningWarning)] == []
+    assert r.stdout.count("Note: zn: the delay 2 s is more than half the largest time constant") == 1

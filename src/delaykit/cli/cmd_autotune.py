@@ -8,7 +8,7 @@ from typing import Optional
 import typer
 
 from ..errors import InvalidValueError, check_real
-from .common import check_output, confirm_real, err, friendly, out, print_json
+from .common import check_output, confirm_real, err, friendly, out, print_json, warn
 
 __all__ = ["autotune"]
 
@@ -48,11 +48,17 @@ def autotune(
         raise InvalidValueError(f"--relay {relay:g} is beyond the actuator's limit --vmax {vmax:g} m/s")
     check_real("--step-duration (s)", step_duration, minimum=0.0)
     check_output("--log", log)
-    res = run(Relay(relay, hysteresis), log, shape=shape, rule=rule, controller=controller, tau_c=tau_c,
-              offset=offset, relay_duration=duration, skip=skip, step=step if step_duration > 0 else None,
-              step_duration=step_duration if step_duration > 0 else 1.0, hover_time=hover, vmax=vmax,
-              fly_kw=dict(host=host, at_port=at_port, navdata_port=navdata_port, confirm=confirm_real(host, yes)),
-              status=lambda m: err.print(m, highlight=False, markup=False))
+    import warnings
+
+    from ..design.pid_rules import TuningWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TuningWarning)  # each is among the tuning's notes, printed once below
+        res = run(Relay(relay, hysteresis), log, shape=shape, rule=rule, controller=controller, tau_c=tau_c,
+                  offset=offset, relay_duration=duration, skip=skip, step=step if step_duration > 0 else None,
+                  step_duration=step_duration if step_duration > 0 else 1.0, hover_time=hover, vmax=vmax,
+                  fly_kw=dict(host=host, at_port=at_port, navdata_port=navdata_port, confirm=confirm_real(host, yes)),
+                  status=lambda m: err.print(m, highlight=False, markup=False))
     if as_json:
         print_json(res.to_dict())
     else:
@@ -77,6 +83,8 @@ def _print(res) -> None:  # noqa: ANN001
     t = res.tuning
     out.print(f"Tuned by {t.how} ({t.kind}): kp {t.kp:.6g}, ki {t.ki:.6g}, kd {t.kd:.6g}; Ms {t.ms:.4g}.",
               highlight=False, markup=False)
+    for n in t.notes:
+        warn(n, label="Note")
     if res.step_flight is not None:
         s = res.step_flight
         out.print(f"Step flight: {'completed' if s.completed else 'ended early: ' + s.reason}; logs "

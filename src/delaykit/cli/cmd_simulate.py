@@ -10,7 +10,8 @@ import typer
 
 from ..errors import InvalidValueError, check_real
 from ..models.budget import MAX_SAMPLES, check_count, sample_count
-from .common import check_output, err, fmt, friendly, out, parse_schedule, print_json, read_delay_trace
+from .common import (check_output, err, fmt, friendly, out, parse_schedule, print_json, progress_bar,
+                     read_delay_trace)
 from .loopopts import with_loop
 
 __all__ = ["simulate"]
@@ -109,10 +110,8 @@ def simulate(
             with err.status("simulating (the first run compiles the solver, a few seconds)…"):
                 responses = [run(delays[0])]
         else:  # a sweep (up to MAX_RANGE_POINTS delays): a bar that counts them
-            from rich.progress import Progress
-
             responses = []
-            with Progress(console=err.console, transient=True) as bar:
+            with progress_bar() as bar:
                 task = bar.add_task(f"simulating {len(delays)} delays", total=len(delays))
                 for d in delays:
                     responses.append(run(d))

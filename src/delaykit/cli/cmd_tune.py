@@ -8,7 +8,7 @@ from typing import Any, Optional
 import typer
 
 from ..errors import InvalidValueError
-from .common import check_output, err, fmt, friendly, out, print_json
+from .common import check_output, err, fmt, friendly, out, print_json, warn
 from .loopopts import with_loop
 
 __all__ = ["tune"]
@@ -83,7 +83,7 @@ def tune(
 
     check_output("--save", save)
     check_output("--plot", plot, "figure")
-    from ..design.tuning import parse_range
+    from ..models.ranges import parse_range
 
     base = _base(dict(loop_options), model)
     if relay is not None:
@@ -91,7 +91,12 @@ def tune(
         return
     delays = None if delays_range is None else parse_range(delays_range, "--delays")
     gains = None if gains_range is None else parse_range(gains_range, "--gains")
-    with err.status("tuning…"):
+    import warnings
+
+    from ..design.pid_rules import TuningWarning
+
+    with err.status("tuning…"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", TuningWarning)  # each is among the result's notes, printed once below
         t = tune_(base, controller, rule=rule, method=method, objective=objective, ms=ms, mt=mt, tau_c=tau_c,
                   delays=delays, gains=gains, overshoot=overshoot, filter_ratio=filter_ratio, step=step, load=load,
                   derivative_weight=derivative_weight,
@@ -176,4 +181,4 @@ def _table(t: Any) -> None:
     if t.ultimate is not None:
         out.print(f"Ultimate point (exact): {t.ultimate!r}", highlight=False, markup=False)
     for n in t.notes:
-        out.print(f"Note: {n}", highlight=False, markup=False)
+        warn(n, label="Note")

@@ -111,7 +111,7 @@ def _values(points: Sequence[PlantPoint], w: np.ndarray) -> np.ndarray:
     """``P(jw) exp(-jw θ)`` of each point (rows) at ``w`` (columns)."""
     s = 1j * np.asarray(w, float)
     with np.errstate(all="ignore"):
-        return np.array([np.polyval(p.num, s) / np.polyval(p.den, s) * np.exp(-s * d) for p, d in points])
+        return np.array([p(s) * np.exp(-s * d) for p, d in points])
 
 
 def controller_response(kind: str, kp: Any, ki: Any, kd: Any, tf: Any, s: np.ndarray) -> np.ndarray:

@@ -81,14 +81,17 @@ def _expm_aug(A: np.ndarray, B: np.ndarray, t: float) -> tuple[np.ndarray, np.nd
     return E[:n, :n], E[:n, n]
 
 
+def _switch(theta: float, h: float, d: float) -> tuple[float, float]:
+    """``(t_break, v0)``: the first switch of the plant's input ``v(t) = u(t - θ)`` in ``[0, h)`` (``h``: none) and
+    its value before it, for the cycle that switches ``u`` to ``+d`` at ``t = 0`` (``u`` = ``+d`` on ``[0, h)``,
+    ``-d`` on ``[h, 2h)``, periodic)."""
+    ph = (-theta) % (2 * h)  # where t = 0 falls in u's period
+    return ((h - ph) % h if ph % h else h), (d if ph < h else -d)
+
+
 def _start_state(A: np.ndarray, B: np.ndarray, d: float, theta: float, h: float) -> np.ndarray:
     """The state ``x0`` at the switch to ``+d`` of the symmetric cycle of half-period ``h``."""
-    # the plant's input over [0, h): u(t - θ), u = +d on [0, h), -d on [h, 2h), periodic
-    ph = (-theta) % (2 * h)  # where t = 0 falls in u's period
-    t_break = (h - ph) % h if ph % h else h  # the first switch of v in [0, h) (h: none)
-    v0 = d if ph < h else -d
-    n = A.shape[0]
-    x = np.zeros(n)
+    t_break, v0 = _switch(theta, h, d)
     E1, G1 = _expm_aug(A, B, t_break)
     forced = G1 * v0
     if t_break < h:
@@ -97,7 +100,7 @@ def _start_state(A: np.ndarray, B: np.ndarray, d: float, theta: float, h: float)
         Eh = E2 @ E1
     else:
         Eh = E1
-    return -np.linalg.solve(np.eye(n) + Eh, forced) + x
+    return -np.linalg.solve(np.eye(A.shape[0]) + Eh, forced)
 
 
 def relay_cycle(plant: Any, delay: float, amplitude: float = 1.0, hysteresis: float = 0.0, *,
@@ -177,9 +180,7 @@ def _output_over(A: np.ndarray, B: np.ndarray, C: np.ndarray, d: float, theta: f
     """The output over one half-period of the cycle (at ``n + 1`` points and the input's switch, or at ``times``),
     from the start state (exact)."""
     x0 = _start_state(A, B, d, theta, h)
-    ph = (-theta) % (2 * h)
-    v0 = d if ph < h else -d
-    t_break = (h - ph) % h if ph % h else h
+    t_break, v0 = _switch(theta, h, d)
     E, G = _expm_aug(A, B, t_break)
     xb = E @ x0 + G * v0
     if times is not None:
@@ -204,8 +205,7 @@ def _output_over(A: np.ndarray, B: np.ndarray, C: np.ndarray, d: float, theta: f
 def _times_over(theta: float, h: float, n: int) -> np.ndarray:
     """The times of :func:`_output_over`'s ``n + 1`` points over the half-period (equal steps on each side of the
     input's switch)."""
-    ph = (-theta) % (2 * h)
-    t_break = (h - ph) % h if ph % h else h
+    t_break, _ = _switch(theta, h, 1.0)
     n1 = max(1, int(round(n * t_break / h))) if t_break > 0 else 0
     if t_break < h:
         return np.concatenate([np.linspace(0.0, t_break, n1 + 1), np.linspace(t_break, h, n - n1 + 1)[1:]])

@@ -142,9 +142,8 @@ class Experiment:
         logged = None
         if resample is not None:
             hr = check_real("resample (s)", resample, minimum=0.0, strict=True)
-            sample_count(f"{name}: resample={hr:g} s over the {tt[-1] - tt[0]:g} s log", tt[-1] - tt[0], hr,
-                         "resample on a longer period")
-            grid = tt[0] + hr * np.arange(int(np.floor((tt[-1] - tt[0]) / hr * (1 + 1e-12))) + 1)
+            grid = tt[0] + hr * np.arange(sample_count(f"{name}: resample={hr:g} s over the {tt[-1] - tt[0]:g} s log",
+                                                       tt[-1] - tt[0], hr, "resample on a longer period"))
             if grid.size < 10:
                 raise InvalidValueError(f"{name}: resample={hr:g} s leaves {grid.size} samples of the "
                                         f"{tt[-1] - tt[0]:g} s log; identification needs at least 10")

@@ -88,26 +88,11 @@ def _compensated(loop: Loop) -> bool:
 
 # ------------------------------------------------------------------------------------ frequency response
 def _frequencies(w: Any) -> np.ndarray:
-    """``w`` as a 1-D float array of finite frequencies >= 0, or a delaykit error naming the problem."""
-    if isinstance(w, (str, bytes)):
-        raise InvalidTypeError(f"w must be frequencies in rad/s (numbers), got {w!r}")
-    try:
-        arr = np.asarray(w)
-    except (TypeError, ValueError) as exc:
-        raise InvalidTypeError(f"w must be an array of frequencies in rad/s, got {w!r}") from exc
-    if arr.dtype.kind not in "iuf":
-        raise InvalidTypeError(f"w must be real frequencies in rad/s, got an array of dtype {arr.dtype}")
-    arr = np.atleast_1d(arr.astype(float))
-    if arr.ndim != 1:
-        raise InvalidValueError(f"w must be a one-dimensional array of frequencies, got shape {arr.shape}")
-    if arr.size == 0:
-        raise InvalidValueError("w is empty: give at least one frequency (rad/s)")
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        raise InvalidValueError(f"frequencies must be finite, got {float(arr[bad][0])!r} in w")
-    if (arr < 0).any():
-        raise InvalidValueError(f"frequencies must be at least 0 rad/s, got {arr[arr < 0][0]:g} in w")
-    return arr
+    """``w`` as a 1-D float array of finite frequencies >= 0, or a delaykit error naming the problem
+    (:func:`~delaykit.systems.lti.as_frequencies`)."""
+    from ..systems.lti import as_frequencies
+
+    return as_frequencies(w)
 
 
 @dataclass(frozen=True, repr=False, eq=False)

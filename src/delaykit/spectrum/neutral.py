@@ -46,7 +46,7 @@ import numpy as np
 from ..errors import InvalidValueError
 from ..models.quasipolynomial import QuasiPolynomial
 
-__all__ = ["NeutralAbscissa", "neutral_abscissa", "polygon_abscissa"]
+__all__ = ["NeutralAbscissa", "neutral_abscissa", "polygon_abscissa", "difference_operator"]
 
 _RELATION_COEFF = 6  # integer relations between delays searched with coefficients up to this size
 _RELATION_TOL = 1e-9
@@ -181,10 +181,23 @@ def neutral_abscissa(q: QuasiPolynomial) -> NeutralAbscissa:
                                 "difference operator spectrum")
     if q.kind != "neutral":
         return NeutralAbscissa(-math.inf, (), True)
+    a0, b, delays = difference_operator(q)
+    return NeutralAbscissa(polygon_abscissa(a0, b, delays), delays, _independent(delays))
+
+
+def difference_operator(q: QuasiPolynomial) -> tuple[complex, tuple[complex, ...], tuple[float, ...]]:
+    """The difference operator ``a0 + sum_k b_k exp(-s tau_k)`` of a neutral ``q`` (its top-degree coefficients):
+    ``(a0, b, tau)``.
+
+    Examples
+    --------
+    >>> from delaykit import AltitudeLoop
+    >>> a0, b, tau = difference_operator(AltitudeLoop(kp=2, delay=0.37, kv=0.3).characteristic())
+    >>> float(abs(b[0] / a0)), tau
+    (0.3, (0.37,))
+    """
     n = q.degree
     lead = [(p[0], t) for p, t in zip(q.polys, q.delays) if len(p) - 1 == n]
     a0 = next(c for c, t in lead if t == 0.0)
     b = [(c, t) for c, t in lead if t > 0.0]
-    x = polygon_abscissa(a0, [c for c, _ in b], [t for _, t in b])
-    delays = tuple(t for _, t in b)
-    return NeutralAbscissa(x, delays, _independent(delays))
+    return a0, tuple(c for c, _ in b), tuple(t for _, t in b)

@@ -41,7 +41,7 @@ from .. import _native
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.budget import MAX_ROOT_GRID_POINTS, check_count
 from ..models.quasipolynomial import QuasiPolynomial
-from .neutral import neutral_abscissa
+from .neutral import difference_operator, neutral_abscissa
 
 RK = _native.load("delaykit.spectrum", "_rootkernel")  # the compiled root-finding kernels (Cython, else numba)
 
@@ -274,12 +274,9 @@ def neutral_lines(q: QuasiPolynomial) -> tuple[float, ...]:
     """
     if q.kind != "neutral":
         return ()
-    n = q.degree
-    lead = [(p[0], t) for p, t in zip(q.polys, q.delays) if len(p) - 1 == n]
-    a = [c for c, t in lead if t == 0.0]
-    b = [(c, t) for c, t in lead if t > 0.0]
+    a0, b, tau = difference_operator(q)
     if len(b) == 1:
-        return (math.log(abs(b[0][0] / a[0])) / b[0][1],)
+        return (math.log(abs(b[0] / a0)) / tau[0],)
     return (neutral_abscissa(q).abscissa,)
 
 

@@ -143,9 +143,10 @@ class HinfNorm:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready (infinite values as null)."""
-        fin = lambda x: x if x is not None and math.isfinite(x) else None  # noqa: E731
-        return {"value": fin(self.value), "frequency": fin(self.frequency), "stable": self.stable,
-                "rtol": self.rtol, "points": self.points}
+        from .frequency import _jsonable
+
+        return _jsonable({"value": self.value, "frequency": self.frequency, "stable": self.stable,
+                          "rtol": self.rtol, "points": self.points})
 
     def __repr__(self) -> str:
         if not self.stable:
@@ -397,10 +398,11 @@ class LoopMargins:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready (infinite values as null)."""
-        fin = lambda x: x if x is not None and math.isfinite(x) else None  # noqa: E731
-        return {"channel": self.channel, "gain_margin": fin(self.gain_margin),
-                "phase_crossover": fin(self.phase_crossover), "phase_margin_deg": fin(self.phase_margin),
-                "gain_crossover": fin(self.gain_crossover), "delay_margin": fin(self.delay_margin)}
+        from .frequency import _jsonable
+
+        return _jsonable({"channel": self.channel, "gain_margin": self.gain_margin,
+                          "phase_crossover": self.phase_crossover, "phase_margin_deg": self.phase_margin,
+                          "gain_crossover": self.gain_crossover, "delay_margin": self.delay_margin})
 
     def __repr__(self) -> str:
         return (f"LoopMargins(channel {self.channel}: gain {self.gain_margin:.4g}, phase {self.phase_margin:.4g} deg, "

@@ -54,7 +54,13 @@ def gain(K: Any, *, inputs: Any = None, outputs: Any = None, name: str = "") -> 
 
 def as_system(x: Any, what: str = "operand") -> DelayLTI:
     """``x`` as a :class:`DelayLTI`: a system as it is, a number or matrix as a static gain, anything else that
-    :func:`delaykit.tf` reads (a :class:`~delaykit.models.TransferFunction`, a python-control system)."""
+    :func:`delaykit.tf` reads (a :class:`~delaykit.models.TransferFunction`, a python-control system).
+
+    Examples
+    --------
+    >>> as_system(2.0).dcgain().tolist()
+    [[2.0]]
+    """
     if isinstance(x, DelayLTI):
         return x
     if isinstance(x, (numbers.Real, np.ndarray)) and not isinstance(x, (bool, np.bool_)):
@@ -97,6 +103,14 @@ def close_parts(parts: Sequence[np.ndarray], F: Any, G: Any, H: Any, J: Any, wha
     """The partitioned matrices ``(A, B1, B2, C1, C2, D11, D12, D21, D22)`` closed as :func:`close` does.
 
     Pure matrix algebra: it holds for a discrete-time system as well (``x[k+1]`` for ``x'``).
+
+    Examples
+    --------
+    >>> from delaykit import tf
+    >>> g = tf("1/s")                                    # x' = u, y = x; closed by u = -y + r: x' = -x + r
+    >>> parts = (g.A, g.B1, g.B2, g.C1, g.C2, g.D11, g.D12, g.D21, g.D22)
+    >>> close_parts(parts, -np.eye(1), np.eye(1), np.eye(1), np.zeros((1, 1)))[0].tolist()
+    [[-1.0]]
     """
     A, B1, B2, C1, C2, D11, D12, D21, D22 = parts
     ne, nv = D11.shape
@@ -115,7 +129,13 @@ def close_parts(parts: Sequence[np.ndarray], F: Any, G: Any, H: Any, J: Any, wha
 
 
 def blockdiag(*ms: np.ndarray) -> np.ndarray:
-    """The matrices on the diagonal of one (any shapes, empty ones included)."""
+    """The matrices on the diagonal of one (any shapes, empty ones included).
+
+    Examples
+    --------
+    >>> blockdiag(np.ones((1, 2)), np.zeros((0, 0)), 2 * np.eye(1)).tolist()
+    [[1.0, 1.0, 0.0], [0.0, 0.0, 2.0]]
+    """
     rows = sum(m.shape[0] for m in ms)
     cols = sum(m.shape[1] for m in ms)
     out = np.zeros((rows, cols))
@@ -206,7 +226,14 @@ def parallel(G: Any, H: Any) -> DelayLTI:
 
 
 def negate(G: DelayLTI) -> DelayLTI:
-    """``-G``: the outputs negated."""
+    """``-G``: the outputs negated.
+
+    Examples
+    --------
+    >>> from delaykit import tf
+    >>> negate(tf("exp(-s)/(s+1)")).dcgain().tolist()
+    [[-1.0]]
+    """
     return DelayLTI(G.A, G.B1, G.B2, -G.C1, G.C2, -G.D11, -G.D12, G.D21, G.D22, delays=G.delays, inputs=G.inputs,
                     outputs=G.outputs, name=G.name, limits=G.limits)
 

@@ -152,7 +152,7 @@ def _matrix(source: str, where: str, value: Any) -> list[list[float]]:
     return [[_number(source, f"{where}[{i}][{j}]", x) for j, x in enumerate(r)] for i, r in enumerate(value)]
 
 
-def _block(source: str, k: int, spec: Any, rename: dict[str, str]) -> DelayLTI:
+def _block(source: str, k: int, spec: Any) -> DelayLTI:
     if not isinstance(spec, dict):
         raise InvalidValueError(_where(source, f"blocks[{k}] must be a table, got {spec!r}"))
     label = spec.get("name", f"blocks[{k}]")
@@ -168,43 +168,55 @@ def _block(source: str, k: int, spec: Any, rename: dict[str, str]) -> DelayLTI:
         raise InvalidValueError(_where(source, f"{where} needs exactly one of {', '.join(_KINDS)}, got "
                                                f"{', '.join(kinds) or 'none'}"))
     kind = kinds[0]
-    outs = [rename.get(n, n) for n in _names(source, f"{where}: outputs", spec.get("outputs"))]
+    outs = _names(source, f"{where}: outputs", spec.get("outputs"))
     name = label if "name" in spec else ""
+    if kind == "sum":
+        terms = _names(source, f"{where}: sum", spec["sum"])
+        if "inputs" in spec:
+            raise InvalidValueError(_where(source, f"{where}: a sum block takes its inputs from 'sum', not 'inputs'"))
+        if len(outs) != 1:
+            raise InvalidValueError(_where(source, f"{where}: a sum block has one output, got {outs}"))
+        return _made(source, where, summing_junction, terms, outs[0], name=name)
+    ins = _names(source, f"{where}: inputs", spec.get("inputs"))
+    if kind == "delay":
+        return _made(source, where, delay, _number(source, f"{where}: delay", spec["delay"]), inputs=ins, outputs=outs,
+                     name=name)
+    if kind == "tf":
+        v = spec["tf"]
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            v = _number(source, f"{where}: tf", v)
+        elif not isinstance(v, str):
+            raise InvalidValueError(_where(source, f"{where}: tf must be text such as '2*exp(-0.5*s)/(s+1)' or a "
+                                                   f"number, got {v!r}"))
+        return _made(source, where, tf, v, inputs=ins, outputs=outs, name=name or None)
+    m = spec["ss"]
+    if not isinstance(m, dict):
+        raise InvalidValueError(_where(source, f"{where}: ss must be a table with A, B, C, D, got {m!r}"))
+    bad = sorted(set(m) - {"A", "B", "C", "D"})
+    if bad:
+        raise InvalidValueError(_where(source, f"{where}: ss has an unknown matrix {bad[0]!r} (A, B, C, D)"))
+    for key in ("A", "B", "C"):
+        if key not in m:
+            raise InvalidValueError(_where(source, f"{where}: ss is missing the matrix {key}"))
+    mats = {key: _matrix(source, f"{where}: ss.{key}", m[key]) for key in m}
+    return _made(source, where, ss, mats["A"], mats["B"], mats["C"], mats.get("D"), inputs=ins, outputs=outs,
+                 name=name)
+
+
+def _made(source: str, where: str, make: Any, *args: Any, **kwargs: Any) -> DelayLTI:
+    """``make(*args, **kwargs)``, its error (a bad transfer function, matrix or delay) prefixed by the file and the
+    block."""
     try:
-        if kind == "sum":
-            terms = _names(source, f"{where}: sum", spec["sum"])
-            if "inputs" in spec:
-                raise InvalidValueError(_where(source, f"{where}: a sum block takes its inputs from 'sum', not "
-                                                       "'inputs'"))
-            if len(outs) != 1:
-                raise InvalidValueError(_where(source, f"{where}: a sum block has one output, got {outs}"))
-            return summing_junction(terms, outs[0], name=name)
-        ins = _names(source, f"{where}: inputs", spec.get("inputs"))
-        if kind == "delay":
-            return delay(_number(source, f"{where}: delay", spec["delay"]), inputs=ins, outputs=outs, name=name)
-        if kind == "tf":
-            v = spec["tf"]
-            if isinstance(v, (int, float)) and not isinstance(v, bool):
-                v = _number(source, f"{where}: tf", v)
-            elif not isinstance(v, str):
-                raise InvalidValueError(_where(source, f"{where}: tf must be text such as '2*exp(-0.5*s)/(s+1)' or a "
-                                                       f"number, got {v!r}"))
-            return tf(v, inputs=ins, outputs=outs, name=name or None)
-        m = spec["ss"]
-        if not isinstance(m, dict):
-            raise InvalidValueError(_where(source, f"{where}: ss must be a table with A, B, C, D, got {m!r}"))
-        bad = sorted(set(m) - {"A", "B", "C", "D"})
-        if bad:
-            raise InvalidValueError(_where(source, f"{where}: ss has an unknown matrix {bad[0]!r} (A, B, C, D)"))
-        for key in ("A", "B", "C"):
-            if key not in m:
-                raise InvalidValueError(_where(source, f"{where}: ss is missing the matrix {key}"))
-        mats = {key: _matrix(source, f"{where}: ss.{key}", m[key]) for key in m}
-        return ss(mats["A"], mats["B"], mats["C"], mats.get("D"), inputs=ins, outputs=outs, name=name)
+        return make(*args, **kwargs)
     except InvalidValueError as exc:
-        if str(exc).startswith(source):
-            raise
         raise InvalidValueError(_where(source, f"{where}: {exc}")) from None
+
+
+def _named(sys: DelayLTI, outputs: list[str], name: str, inputs: list[str] | None = None) -> DelayLTI:
+    """``sys`` with other signal names (``inputs`` None: its own) and label."""
+    return DelayLTI(A=sys.A, B1=sys.B1, B2=sys.B2, C1=sys.C1, C2=sys.C2, D11=sys.D11, D12=sys.D12, D21=sys.D21,
+                    D22=sys.D22, delays=sys.delays, limits=sys.limits, inputs=sys.inputs if inputs is None else inputs,
+                    outputs=outputs, name=name)
 
 
 def _interconnect(source: str, blocks: list[DelayLTI], inputs: list[str], outputs: list[str],
@@ -255,7 +267,7 @@ def system_from_dict(data: Any, *, source: str = "dict") -> SystemFile:
         raise InvalidValueError(_where(source, "blocks is missing: give each block as a [[blocks]] table"))
     if len(specs) > _MAX_BLOCKS:
         raise InvalidValueError(_where(source, f"{len(specs)} blocks; at most {_MAX_BLOCKS}"))
-    blocks = [_block(source, k, s, {}) for k, s in enumerate(specs)]
+    blocks = [_block(source, k, s) for k, s in enumerate(specs)]
     system = _interconnect(source, blocks, inputs, outputs, name)
     made = {n for b in blocks for n in b.outputs}
     loops = []
@@ -265,12 +277,9 @@ def system_from_dict(data: Any, *, source: str = "dict") -> SystemFile:
         out = f"{x}_out"
         while out in made or out in inputs:
             out += "_"
-        opened = [_block(source, k, s, {x: out}) for k, s in enumerate(specs)]
+        opened = [_named(b, [out if n == x else n for n in b.outputs], b.name) for b in blocks]
         T = _interconnect(source, opened, inputs + [x], [out], f"loop at {x}")
-        L = -(T[0, len(inputs)])
-        loops.append(DelayLTI(A=L.A, B1=L.B1, B2=L.B2, C1=L.C1, C2=L.C2, D11=L.D11, D12=L.D12, D21=L.D21,
-                              D22=L.D22, delays=L.delays, limits=L.limits, inputs=[x], outputs=[out],
-                              name=f"loop at {x}"))
+        loops.append(_named(-(T[0, len(inputs)]), [out], f"loop at {x}", inputs=[x]))
     return SystemFile(system, tuple(breaks), tuple(loops), source)
 
 

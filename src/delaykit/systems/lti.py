@@ -141,21 +141,37 @@ def _check_limits(limits: Any, m: int) -> tuple[tuple[float, float], ...]:
 
 
 def as_frequencies(w: Any, name: str = "w") -> np.ndarray:
-    """Frequencies (rad/s) as a 1-D float array of finite values >= 0.
+    """Frequencies (rad/s) as a 1-D float array of finite values >= 0, or a delaykit error naming the problem
+    (text and complex or non-numeric arrays are refused, not converted).
 
     Examples
     --------
     >>> as_frequencies(2.0).tolist()
     [2.0]
+    >>> as_frequencies([1.0, -2.0])
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.InvalidValueError: frequencies must be at least 0 rad/s (w >= 0), got -2 in w
     """
+    if isinstance(w, (str, bytes)):
+        raise InvalidTypeError(f"{name} must be frequencies in rad/s (numbers), got {reprlib.repr(w)}")
     try:
-        arr = np.atleast_1d(np.asarray(w, dtype=float))
+        arr = np.asarray(w)
     except (TypeError, ValueError) as exc:
-        raise InvalidTypeError(f"{name} must be frequencies in rad/s (numbers), got {reprlib.repr(w)}") from exc
-    if arr.ndim != 1 or arr.size == 0:
-        raise InvalidValueError(f"{name} must be a non-empty 1-D list of frequencies, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)) or np.any(arr < 0):
-        raise InvalidValueError(f"{name} must be finite and >= 0 rad/s, got {reprlib.repr(arr.tolist())}")
+        raise InvalidTypeError(f"{name} must be an array of frequencies in rad/s, got {reprlib.repr(w)}") from exc
+    if arr.dtype.kind not in "iuf":
+        raise InvalidTypeError(f"{name} must be real frequencies in rad/s, got an array of dtype {arr.dtype}")
+    arr = np.atleast_1d(arr.astype(float))
+    if arr.ndim != 1:
+        raise InvalidValueError(f"{name} must be a one-dimensional array of frequencies, got shape {arr.shape}")
+    if arr.size == 0:
+        raise InvalidValueError(f"{name} is empty: give at least one frequency (rad/s)")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        raise InvalidValueError(f"frequencies must be finite, got {float(arr[bad][0])!r} in {name}")
+    if (arr < 0).any():
+        raise InvalidValueError(f"frequencies must be at least 0 rad/s ({name} >= 0), got {arr[arr < 0][0]:g} in "
+                                f"{name}")
     return arr
 
 
