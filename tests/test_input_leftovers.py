@@ -1,0 +1,69 @@
+"""Issue 25's leftovers: the last API cases of the fuzz suite, option values read as ASCII decimal, table numbers
+short at any magnitude.
+
+Each case asserts delaykit's exception type and that the message names the value, or, where a result was wrong
+before, the now-correct result against a closed form.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from delaykit import AltitudeLoop, InvalidTypeError, InvalidValueError, margins, noise_level
+from delaykit.models.ranges import parse_range
+from delaykit.spectrum.lambert import lambert_roots
+
+
+@pytest.mark.parametrize("kp", [1e3, 1e8, 1e30, 1e100])
+def test_margins_of_a_huge_gain_find_its_crossover(kp):
+    # delay 0: L(s) = kp/s (the altitude loop's P law on the integrator), closed form: |L(jw)| = 1 at w = kp, phase
+    # -90 degrees there, so a phase margin of 90 degrees and a delay margin of (pi/2)/kp.  Before, above about
+    # kp = 1e7 the crossover was dropped (|L|^2's polynomial coefficients span kp^2) and the margins read infinite;
+    # at 1e30 an invalid cast also warned.
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        m = margins(AltitudeLoop(kp=kp, delay=0.0))
+    assert m.stable
+    assert m.crossover == pytest.approx(kp, rel=1e-12)
+    assert m.phase_margin == pytest.approx(90.0, abs=1e-9)
+    assert m.delay_margin == pytest.approx(math.pi / 2 / kp, rel=1e-12)
+
+
+@pytest.mark.parametrize("bad", [math.inf, -math.inf, math.nan])
+def test_noise_level_refuses_a_sample_that_is_not_finite(bad):
+    z = np.zeros(8)
+    z[5] = bad
+    with pytest.raises(InvalidValueError, match=r"z\[5\] is (-?inf|nan)"):
+        noise_level(z)
+
+
+def test_noise_level_refuses_text():
+    with pytest.raises(InvalidTypeError, match="z must be real numbers"):
+        noise_level(np.array(["a", "b", "c", "d", "e"]))
+
+
+@pytest.mark.parametrize("spec", [None, 3, 2.5, b"1:2:3", object()])
+def test_parse_range_refuses_what_is_neither_text_nor_a_sequence(spec):
+    with pytest.raises(InvalidTypeError, match="kp must be text"):
+        parse_range(spec, "kp")
+
+
+def test_parse_range_still_takes_a_sequence():
+    assert parse_range((1, 2.5), "kp") == [1.0, 2.5]
+
+
+@pytest.mark.parametrize("branches", [0.0, 2.5, "01", None, [0, 1.0], [0, "1"]])
+def test_lambert_branches_that_are_not_integers_are_refused(branches):
+    with pytest.raises(InvalidTypeError, match="integer"):
+        lambert_roots(0.0, -1.31, 0.368, branches=branches)
+
+
+@pytest.mark.parametrize("branches", [10**30, [0, -(10**19)]])
+def test_lambert_branches_beyond_c_long_are_refused(branches):
+    with pytest.raises(InvalidValueError, match="out of range"):
+        lambert_roots(0.0, -1.31, 0.368, branches=branches)
