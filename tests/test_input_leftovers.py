@@ -67,3 +67,33 @@ def test_lambert_branches_that_are_not_integers_are_refused(branches):
 def test_lambert_branches_beyond_c_long_are_refused(branches):
     with pytest.raises(InvalidValueError, match="out of range"):
         lambert_roots(0.0, -1.31, 0.368, branches=branches)
+
+
+# ---- numbers in tables: short at any magnitude ------------------------------------------------------------------
+
+@pytest.mark.parametrize("x, digits", [(1e300, 5), (-1e300, 4), (2e-9, 4), (-3.5e-12, 5), (123456789.0, 4),
+                                       (5e-5, 4), (1e6, 3)])
+def test_fmt_stays_short_and_keeps_the_value(x, digits):
+    from delaykit.cli.common import fmt
+
+    text = fmt(x, digits)
+    assert len(text) <= digits + 8, text  # sign, one digit, point, the digits, e+300
+    assert float(text) == pytest.approx(x, rel=10.0 ** -digits)  # the value is still there (not 0.0000)
+
+
+def test_fmt_keeps_fixed_point_in_the_usual_range():
+    from delaykit.cli.common import fmt
+
+    assert [fmt(0.368, 5), fmt(12.5), fmt(0.0), fmt(-0.25, 3), fmt(999999.0, 1)] == \
+        ["0.36800", "12.5000", "0.0000", "-0.250", "999999.0"]
+
+
+def test_simulate_prints_a_huge_delay_in_a_short_cell():
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+
+    res = CliRunner().invoke(app, ["simulate", "--kp", "1.31", "--delay", "0.3,1e300", "--t-end", "3"])
+    assert res.exit_code == 0, res.output
+    assert "1.00000e+300" in res.output and "0.30000" in res.output
+    assert max(len(line) for line in res.output.splitlines()) < 100  # a 300-digit cell would be 300 wide

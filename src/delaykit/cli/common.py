@@ -572,7 +572,20 @@ def _check_output(flag: str, p: Path, text: str, kind: str) -> None:
 
 
 def fmt(x: Optional[float], digits: int = 4) -> str:
-    return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}f}"
+    """A number for a table, short at any magnitude: fixed point from ``10**-digits`` to a million, otherwise
+    in exponent form (a delay of 1e300 is not printed as 300 digits, nor 1e-9 as zero); ``–`` for None or nan.
+
+    Examples
+    --------
+    >>> fmt(0.368), fmt(1e300, 5), fmt(2e-9), fmt(None), fmt(float("inf"))
+    ('0.3680', '1.00000e+300', '2.0000e-09', '–', 'inf')
+    """
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "–"
+    a = abs(float(x))
+    if a == 0 or math.isinf(a) or 10.0 ** -digits <= a < 1e6:
+        return f"{x:.{digits}f}"
+    return f"{x:.{digits}e}"
 
 
 def fmt_ci(ci: Any, digits: int = 4) -> str:
