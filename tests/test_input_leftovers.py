@@ -7,6 +7,7 @@ before, the now-correct result against a closed form.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -97,3 +98,79 @@ def test_simulate_prints_a_huge_delay_in_a_short_cell():
     assert res.exit_code == 0, res.output
     assert "1.00000e+300" in res.output and "0.30000" in res.output
     assert max(len(line) for line in res.output.splitlines()) < 100  # a 300-digit cell would be 300 wide
+
+
+# ---- option values: ASCII decimal only, for every numeric option of every command -----------------------------
+
+def _numeric_options():
+    """(command, option, int or float, nargs) for every option of the Typer app that takes numbers."""
+    import typer.main
+
+    from delaykit.cli import app
+    from delaykit.cli.common import _number_kind
+
+    group = typer.main.get_command(app)
+    found = []
+    for name, cmd in sorted(group.commands.items()):
+        for p in cmd.params:
+            kind = _number_kind(p.type_descriptor.annotation)
+            if kind is not None and p.param_type_name == "option":
+                found.append(pytest.param(name, p.opts[0], kind, max(p.nargs, 1), id=f"{name} {p.opts[0]}"))
+    return found
+
+
+NUMERIC_OPTIONS = _numeric_options()
+# what Python's float() and int() (and pydantic) read as numbers but a person does not write: underscores,
+# full-width, Arabic-Indic and superscript digits
+NOT_ASCII_DECIMAL = ["1_0", "1e5_0", "\uff11\uff12", "\u0661\u0662", "\u00b9"]
+
+
+def test_every_command_has_numeric_options_enumerated():
+    commands = {p.values[0] for p in NUMERIC_OPTIONS}
+    assert {"simulate", "roots", "margins", "lambert", "design", "estimate", "fly", "emulate", "demo"} <= commands
+    assert any(p.values[3] > 1 for p in NUMERIC_OPTIONS)  # roots --region: four numbers
+
+
+@functools.lru_cache(maxsize=1)
+def _group():
+    import typer.main
+
+    from delaykit.cli import app
+
+    return typer.main.get_command(app)  # (its options convert values as the delaykit script's do)
+
+
+def _parse(command: str, args: list[str]):
+    """Parse ``delaykit COMMAND ARGS`` (nothing runs); the click error raised, or None."""
+    group = _group()
+    usage = next(c for c in __import__("typer").BadParameter.__mro__ if c.__name__ == "UsageError")
+    try:
+        group.commands[command].make_context(command, args)
+    except usage as exc:
+        return exc
+    return None
+
+
+@pytest.mark.parametrize("command, flag, kind, nargs", NUMERIC_OPTIONS)
+def test_numeric_options_take_ascii_decimal_only(command, flag, kind, nargs):
+    import typer
+
+    good = "2" if kind is int else "2.5"
+    for text in NOT_ASCII_DECIMAL:
+        exc = _parse(command, [flag, *([good] * (nargs - 1)), text])  # the option first: click checks it first
+        assert isinstance(exc, typer.BadParameter) and exc.param is not None and exc.param.opts[0] == flag, \
+            (text, exc)
+        assert "ASCII decimal" in exc.format_message() and repr(text) in exc.format_message()
+    exc = _parse(command, [flag, *([good] * nargs)])  # a plain number passes this option (others may be missing)
+    assert not (isinstance(exc, typer.BadParameter) and exc.param is not None and exc.param.opts[0] == flag), exc
+
+
+def test_a_bad_option_number_is_one_line_exit_2():
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+
+    res = CliRunner().invoke(app, ["simulate", "--kp", "1_0", "--delay", "0.3"])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    lines = res.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and "'--kp'" in lines[0] and "'1_0'" in lines[0]
