@@ -26,6 +26,7 @@ Hierarchy::
     ├── PortError (also OSError): a port that cannot be bound (already in use, ...)
     ├── LinkError (also RuntimeError): the drone does not answer
     ├── FlightError (also RuntimeError): a flight produced nothing to work with
+    │   └── FlightInterruptedError: the user stopped a pipeline of flights (Ctrl-C, SIGTERM, SIGHUP)
     └── MissingDependencyError (also ImportError): an optional package (python-control) is not installed
 """
 
@@ -35,7 +36,7 @@ import math
 from typing import Any
 
 __all__ = ["DelaykitError", "DelaykitWarning", "InvalidValueError", "InvalidTypeError", "RangeSpecError", "PortError",
-           "PortNumberError", "FlightError", "MissingDependencyError", "check_real",
+           "PortNumberError", "FlightError", "FlightInterruptedError", "MissingDependencyError", "check_real",
            "check_finite_array"]
 
 
@@ -76,6 +77,15 @@ class PortNumberError(PortError, InvalidValueError):
 
 class FlightError(DelaykitError, RuntimeError):
     """A flight produced nothing to work with (no logs), so the pipeline cannot go on."""
+
+
+class FlightInterruptedError(FlightError):
+    """A flight of a pipeline (``run_demo``) was interrupted (Ctrl-C, SIGTERM, SIGHUP): the vehicle landed, and the
+    pipeline stops instead of flying its next flight.  ``signal_name`` says which (``"Ctrl-C"``, ``"SIGTERM"``)."""
+
+    def __init__(self, message: str, signal_name: str) -> None:
+        super().__init__(message)
+        self.signal_name = signal_name
 
 
 class MissingDependencyError(DelaykitError, ImportError):
