@@ -174,3 +174,15 @@ def test_a_bad_option_number_is_one_line_exit_2():
     assert res.exit_code == 2 and "Traceback" not in res.output
     lines = res.stderr.splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and "'--kp'" in lines[0] and "'1_0'" in lines[0]
+
+
+def test_lambert_prints_a_huge_root_in_short_text():
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+
+    # a1 = 0: the one root is s = a0 (closed form), here -1e250, printed as 251 digits before
+    res = CliRunner().invoke(app, ["lambert", "--a0", "-1e250", "--a1", "0", "--delay", "1"])
+    assert res.exit_code == 0, res.output
+    assert "Rightmost root -1.00000000e+250 +0.00000000j" in " ".join(res.output.split())
+    assert max(len(line) for line in res.output.splitlines()) < 130
