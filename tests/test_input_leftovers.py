@@ -186,3 +186,15 @@ def test_lambert_prints_a_huge_root_in_short_text():
     assert res.exit_code == 0, res.output
     assert "Rightmost root -1.00000000e+250 +0.00000000j" in " ".join(res.output.split())
     assert max(len(line) for line in res.output.splitlines()) < 130
+
+
+def test_estimate_warns_about_a_huge_peak_time_in_short_text():
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+
+    res = CliRunner().invoke(app, ["estimate", "--kp", "1.31", "--method", "overshoot", "--overshoot", "20",
+                                   "--peak-time", "1e200"])
+    assert res.exit_code == 0, res.output
+    text = " ".join(res.output.split())
+    assert "the flight peaked at 1e+200 s" in text and max(len(w) for w in text.split()) < 40
