@@ -18,7 +18,7 @@ import types
 from typing import Any
 
 from ._lazy import lazy_exports
-from .errors import (DelaykitError, DelaykitWarning, FlightError, InvalidTypeError, InvalidValueError, MissingDependencyError,
+from .errors import (DelaykitError, DelaykitWarning, FlightError, FlightInterruptedError, InvalidTypeError, InvalidValueError, MissingDependencyError,
                      PortError, PortNumberError, RangeSpecError)
 
 __all__ = [
@@ -31,7 +31,7 @@ __all__ = [
     "sampled_spectrum", "sampled_margins", "compare_sampling", "sampled_frequency_response",
     # every exception class of the package (all derive from DelaykitError)
     "DelaykitError", "InvalidTypeError", "InvalidValueError", "RangeSpecError", "PortError", "PortNumberError",
-    "FlightError", "MissingDependencyError", "ProtocolError", "ATError", "NavdataError", "LinkError", "EstimationError", "LogError",
+    "FlightError", "FlightInterruptedError", "MissingDependencyError", "ProtocolError", "ATError", "NavdataError", "LinkError", "EstimationError", "LogError",
     "IdentificationError",
     # identification
     "Experiment", "read_experiment", "identify", "predict", "load_model", "IdentifiedModel",

@@ -26,6 +26,7 @@ Hierarchy::
     ├── PortError (also OSError): a port that cannot be bound (already in use, ...)
     ├── LinkError (also RuntimeError): the drone does not answer
     ├── FlightError (also RuntimeError): a flight produced nothing to work with
+    │   └── FlightInterruptedError: the user stopped a pipeline of flights (Ctrl-C, SIGTERM, SIGHUP)
     └── MissingDependencyError (also ImportError): an optional package (python-control) is not installed
 """
 
@@ -35,7 +36,8 @@ import math
 from typing import Any
 
 __all__ = ["DelaykitError", "DelaykitWarning", "InvalidValueError", "InvalidTypeError", "RangeSpecError", "PortError",
-           "PortNumberError", "FlightError", "MissingDependencyError", "check_real"]
+           "PortNumberError", "FlightError", "FlightInterruptedError", "MissingDependencyError", "check_real",
+           "check_finite_array"]
 
 
 class DelaykitError(Exception):
@@ -75,6 +77,15 @@ class PortNumberError(PortError, InvalidValueError):
 
 class FlightError(DelaykitError, RuntimeError):
     """A flight produced nothing to work with (no logs), so the pipeline cannot go on."""
+
+
+class FlightInterruptedError(FlightError):
+    """A flight of a pipeline (``run_demo``) was interrupted (Ctrl-C, SIGTERM, SIGHUP): the vehicle landed, and the
+    pipeline stops instead of flying its next flight.  ``signal_name`` says which (``"Ctrl-C"``, ``"SIGTERM"``)."""
+
+    def __init__(self, message: str, signal_name: str) -> None:
+        super().__init__(message)
+        self.signal_name = signal_name
 
 
 class MissingDependencyError(DelaykitError, ImportError):
@@ -140,3 +151,48 @@ def check_real(
     if maximum is not None and not x <= maximum:
         raise InvalidValueError(f"{name} must be at most {maximum:g}, got {x:g}")
     return x
+
+
+def check_finite_array(name: str, values: Any) -> Any:
+    """Return ``values`` as a float NumPy array, or raise a delaykit error that names the first bad sample.
+
+    Anything that is not numbers (text, None, objects) raises :class:`InvalidTypeError`; a sample that is nan or
+    infinite raises :class:`InvalidValueError` giving its index.  Complex values are refused (a signal is real).
+
+    Parameters
+    ----------
+    name : str
+        The name shown in the message (for example ``"z"``).
+    values : array_like
+        The samples.
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> check_finite_array("z", [0.0, 1.5]).tolist()
+    [0.0, 1.5]
+    >>> check_finite_array("z", [0.0, float("inf")])
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.InvalidValueError: z[1] is inf; every sample must be finite
+    """
+    import numpy as np  # here, so that importing this module stays cheap
+
+    try:
+        arr = np.asarray(values)
+        if arr.dtype.kind not in "biuf":
+            raise TypeError(arr.dtype)
+        arr = arr.astype(float, copy=False)
+    except (TypeError, ValueError, OverflowError):
+        shown = repr(values)
+        raise InvalidTypeError(f"{name} must be real numbers, got {shown[:60]}{'...' if len(shown) > 60 else ''}") \
+            from None
+    bad = np.flatnonzero(~np.isfinite(arr.ravel()))
+    if bad.size:
+        i = int(bad[0])
+        where = f"{name}[{i}]" if arr.ndim == 1 else f"{name}[{', '.join(map(str, np.unravel_index(i, arr.shape)))}]"
+        raise InvalidValueError(f"{where} is {arr.ravel()[i]}; every sample must be finite")
+    return arr

@@ -7,8 +7,8 @@ from typing import Optional
 
 import typer
 
-from ..errors import InvalidValueError, check_real
-from .common import check_output, confirm_real, err, fmt_ci, friendly, out, print_json, progress_bar, warn
+from ..errors import FlightInterruptedError, InvalidValueError, check_real
+from .common import check_output, confirm_real, err, fmt_ci, friendly, out, print_error, print_json, progress_bar, warn
 
 __all__ = ["demo", "report", "reproduce"]
 
@@ -86,11 +86,21 @@ def demo(
     if varying_steps < 0:
         raise InvalidValueError(f"--varying-steps must be at least 0, got {varying_steps}")
     check_real("--delay-jump (s)", delay_jump, minimum=0.0, maximum=2.0)
-    with err.status("starting") as st:
-        rep = run_demo(out_dir, host=host, seed=seed, p_steps=p_steps, step_duration=step_duration,
-                       compensate=compensate, varying_steps=varying_steps, delay_jump=delay_jump, vehicle=vehicle,
-                       identify_plant=identify_plant,
-                       confirm=confirm_real(host, yes) if host else None, status=lambda m: st.update(m))
+    from ..hardware.flight import land_on_signals
+
+    try:
+        # SIGTERM and SIGHUP land a flight as Ctrl-C does; an interrupted flight stops the demo (no next take-off)
+        with land_on_signals(), err.status("starting") as st:
+            rep = run_demo(out_dir, host=host, seed=seed, p_steps=p_steps, step_duration=step_duration,
+                           compensate=compensate, varying_steps=varying_steps, delay_jump=delay_jump,
+                           vehicle=vehicle, identify_plant=identify_plant,
+                           confirm=confirm_real(host, yes) if host else None, status=lambda m: st.update(m))
+    except FlightInterruptedError as exc:
+        print_error(str(exc))
+        raise typer.Exit(1) from None
+    except KeyboardInterrupt as exc:  # between flights (estimating, designing): nothing was in the air
+        print_error(f"interrupted ({getattr(exc, 'signal_name', 'Ctrl-C')}) between flights; the demo stops")
+        raise typer.Exit(1) from None
     if as_json:
         print_json(rep.to_dict(), default=str)
         return

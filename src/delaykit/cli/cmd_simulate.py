@@ -166,9 +166,9 @@ def simulate(
         for r in rows:
             if "overshoot" not in r:
                 paper_cols = ["–", "–"] if any("paper_overshoot" in x for x in rows) else []
-                table.add_row(f"{r['delay']:.5f}", "–", *paper_cols, *["–"] * (4 if split else 3))
+                table.add_row(fmt(r['delay'], 5), "–", *paper_cols, *["–"] * (4 if split else 3))
                 continue
-            cells = [f"{r['delay']:.5f}", fmt(r["overshoot"])]
+            cells = [fmt(r['delay'], 5), fmt(r["overshoot"])]
             if any("paper_overshoot" in x for x in rows):
                 p = r.get("paper_overshoot")
                 cells += [fmt(p, 3), "–" if p is None else f"{p - r['overshoot']:+.4f}"]
@@ -299,8 +299,8 @@ def _simulate_varying(loop: Any, model: Any, keep_order: Optional[bool], *, step
     table = Table(title=repr(loop))
     for col in ("delay s", "Mo %", "peak s", "rise s", "settle s", "packets", "dropped"):
         table.add_column(col, justify="right")
-    span = f"{row['delay_min']:.5f}" if row["delay_min"] == row["delay_max"] else \
-        f"{row['delay_min']:.5f} to {row['delay_max']:.5f}"
+    span = fmt(row['delay_min'], 5) if row["delay_min"] == row["delay_max"] else \
+        f"{fmt(row['delay_min'], 5)} to {fmt(row['delay_max'], 5)}"
     if "overshoot" in row:
         cells = [fmt(row["overshoot"]), fmt(row["peak_time"]), fmt(row["rise_time"]),
                  fmt(row["settling_time"]) if row["settled"] else "never"]

@@ -9,7 +9,7 @@ from typing import Any, Optional
 import typer
 
 from ..errors import DelaykitError, InvalidValueError, check_real
-from .common import check_output, friendly, out, print_json
+from .common import check_output, fmt, friendly, out, print_json
 from .loopopts import with_loop
 
 __all__ = ["lambert", "margins", "roots"]
@@ -321,7 +321,7 @@ def lambert(
     none = 0
     for row in data["roots"]:
         if math.isfinite(row["re"]) and math.isfinite(row["im"]):
-            table.add_row(str(row["branch"]), f"{row['re']:.8f}", f"{row['im']:.8f}")
+            table.add_row(str(row["branch"]), fmt(row["re"], 8), fmt(row["im"], 8))
         else:  # W_k(0) = -inf for k != 0 (the argument Td a1 exp(-a0 Td) is 0, or underflows to 0)
             none += 1
             table.add_row(str(row["branch"]), "no root", "")
@@ -331,7 +331,7 @@ def lambert(
                   "s = a0, one root, on branch 0).")
     rm = data["rightmost"]
     if math.isfinite(rm[0]) and math.isfinite(rm[1]):
-        out.print(f"Rightmost root {rm[0]:.8f} {rm[1]:+.8f}j (branch 0; for real coefficients branch -1 is its "
-                  "conjugate).")
+        out.print(f"Rightmost root {fmt(rm[0], 8)} {'-' if rm[1] < 0 else '+'}{fmt(abs(rm[1]), 8)}j (branch 0; for "
+                  "real coefficients branch -1 is its conjugate).")
     else:
         out.print("No root on the branches asked for (the root of a1 = 0, s = a0, is on branch 0).")

@@ -46,6 +46,7 @@ class _QuickCoercion:
                  and not getattr(info, "clamp", False) and not param.multiple and param.nargs == 1)
         self.kind = desc.annotation if plain and desc.annotation in (float, int, str) else None
         self.single = not param.multiple and param.nargs == 1
+        self.number = _number_kind(desc.annotation)
 
     def quick(self, value: Any) -> Any:
         """The converted value, or ``_MISSING`` where typer's own conversion must decide."""
@@ -69,23 +70,54 @@ class _QuickCoercion:
         got = self.quick(value)
         if got is not _MISSING:
             return got
+        if self.number is not None:  # the ASCII-decimal rule first: pydantic and float() read 1_0 as ten
+            _check_number_text(value, self.number, param, ctx)
         if self.real is None:
             self.real = self.build(self.param.type_descriptor)
         return self.real.coerce(value, param=param, ctx=ctx)
+
+
+def _number_kind(annotation: Any) -> Any:
+    """``float`` or ``int`` for an option of numbers (``float``, ``Optional[int]``, ``tuple[float, ...]``,
+    ``list[int]``), else None."""
+    import typing
+
+    if annotation in (float, int):
+        return annotation
+    kinds = {_number_kind(a) for a in typing.get_args(annotation) if a is not type(None) and a is not Ellipsis}
+    return kinds.pop() if len(kinds) == 1 and None not in kinds else None
+
+
+def _check_number_text(value: Any, kind: Any, param: Any, ctx: Any) -> None:
+    """Raise click's BadParameter for text in ``value`` (one text, or a tuple or list of them) that is not a
+    number in ASCII decimal (:func:`~delaykit.models.ranges.parse_number`; an integer for ``int``)."""
+    from ..models.ranges import parse_integer, parse_number
+
+    for text in value if isinstance(value, (tuple, list)) else (value,):
+        if isinstance(text, str):
+            try:
+                (parse_integer if kind is int else parse_number)(text)
+            except InvalidValueError:
+                what = "an integer (ASCII decimal, e.g. 12)" if kind is int else \
+                    "a number (ASCII decimal, e.g. -1.5 or 2e-3)"
+                raise typer.BadParameter(f"{text[:40]!r} is not {what}", ctx=ctx, param=param) from None
 
 
 def quick_coercion(command: Any) -> int:
     """Give every option of a Typer-built click command (and its subcommands) a :class:`_QuickCoercion`.
 
     Returns how many options got one (0 with a Typer that converts values without pydantic, where there is
-    nothing to gain: the command is then left as it is).
+    nothing to gain: the command is then left as it is; 0 again for options that have one already).  The
+    application's group calls it when it is built, so that every way of running a command (the ``delaykit``
+    script, ``typer.main.get_command``, Typer's test runner) reads numbers by the same rule.
 
     Examples
     --------
     >>> import typer.main
     >>> from delaykit.cli import app
-    >>> quick_coercion(typer.main.get_command(app)) > 40
-    True
+    >>> group = typer.main.get_command(app)
+    >>> type(group.commands["simulate"].params[0]._runtime_param).__name__, quick_coercion(group)
+    ('_QuickCoercion', 0)
     """
     try:
         from typer._coercion import build_runtime_param
@@ -218,6 +250,10 @@ class _Group(TyperGroup):
     """Typer's command group, with its usage errors (a bad option value, an unknown option, a missing one) on one
     line, ``error: ... (see 'delaykit CMD --help')``, exit status 2, as delaykit's own errors (Typer would draw a
     box around the message, wrapped to the terminal's width, after two lines of usage)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        quick_coercion(self)  # however the group is built (the script, typer.main.get_command, the test runner)
 
     def main(self, args: Any = None, prog_name: Optional[str] = None, complete_var: Optional[str] = None,
              standalone_mode: bool = True, **extra: Any) -> Any:
@@ -572,7 +608,20 @@ def _check_output(flag: str, p: Path, text: str, kind: str) -> None:
 
 
 def fmt(x: Optional[float], digits: int = 4) -> str:
-    return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}f}"
+    """A number for a table, short at any magnitude: fixed point from ``10**-digits`` to a million, otherwise
+    in exponent form (a delay of 1e300 is not printed as 300 digits, nor 1e-9 as zero); ``–`` for None or nan.
+
+    Examples
+    --------
+    >>> fmt(0.368), fmt(1e300, 5), fmt(2e-9), fmt(None), fmt(float("inf"))
+    ('0.3680', '1.00000e+300', '2.0000e-09', '–', 'inf')
+    """
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "–"
+    a = abs(float(x))
+    if a == 0 or math.isinf(a) or 10.0 ** -digits <= a < 1e6:
+        return f"{x:.{digits}f}"
+    return f"{x:.{digits}e}"
 
 
 def fmt_ci(ci: Any, digits: int = 4) -> str:

@@ -272,6 +272,9 @@ class FlightResult:
     events: tuple[str, ...] = field(default_factory=tuple)
     controller: dict[str, Any] | None = None
     online: tuple[OnlineEstimate, ...] = field(default_factory=tuple)
+    #: what interrupted the flight (``"Ctrl-C"``, ``"SIGTERM"``, ``"SIGHUP"``), or None: the vehicle landed and the
+    #: user asked to stop, so a pipeline of several flights stops too
+    interrupted: str | None = None
 
     @property
     def alarms(self) -> int:
@@ -284,7 +287,7 @@ class FlightResult:
                 "packets": self.packets, "rejected": self.rejected, "latency_median_ms": self.latency_median_ms,
                 "latency_p99_ms": self.latency_p99_ms, "packet_interval": self.packet_interval,
                 "events": list(self.events), "controller": self.controller,
-                "online": [o.to_dict() for o in self.online], "alarms": self.alarms}
+                "online": [o.to_dict() for o in self.online], "alarms": self.alarms, "interrupted": self.interrupted}
 
     def __repr__(self) -> str:
         lat = "" if self.latency_median_ms is None else f", latency {self.latency_median_ms:.3f} ms median"
@@ -366,6 +369,7 @@ def fly(
     arrivals: list[float] = []
     packets = 0
     reason, completed = "completed", True
+    interrupted: str | None = None
     airborne = False
     try:
         # 1. navdata start-up
@@ -484,7 +488,8 @@ def fly(
         reason, completed = str(exc), False
         events.append(reason)
     except KeyboardInterrupt as exc:  # Ctrl-C, or a stop signal (see land_on_signals)
-        reason = f"interrupted ({getattr(exc, 'signal_name', 'Ctrl-C')})"
+        interrupted = getattr(exc, "signal_name", "Ctrl-C")
+        reason = f"interrupted ({interrupted})"
         completed = False
         events.append(reason)
     finally:
@@ -505,7 +510,7 @@ def fly(
     return FlightResult(tuple(logs), reason, completed, packets, link.rejected,
                         float(np.median(lat)) if lat.size else None,
                         float(np.percentile(lat, 99)) if lat.size else None, iv, tuple(events + link.rejections[:5]),
-                        flown, tuple(online))
+                        flown, tuple(online), interrupted)
 
 
 def _watch(monitor: DelayMonitor, law: FlightLaw, link: DroneLink, k: int, t_step: float, t_start: float,

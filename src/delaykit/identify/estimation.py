@@ -396,7 +396,7 @@ def estimate_overshoot(
         tp = check_real("peak_time", peak_time, minimum=0.0, strict=True)
         if model.peak_time is not None and abs(model.peak_time - tp) > 0.1 * tp:
             warnings.append(
-                f"at this delay the model peaks at {model.peak_time:.3f} s but the flight peaked at {tp:.3f} s: "
+                f"at this delay the model peaks at {model.peak_time:.4g} s but the flight peaked at {tp:.4g} s: "
                 "the model does not explain the measured peak time (the drone's own speed loop adds lag; fit "
                 "the trajectory with --free lag)"
             )

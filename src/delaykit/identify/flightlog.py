@@ -29,19 +29,19 @@ FlightLog(<arrays>: 77 samples, step +1 m at t = 1.04 s from 0.5 m)
 
 from __future__ import annotations
 
+import array
 import csv
-import io
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Iterator, Mapping
 
 import numpy as np
 
 from ..errors import InvalidValueError, check_real
 from ..models.ranges import parse_number
 
-__all__ = ["FlightLog", "LogError", "REQUIRED", "MAX_ALTITUDE", "MAX_TIME", "read_csv_rows", "write_log",
+__all__ = ["FlightLog", "LogError", "REQUIRED", "MAX_ALTITUDE", "MAX_TIME", "read_csv_rows", "iter_csv_rows", "write_log",
            "synthetic_log"]
 
 REQUIRED = ("t", "z", "z_ref")
@@ -65,32 +65,58 @@ class LogError(InvalidValueError):
 
 
 def read_csv_rows(path: Path) -> tuple[list[str], list[tuple[list[str], int]]]:
-    """A CSV file's header and its non-blank rows, each with the file line it starts on.
-
-    The file must be UTF-8 text (a byte-order mark and ``\\r\\n`` line ends, as spreadsheets save, are fine)
-    separated by commas: a semicolon- or tab-separated header is refused with an error saying the separator
-    must be a comma (it is not guessed, so a decimal comma is never misread).
+    """A CSV file's header and its non-blank rows, each with the file line it starts on (all held in memory:
+    for a large file, :func:`iter_csv_rows` reads one row at a time).
 
     Raises
     ------
     LogError
-        A file that cannot be read, is not UTF-8 text, is empty, is not comma-separated or is not a readable CSV.
+        As :func:`iter_csv_rows`.
+    """
+    header, records = iter_csv_rows(path)
+    return header, list(records)
+
+
+def iter_csv_rows(path: Path) -> tuple[list[str], Iterator[tuple[list[str], int]]]:
+    """A CSV file's header, and an iterator over its non-blank rows, each with the file line it starts on.
+
+    The file is read as the rows are (memory does not grow with its length).  It must be UTF-8 text (a
+    byte-order mark and ``\\r\\n`` line ends, as spreadsheets save, are fine) separated by commas: a semicolon- or
+    tab-separated header is refused with an error saying the separator must be a comma (it is not guessed, so a
+    decimal comma is never misread).
+
+    Raises
+    ------
+    LogError
+        A file that cannot be read, is not UTF-8 text, is empty, is not comma-separated or is not a readable CSV
+        (the header's problems at once, a later row's when the iterator reaches it).
     """
     name = str(path)
     try:
-        data = path.read_bytes()
+        fh = open(path, encoding="utf-8-sig", newline="")  # (newline="": the reader takes \n, \r\n and \r)
     except OSError as exc:
         raise LogError(f"{name}: cannot be read ({exc.strerror or exc})") from None
-    try:
-        text = data.decode("utf-8-sig")  # (drops the byte-order mark a spreadsheet writes)
-    except UnicodeDecodeError as exc:
-        raise LogError(f"{name} is not a UTF-8 text CSV (byte {exc.start} is {data[exc.start]:#04x}); "
-                       "save it as CSV UTF-8") from None
-    if "\x00" in text:
-        raise LogError(f"{name} is not a UTF-8 text CSV (it holds NUL bytes at byte {data.index(0)}): a "
-                       "binary file?")
-    reader = csv.reader(io.StringIO(text, newline=""))  # (newline="": the reader takes \n, \r\n and \r)
-    records: list[tuple[list[str], int]] = []
+
+    def lines() -> Iterator[str]:
+        for line in fh:
+            if "\x00" in line:
+                raise LogError(f"{name} is not a UTF-8 text CSV (it holds NUL bytes at byte "
+                               f"{_bad_byte(path, True)[0]}): a binary file?")
+            yield line
+
+    reader = csv.reader(lines())
+
+    def fail(exc: Exception) -> LogError:
+        fh.close()
+        if isinstance(exc, LogError):
+            return exc
+        if isinstance(exc, UnicodeDecodeError):
+            at, byte = _bad_byte(path, False)
+            return LogError(f"{name} is not a UTF-8 text CSV (byte {at} is {byte:#04x}); save it as CSV UTF-8")
+        if isinstance(exc, OSError):
+            return LogError(f"{name}: cannot be read ({exc.strerror or exc})")
+        return LogError(f"{name}: row {reader.line_num}: not a readable CSV ({exc})")  # e.g. a field too long
+
     try:
         try:
             header = [h.strip() for h in next(reader)]
@@ -101,17 +127,53 @@ def read_csv_rows(path: Path) -> tuple[list[str], list[tuple[list[str], int]]]:
                 if sep in header[0]:
                     raise LogError(f"{name}: the header {header[0][:60]!r} is separated by {what}; the "
                                    "separator must be a comma (save as CSV with commas)")
-        while True:
-            lineno = reader.line_num + 1  # the file row (line) this record starts on
-            try:
-                row = next(reader)
-            except StopIteration:
-                break
-            if row and any(c.strip() for c in row):
-                records.append((row, lineno))
-    except csv.Error as exc:  # e.g. a field longer than the csv module's limit
-        raise LogError(f"{name}: row {reader.line_num}: not a readable CSV ({exc})") from None
-    return header, records
+    except (LogError, UnicodeDecodeError, OSError, csv.Error) as exc:
+        raise fail(exc) from None
+
+    def records() -> Iterator[tuple[list[str], int]]:
+        try:
+            yield None  # type: ignore[misc]  # (primed below: close() then closes the file even before a row)
+            while True:
+                lineno = reader.line_num + 1  # the file row (line) this record starts on
+                try:
+                    row = next(reader)
+                except StopIteration:
+                    break
+                if row and any(c.strip() for c in row):
+                    yield row, lineno
+        except (LogError, UnicodeDecodeError, OSError, csv.Error) as exc:
+            raise fail(exc) from None
+        finally:
+            fh.close()
+
+    rows = records()
+    next(rows)
+    return header, rows
+
+
+def _text_columns(path: Path, where: Mapping[str, int], keep: set[int]) -> dict[str, list[str]]:
+    """The columns ``where`` (name to index) of a CSV file as text, for the rows whose line is in ``keep``."""
+    out: dict[str, list[str]] = {h: [] for h in where}
+    for row, lineno in iter_csv_rows(path)[1]:
+        if lineno in keep:
+            for h, j in where.items():
+                out[h].append(row[j] if j < len(row) else "")
+    return out
+
+
+def _bad_byte(path: Path, nul: bool) -> tuple[int, int]:
+    """Where a file fails as UTF-8 text: the offset and value of its first NUL byte (``nul``), or of its first byte
+    that is not UTF-8.  (Only on the way to an error: the whole file is read.)"""
+    data = path.read_bytes()
+    if nul:
+        at = data.index(0)
+    else:
+        try:
+            data.decode("utf-8-sig")
+            at = len(data) - 1
+        except UnicodeDecodeError as exc:
+            at = exc.start
+    return at, data[at]
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -273,7 +335,7 @@ class FlightLog:
         """
         path = Path(path)
         name = str(path)
-        header, records = read_csv_rows(path)
+        header, records = iter_csv_rows(path)
         mapping = {k: k for k in (*REQUIRED, "u")}
         mapping.update(columns or {})
         idx: dict[str, int] = {}
@@ -281,19 +343,23 @@ class FlightLog:
             if theirs in header:
                 idx[ours] = header.index(theirs)
             elif ours in ("t", "z"):
+                records.close()
                 raise LogError(f"{name}: missing column {theirs!r} (header: {', '.join(header)})")
         if "z_ref" not in idx and "step_time" not in kwargs:
+            records.close()
             raise LogError(f"{name}: missing column {mapping['z_ref']!r} (header: {', '.join(header)}); "
                            "without it give the step time and size")
-        rows: dict[str, list[float]] = {k: [] for k in idx}
+        # numbers go into packed arrays as they are read (8 bytes a value: a list of float objects takes 32)
+        rows: dict[str, array.array] = {k: array.array("d") for k in idx}
         used = {mapping[k] for k in idx}
         others: dict[str, int] = {}  # each other column's index (the first, for a repeated name)
         for j, h in enumerate(header):
             if h not in used:
                 others.setdefault(h, j)
-        extra: dict[str, list[str]] = {h: [] for h in others}
+        extra_num: dict[str, array.array] = {h: array.array("d") for h in others}  # numbers, while they are
+        text_cols: set[str] = set()  # other columns that hold text: read again, as text, at the end
         skipped = 0
-        linenos: list[int] = []
+        linenos = array.array("q")
         for row, lineno in records:
             vals = {}
             bad = None
@@ -312,17 +378,27 @@ class FlightLog:
                 if skip_bad:
                     skipped += 1
                     continue
+                records.close()
                 raise LogError(f"{name}: row {lineno}: {bad}")
             for k, v in vals.items():
                 rows[k].append(v)
             linenos.append(lineno)
             for h, j in others.items():
-                extra[h].append(row[j] if j < len(row) else "")
+                if h not in text_cols:
+                    try:
+                        extra_num[h].append(parse_number(row[j] if j < len(row) else ""))
+                    except ValueError:
+                        text_cols.add(h)
+                        extra_num[h] = array.array("d")
         if not rows["t"]:
             raise LogError(f"{name}: no data rows")
-        arrays = {k: np.array(v) for k, v in rows.items()}
+        extra: dict[str, Any] = {h: np.frombuffer(a, dtype=float) for h, a in extra_num.items() if h not in text_cols}
+        if text_cols:
+            extra.update(_text_columns(path, {h: others[h] for h in text_cols}, set(linenos)))
+            extra = {h: extra[h] for h in others}  # the file's order
+        arrays = {k: np.frombuffer(v, dtype=float) for k, v in rows.items()}
         return cls.from_arrays(arrays["t"], arrays["z"], arrays.get("z_ref"), arrays.get("u"), name=name,
-                               skipped=skipped, extra=extra, rows=linenos, **kwargs)
+                               skipped=skipped, extra=extra, rows=np.frombuffer(linenos, dtype=np.int64), **kwargs)
 
     @classmethod
     def from_dataframe(cls, df: Any, *, columns: Mapping[str, str] | None = None, **kwargs: Any) -> "FlightLog":

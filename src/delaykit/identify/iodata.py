@@ -31,6 +31,8 @@ Experiment('demo': 20 samples every 0.5 s, input u, output y, moves at 1 s)
 
 from __future__ import annotations
 
+import array
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -40,7 +42,7 @@ import numpy as np
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.budget import sample_count
 from ..models.ranges import parse_number
-from .flightlog import LogError, read_csv_rows
+from .flightlog import LogError, iter_csv_rows
 
 __all__ = ["Experiment", "read_experiment", "CLOCK_TOLERANCE", "MAX_VALUE"]
 
@@ -287,12 +289,13 @@ def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input:
     name = path.name
     if isinstance(outputs, str):
         outputs = [outputs]
-    header, records = read_csv_rows(path)
+    header, records = iter_csv_rows(path)  # one row at a time: the numbers go into packed arrays
     wanted = [time, *outputs] + ([input] if input else []) + ([reference] if reference else [])
     for col in wanted:
         if col not in header:
+            records.close()
             raise LogError(f"{path}: missing column {col!r} (header: {', '.join(header)})")
-    cols: dict[str, list[float]] = {c: [] for c in wanted}
+    cols: dict[str, array.array] = {c: array.array("d") for c in wanted}
     where = {c: header.index(c) for c in wanted}
     for row, line in records:
         for c, j in where.items():
@@ -300,13 +303,16 @@ def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input:
             try:
                 v = parse_number(cell)
             except ValueError:
+                records.close()
                 raise LogError(f"{path}: row {line}: {c} is {cell[:40]!r}, not a number") from None
-            if not np.isfinite(v):
+            if not math.isfinite(v):
+                records.close()
                 raise LogError(f"{path}: row {line}: {c} is {cell[:40]!r}, not a finite number")
             cols[c].append(v)
+    arr = {c: np.frombuffer(a, dtype=float) for c, a in cols.items()}
     try:
-        return Experiment.from_arrays(cols[time], {o: cols[o] for o in outputs},
-                                      u=cols[input] if input else None, r=cols[reference] if reference else None,
+        return Experiment.from_arrays(arr[time], {o: arr[o] for o in outputs},
+                                      u=arr[input] if input else None, r=arr[reference] if reference else None,
                                       name=name, input_name=input or "u", reference_name=reference or "z_ref",
                                       u_before=u_before, resample=resample)
     except LogError:

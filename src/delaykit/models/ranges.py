@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from typing import Sequence
 
-from ..errors import InvalidValueError, RangeSpecError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, RangeSpecError, check_real
 from .budget import MAX_RANGE_POINTS, check_count
 
 __all__ = ["parse_range", "parse_number", "parse_integer"]
@@ -80,7 +80,13 @@ def parse_range(spec: str | Sequence[float], name: str = "range") -> list[float]
     """
     hint = "sweep fewer values, or split the sweep into several runs"
     if not isinstance(spec, str):
-        spec = list(spec)
+        try:
+            if isinstance(spec, (bytes, bytearray)):
+                raise TypeError
+            spec = list(spec)
+        except TypeError:
+            raise InvalidTypeError(f"{name} must be text (START:STOP:N, a comma list or a number) or a sequence "
+                                   f"of numbers, got {spec!r:.40} ({type(spec).__name__})") from None
         check_count(name, len(spec), MAX_RANGE_POINTS, "values", hint)
         vals = [check_real(name, v) for v in spec]
     elif ":" in spec:

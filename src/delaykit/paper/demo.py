@@ -50,7 +50,7 @@ import numpy as np
 
 from ..design.compensators import design_compensator
 from ..design.tuning import design_sweep
-from ..errors import FlightError, InvalidValueError
+from ..errors import FlightError, FlightInterruptedError, InvalidValueError
 from ..models.altitude import AltitudeLoop
 from ..hardware.emulator import DroneEmulator, EmulatorConfig
 from ..hardware.flight import FlightPlan, FlightResult, fly
@@ -161,7 +161,9 @@ def run_demo(
     ``identify_plant`` the P flights are identified and the identified model and the paper model predict the PV
     flights (:attr:`DemoReport.identification`; see the module docstring).
 
-    Raises :class:`~delaykit.errors.FlightError` when the P flight produced no logs (nothing to estimate from).
+    Raises :class:`~delaykit.errors.FlightError` when the P flight produced no logs (nothing to estimate from), and
+    :class:`~delaykit.errors.FlightInterruptedError` when a flight was interrupted (Ctrl-C, or SIGTERM and SIGHUP
+    within :func:`~delaykit.hardware.flight.land_on_signals`): it landed, and no further flight takes off.
 
     Examples
     --------
@@ -188,6 +190,7 @@ def run_demo(
         steps = tuple((P_STEPS * 3)[:p_steps])
         p = fly(FlightPlan(kp=P_KP, steps=steps, step_duration=step_duration, hover_time=1.5), out / "p_flight.csv",
                 host=host, at_port=at_port, navdata_port=navdata_port, confirm=confirm, status=say)
+        _stop_if_interrupted(p, "the P flight")
         if not p.logs:
             raise FlightError(f"the P flight did not fly: {p.reason}")
         say("estimating the delay")
@@ -207,6 +210,7 @@ def run_demo(
         pv = fly(FlightPlan(kp=PV_KP, kv=kv, steps=tuple((P_STEPS * 2)[:pv_steps]), step_duration=step_duration,
                             hover_time=1.5), out / "pv_flight.csv", host=host, at_port=at_port,
                  navdata_port=navdata_port, confirm=confirm, status=say)
+        _stop_if_interrupted(pv, "the PV flight")
         comp = cf = None
         if compensate:
             model_delay = est.delay + (lag or 0.0)
@@ -220,6 +224,7 @@ def run_demo(
             cf = fly(FlightPlan(kp=0.0, controller=designs[best].compensator, steps=tuple((P_STEPS * 2)[:pv_steps]),
                                 step_duration=step_duration, hover_time=1.5), out / "comp_flight.csv", host=host,
                      at_port=at_port, navdata_port=navdata_port, confirm=confirm, status=say)
+            _stop_if_interrupted(cf, f"the {best} flight")
     finally:
         if emu is not None:
             emu.stop()
@@ -477,7 +482,16 @@ def _varying_flight(out: Path, cfg: EmulatorConfig, law: Any, n: int, duration: 
         truth["t0"] = emu.start_time
     finally:
         emu.stop()
+    _stop_if_interrupted(vf, "the flight with a moving delay")
     return vf, truth
+
+
+def _stop_if_interrupted(flight: FlightResult, which: str) -> None:
+    """Raise :class:`~delaykit.errors.FlightInterruptedError` if the user interrupted ``flight`` (it landed): the
+    pipeline stops there rather than take off again."""
+    if flight.interrupted is not None:
+        raise FlightInterruptedError(f"{which} was interrupted ({flight.interrupted}) and landed; the demo stops "
+                                     "there (the logs flown so far are kept)", flight.interrupted)
 
 
 def _identification_text(ident: dict, truth: float | None, vehicle: str | None = None) -> str:

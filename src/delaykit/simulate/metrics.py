@@ -34,7 +34,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..errors import InvalidValueError, check_real
+from ..errors import InvalidValueError, check_finite_array, check_real
 
 __all__ = ["StepMetrics", "SecondOrder", "step_metrics", "noise_level", "OVERSHOOT_TOLERANCE", "peak_time_of",
            "load_recovery"]
@@ -232,7 +232,7 @@ def noise_level(z: np.ndarray) -> float:
     >>> round(noise_level(np.sin(t) + 0.01 * rng.standard_normal(t.size)), 2)
     0.01
     """
-    z = np.asarray(z, dtype=float)
+    z = check_finite_array("z", z)  # an inf or nan sample would give nan, or a level of 0 that hides it
     if z.size < 5:
         return 0.0
     d2 = np.diff(z, 2)
@@ -247,10 +247,8 @@ def _validate(t: Any, z: Any) -> tuple[np.ndarray, np.ndarray]:
         raise InvalidValueError(f"times and altitudes must be numbers: {exc}") from exc
     if t.ndim != 1 or z.ndim != 1 or t.size != z.size:
         raise InvalidValueError(f"t and z must be 1-D of equal length, got shapes {t.shape} and {z.shape}")
-    for name, arr in (("t", t), ("z", z)):
-        bad = np.flatnonzero(~np.isfinite(arr))
-        if bad.size:
-            raise InvalidValueError(f"{name}[{bad[0]}] is {arr[bad[0]]}; every sample must be finite")
+    check_finite_array("t", t)
+    check_finite_array("z", z)
     dt = np.diff(t)
     bad = np.flatnonzero(dt <= 0)
     if bad.size:

@@ -260,7 +260,11 @@ def gain_crossovers(ol: OpenLoop, grid: np.ndarray | None = None, known: np.ndar
         if np.abs(a - b).max() <= 1e-13 * scale:
             raise InvalidValueError("the margins are undefined: |L(jw)| = 1 at every frequency (an all-pass loop "
                                     "with unit gain), so every frequency is a gain crossover")
-        cands = list(np.sqrt(positive_real_roots(a - b, scale)))
+        # a coefficient of |N|^2 - |D|^2 is dropped only where it is the rounding of a cancellation, not for being
+        # small beside the others (-w^2 + kp^2, kp = 1e8, has its crossover at kp)
+        p = a - b
+        p[np.abs(p) <= 1e-13 * np.maximum(np.abs(a), np.abs(b))] = 0.0
+        cands = list(np.sqrt(positive_real_roots(p, 0.0)))
     else:
         cands = []
     if grid is not None and grid.size > 1:  # a net under the polynomial: sign changes of log|L| on the grid

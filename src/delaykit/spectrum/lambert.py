@@ -150,8 +150,15 @@ def _branches(branches: Iterable[int] | int) -> tuple[int, ...]:
         branches = [int(branches)]
     if isinstance(branches, range):  # counted before it is listed (range(-10**8, 10**8) is cheap to hold)
         check_count("branches", len(branches), MAX_RANGE_POINTS, "branches", "ask for fewer branches")
+    try:
+        if isinstance(branches, (str, bytes)):
+            raise TypeError
+        items = iter(branches)
+    except TypeError:
+        raise InvalidTypeError(f"branches must be an integer or integers, got {branches!r:.40} "
+                               f"({type(branches).__name__})") from None
     out: list[int] = []
-    for k in branches:
+    for k in items:
         if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)):
             raise InvalidTypeError(f"a Lambert W branch must be an integer, got {k!r} ({type(k).__name__})")
         if abs(int(k)) > MAX_BRANCH:

@@ -117,7 +117,11 @@ def _contour(ev: _Eval, corners: list[complex], cap: int | None = None) -> _Coun
     cap = _CAP if cap is None else cap
     taumax = float(ev.tau.max()) if ev.tau.size else 0.0
     cs = np.array(corners, dtype=complex)
-    n_init = np.array([8 + int(abs(cs[(i + 1) % 4] - cs[i]) * (taumax + 0.25) / _MAX_PHASE) for i in range(4)])
+    n_edges = 8 + np.abs(np.roll(cs, -1) - cs) * (taumax + 0.25) / _MAX_PHASE
+    if not n_edges.sum() <= cap:  # (as floats: a region of size 1e30, from a huge gain, is past any integer)
+        return _Count(0, RootStatus.SAMPLE_BUDGET, f"the boundary needs more than {cap} samples (too coarse to certify)",
+                      np.zeros(0, complex), np.zeros(0, complex))
+    n_init = n_edges.astype(np.int64)
     size = int(min(cap, 4 * int(n_init.sum()) + 4096))
     while True:
         out_s = np.empty(size, complex)

@@ -563,9 +563,10 @@ def _rhp_count(C: np.ndarray, tau: np.ndarray) -> int | None:
         return None
     R = R * (1.0 + 1e-9) + 1e-12
     cs = np.array([complex(0.0, -R), complex(R, -R), complex(R, R), complex(0.0, R)])
-    n_init = (8 + np.abs(np.roll(cs, -1) - cs) * (float(tau.max()) + 0.25) / _MAX_PHASE).astype(np.int64)
-    if n_init.sum() > _CAP:
+    n_init = 8 + np.abs(np.roll(cs, -1) - cs) * (float(tau.max()) + 0.25) / _MAX_PHASE
+    if not n_init.sum() <= _CAP:  # counted as floats: a bound near 1e30 (a huge gain) is past any integer
         return None
+    n_init = n_init.astype(np.int64)
     buf = np.empty(1, complex)
     status, total, _, _ = RK.contour(C, np.abs(C), tau, cs, n_init, _MAX_PHASE, _RELIABLE, _CAP, buf, buf.copy())
     n = int(round(total))
