@@ -289,6 +289,13 @@ class Relay:
         return {"kind": "relay", "amplitude": float(self.amplitude), "hysteresis": float(self.hysteresis)}
 
 
+def _finite(**values: float) -> None:
+    """Refuse a packet's value that is not a finite number, naming it."""
+    for name, val in values.items():
+        if not math.isfinite(val):
+            raise InvalidValueError(f"{name} must be finite, got {val!r}")
+
+
 class RelayLaw:
     """A :class:`Relay` run on packets, with :class:`FlightLaw`'s interface (``update``, ``record``, ``describe``).
 
@@ -311,10 +318,9 @@ class RelayLaw:
         self._u: float | None = None
 
     def update(self, t: float, *, r: float, y: float, vm: float = 0.0, sent: float | None = None) -> float:
-        """The relay's command for the packet at ``t`` (``sent``: the command sent instead, which it then holds)."""
-        for name, val in (("t", t), ("r", r), ("y", y)):
-            if not math.isfinite(val):
-                raise InvalidValueError(f"{name} must be finite, got {val!r}")
+        """The relay's command for the packet at ``t`` (``sent``: the command sent instead, which it then holds).
+        The relay switches on the error alone; the velocity ``vm`` is checked as the other laws check it."""
+        _finite(t=t, r=r, y=y, vm=vm)
         e = r - y
         d, eps = self.relay.amplitude, self.relay.hysteresis
         if e > eps:
@@ -329,7 +335,8 @@ class RelayLaw:
         return u
 
     def record(self, t: float, u: float) -> None:
-        """A command sent between packets by someone else: the relay holds it."""
+        """A command sent between packets by someone else at time ``t``: the relay holds it."""
+        _finite(t=t, u=u)
         self._u = float(u)
 
     def describe(self) -> dict[str, Any]:
