@@ -32,7 +32,7 @@ from ..models.loop import Loop
 from ..models.signals import LoadStep, Ramp, Samples, Step, as_reference
 from . import _jit
 from . import _layout as K
-from ._layout import LoopMatrices, fastest_rate, loop_matrices, param_row
+from ._layout import LoopMatrices, loop_matrices, param_row, step_rate
 from .metrics import StepMetrics
 
 __all__ = ["Response", "BatchMetrics", "Sampler", "simulate", "simulate_many", "as_loop", "SWEEPABLE"]
@@ -526,10 +526,11 @@ def _sweep_rows(gen: Loop, m: int, flat: dict[str, np.ndarray], t_end: float, ba
     pars[:, H["step"]] = st
     pars[:, H["norm"]] = st
     pars[:, H["scale"]] = np.maximum(1.0, np.maximum(np.abs(pars[:, H["dvr"]] * st), np.abs(st)))
-    if not gen.sampled:
-        for i in np.flatnonzero((pars[:, H["ti"]] + pars[:, H["to"]]) == 0):
+    if not gen.sampled:  # short delays (0 included): the rates of the loop without them too (see step_rate)
+        delay = np.maximum(pars[:, H["ti"]], pars[:, H["to"]])
+        for i in np.flatnonzero(delay <= K.SELF * pars[:, H["hmax"]]):
             cv = pars[i, K.OFF_CV:K.OFF_CV + lay.M.shape[0]]
-            rate = fastest_rate(lay, pars[i, H["dvy"]], pars[i, H["dvv"]], cv, True)
+            rate = step_rate(lay, pars[i, H["dvy"]], pars[i, H["dvv"]], cv, float(delay[i]), False)
             pars[i, H["hmax"]] = 1.0 / max(rate, 1e-9)
     return pars
 
