@@ -396,7 +396,7 @@ def _read_end(t0, th, tc, tdeg, full, n, q, delay, end, ctol):
     return end
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False)  # (not inlined: rarely run, kept out of the piece loop's code)
 def _rel_degree(Mloc, VE, N, row_out, row_in, k0, v, w):
     """The smallest ``k0 + k`` (k >= 0) with ``VE[row_out] . M**k . VE[row_in]`` non-zero: the relative degree
     of the path through the states from the input ``row_in`` to the output ``row_out``, ``k0`` for the
@@ -420,7 +420,7 @@ def _rel_degree(Mloc, VE, N, row_out, row_in, k0, v, w):
     return _NONE
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False)  # (not inlined: rarely run, kept out of the piece loop's code)
 def _jump(cl, nl, hl, cr, nr, hr, L, tmp, work):
     """The jump at a breakpoint of a signal whose left piece (``cl``, ``nl`` coefficients, length ``hl``) ends
     where the right one (``cr``, ``nr``, ``hr``) starts, over a window of length ``L`` after it: the sum of the
@@ -442,7 +442,7 @@ def _jump(cl, nl, hl, cr, nr, hr, L, tmp, work):
     return d, size
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False)  # (not inlined: rarely run, kept out of the piece loop's code)
 def _picard(src, n, delta, dst, nd):
     """One fixed-point pass of a delayed signal read from the piece being built: ``dst`` becomes ``src``
     shifted back by ``delta`` (the delay over the piece's length), ``src(x - delta)``; returns the largest

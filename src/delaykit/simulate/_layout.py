@@ -168,8 +168,8 @@ def step_rate(lay: LoopMatrices, dvy: float, dvv: float, cv: np.ndarray, delay: 
     --------
     >>> from delaykit.models import Controller, Loop
     >>> m = loop_matrices(Loop("1/(s+1)", Controller.pi(20.0, 1.0), delay=1e-6))
-    >>> round(step_rate(m, -20.0, 0.0, m.cv, 1e-6, False), 6)  # the closed loop's pole, s = -21
-    21.0
+    >>> round(step_rate(m, -20.0, 0.0, m.cv, 1e-6, False), 2), fastest_rate(m, -20.0, 0.0, m.cv, False)
+    (20.95, 20.0)
     """
     rate = fastest_rate(lay, dvy, dvv, cv, False)
     if not sampled and delay * rate <= SELF:
