@@ -294,10 +294,9 @@ class _LogRun:
         row[H["dy"]] = 0.0
         row[H["dyd"]] = lay.dyd
         row[H["ti"]] = delay
-        if delay == 0.0 and self.law.period is None:  # a delay-free continuous loop: its closed-loop rate
-            rate = K.fastest_rate(lay, self.rz.dvy, self.rz.dvv, lay.cv, True)
-        else:
-            rate = max(float(np.max(np.abs(np.linalg.eigvals(A)))), self.ctrl_rate, abs(self.rz.dvy * lay.dyd))
+        rate = max(float(np.max(np.abs(np.linalg.eigvals(A)))), self.ctrl_rate, abs(self.rz.dvy * lay.dyd))
+        if self.law.period is None and delay * rate <= K.SELF:  # a short delay: the closed loop's rates too
+            rate = K.step_rate(lay, self.rz.dvy, self.rz.dvv, lay.cv, delay, False)
         row[H["hmax"]] = 1.0 / max(rate, 1e-9)
         return row
 

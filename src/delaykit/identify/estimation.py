@@ -627,6 +627,15 @@ def estimate_trajectory(
     costs = [float(np.sum(_residuals(np.array([g, *theta0]), flights, free) ** 2)) for g in grid]
     j = int(np.argmin(costs))
     td0 = float(grid[j])
+    # start at the parabola through the scan's three lowest neighbours, inside the range: started on a bound
+    # (a delay shorter than the scan's step has its lowest cost at 0), the fit would stay there
+    k = min(max(j, 1), grid.size - 2)
+    c0, c1, c2 = costs[k - 1], costs[k], costs[k + 1]
+    curv = c0 - 2.0 * c1 + c2
+    if curv > 0.0:
+        step = grid[1] - grid[0]
+        td0 = float(grid[k] + 0.5 * step * (c0 - c2) / curv)
+    td0 = min(max(td0, grid[0] + 1e-3 * (grid[1] - grid[0])), grid[-1] - 1e-3 * (grid[1] - grid[0]))
     x0 = np.array([td0, *theta0])
     # a lag below a few milliseconds cannot be told from the same extra delay at navdata rates, and would need
     # pieces as short as itself in the exact solver: 4 ms is its floor

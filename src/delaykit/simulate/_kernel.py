@@ -19,7 +19,25 @@ from the Taylor recursion ``X[j+1] = H (M X[j] + inputs[j]) / (j + 1)``.  A piec
   later of a point where the output ``y`` is not analytic (these are where a neutral loop's jumps sit, and
   where the kinks of a saturation switch reappear).  Points where a piece was only cut for length are not
   imaged: the signal is analytic there, and the earlier piece's polynomial is its Taylor series, accurate
-  over the next piece too;
+  over the next piece too.  Each breakpoint carries its smoothness order (the lowest derivative that is
+  discontinuous there; 0 for the sources: the start, a switch, a sample, a knot, the load), stored as order + 1
+  in the histories' ``gen`` (0: analytic).  An image through the loop is smoother by the relative degree of
+  the path (plant input to output, measurement and its velocity to command, a predictor's delayed command to
+  command: read from the realisation once per run); an image whose order exceeds ``DEG`` is analytic to the
+  truncation accepted everywhere and is not imaged, so a retarded loop images each source at most ``DEG + 1``
+  times.  A neutral loop's images keep their order (a path of relative degree 0 or less): there, the jump of
+  the signal and its scaled derivatives, measured at the breakpoint from the polynomials left and right of it
+  over the window one delay long that its image would cover (:func:`_jump`), is compared with ``_JUMP``
+  (8 rounding units) times the signal's size there or its scale; below it, the point is not imaged;
+* past the images, a delay at most ``SELF`` times ``hmax`` (:data:`._layout.SELF`) is read from the piece
+  being built, where the piece starts where the signal is analytic and no breakpoint is stored within one
+  delay before it: the history just before the piece is then the analytic continuation of the piece's own
+  polynomial, and the delayed signal on the piece is ``U(x - delta)``, ``delta`` the delay over the piece's
+  length.  The recursion is then implicit; it is solved by fixed-point passes (:func:`_picard`: each shifts
+  the last pass's signal back by ``delta``), to rounding.  Such a piece is at least twice the delay long,
+  reads a held or saturated command as its constant, and is redone at half its length when ``_PICARD`` passes
+  do not converge or its tail shows rates faster than ``hmax`` assumed.  Delays below 64 ulp of ``t_end``
+  (whose images could not be placed) are dropped, unless the loop is ill-posed without them;
 * a saturation switch of the command (a root of ``v(x) = umax`` or ``umin``, refined to machine precision),
   and, with clamping anti-windup, a sign change of the error while saturated, or the end of a slide: where
   the free integrator would drive the command past its limit and the frozen one back, the command slides on
@@ -59,7 +77,7 @@ import numpy as np
 from . import _jit
 from ._jit import njit, prange
 from ._layout import (DEG, HEAD, MAXN, NC, NOUT, OFF_BAW, OFF_BR, OFF_BU, OFF_BUM, OFF_BVM, OFF_BW, OFF_BYM, OFF_CV,
-                      OFF_CY, OFF_CYD, OFF_M, STATUS_CAPACITY, STATUS_OK, STATUS_STALLED)
+                      OFF_CY, OFF_CYD, OFF_M, SELF, STATUS_CAPACITY, STATUS_OK, STATUS_STALLED)
 
 __all__ = ["run_one", "run_batch"]
 
@@ -68,6 +86,7 @@ _horner, _horner_d, _sum, _bounds, _refine = _p.horner, _p.horner_d, _p.poly_sum
 _first_cross, _all_cross, _crossings, _shift_scale, _scale, _degree = (_p.first_cross, _p.all_cross, _p.crossings,
                                                                        _p.shift_scale, _p.scale, _p.degree)
 _GRID = _p.GRID
+_BIN = _p._BIN
 _t = _jit.sibling("_taylor")  # the Taylor recursion of one piece
 _recursion, _recursion_known = _t.recursion, _t.recursion_known
 
@@ -81,6 +100,10 @@ _LIN, _HIGH, _LOW = _t.LIN, _t.HIGH, _t.LOW
 # relative to the signal (see _tail) stays below _TAIL = 1 / 24!, the tail of a pure mode of that rate over hmax.
 _TAIL = 1.0 / 620448401733239439360000.0
 _GROW = 4.0
+_NONE = DEG + 1  # a breakpoint's smoothness order above the Taylor degree: analytic to truncation, not imaged
+# A neutral loop's jump over a delay's window, relative to the signal there, below which it is not imaged
+_JUMP = 8.0 * 2.220446049250313e-16
+_PICARD = 400  # fixed-point passes before a piece that reads its own delayed signal is redone shorter
 
 
 @njit(cache=True, inline="always")
@@ -113,7 +136,7 @@ def _delayed(t0, th, tc, tdeg, q, s, H, dst, work):
     beta = H / th[q]
     if alpha == 0.0 and abs(beta - 1.0) < 1e-13:
         beta = 1.0
-    n = tdeg[q]
+    n = min(max(tdeg[q], 1), NC)  # (never past the coefficients, whatever the history holds)
     _shift_scale(tc[q], n, alpha, beta, dst, work)
     return n
 
@@ -328,16 +351,131 @@ def _slide_rates(X, integ, Fz, nt, S, D):
 
 @njit(cache=True, inline="always")
 def _image(t0, gen, n, q, qg, s, a, delay, eps):
-    """In a history of ``n`` pieces (starts ``t0``, ``gen`` = not analytic at the start): the piece ``q``
-    that contains ``s``, the first piece ``qg`` after it that starts where the signal is not analytic, and
-    the time that start's image reaches (one ``delay`` later; ``a + delay`` if there is none yet)."""
+    """In a history of ``n`` pieces (starts ``t0``, ``gen``: 0 where the signal is analytic at the start, else
+    one more than the breakpoint's smoothness order): the piece ``q`` that contains ``s``, the first piece
+    ``qg`` after it that starts at a breakpoint, the time that start's image reaches (one ``delay`` later), and
+    the breakpoint's order; with none stored yet, ``a + delay`` (the piece being built starts there: the
+    method of steps reads no further) and order -1 (the caller's: the current piece's start)."""
+    if n == 0:
+        return 0, 1, a + delay, -1
     while q < n - 1 and t0[q + 1] <= s + eps:
         q += 1
     if qg <= q:
         qg = q + 1
     while qg < n and gen[qg] == 0:
         qg += 1
-    return q, qg, (t0[qg] if qg < n else a) + delay
+    if qg < n:
+        return q, qg, t0[qg] + delay, gen[qg] - 1
+    return q, qg, a + delay, -1
+
+
+@njit(cache=True, inline="always")
+def _pending(t0, gen, n, q, qg, s, a, delay, eps, can_self):
+    """:func:`_image` at ``s = a - delay`` (before the history's start: the image of t = 0, order 0), and whether
+    the piece reads the delayed signal from itself (``can_self`` and nothing pending: the image is then at
+    infinity); the order is -1 where the image is the current piece's start's (known once it is stored)."""
+    if s < -eps:
+        return q, qg, delay, 0, False
+    q, qg, t_img, order = _image(t0, gen, n, q, qg, s, a, delay, eps)
+    if order < 0 and can_self and n > 0:
+        return q, qg, np.inf, order, True
+    return q, qg, t_img, order, False
+
+
+@njit(cache=True, inline="always")
+def _read_end(t0, th, tc, tdeg, full, n, q, delay, end, ctol):
+    """Where a piece reading a delayed signal from its stored piece ``q`` must end, at most ``end``: no farther
+    than twice that piece's length from its start (rescaled far past its end, a short piece's polynomial
+    would amplify the rounding of its high coefficients), nor past its end where its continuation has drifted
+    from the pieces stored after it (the piece then ends at that junction's image, as at a breakpoint)."""
+    if n == 0 or (not full and tdeg[q] <= 1):
+        return end
+    end = min(end, t0[q] + delay + 2.0 * th[q])
+    if not _continues(t0, th, tc, tdeg, full, n, q, end - delay, ctol):
+        end = min(end, t0[q] + th[q] + delay)
+    return end
+
+
+@njit(cache=True, _nrt=False)  # (not inlined: rarely run, kept out of the piece loop's code)
+def _rel_degree(Mloc, VE, N, row_out, row_in, k0, v, w):
+    """The smallest ``k0 + k`` (k >= 0) with ``VE[row_out] . M**k . VE[row_in]`` non-zero: the relative degree
+    of the path through the states from the input ``row_in`` to the output ``row_out``, ``k0`` for the
+    integration (1) or not (0, the input being a derivative); ``_NONE`` if none up to the Taylor degree.
+    ``v``, ``w``: work space of ``N`` numbers."""
+    for i in range(N):
+        v[i] = VE[row_in, i]
+    for k in range(NC + 1):
+        c = 0.0
+        for i in range(N):
+            c += VE[row_out, i] * v[i]
+        if c != 0.0:
+            return k0 + k
+        for i in range(N):
+            acc = 0.0
+            for m in range(N):
+                acc += Mloc[i, m] * v[m]
+            w[i] = acc
+        for i in range(N):
+            v[i] = w[i]
+    return _NONE
+
+
+@njit(cache=True, _nrt=False)  # (not inlined: rarely run, kept out of the piece loop's code)
+def _jump(cl, nl, hl, cr, nr, hr, L, tmp, work):
+    """The jump at a breakpoint of a signal whose left piece (``cl``, ``nl`` coefficients, length ``hl``) ends
+    where the right one (``cr``, ``nr``, ``hr``) starts, over a window of length ``L`` after it: the sum of the
+    absolute differences of the two Taylor expansions' coefficients in the window's variable, and the right
+    expansion's size (the sum of its absolute coefficients); (inf, 0) where the window is more than 4 times
+    longer than either piece (rescaling would amplify the rounding of the high coefficients)."""
+    if L > 4.0 * hl or L > 4.0 * hr:
+        return np.inf, 0.0
+    _shift_scale(cl, nl, 1.0, L / hl, tmp, work)
+    d = 0.0
+    size = 0.0
+    b = 1.0
+    r = L / hr
+    for j in range(NC):
+        c = (cr[j] * b) if j < nr else 0.0
+        d += abs(tmp[j] - c)
+        size += abs(c)
+        b *= r
+    return d, size
+
+
+@njit(cache=True, _nrt=False)  # (not inlined: rarely run, kept out of the piece loop's code)
+def _picard(src, n, delta, dst, nd):
+    """One fixed-point pass of a delayed signal read from the piece being built: ``dst`` becomes ``src``
+    shifted back by ``delta`` (the delay over the piece's length), ``src(x - delta)``; returns the largest
+    change of a coefficient and the new number of coefficients.  ``nd`` the old number (``dst`` is zero past
+    it; ``src`` must not alias ``dst``).
+    """
+    big = 0.0
+    out = 0
+    for k in range(NC):
+        acc = 0.0
+        if k < n:
+            p = 1.0  # sum_j C(j, k) (-delta)**(j - k) src[j]
+            for j in range(k, n):
+                acc += _BIN[j, k] * p * src[j]
+                p *= -delta
+        d = abs(acc - dst[k])
+        if d > big:
+            big = d
+        dst[k] = acc
+        if acc != 0.0:
+            out = k + 1
+    return big, max(out, 1)
+
+
+@njit(cache=True, inline="always")
+def _held(c, n, x, dst):
+    """``dst``: the constant value of the polynomial ``c`` at ``x`` (clipped to [0, 1]); returns 1 (its number
+    of coefficients)."""
+    v = _horner(c, min(n, NC), min(max(x, 0.0), 1.0))
+    for k in range(NC):
+        dst[k] = 0.0
+    dst[0] = v
+    return 1
 
 
 _NBUF = 15 * NC + 2 * _GRID + 3 + MAXN + 5 + _NMS  # the signals' coefficients and the small work arrays
@@ -389,6 +527,13 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
     scale = par[_SCALE]
     sampled = per > 0.0
     cont = not sampled
+    # a delay below the resolution of the run's times (64 ulp of t_end) cannot place its images: the loop runs
+    # without it (the responses differ by O(delay), below that resolution), unless that loop is ill-posed
+    tres = 64.0 * 2.220446049250313e-16 * max(1.0, tend)
+    kd0 = dvy * par[_DY] + dvv * par[_DYD]
+    if ti < tres and to < tres and (not cont or abs(1.0 - kd0) > 1e-12):
+        ti = 0.0
+        to = 0.0
     ti_pos = ti > 0.0
     to_pos = to > 0.0
     algebraic = cont and not ti_pos and not to_pos
@@ -398,11 +543,18 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
     keep_y = keep_y or to_pos
     has_dist = dist != 0.0
     eps = 1e-12 * max(1.0, tend)
+    # the tolerance on the delays' images: eps, or less where a delay is shorter
+    epsd = eps
+    for dl in (ti, to, tm):
+        if dl > 0.0:
+            epsd = min(epsd, 1e-3 * dl)
+    epsd = max(epsd, 4.0 * 2.220446049250313e-16 * max(1.0, tend))
     ptol = 1e-13 * max(1.0, scale)
     tdiv = max(abs(norm), scale, 1e-300)  # the truncation's scale
     # a command coefficient below rounding, relative to this, is dropped when the piece is stored
     uref = max(abs(umax) if umax < np.inf else 0.0, abs(umin) if umin > -np.inf else 0.0, scale, 1.0)
-    ctol = 1e-12 * max(1.0, scale)  # a delayed signal's continuation past its stored piece: how far it may drift
+    ctol = 1e-12 * max(1.0, scale)
+    jscale = max(1.0, scale)  # the smallest scale a neutral loop's jumps are measured against  # a delayed signal's continuation past its stored piece: how far it may drift
     metrics = norm != 0.0
     nref = rt.shape[0]
 
@@ -448,6 +600,9 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
         VE[7, i] = par[OFF_CV + i]
         VE[8, i] = par[OFF_BU + i]
         VE[9, i] = par[OFF_BUM + i]
+        if not tm_pos:  # no model delay: the command one model delay ago is the command itself
+            VE[8, i] += VE[9, i]
+            VE[9, i] = 0.0
     # with the plant's input known (delayed, or held by a sampled controller): X' = A X + G (w, r, ym, vm), the
     # measurement folded into A when it is the output itself (no output delay)
     known = (ti_pos or sampled) and not algebraic and not has_u
@@ -458,6 +613,22 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
             G[k, i] = 0.0
     d5[0], d5[1], d5[2], d5[3], d5[4] = par[_DY], par[_DYD], dvr, dvy, dvv
     slide_on = aw == 1 and integ >= 0 and VE[7, integ] != 0.0  # clamping: the command may slide on a limit
+    # the relative degrees of the loop's paths (structural, from the realisation): the plant input to the output,
+    # the measurement (and its velocity, one order lower) to the command, the command one model delay ago to the
+    # command.  An image of a breakpoint through a path is smoother by the path's relative degree (see the
+    # module's notes).
+    rv, rw = mats[3, 4], mats[3, 5]
+    r_wy = 0 if par[_DY] != 0.0 else _rel_degree(Mloc, VE, N, 5, 0, 1, rv, rw)
+    r_yu = _NONE
+    if dvy != 0.0:
+        r_yu = 0
+    if dvv != 0.0:
+        r_yu = -1
+    r_yu = min(r_yu, _rel_degree(Mloc, VE, N, 7, 2, 1, rv, rw), _rel_degree(Mloc, VE, N, 7, 3, 0, rv, rw))
+    r_mu = _rel_degree(Mloc, VE, N, 7, 9, 1, rv, rw) if tm_pos else _NONE
+    # a neutral loop: a jump of the command comes back, one loop delay later, as a jump again; these stop being
+    # imaged once they are below rounding (measured at each breakpoint, see the module's notes)
+    neutral = (ti_pos or to_pos) and r_wy + r_yu <= 0
     zero_a = True
     for i in range(N):
         G[0, i] = VE[0, i]
@@ -504,9 +675,20 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
     status = STATUS_OK
     regime = _LIN
     tiny = 0
+    # pieces shorter than this do not advance (the command chatters): 1e-9 of the run, or less with short delays
+    tiny_h = 1e-9 * max(1.0, tend)
+    for dl in (ti, to, tm):
+        if dl > 0.0:
+            tiny_h = min(tiny_h, 1e-3 * dl)
     hlen = hmax  # the next piece's length, unless something cuts it shorter
-    genu = True  # the command and the output are not analytic at t = 0
-    geny = True
+    # the smoothness orders of the command and the output at the next piece's start (_NONE: analytic there), and
+    # whether they come from images only (a neutral loop's are measured before they are stored)
+    ou = 0  # the command and the output are not analytic at t = 0
+    oy = 0
+    u_img = False
+    y_img = False
+    self_ok = True  # whether this piece may read its own delayed signals (not after a failed fixed point)
+    hcap = np.inf  # this piece's length at most (a piece reading itself redone shorter)
     y_end = 0.0
 
     while a < tend - eps:
@@ -524,7 +706,7 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
             ksamp += 1
             nexts = off + ksamp * per
         # where the piece must end, and why
-        end = min(tend, a + hlen)
+        end = min(tend, a + min(hlen, hcap))
         t_img_u = np.inf
         t_img_y = np.inf
         t_img_m = np.inf
@@ -535,67 +717,86 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
         dist_on = has_dist and a >= tdist - eps
         if has_dist and not dist_on:
             end = min(end, tdist)
+        # the images of the delayed signals' breakpoints, and their smoothness orders (gi_*); where none is stored
+        # after the piece a delayed signal is read from and the piece starts where the signal is analytic, a delay
+        # short against the piece (at most SELF hmax) is read from the piece being built (self_*)
+        self_u = False
+        self_y = False
+        self_m = False
+        gi_u = _NONE
+        gi_y = _NONE
+        gi_m = _NONE
         su = a - ti
         if ti_pos:
-            if su < -eps:
-                t_img_u = ti
-            else:
-                qu, qgu, t_img_u = _image(tu0, ugen, nu, qu, qgu, su, a, ti, eps)
+            qu, qgu, t_img_u, gi_u, self_u = _pending(tu0, ugen, nu, qu, qgu, su, a, ti, epsd,
+                                                      self_ok and ou >= _NONE and ti <= SELF * hmax)
             end = min(end, t_img_u)
         sy = a - to
         if to_pos:
-            if sy < -eps:
-                t_img_y = to
-            else:
-                qy, qgy, t_img_y = _image(ty0, ygen, ny, qy, qgy, sy, a, to, eps)
+            qy, qgy, t_img_y, gi_y, self_y = _pending(ty0, ygen, ny, qy, qgy, sy, a, to, epsd,
+                                                      cont and self_ok and oy >= _NONE and to <= SELF * hmax)
             end = min(end, t_img_y)
         sm = a - tm
         if tm_pos:
-            if sm < -eps:
-                t_img_m = tm
-            else:
-                qm, qgm, t_img_m = _image(tu0, ugen, nu, qm, qgm, sm, a, tm, eps)
+            qm, qgm, t_img_m, gi_m, self_m = _pending(tu0, ugen, nu, qm, qgm, sm, a, tm, epsd,
+                                                      cont and self_ok and ou >= _NONE and tm <= SELF * hmax)
             end = min(end, t_img_m)
-        # no piece reads a delayed signal's stored piece farther than twice that piece's length from its start
-        # (rescaled far past its end, a short piece's polynomial would amplify the rounding of its high
-        # coefficients), nor past its end where its continuation has drifted from the pieces stored after it:
-        # the piece then ends at that junction's image, as at a point where the signal is not analytic
-        if ti_pos and su >= -eps and tdeg[qu] > 1:
-            end = min(end, tu0[qu] + ti + 2.0 * thu[qu])
-            if not _continues(tu0, thu, tuc, tdeg, False, nu, qu, end - ti, ctol):
-                end = min(end, tu0[qu] + thu[qu] + ti)
-        if to_pos and sy >= -eps:
-            end = min(end, ty0[qy] + to + 2.0 * tyh[qy])
-            if not _continues(ty0, tyh, tyc, tdeg, True, ny, qy, end - to, ctol):
-                end = min(end, ty0[qy] + tyh[qy] + to)
-        if tm_pos and sm >= -eps and tdeg[qm] > 1:
-            end = min(end, tu0[qm] + tm + 2.0 * thu[qm])
-            if not _continues(tu0, thu, tuc, tdeg, False, nu, qm, end - tm, ctol):
-                end = min(end, tu0[qm] + thu[qm] + tm)
+        # a piece reading its own delayed signal is at least twice that delay long (else it reads the stored
+        # pieces, at most one delay ahead)
+        if self_u and end - a < 2.0 * ti:
+            self_u = False
+            t_img_u = a + ti
+            end = min(end, t_img_u)
+        if self_y and end - a < 2.0 * to:
+            self_y = False
+            t_img_y = a + to
+            end = min(end, t_img_y)
+        if self_m and end - a < 2.0 * tm:
+            self_m = False
+            t_img_m = a + tm
+            end = min(end, t_img_m)
+        if ti_pos and su >= -epsd and not self_u:
+            end = _read_end(tu0, thu, tuc, tdeg, False, nu, qu, ti, end, ctol)
+        if to_pos and sy >= -epsd and not self_y:
+            end = _read_end(ty0, tyh, tyc, tdeg, True, ny, qy, to, end, ctol)
+        if tm_pos and sm >= -epsd and not self_m:
+            end = _read_end(tu0, thu, tuc, tdeg, False, nu, qm, tm, end, ctol)
+        self_any = self_u or self_y or self_m
         H = end - a
-        # the delayed signals and the reference on this piece
+        # the delayed signals and the reference on this piece (a signal read from the piece being built starts
+        # from the stored piece's continuation, or its value where that piece is much shorter)
         nW = 1
         Wd[0] = 0.0
-        if ti_pos and su >= -eps:
-            nW = _delayed(tu0, thu, tuc, tdeg, qu, max(su, tu0[qu]), H, Wd, work)
+        if ti_pos and su >= -epsd and nu > 0:
+            if self_u and H > 2.0 * thu[qu]:
+                nW = _held(tuc[qu], tdeg[qu], (max(su, tu0[qu]) - tu0[qu]) / thu[qu], Wd)
+            else:
+                nW = _delayed(tu0, thu, tuc, tdeg, qu, max(su, tu0[qu]), H, Wd, work)
         if to_pos:
-            if sy >= -eps:
+            if sy >= -epsd and ny > 0:
                 alpha = (max(sy, ty0[qy]) - ty0[qy]) / tyh[qy]
-                if alpha < 1e-13:
-                    alpha = 0.0
-                beta = H / tyh[qy]
-                if alpha == 0.0 and abs(beta - 1.0) < 1e-13:
-                    beta = 1.0
-                _shift_scale(tyc[qy], _degree(tyc[qy], NC), alpha, beta, Ym, work)
-                _shift_scale(tyd[qy], _degree(tyd[qy], NC), alpha, beta, Vm, work)
+                if self_y and H > 2.0 * tyh[qy]:
+                    _held(tyc[qy], NC, alpha, Ym)
+                    _held(tyd[qy], NC, alpha, Vm)
+                else:
+                    if alpha < 1e-13:
+                        alpha = 0.0
+                    beta = H / tyh[qy]
+                    if alpha == 0.0 and abs(beta - 1.0) < 1e-13:
+                        beta = 1.0
+                    _shift_scale(tyc[qy], _degree(tyc[qy], NC), alpha, beta, Ym, work)
+                    _shift_scale(tyd[qy], _degree(tyd[qy], NC), alpha, beta, Vm, work)
             else:
                 for j in range(NC):
                     Ym[j] = 0.0
                     Vm[j] = 0.0
         nUm = 1
         Um[0] = 0.0
-        if tm_pos and sm >= -eps:
-            nUm = _delayed(tu0, thu, tuc, tdeg, qm, max(sm, tu0[qm]), H, Um, work)
+        if tm_pos and sm >= -epsd and nu > 0:
+            if self_m and H > 2.0 * thu[qm]:
+                nUm = _held(tuc[qm], tdeg[qm], (max(sm, tu0[qm]) - tu0[qm]) / thu[qm], Um)
+            else:
+                nUm = _delayed(tu0, thu, tuc, tdeg, qm, max(sm, tu0[qm]), H, Um, work)
         nR = _ref_poly(rt, r0, rs, kr, a, H, R)
         dcur = dist if dist_on else 0.0
         for i in range(N):
@@ -609,14 +810,57 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
         xc = 2.0
         prev_regime = regime
         attempt = 0
+        failed = False
         while True:
             lim = umax if regime == _HIGH else umin
-            if known and (aw != 2 or regime == _LIN):
-                nt = _recursion_known(A, G, VE, N, H, frozen, integ, dcur + (0.0 if ti_pos else uhold), Wd, nW, R,
-                                      nR, Ym, Vm, to_pos, need_yd, d5, X, Y, Yd, V, E, zero_a, sliding, lim, Fz)
-            else:
-                nt = _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dcur, X, R,
-                                nR, Wd, nW, Ym, Vm, to_pos, Y, Yd, V, E, need_yd, Um, nUm, has_u, sliding, Fz)
+            # a delayed signal read from the piece being built: the fixed point of the recursion and the shift
+            # (each pass reads the signal the last one gave, shifted back by the delay; see the module's notes)
+            passes = 0
+            while True:
+                if known and (aw != 2 or regime == _LIN):
+                    nt = _recursion_known(A, G, VE, N, H, frozen, integ, dcur + (0.0 if ti_pos else uhold), Wd, nW,
+                                          R, nR, Ym, Vm, to_pos, need_yd, d5, X, Y, Yd, V, E, zero_a, sliding, lim,
+                                          Fz)
+                else:
+                    nt = _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dcur, X,
+                                    R, nR, Wd, nW, Ym, Vm, to_pos, Y, Yd, V, E, need_yd, Um, nUm, has_u, sliding, Fz)
+                if not self_any:
+                    break
+                change = 0.0
+                size = 1e-300
+                if self_u or self_m:  # the command as applied on the piece: the law's output, or its limit
+                    if cont and (regime == _LIN or sliding):
+                        src, nsrc = V, _degree(V, nt)
+                    else:  # held by a sampled controller, or on a limit
+                        for k in range(NC):
+                            work[k] = 0.0
+                        work[0] = lim if cont else uhold
+                        src, nsrc = work, 1
+                    for k in range(nsrc):
+                        size = max(size, abs(src[k]))
+                    if self_u:
+                        c, nW = _picard(src, nsrc, ti / H, Wd, nW)
+                        change = max(change, c)
+                    if self_m:
+                        c, nUm = _picard(src, nsrc, tm / H, Um, nUm)
+                        change = max(change, c)
+                if self_y:
+                    for k in range(NC):
+                        size = max(size, abs(Y[k]), abs(Yd[k]))
+                    c, _ = _picard(Y, NC, to / H, Ym, NC)
+                    change = max(change, c)
+                    c, _ = _picard(Yd, NC, to / H, Vm, NC)
+                    change = max(change, c)
+                passes += 1
+                if change <= 4.0 * 2.220446049250313e-16 * size:
+                    break
+                if passes >= _PICARD:
+                    failed = True
+                    break
+                for i in range(N):
+                    X[i, 0] = x0[i]
+            if failed:
+                break
             if not tried:
                 # the command starts on a limit with the error driving it further: try a slide
                 tried = True
@@ -673,18 +917,35 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
                 attempt += 1
                 continue
             break
+        if failed or (self_any and cont and regime != prev_regime):
+            # no fixed point (or the command turned out not analytic at the start): redo the piece shorter
+            # (at most half as long; once shorter than twice the delay, it reads the stored pieces)
+            if failed:
+                hcap = 0.5 * H
+            else:
+                self_ok = False
+            regime = prev_regime
+            continue
         # the Taylor tail of the states and the command decides how long the next piece may be: as long as
         # their last coefficient stays below that of the loop's fastest mode over hmax (a piece that was longer
         # than hmax and missed that by far is redone shorter; one shorter than hmax, cut by a breakpoint, leaves
         # the length as it was)
-        if H >= hmax * (1.0 - 1e-9):
+        if H >= hmax * (1.0 - 1e-9) or self_any:
             tail = _tail(X, N, V, nt)
             grow = (_TAIL / tail) ** (1.0 / DEG) if tail > 0.0 else np.inf
             if H > hmax * (1.0 + 1e-9) and tail > 64.0 * _TAIL:
                 hlen = max(hmax, H * grow)
                 regime = prev_regime
                 continue
-            hlen = min(_GROW * hmax, max(hmax, H * grow))
+            if self_any and tail > 64.0 * _TAIL and grow < 0.9:
+                # a piece reading itself sees the loop's closed-loop rates, which hmax may not bound
+                hcap = H * grow
+                regime = prev_regime
+                continue
+            if H >= hmax * (1.0 - 1e-9):
+                hlen = min(_GROW * hmax, max(hmax, H * grow))
+        hcap = np.inf
+        self_ok = True
         cut = xc < 1.0 - 1e-13
         if cut:
             for i in range(N):
@@ -700,9 +961,10 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
                 _scale(Vm, NC, xc)
             H *= xc
             end = a + H
-        if cont and regime != prev_regime:
-            genu = True
-        tiny = tiny + 1 if H < 1e-9 * max(1.0, tend) else 0
+        if cont and regime != prev_regime:  # the start is a breakpoint after all
+            ou = 0
+            u_img = False
+        tiny = tiny + 1 if H < tiny_h else 0
         if tiny > _STALL:
             status = STATUS_STALLED
             break
@@ -720,22 +982,35 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
             uval = umax if regime == _HIGH else umin
         if nu > 0 and nU == 1 and tdeg[nu - 1] == 1 and tuc[nu - 1, 0] == uval:
             thu[nu - 1] = end - tu0[nu - 1]
+            ou = _NONE  # the same constant on both sides: not a breakpoint of the command
         else:
             tu0[nu] = a
             thu[nu] = H
             tdeg[nu] = nU
-            ugen[nu] = 1 if genu else 0
             if nU == 1:
                 tuc[nu, 0] = uval
             else:
                 for j in range(nU):
                     tuc[nu, j] = V[j]
+            if neutral and u_img and ou < _NONE and nu > 0:
+                # a neutral loop's image: not a breakpoint any more where the jump of the command and of its
+                # derivatives, over the window one delay long that its image would cover, is below rounding
+                jd, js = _jump(tuc[nu - 1], tdeg[nu - 1], thu[nu - 1], tuc[nu], nU, H, ti if ti_pos else to, Wn,
+                               work)
+                if jd <= _JUMP * max(js, jscale):
+                    ou = _NONE
+            ugen[nu] = 0 if ou >= _NONE else ou + 1
             nu += 1
         nY = _degree(Y, nt)
         if keep_y:
             ty0[ny] = a
             tyh[ny] = H
-            ygen[ny] = 1 if geny else 0
+            if neutral and y_img and oy < _NONE and ny > 0 and to_pos:
+                jd, js = _jump(tyc[ny - 1], NC, tyh[ny - 1], Y, NC, H, to, Wn, work)
+                jd2, js2 = _jump(tyd[ny - 1], NC, tyh[ny - 1], Yd, NC, H, to, Wn, work)
+                if jd + jd2 <= _JUMP * max(js + js2, jscale):
+                    oy = _NONE
+            ygen[ny] = 0 if oy >= _NONE else oy + 1
             for j in range(NC):
                 tyc[ny, j] = Y[j]
                 tyd[ny, j] = Yd[j]
@@ -768,26 +1043,49 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
             else:
                 ym_left = y_end
                 vm_left = _sum(Yd, nt)
-        genu = False
-        geny = False
+        # the breakpoints at the next piece's start and their smoothness orders: an image through a path is
+        # smoother by the path's relative degree; sources (a switch, a sample, a knot, the load) are order 0
+        # (an image of this piece's own start has the order stored for it)
+        gi_u = ou if gi_u < 0 else gi_u
+        gi_m = ou if gi_m < 0 else gi_m
+        gi_y = oy if gi_y < 0 else gi_y
+        ou = _NONE
+        oy = _NONE
+        u_src = False
+        y_src = False
         if cut:
-            genu = cont
-            geny = cont and not ti_pos
+            if cont:
+                ou = 0
+                u_src = True
+                if not ti_pos:
+                    oy = 0
+                    y_src = True
         else:
-            if end >= t_img_u - eps:
-                geny = True
-            if end >= t_img_y - eps or end >= t_img_m - eps:
-                genu = cont
+            if end >= t_img_u - epsd and gi_u < _NONE:
+                oy = gi_u + r_wy
+            if cont and end >= t_img_y - epsd and gi_y < _NONE:
+                ou = min(ou, gi_y + r_yu)
+            if cont and end >= t_img_m - epsd and gi_m < _NONE:
+                ou = min(ou, gi_m + r_mu)
             if sampled and end >= nexts - eps:
-                genu = True
+                ou = 0
+                u_src = True
             if cont and end >= t_knot - eps:
-                genu = True
+                ou = 0
+                u_src = True
             if has_dist and not dist_on and end >= tdist - eps:
-                geny = True
-            if not ti_pos and genu:
-                geny = True
-            if not to_pos and geny and cont:
-                genu = True
+                oy = 0
+                y_src = True
+            if not ti_pos and ou < _NONE:
+                oy = min(oy, ou + r_wy)
+                y_src = y_src or u_src
+            if not to_pos and oy < _NONE and cont:
+                ou = min(ou, oy + r_yu)
+                u_src = u_src or y_src
+        ou = _NONE if ou > DEG else max(ou, 0)
+        oy = _NONE if oy > DEG else max(oy, 0)
+        u_img = not u_src
+        y_img = not y_src
         a = end
         n += 1
 

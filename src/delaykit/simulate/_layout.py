@@ -26,12 +26,16 @@ from ..models.loop import Loop
 from ..models.signals import LoadStep
 
 __all__ = ["LoopMatrices", "loop_matrices", "fastest_rate", "param_row", "DEG", "NC", "MAXN", "HEAD", "NHEAD",
-           "NPAR", "OUT", "NOUT", "AW", "STATUS_OK", "STATUS_CAPACITY", "STATUS_STALLED", "OFF_M", "OFF_BW",
+           "NPAR", "OUT", "NOUT", "AW", "SELF", "STATUS_OK", "STATUS_CAPACITY", "STATUS_STALLED", "OFF_M", "OFF_BW",
            "OFF_BR", "OFF_BYM", "OFF_BVM", "OFF_BAW", "OFF_CY", "OFF_CYD", "OFF_CV", "OFF_BU", "OFF_BUM"]
 
 DEG = 24  # the Taylor polynomials' degree
 NC = DEG + 1
 MAXN = 16  # states of plant and controller together
+SELF = 0.125
+"""A delay at most this many times the kernel's piece length ``hmax`` is short: past its breakpoints' images, a
+piece reads the delayed signal from itself (see :mod:`._kernel`), and ``hmax`` then also bounds the rates of
+the loop without its delay."""
 
 # Scalars at the start of a parameter row.
 _NAMES = ("n", "ti", "to", "umin", "umax", "period", "offset", "t_end", "band", "norm", "dist", "t_dist", "dy",
@@ -155,6 +159,29 @@ def fastest_rate(lay: LoopMatrices, dvy: float, dvv: float, cv: np.ndarray, dela
     return rate
 
 
+def step_rate(lay: LoopMatrices, dvy: float, dvv: float, cv: np.ndarray, delay: float, sampled: bool) -> float:
+    """The rate whose reciprocal is the kernel's ``hmax``: :func:`fastest_rate`, and for a continuous loop
+    whose delays are short (at most :data:`SELF` over that rate, 0 included) also the rates of the loop
+    without its delays, which pieces longer than the delay see (where that loop is well posed).
+
+    Examples
+    --------
+    >>> from delaykit.models import Controller, Loop
+    >>> m = loop_matrices(Loop("1/(s+1)", Controller.pi(20.0, 1.0), delay=1e-6))
+    >>> round(step_rate(m, -20.0, 0.0, m.cv, 1e-6, False), 2), fastest_rate(m, -20.0, 0.0, m.cv, False)
+    (20.95, 20.0)
+    """
+    rate = fastest_rate(lay, dvy, dvv, cv, False)
+    if not sampled and delay * rate <= SELF:
+        if delay == 0.0:
+            return fastest_rate(lay, dvy, dvv, cv, True)
+        try:
+            rate = max(rate, fastest_rate(lay, dvy, dvv, cv, True))
+        except InvalidValueError:  # ill-posed without its delay: the delayed loop's own rate
+            pass
+    return rate
+
+
 def param_row(loop: Loop, lay: LoopMatrices, *, step: float, slope: float, norm: float, t_end: float, band: float,
               dist: LoadStep | None) -> np.ndarray:
     """The kernel's parameter row of one run of a loop (its matrices ``lay``, the reference's first value
@@ -187,8 +214,8 @@ def param_row(loop: Loop, lay: LoopMatrices, *, step: float, slope: float, norm:
     p[HEAD["dvv"]] = rz.dvv
     p[HEAD["integ"]] = lay.integ
     p[HEAD["aw"]] = AW[c.antiwindup]
-    delay_free = loop.total_delay == 0.0 and not loop.sampled
-    p[HEAD["hmax"]] = 1.0 / max(fastest_rate(lay, rz.dvy, rz.dvv, lay.cv, delay_free), 1e-9)
+    p[HEAD["hmax"]] = 1.0 / max(step_rate(lay, rz.dvy, rz.dvv, lay.cv, max(loop.delay, loop.output_delay),
+                                          loop.sampled), 1e-9)
     p[HEAD["scale"]] = max(1.0, abs(rz.dvr * step), abs(norm))
     p[HEAD["step"]] = step
     p[HEAD["slope"]] = slope

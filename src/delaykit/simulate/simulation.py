@@ -34,7 +34,7 @@ from ..models.loop import Loop
 from ..models.signals import LoadStep, Ramp, Samples, Step, as_reference
 from . import _jit
 from . import _layout as K
-from ._layout import LoopMatrices, fastest_rate, loop_matrices, param_row
+from ._layout import LoopMatrices, loop_matrices, param_row, step_rate
 from .metrics import StepMetrics, peak_time_of
 
 __all__ = ["Response", "BatchMetrics", "Sampler", "simulate", "simulate_many", "as_loop", "SWEEPABLE"]
@@ -108,8 +108,9 @@ def _stall_message(row: np.ndarray, t_stop: float) -> str:
     where = f"the simulation stalls at t = {t_stop:.6g} s"
     if delays and min(delays) < 1e-6 * max(1.0, t_end):
         return (f"{where}: the delay {min(delays):.3g} s is too short against t_end = {t_end:g} s for the method of "
-                "steps (each piece is at most one delay long); simulate the loop without the delay (delay=0) if "
-                "so short a delay does not matter")
+                "steps on this loop: its breakpoints do not fade (a neutral loop whose jumps do not shrink), so each piece "
+                "is at most one delay long; simulate the loop without the delay (delay=0) if so short a delay does "
+                "not matter")
     if math.isfinite(row[K.HEAD["umin"]]) or math.isfinite(row[K.HEAD["umax"]]):
         return (f"{where}: the command switches at its limit without advancing (report the loop; "
                 "antiwindup='backcalc' avoids such switching)")
@@ -562,10 +563,11 @@ def _sweep_rows(gen: Loop, m: int, flat: dict[str, np.ndarray], t_end: float, ba
     pars[:, H["step"]] = st
     pars[:, H["norm"]] = st
     pars[:, H["scale"]] = np.maximum(1.0, np.maximum(np.abs(pars[:, H["dvr"]] * st), np.abs(st)))
-    if not gen.sampled:
-        for i in np.flatnonzero((pars[:, H["ti"]] + pars[:, H["to"]]) == 0):
+    if not gen.sampled:  # short delays (0 included): the rates of the loop without them too (see step_rate)
+        delay = np.maximum(pars[:, H["ti"]], pars[:, H["to"]])
+        for i in np.flatnonzero(delay <= K.SELF * pars[:, H["hmax"]]):
             cv = pars[i, K.OFF_CV:K.OFF_CV + lays[i].M.shape[0]]
-            rate = fastest_rate(lays[i], pars[i, H["dvy"]], pars[i, H["dvv"]], cv, True)
+            rate = step_rate(lays[i], pars[i, H["dvy"]], pars[i, H["dvv"]], cv, float(delay[i]), False)
             pars[i, H["hmax"]] = 1.0 / max(rate, 1e-9)
     return pars
 
