@@ -360,10 +360,9 @@ def _answered_or_refused(proc: subprocess.CompletedProcess | None) -> None:
 
 # (arguments, why) -- from issue 25; each must answer or refuse within seconds.  The open ones (KNOWN) are strict
 # xfails: move each to FIXED once it passes.
-KNOWN = [
-    (["simulate", "--kp", "1.31", "--delay", "1e-12", "--json"], "kernel: the method of steps for a delay of 1e-12 s"),
-]
+KNOWN: list[tuple[list[str], str]] = []
 FIXED = [
+    (["simulate", "--kp", "1.31", "--delay", "1e-12", "--json"], "kernel: the method of steps for a delay of 1e-12 s"),
     (["roots", "--kp", "2", "--delay", "1e300"], "cliin: a delay of 1e300 in roots"),
     (["margins", "--kp", "1.31", "--delay", "1e300"], "cliin: a delay of 1e300 in margins"),
     (["lambert", "--a1", "-1", "--delay", "1", "--branches", "99999999999999999999"],
