@@ -182,6 +182,17 @@ def test_a_simulation_far_beyond_the_piece_limit_is_refused_early():
     assert 1e7 / 0.3 / 2 < estimate < 1e7 / 0.3 * 2  # pieces of about one delay
 
 
+def test_a_run_no_piece_budget_could_cover_is_refused_before_it_starts():
+    """t_end = 1e50 s: even pieces of the longest length the loop's rates allow (4 hmax) would number ~1e49, so the
+    run is refused before the kernel starts (it used to stall at t = 904 s, where the kernel's time resolution,
+    1e-12 t_end, passed the delay, and blame the delay)."""
+    from delaykit.simulate.simulation import _CAP_MAX
+
+    with pytest.raises(InvalidValueError, match=f"more than {_CAP_MAX} polynomial pieces .* longest pieces"):
+        simulate(AltitudeLoop(kp=1.31, delay=0.3), t_end=1e50)
+    refused(run("simulate", "--kp", "1", "--delay", "0.3", "--t-end", "1e50"), "polynomial pieces")
+
+
 def test_stall_message_names_the_cause():
     """The stalled status is explained from the loop (its delays and limits), not by one fixed text."""
     from delaykit.models.loop import loop_from_dict

@@ -77,7 +77,7 @@ import numpy as np
 from . import _jit
 from ._jit import njit, prange
 from ._layout import (DEG, HEAD, MAXN, NC, NOUT, OFF_BAW, OFF_BR, OFF_BU, OFF_BUM, OFF_BVM, OFF_BW, OFF_BYM, OFF_CV,
-                      OFF_CY, OFF_CYD, OFF_M, SELF, STATUS_CAPACITY, STATUS_OK, STATUS_STALLED)
+                      OFF_CY, OFF_CYD, OFF_M, SELF, GROW as _GROW, STATUS_CAPACITY, STATUS_OK, STATUS_STALLED)
 
 __all__ = ["run_one", "run_batch"]
 
@@ -99,7 +99,6 @@ _LIN, _HIGH, _LOW = _t.LIN, _t.HIGH, _t.LOW
 # A piece's length: hmax (the reciprocal of the fastest rate), or up to _GROW times that where the Taylor tail
 # relative to the signal (see _tail) stays below _TAIL = 1 / 24!, the tail of a pure mode of that rate over hmax.
 _TAIL = 1.0 / 620448401733239439360000.0
-_GROW = 4.0
 _NONE = DEG + 1  # a breakpoint's smoothness order above the Taylor degree: analytic to truncation, not imaged
 # A neutral loop's jump over a delay's window, relative to the signal there, below which it is not imaged
 _JUMP = 8.0 * 2.220446049250313e-16

@@ -26,12 +26,14 @@ from ..models.loop import Loop
 from ..models.signals import LoadStep
 
 __all__ = ["LoopMatrices", "loop_matrices", "fastest_rate", "param_row", "DEG", "NC", "MAXN", "HEAD", "NHEAD",
-           "NPAR", "OUT", "NOUT", "AW", "SELF", "STATUS_OK", "STATUS_CAPACITY", "STATUS_STALLED", "OFF_M", "OFF_BW",
+           "NPAR", "OUT", "NOUT", "AW", "SELF", "GROW", "STATUS_OK", "STATUS_CAPACITY", "STATUS_STALLED", "OFF_M", "OFF_BW",
            "OFF_BR", "OFF_BYM", "OFF_BVM", "OFF_BAW", "OFF_CY", "OFF_CYD", "OFF_CV", "OFF_BU", "OFF_BUM"]
 
 DEG = 24  # the Taylor polynomials' degree
 NC = DEG + 1
 MAXN = 16  # states of plant and controller together
+GROW = 4.0
+"""The kernel's longest piece, in units of ``hmax`` (where the Taylor tail allows; see :mod:`._kernel`)."""
 SELF = 0.125
 """A delay at most this many times the kernel's piece length ``hmax`` is short: past its breakpoints' images, a
 piece reads the delayed signal from itself (see :mod:`._kernel`), and ``hmax`` then also bounds the rates of

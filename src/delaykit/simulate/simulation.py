@@ -73,6 +73,9 @@ class _Workspace:
     def run(self, row: np.ndarray, knots: tuple[np.ndarray, np.ndarray, np.ndarray]) -> int:
         """Run the kernel on one parameter row; returns the number of pieces."""
         nstates = int(row[K.HEAD["n"]])
+        t_end, hmax = row[K.HEAD["t_end"]], row[K.HEAD["hmax"]]
+        if t_end > 4 * _CAP_MAX * K.GROW * hmax:  # past what the longest pieces could cover: refused before any work
+            self._too_many(row, t_end / (K.GROW * hmax), None)
         while True:
             allowed = _jit.budget(nstates)  # pieces the interpreter may run (0: compiled)
             cap = min(self.cap, allowed) if allowed else self.cap
@@ -85,11 +88,7 @@ class _Workspace:
                 t_stop, t_end = self.out[K.OUT["t_stop"]], row[K.HEAD["t_end"]]
                 projected = n * t_end / t_stop if t_stop > 0 else math.inf
                 if projected > 4 * _CAP_MAX or n >= _CAP_MAX:  # (the first pieces may be the shortest)
-                    raise InvalidValueError(
-                        f"the response needs more than {_CAP_MAX} polynomial pieces (about {projected:.3g} at the "
-                        f"rate of the first {n}; the loop's fastest rate is {1 / row[K.HEAD['hmax']]:.3g} 1/s over "
-                        f"t_end = {t_end:g} s): the loop is too stiff or too long to simulate exactly; shorten t_end "
-                        "or remove the fast dynamics")
+                    self._too_many(row, projected, n)
             if allowed:
                 _jit.spend(nstates, n)
                 if status == K.STATUS_CAPACITY and cap < self.cap:
@@ -98,6 +97,16 @@ class _Workspace:
                 return n
             self.cap = min(self.cap * 8, _CAP_MAX)
             self._alloc()
+
+    @staticmethod
+    def _too_many(row: np.ndarray, projected: float, n: int | None) -> None:
+        """Refuse a run that needs more than the piece budget: ``projected`` pieces, estimated at the rate of its
+        first ``n`` (or, with ``None``, at the longest piece the loop's fastest rate allows)."""
+        how = f"at the rate of the first {n}" if n is not None else "at the longest pieces its rates allow"
+        raise InvalidValueError(
+            f"the response needs more than {_CAP_MAX} polynomial pieces (about {projected:.3g} {how}; the loop's "
+            f"fastest rate is {1 / row[K.HEAD['hmax']]:.3g} 1/s over t_end = {row[K.HEAD['t_end']]:g} s): the "
+            "loop is too stiff or too long to simulate exactly; shorten t_end or remove the fast dynamics")
 
 
 def _stall_message(row: np.ndarray, t_stop: float) -> str:
