@@ -713,6 +713,11 @@ def estimate_trajectory(
         # the one a normal interval as wide as the profile interval would have, so that "delay +- stderr" and
         # the interval agree
         se = max(se, (ci[1] - ci[0]) / (2.0 * 1.96))
+    if ci is not None and se is not None and se > 2.0 * (ci[1] - ci[0]) / (2.0 * 1.96):
+        # the Fisher error more than twice what the profile interval spans: the quadratic approximation has failed
+        # (a nuisance just off its bound, nearly collinear with the delay, as a lag a fraction of a millisecond
+        # above its floor); the interval is the honest answer, and the error reported is its normal equivalent
+        se = (ci[1] - ci[0]) / (2.0 * 1.96)
 
     # rounded altitudes carry a timing resolution of their own: one rounding step takes q / |z'| seconds
     # at the response's fastest; that uniform error (std q / sqrt(12) / max|z'|) is added in quadrature

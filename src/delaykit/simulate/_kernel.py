@@ -442,11 +442,11 @@ def _jump(cl, nl, hl, cr, nr, hr, L, tmp, work):
 
 
 @njit(cache=True, _nrt=False)  # (not inlined: rarely run, kept out of the piece loop's code)
-def _picard(src, n, delta, dst, nd):
-    """One fixed-point pass of a delayed signal read from the piece being built: ``dst`` becomes ``src``
-    shifted back by ``delta`` (the delay over the piece's length), ``src(x - delta)``; returns the largest
-    change of a coefficient and the new number of coefficients.  ``nd`` the old number (``dst`` is zero past
-    it; ``src`` must not alias ``dst``).
+def _picard(src, n, delta, dst):
+    """One fixed-point pass of a delayed signal read from the piece being built: ``dst`` (all ``NC``
+    coefficients) becomes ``src`` (``n`` coefficients) shifted back by ``delta`` (the delay over the piece's
+    length), ``src(x - delta)``; returns the largest change of a coefficient and the new number of coefficients
+    (``src`` must not alias ``dst``).
     """
     big = 0.0
     out = 0
@@ -838,17 +838,17 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
                     for k in range(nsrc):
                         size = max(size, abs(src[k]))
                     if self_u:
-                        c, nW = _picard(src, nsrc, ti / H, Wd, nW)
+                        c, nW = _picard(src, nsrc, ti / H, Wd)
                         change = max(change, c)
                     if self_m:
-                        c, nUm = _picard(src, nsrc, tm / H, Um, nUm)
+                        c, nUm = _picard(src, nsrc, tm / H, Um)
                         change = max(change, c)
                 if self_y:
                     for k in range(NC):
                         size = max(size, abs(Y[k]), abs(Yd[k]))
-                    c, _ = _picard(Y, NC, to / H, Ym, NC)
+                    c, _ = _picard(Y, NC, to / H, Ym)
                     change = max(change, c)
-                    c, _ = _picard(Yd, NC, to / H, Vm, NC)
+                    c, _ = _picard(Yd, NC, to / H, Vm)
                     change = max(change, c)
                 passes += 1
                 if change <= 4.0 * 2.220446049250313e-16 * size:
