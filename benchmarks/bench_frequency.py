@@ -159,6 +159,8 @@ def main() -> None:
     ap.add_argument("--write-docs", action="store_true",
                     help="replace this script's tables in docs/benchmarks.md (between its markers)")
     args = ap.parse_args()
+    if args.write_docs and (args.quick):
+        ap.error("--write-docs writes the full run's tables into the docs: run it without --quick")
     console = Console(width=140)
     reps = 5 if args.quick else 51
     workers = min(2, os.cpu_count() or 1)

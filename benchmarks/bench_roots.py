@@ -107,6 +107,8 @@ def main() -> None:
     ap.add_argument("--write-docs", action="store_true",
                     help="replace this script's tables in docs/benchmarks.md (between its markers)")
     args = ap.parse_args()
+    if args.write_docs and (args.quick or args.lambert_only):
+        ap.error("--write-docs writes the full run's tables into the docs: run it without --quick/--lambert-only")
     if args.lambert_only:
         lam = lambert_case(Console(width=120))
         if args.json:

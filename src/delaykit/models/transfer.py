@@ -6,8 +6,8 @@ A :class:`TransferFunction` is a single-input single-output rational function
 
 kept as two NumPy float arrays, highest power first (the :func:`numpy.polyval` convention).  The denominator
 is made monic (leading coefficient 1) and leading zeros are stripped (a function read from text is still printed
-with the coefficients the text gave it: ``0.6976/(146.6 s + 1)``, ``1/(0.05 s^2 + s)``), but common factors are *kept*, so
-``(s+2)/(s^2+3*s+2)`` stays of order 2; :meth:`TransferFunction.minimal` cancels them.  Degrees are at most
+with the coefficients the text gave it: ``0.6976/(146.6 s + 1)``, ``1/(0.05 s^2 + s)``), but common factors are
+*kept*, so ``(s+2)/(s^2+3*s+2)`` stays of order 2; :meth:`TransferFunction.minimal` cancels them.  Degrees are at most
 :data:`MAX_ORDER`, and by default only proper functions (``m <= n``) are accepted, since a loop with a delay
 needs a proper plant; ``proper=False`` admits improper controllers such as the PD law ``4*s + 2``.
 
