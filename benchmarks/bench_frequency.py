@@ -37,6 +37,8 @@ from rich.table import Table
 import delaykit as dk
 from delaykit.spectrum.stability import rightmost, stability_map
 
+from _docs import write_docs
+
 TARGETS = {"margins": 5e-3, "bode": 1e-3, "map": 2.0}
 
 
@@ -154,7 +156,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer repeats and a 20 x 20 map (for the tests)")
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--write-docs", action="store_true",
+                    help="replace this script's tables in docs/benchmarks.md (between its markers)")
     args = ap.parse_args()
+    if args.write_docs and (args.quick):
+        ap.error("--write-docs writes the full run's tables into the docs: run it without --quick")
     console = Console(width=140)
     reps = 5 if args.quick else 51
     workers = min(2, os.cpu_count() or 1)
@@ -165,6 +171,7 @@ def main() -> None:
     with console.status("stability map…"):
         mp = map_row(20 if args.quick else 100, 40 if args.quick else 500, workers)
 
+    tables = []
     t = Table(title=f"Margins of one loop (median of {reps}; target {fmt(TARGETS['margins'])})")
     for col in ("loop", "delaykit (exact)", "python-control, Padé 8", "ratio", "PM exact", "PM Padé", "met"):
         t.add_column(col, justify="right")
@@ -172,6 +179,7 @@ def main() -> None:
         t.add_row(r["case"], fmt(r["delaykit"]), fmt(r["anchor"]), f"{r['ratio']:.2f}×", f"{r['phase_margin']:.4f}°",
                   f"{r['pade_phase_margin']:.4f}°", "yes" if r["met"] else "NO")
     console.print(t)
+    tables.append(t)
     t = Table(title=f"Bode: {brows[0]['n']} frequencies (median of {reps * 4}; target {fmt(TARGETS['bode'])})")
     for col in ("loop", "delaykit", "python-control × e^-jωT", "ratio", "max rel. diff.", "NumPy polyval",
                 "ratio", "max rel. diff.", "met"):
@@ -181,6 +189,7 @@ def main() -> None:
                   f"{r['error_control']:.1e}", fmt(r["numpy"]), f"{r['ratio_numpy']:.2f}×", f"{r['error_numpy']:.1e}",
                   "yes" if r["met"] else "NO")
     console.print(t)
+    tables.append(t)
     t = Table(title=f"Stability map of a PID loop over (Kp, Ki), {mp['grid']} (median of 3; target "
                     f"{fmt(TARGETS['map'])} on 2 cores)")
     for col in ("grid", f"delaykit, {workers} threads", "1 thread", "first call", "rightmost() per point",
@@ -190,6 +199,9 @@ def main() -> None:
               f"{fmt(mp['anchor'])} (from {mp['anchor_points']})", f"{mp['ratio']:.0f}×", f"{mp['error']:.1e}",
               f"{mp['stable_points']}/{mp['points']}", "yes" if mp["met"] else "NO")
     console.print(t)
+    tables.append(t)
+    if args.write_docs:
+        write_docs(Path(__file__).name, *tables)
     res = {"margins": mrows, "bode": brows, "map": mp, "targets": TARGETS,
            "targets_met": {"margins": all(r["met"] for r in mrows), "bode": all(r["met"] for r in brows),
                            "map": mp["met"]}}

@@ -43,6 +43,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.dont_write_bytecode = True  # importing bench_simulate leaves no __pycache__ in benchmarks/
 
 import delaykit as dk  # noqa: E402
+from _docs import write_docs  # noqa: E402
 from bench_simulate import KEYS, HermiteSpline, agreement, errors, meets, spline_metrics  # noqa: E402
 from delaykit.models import Controller, Loop  # noqa: E402
 from oracle_loop import LoopOracle, LoopSpec  # noqa: E402
@@ -174,6 +175,8 @@ def main() -> None:
     ap.add_argument("--jit-loops", type=int, default=None, help="loops jitcdde runs (default: all; the time is scaled)")
     ap.add_argument("--json", type=Path, default=None, help="also write the results here")
     ap.add_argument("--no-cold", action="store_true", help="skip timing a cold compile")
+    ap.add_argument("--write-docs", action="store_true",
+                    help="replace this script's tables in docs/benchmarks.md (between its markers)")
     args = ap.parse_args()
     console = Console(width=140)
     rng = np.random.default_rng(2024)
@@ -254,6 +257,8 @@ def main() -> None:
                   f"{jit.compile_time:.2f}", f"{jit_time:.2f}", f"{1e6 * jit_time / args.loops:.0f}",
                   f"{je['overshoot']:.1e}", f"{terr(je):.1e}", str(jit_ok), "1")
     console.print(table)
+    if args.write_docs:
+        write_docs(Path(__file__).name, table)
 
     def short(e: dict[str, float]) -> str:
         return "ok" if meets(e) else f"short: {e['overshoot']:.1e} pp, {terr(e):.1e} ms"

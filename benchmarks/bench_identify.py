@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 from rich.console import Console
@@ -27,6 +28,8 @@ from scipy.signal import lsim
 from delaykit.identify import Experiment, identify
 from delaykit.identify.structures import STRUCTURES
 from delaykit.simulate.discrete import held_delay_model, held_response
+
+from _docs import write_docs
 
 TRUTH = {"gain": 0.8, "time_constant": 0.6, "time_constant2": 0.15, "delay": 0.12}
 H = 0.02
@@ -68,6 +71,8 @@ def main() -> dict:
     ap.add_argument("--logs", type=int, default=20)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", default=None)
+    ap.add_argument("--write-docs", action="store_true",
+                    help="replace this script's tables in docs/benchmarks.md (between its markers)")
     a = ap.parse_args()
     identify(logs(1)[0], model="sopdt")  # compile and cache the kernels before timing
     rows = {}
@@ -98,6 +103,8 @@ def main() -> dict:
         table.add_row(label, f"{r['delaykit']['time'] * 1e3:.1f} ms", f"{r['scipy']['time'] * 1e3:.1f} ms",
                       f"{r['ratio']:.1f}x", mine, ref)
     Console(width=140).print(table)
+    if a.write_docs:
+        write_docs(Path(__file__).name, table)
     result = {"truth": TRUTH, "cases": rows,
               "targets": {"one_log_s": 0.05, "pooled_s": 1.0},
               "targets_met": {"one_log": rows["one 12 s log"]["delaykit"]["time"] < 0.05,

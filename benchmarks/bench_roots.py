@@ -30,6 +30,8 @@ import delaykit as dk
 from delaykit.spectrum.lambert import lambert_roots
 from delaykit.spectrum.roots import find_roots
 
+from _docs import write_docs
+
 
 def qp_from_qpmr(coefs, delays) -> dk.QuasiPolynomial:
     """qpmr stores one row per delay, lowest power first; delaykit highest first."""
@@ -102,7 +104,11 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="skip qpmr example 2 (about 80 s) and shorten the sweep")
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--lambert-only", action="store_true", help="only the Lambert W comparison (no qpmr needed)")
+    ap.add_argument("--write-docs", action="store_true",
+                    help="replace this script's tables in docs/benchmarks.md (between its markers)")
     args = ap.parse_args()
+    if args.write_docs and (args.quick or args.lambert_only):
+        ap.error("--write-docs writes the full run's tables into the docs: run it without --quick/--lambert-only")
     if args.lambert_only:
         lam = lambert_case(Console(width=120))
         if args.json:
@@ -144,6 +150,8 @@ def main() -> None:
                       str(r["argument_principle"]), str(r["certified"]), f"{r['qpmr_found_by_delaykit']}/{r['qpmr_roots']}",
                       str(r["delaykit_only"]))
     console.print(table)
+    if args.write_docs:
+        write_docs(Path(__file__).name, table)
     tq = np.array([r["qpmr_time"] for r in sweep])
     td = np.array([r["delaykit_time"] for r in sweep])
     slow = [f"{r['case'].split('=')[1]} ({r['qpmr_time']:.1f} s)" for r in sweep if r["qpmr_time"] > 1.0]

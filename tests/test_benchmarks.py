@@ -71,3 +71,77 @@ def test_frequency_benchmark_quick_runs(tmp_path):
     assert res["map"]["error"] < 1e-9 and 0 < res["map"]["stable_points"] < res["map"]["points"]
     assert all(r["pade_pm_error_deg"] < 0.5 for r in res["margins"])
     assert set(res["targets_met"]) == {"margins", "bode", "map"}
+
+
+# ------------------------------------------------------------------ the docs tables (`--write-docs`), fast checks
+DOCS = ROOT / "docs" / "benchmarks.md"
+
+
+def _docs_helper():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        import _docs
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    return _docs
+
+
+def test_every_benchmark_table_is_in_its_scripts_block():
+    """Each script that writes docs has exactly one begin/end pair in docs/benchmarks.md, and every table line of
+    that page lies inside some script's block (so no hand-kept table is left that a script does not regenerate)."""
+    helper = _docs_helper()
+    writers = sorted(p.name for p in (ROOT / "benchmarks").glob("bench_*.py")
+                     if "--write-docs" in p.read_text(encoding="utf-8"))
+    assert {"bench_simulate.py", "bench_general.py", "bench_roots.py", "bench_frequency.py",
+            "bench_identify.py"} <= set(writers)
+    doc = DOCS.read_text(encoding="utf-8")
+    for name in writers:
+        begin, end = helper.markers(name)
+        assert doc.count(begin) == 1 and doc.count(end) == 1 and doc.index(begin) < doc.index(end), name
+    inside = None
+    for line in doc.splitlines():
+        if line.startswith("<!-- bench_") and line.endswith(":begin -->"):
+            assert inside is None, f"nested block at {line}"
+            inside = line[5:-len(":begin -->")]
+            assert inside in writers, f"{inside} has a block but no --write-docs"
+        elif line.startswith("<!-- bench_") and line.endswith(":end -->"):
+            assert line == f"<!-- {inside}:end -->", line
+            inside = None
+        elif line.startswith("|"):
+            assert inside is not None, f"a table line outside every script's block: {line[:60]}"
+    assert inside is None
+
+
+def test_write_docs_replaces_only_its_block(tmp_path):
+    """The helper rewrites one script's block of a copy of the page (the date line and the table as Markdown) and
+    leaves every other byte as it was; a page without the markers is refused with an error naming them."""
+    from rich.table import Table
+
+    helper = _docs_helper()
+    page = tmp_path / "benchmarks.md"
+    page.write_text(DOCS.read_text(encoding="utf-8"), encoding="utf-8")
+    original = page.read_text(encoding="utf-8")
+    table = Table(title="Roots (median times)")
+    for col in ("case", "time | ms"):
+        table.add_column(col)
+    table.add_row("Table 3, Kv = 0", "0.4\nms")
+    table.add_row("qpmr example 2", "3.3 s")
+    helper.write_docs("bench_roots.py", table, path=page)
+    new = page.read_text(encoding="utf-8")
+    begin, end = helper.markers("bench_roots.py")
+    head, rest = new.split(begin)
+    block, tail = rest.split(end)
+    old_head, old_rest = original.split(begin)
+    assert head == old_head and tail == old_rest.split(end)[1]  # everything outside the block is unchanged
+    lines = block.strip().splitlines()
+    assert lines[0].startswith("Measured ") and " UTC by `--write-docs` on " in lines[0] and "load average" in lines[0]
+    assert "Roots (median times):" in lines
+    assert "| case | time \\| ms |" in lines and "|---|---|" in lines
+    assert "| Table 3, Kv = 0 | 0.4; ms |" in lines and "| qpmr example 2 | 3.3 s |" in lines
+    assert "qpmr's found" not in block  # the old table is gone from this block ...
+    assert "| delaykit (exact, numba, 2 threads) |" in head  # ... and the other scripts' tables are not
+    helper.write_docs("bench_roots.py", table, path=page)  # idempotent apart from the time stamp
+    assert page.read_text(encoding="utf-8").count(begin) == 1
+    page.write_text(original.replace(end, ""), encoding="utf-8")
+    with pytest.raises(ValueError, match="bench_roots.py:end"):
+        helper.write_docs("bench_roots.py", table, path=page)

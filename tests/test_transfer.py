@@ -92,9 +92,16 @@ def test_raw_coefficients_normalise_to_the_parsed_function(text):
 
 
 def test_repr_and_to_string():
-    g = TransferFunction.parse("1/(s*(0.05*s+1))")
-    assert repr(g) == "TransferFunction(20/(s^2 + 20 s))"
-    assert g.to_string() == "20/(s^2 + 20*s)"  # an integrator: the monic form
+    g = TransferFunction.parse("1/(s*(0.05*s+1))")  # an integrator: the text's coefficients, products expanded
+    assert repr(g) == "TransferFunction(1/(0.05 s^2 + s))"
+    assert g.to_string() == "1/(0.05*s^2 + s)" and TransferFunction.parse(g.to_string()) == g
+    assert repr(TransferFunction(g.num, g.den)) == "TransferFunction(20/(s^2 + 20 s))"  # coefficients: monic
+    k = TransferFunction.parse("20/(s^2+20*s)")  # the same plant written monic: printed monic, equal to g
+    assert repr(k) == "TransferFunction(20/(s^2 + 20 s))" and k == g and hash(k) == hash(g)
+    assert g.num.tolist() == [20.0] and g.den.tolist() == [1.0, 20.0, 0.0]  # stored normalised
+    i = TransferFunction.parse("2.5/(4*s^2)")  # a double integrator with a scale: as written
+    assert repr(i) == "TransferFunction(2.5/(4 s^2))" and i == TransferFunction([0.625], [1, 0, 0])
+    assert TransferFunction.parse(i.to_string()) == i  # 2.5/(4*s^2) reads back; 2.5/4*s^2 would be 0.625 s^2
     h = TransferFunction.parse("0.6976/(146.6*s+1)")  # a gain and a time constant: as written
     assert repr(h) == "TransferFunction(0.6976/(146.6 s + 1))" and TransferFunction.parse(h.to_string()) == h
     assert repr(TransferFunction(h.num, h.den)) == "TransferFunction(0.00475853/(s + 0.00682128))"

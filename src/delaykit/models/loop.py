@@ -25,7 +25,7 @@ Examples
 --------
 >>> loop = Loop("1/(s*(0.05*s+1))", Controller.pd(2.0, 0.1, 0.02), delay=0.3, umin=-1, umax=3)
 >>> loop
-Loop(plant 20/(s^2 + 20 s), pd: kp=2, kd=0.1, Tf=0.02 s, delay=0.3 s, u in [-1, 3], continuous)
+Loop(plant 1/(0.05 s^2 + s), pd: kp=2, kd=0.1, Tf=0.02 s, delay=0.3 s, u in [-1, 3], continuous)
 >>> loop.characteristic().kind
 'retarded'
 """

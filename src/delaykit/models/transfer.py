@@ -5,9 +5,9 @@ A :class:`TransferFunction` is a single-input single-output rational function
     ``G(s) = (b_m s^m + ... + b_1 s + b_0) / (s^n + a_(n-1) s^(n-1) + ... + a_0)``
 
 kept as two NumPy float arrays, highest power first (the :func:`numpy.polyval` convention).  The denominator
-is made monic (leading coefficient 1) and leading zeros are stripped (a self-regulating plant read from text is
-still printed as the text gave it: ``0.6976/(146.6 s + 1)``), but common factors are *kept*, so
-``(s+2)/(s^2+3*s+2)`` stays of order 2; :meth:`TransferFunction.minimal` cancels them.  Degrees are at most
+is made monic (leading coefficient 1) and leading zeros are stripped (a function read from text is still printed
+with the coefficients the text gave it: ``0.6976/(146.6 s + 1)``, ``1/(0.05 s^2 + s)``), but common factors are
+*kept*, so ``(s+2)/(s^2+3*s+2)`` stays of order 2; :meth:`TransferFunction.minimal` cancels them.  Degrees are at most
 :data:`MAX_ORDER`, and by default only proper functions (``m <= n``) are accepted, since a loop with a delay
 needs a proper plant; ``proper=False`` admits improper controllers such as the PD law ``4*s + 2``.
 
@@ -32,8 +32,8 @@ with a message that names the text.
 Examples
 --------
 >>> g = TransferFunction.parse("1/(s*(0.05*s+1))")
->>> g
-TransferFunction(20/(s^2 + 20 s))
+>>> g                                                   # printed as written; kept normalised
+TransferFunction(1/(0.05 s^2 + s))
 >>> g.num.tolist(), g.den.tolist()
 ([20.0], [1.0, 20.0, 0.0])
 >>> TransferFunction.parse_with_delay("0.62*exp(-12*s)/(150*s+1)")[1]
@@ -361,11 +361,11 @@ class TransferFunction:
         object.__setattr__(self, "den", den)
 
     def _written(self, v: _Val) -> TransferFunction:
-        """Keep the coefficients as the text gave them (before the denominator was made monic), for display, when
-        the text's denominator has a constant term: the gain-and-time-constant form ``K/(T s + 1)`` of a
-        self-regulating plant.  A plant with an integrator prints in the monic form."""
+        """Keep the coefficients as the text gave them (before the denominator was made monic), for display: the
+        gain-and-time-constant form ``K/(T s + 1)`` of a self-regulating plant, and an integrator's scale
+        (``1/(s*(0.05*s+1))`` prints ``1/(0.05 s^2 + s)``, its products expanded)."""
         num, den = _trim(np.ravel(v.num).astype(float)), _trim(np.ravel(v.den).astype(float))
-        if np.all(np.isfinite(num)) and np.all(np.isfinite(den)) and den[-1] != 0.0:
+        if np.all(np.isfinite(num)) and np.all(np.isfinite(den)) and den.any():
             num.flags.writeable = den.flags.writeable = False
             object.__setattr__(self, "_as_written", (num, den))
         return self
@@ -708,9 +708,9 @@ class TransferFunction:
     def to_string(self, digits: int | None = None, times: str = "*") -> str:
         """``num/den`` as text that :meth:`parse` reads back (with the default ``times``).
 
-        A function read from text whose denominator has a constant term is written as the text gave it
-        (``0.6976/(146.6 s + 1)``, not its monic ``0.00475853/(s + 0.00682128)``); one with an integrator, or
-        built from coefficients or by arithmetic, normalised.
+        A function read from text is written with the coefficients the text gave it (``0.6976/(146.6 s + 1)``,
+        not its monic ``0.00475853/(s + 0.00682128)``; ``1/(s*(0.05*s+1))`` as ``1/(0.05 s^2 + s)``, not
+        ``20/(s^2 + 20 s)``; products expanded); one built from coefficients or by arithmetic, normalised.
         Coefficients use ``%g``, or ``%.{digits}g`` (17 round-trips floats exactly); coefficients 1 are
         omitted; ``times`` joins a coefficient and its power of ``s`` (``" "`` for display, as in ``repr``).
 
@@ -727,7 +727,8 @@ class TransferFunction:
         if b.size == 1 and b[0] == 1.0:
             return num
         den, d_terms = _poly_text(b, fmt, times)
-        return f"{f'({num})' if n_terms > 1 else num}/{f'({den})' if d_terms > 1 else den}"
+        bare = d_terms == 1 and (den == "s" or den.startswith("s^"))  # 2/s^2; but 2.5/(4 s^2), not 2.5/4 s^2
+        return f"{f'({num})' if n_terms > 1 else num}/{den if bare else f'({den})'}"
 
     def __repr__(self) -> str:
         return f"TransferFunction({self.to_string(times=' ')})"
