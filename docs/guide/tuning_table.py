@@ -9,6 +9,11 @@ tests/test_tune.py checks that the tables in the guide are this script's output,
 * The heater: the TCLab step test's FOPDT model (``identify tests/data/tclab/step_test.csv --model fopdt``:
   K 0.698 degC/%, tau 146.6 s, theta 16.6 s; heater command limited to +-50 % around its operating point) tuned by
   every rule and by MIGO, for a 5 degC setpoint step and a 10 % load step.
+* The PX4 vehicle: its identified model (the closed-loop ``ipdt_speed`` fit of the HAYDEN flights of
+  tests/data/px4-altitude, computed here as tests/test_system_files.py computes it; the speed command limited to
+  -1/+3 m/s as in the flights) tuned by SIMC, AMIGO and Ziegler-Nichols and by MIGO, beside the PX4's own altitude P
+  loop (Kp 0.95), for a 1 m setpoint step and a 0.5 m/s load step; a rule outside its plant family is listed as
+  refused with delaykit's reason, and a dagger marks one outside its range of validity (a TuningWarning).
 """
 
 from __future__ import annotations
@@ -16,7 +21,7 @@ from __future__ import annotations
 import math
 import warnings
 
-from delaykit import AltitudeLoop, TuningWarning, assess, tune
+from delaykit import AltitudeLoop, InvalidValueError, TuningWarning, assess, tune
 
 
 def _f(x: float | None, digits: int = 3) -> str:
@@ -77,8 +82,50 @@ def heater_table() -> str:
     return HEAD + "\n" + "\n".join(_row(n, t) for n, t in rows)
 
 
+def px4_model():
+    """The PX4 vehicle's identified model: the closed-loop ``ipdt_speed`` fit of the three HAYDEN flights."""
+    from pathlib import Path
+
+    from delaykit import Controller, Loop
+    from delaykit.identify import identify, read_experiment
+
+    data = Path(__file__).resolve().parents[2] / "tests" / "data" / "px4-altitude"
+    outer = Loop("1/s", Controller.p(0.95), umin=-1.0, umax=3.0, period=0.02)  # the flights' loop (data README)
+    runs = [read_experiment(data / f"HAYDEN_0{i}.csv", outputs=["z"], reference="z_ref") for i in (1, 2, 3)]
+    return identify(runs, model="ipdt_speed", loop=outer, fresh_only=True)
+
+
+def px4_table(model=None) -> str:
+    """The PX4 vehicle's table (Markdown); ``model`` defaults to :func:`px4_model`."""
+    from delaykit import Controller, Loop
+
+    m = px4_model() if model is None else model
+    base = dict(umin=-1.0, umax=3.0, step=1.0, load=0.5, t_end=40.0)
+    rows = [("PX4 P, Kp 0.95", assess(Loop(m.plant, Controller.p(0.95), delay=float(m.delay), umin=-1.0, umax=3.0),
+                                      step=1.0, load=0.5, t_end=40.0))]
+    refused = []
+    for name, kw in [("SIMC PI", dict(rule="simc")), ("AMIGO PI", dict(rule="amigo")), ("ZN PI", dict(rule="zn")),
+                     ("Tyreus-Luyben PI", dict(rule="tyreus-luyben")), ("MIGO PI, Ms 1.4", dict(ms=1.4))]:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", TuningWarning)
+            try:
+                t = tune(m, "pi", **kw, **base)
+            except InvalidValueError as e:  # outside the rule's family: the table says so, with delaykit's reason
+                refused.append(f"{name}: refused ({e})")
+                continue
+        if t.model is not None:
+            name += " (half rule)"
+        if any(issubclass(w.category, TuningWarning) for w in caught):
+            name += " †"
+        rows.append((name, t))
+    notes = "".join(f"\n- {r}" for r in refused)
+    return HEAD + "\n" + "\n".join(_row(n, t) for n, t in rows) + ("\n" + notes if notes else "")
+
+
 if __name__ == "__main__":
     print("### The drone\n")
     print(drone_table())
     print("\n### The heater\n")
     print(heater_table())
+    print("\n### The PX4 vehicle\n")
+    print(px4_table())
