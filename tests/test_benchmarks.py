@@ -139,7 +139,9 @@ def test_write_docs_replaces_only_its_block(tmp_path):
     assert "| case | time \\| ms |" in lines and "|---|---|" in lines
     assert "| Table 3, Kv = 0 | 0.4; ms |" in lines and "| qpmr example 2 | 3.3 s |" in lines
     assert "qpmr's found" not in block  # the old table is gone from this block ...
-    assert "| delaykit (exact, numba, 2 threads) |" in head  # ... and the other scripts' tables are not
+    sim_begin, sim_end = helper.markers("bench_simulate.py")  # ... and the other scripts' tables are not
+    assert new.split(sim_begin)[1].split(sim_end)[0] == original.split(sim_begin)[1].split(sim_end)[0]
+    assert "| jitcdde" in new.split(sim_begin)[1].split(sim_end)[0]
     helper.write_docs("bench_roots.py", table, path=page)  # idempotent apart from the time stamp
     assert page.read_text(encoding="utf-8").count(begin) == 1
     page.write_text(original.replace(end, ""), encoding="utf-8")
