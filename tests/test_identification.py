@@ -267,6 +267,31 @@ def test_closed_loop_recovers_a_known_plant_and_delay_with_two_steps_in_one_log(
     assert m.ci["delay"][0] < 0.12 < m.ci["delay"][1]
 
 
+def test_saved_model_is_strict_json_and_keeps_undetermined_uncertainties(tmp_path):
+    # a model whose covariance the data could not determine (what _outcome gives when the sensitivities are
+    # singular: every entry NaN) is written with null, which a strict JSON reader accepts, and read back as NaN
+    import dataclasses
+
+    e = _closed_log("0.8/(s*(0.15*s+1))", 0.12, seed=1, n=400)
+    m = identify(e, model="ipdt_lag", loop=PX4_LOOP, outputs="z", per_log=False)
+    nan = dataclasses.replace(m, stderr={k: math.nan for k in m.stderr}, cov=np.full_like(m.cov, np.nan),
+                              ci={k: (math.nan, math.nan) for k in m.ci})
+    path = tmp_path / "m.json"
+    nan.save(path)
+
+    def refuse(token):
+        raise AssertionError(f"not strict JSON: {token}")
+
+    d = json.loads(path.read_text(), parse_constant=refuse)
+    assert d["stderr"]["delay"] is None and d["cov"][0][0] is None
+    back = load_model(path)
+    assert back.params == m.params
+    assert all(math.isnan(v) for v in back.stderr.values()) and np.isnan(back.cov).all()
+    m.save(path)  # and a determined model round-trips its numbers exactly
+    again = load_model(path)
+    assert again.stderr == m.stderr and np.array_equal(again.cov, m.cov)
+
+
 def test_interval_coverage_of_the_delay_is_near_95_percent():
     # truth known; 40 noisy logs; a 95 % interval should miss about 2 of them (binomial: P(misses >= 8) < 0.1 %)
     plant = "1/(s*(0.1*s+1))"

@@ -146,6 +146,22 @@ def candidate_status(st: Structure, p: np.ndarray, cov: np.ndarray, preps: list[
     return "ok", None
 
 
+
+def _nulls(v: Any) -> Any:
+    """``v`` with every float that is not finite replaced by ``None`` (JSON's null), in dicts and lists."""
+    if isinstance(v, float):
+        return v if math.isfinite(v) else None
+    if isinstance(v, dict):
+        return {k: _nulls(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_nulls(x) for x in v]
+    return v
+
+
+def _number(v: Any) -> float:
+    """A saved uncertainty: a number, or ``None`` (written for a value the fit could not determine) as NaN."""
+    return math.nan if v is None else float(v)
+
 @dataclass(frozen=True, repr=False, eq=False)
 class IdentifiedModel:
     """An identified plant with its dead time, its uncertainty and how it was chosen.
@@ -212,8 +228,11 @@ class IdentifiedModel:
         }
 
     def save(self, path: str | Path) -> None:
-        """Write the model as JSON (read back with :func:`load_model`)."""
-        Path(path).write_text(json.dumps(self.to_dict(), indent=2))
+        """Write the model as strict JSON (read back with :func:`load_model`).
+
+        A number that is not finite (a standard error the data could not determine is NaN) is written as
+        ``null``, which JSON readers other than Python's accept, and read back as NaN."""
+        Path(path).write_text(json.dumps(_nulls(self.to_dict()), indent=2, allow_nan=False))
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], *, source: str = "model") -> "IdentifiedModel":
@@ -222,10 +241,10 @@ class IdentifiedModel:
             name = d["model"]
             st = structure(name)
             params = {k: float(d["params"][k]) for k in st.params}
-            stderr = {k: float(d["stderr"][k]) for k in st.params}
-            ci = {k: (float(v[0]), float(v[1])) for k, v in d["ci"].items()}
-            cov = np.array(d["cov"], dtype=float).reshape(st.size, st.size)
-            logs = tuple(LogFit(g["file"], dict(g["rms_by_output"]),
+            stderr = {k: _number(d["stderr"][k]) for k in st.params}
+            ci = {k: (_number(v[0]), _number(v[1])) for k, v in d["ci"].items()}
+            cov = np.array([[_number(x) for x in row] for row in d["cov"]], dtype=float).reshape(st.size, st.size)
+            logs = tuple(LogFit(g["file"], {k: _number(v) for k, v in g["rms_by_output"].items()},
                                 {k: math.nan for k in g["rms_by_output"]}, int(g["samples"]), int(g["noise_order"]))
                          for g in d.get("logs", []))
             for k, positive in zip(st.params, st.positive):  # what a fit can give: finite, the signs it keeps
