@@ -325,3 +325,23 @@ def test_default_horizon():
     assert S.default_horizon(tf("exp(-2*s)/(s+1)")) == pytest.approx(13.0)
     r = tf("exp(-2*s)/(s+1)").step()
     assert r.time.size == 1001 and r.time[-1] == pytest.approx(13.0)
+
+
+# -- one source, three modes ------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("mode", ["cython", pytest.param("numba", marks=pytest.mark.slow)])
+def test_kernel_modes_agree_with_plain_python(monkeypatch, mode):
+    # reference: the same kernel source run by the interpreter
+    from delaykit import _native
+
+    if mode == "cython" and not _native.built("delaykit.simulate", "_ltikernel"):
+        pytest.skip("the extension was not built")
+    systems = [wood_berry_pi(), from_loop(AltitudeLoop(kp=1.31, delay=0.368)),
+               feedback(tf("1/(s+1)") + tf("0.4*exp(-0.5*s)"), 1)]
+    t = np.linspace(0.0, 30.0, 61)
+    results = {}
+    for m in ("python", mode):
+        monkeypatch.setattr(S, "_K", _native.load("delaykit.simulate", "_ltikernel", m))
+        results[m] = [s.step(t).outputs for s in systems] + [systems[0].impulse(t).outputs]
+    for a, b in zip(results["python"], results[mode]):
+        np.testing.assert_allclose(b, a, rtol=0, atol=1e-12)

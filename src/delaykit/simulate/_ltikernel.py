@@ -72,6 +72,13 @@ STATUS_OK = 0
 STATUS_CAPACITY = 1  # the history or the breakpoint lists are full: the caller retries with more room
 STATUS_STALLED = 2  # a saturation's regime could not be settled at a point (chattering)
 STATUS_OVERFLOW = 3  # a value left the floating-point range (an unstable system over a long horizon)
+# the same, typed for the compiled loops (the names above are for Python)
+_DEG = 24
+_NC = 25
+_OK = 0
+_CAPACITY = 1
+_STALLED = 2
+_OVERFLOW = 3
 
 _EPS = 2.220446049250313e-16
 _JUMP = 16.0 * _EPS  # a breakpoint's jump, relative to its channel's scale, below which it is not imaged
@@ -182,27 +189,27 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
     nk = ut.shape[0]
     cap = hist_t.shape[0]
     jcap = jump_t.shape[0]
-    X = np.zeros((n, NC))
-    U = np.zeros((nu, NC))
-    W = np.zeros((m, NC))
-    Z = np.zeros((m, NC))
-    V = np.zeros((m, NC))
-    Y = np.zeros((ny, NC))
+    X = np.zeros((n, _NC))
+    U = np.zeros((nu, _NC))
+    W = np.zeros((m, _NC))
+    Z = np.zeros((m, _NC))
+    V = np.zeros((m, _NC))
+    Y = np.zeros((ny, _NC))
     Yprev = np.zeros(ny)
     xa = np.zeros(n)
-    work = np.zeros(NC)
-    tmp = np.zeros(NC)
-    work2 = np.zeros(NC)
+    work = np.zeros(_NC)
+    tmp = np.zeros(_NC)
+    work2 = np.zeros(_NC)
     mode = np.zeros(m, dtype=np.int64)
     rd = np.zeros(m, dtype=np.int64)  # read pointer into the history, per channel
     ip = np.zeros(m, dtype=np.int64)  # next breakpoint to image, per channel
     scale = np.zeros(m)
-    border = np.full(m, DEG + 1, dtype=np.int64)  # orders of the breakpoints at the piece's start
+    border = np.full(m, _DEG + 1, dtype=np.int64)  # orders of the breakpoints at the piece's start
     for i in range(n):
         xa[i] = x0[i]
     for c in range(m):
         bp_n[c] = 0
-    status = STATUS_OK
+    status = _OK
     hcap = hmax
     pieces = 0
     njump = 0
@@ -225,7 +232,7 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
         mode[c] = _LIN
     while a < t_end - tol:
         if pieces >= cap:
-            status = STATUS_CAPACITY
+            status = _CAPACITY
             break
         # -- the piece's end: the next event, hmax, the reads' extrapolation limits ---------------------------
         e = t_end
@@ -258,7 +265,7 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
         # -- the inputs on the piece ------------------------------------------------------------------------
         k0 = kn - 1  # the segment holding a
         for l in range(nu):
-            for j in range(NC):
+            for j in range(_NC):
                 U[l, j] = 0.0
             if k0 < 0:
                 continue
@@ -270,7 +277,7 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
             U[l, 1] = slope * H
         # -- the delayed channels on the piece, from the history -------------------------------------------------
         for c in range(m):
-            for j in range(NC):
+            for j in range(_NC):
                 W[c, j] = 0.0
             if tau[c] > 0.0:
                 s = a - tau[c]
@@ -280,10 +287,10 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
                     if alpha < 0.0:
                         alpha = 0.0
                     beta = H / hist_h[q]
-                    for j in range(NC):
+                    for j in range(_NC):
                         tmp[j] = hist_c[q, c, j]
-                    _shift_scale(tmp, NC, alpha, beta, work, work2)
-                    for j in range(NC):
+                    _shift_scale(tmp, _NC, alpha, beta, work, work2)
+                    for j in range(_NC):
                         W[c, j] = work[j]
         # -- the Taylor recursion, with the saturations' regimes settled at the start -------------------------------
         for c in range(m):
@@ -320,17 +327,17 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
                     if mode[c] == _LIN:
                         xs = 2.0
                         if hi[c] < 1e308:
-                            xs = _first_exit(Z[c, :], NC, hi[c], True, 0.0)
+                            xs = _first_exit(Z[c, :], _NC, hi[c], True, 0.0)
                             to = _HIGH
                         if lo[c] > -1e308:
-                            x2 = _first_exit(Z[c, :], NC, lo[c], False, 0.0)
+                            x2 = _first_exit(Z[c, :], _NC, lo[c], False, 0.0)
                             if x2 < xs:
                                 xs = x2
                                 to = _LOW
                     elif mode[c] == _HIGH:
-                        xs = _first_exit(Z[c, :], NC, hi[c], False, 0.0)
+                        xs = _first_exit(Z[c, :], _NC, hi[c], False, 0.0)
                     else:
-                        xs = _first_exit(Z[c, :], NC, lo[c], True, 0.0)
+                        xs = _first_exit(Z[c, :], _NC, lo[c], True, 0.0)
                     if xs < xcut:
                         xcut = xs
                         cfirst = c
@@ -352,7 +359,7 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
             settled = True
             break
         if not settled:
-            status = STATUS_STALLED
+            status = _STALLED
             break
         switched = -1
         if xcut < 1.0:
@@ -368,52 +375,52 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
         # -- the jumps at the piece's start: drop a breakpoint whose jump is negligible ------------------------
         for c in range(m):
             big = 0.0
-            for j in range(NC):
+            for j in range(_NC):
                 big += fabs(V[c, j])
             if big > scale[c]:
                 scale[c] = big
         for c in range(m):
-            if tau[c] > 0.0 and border[c] <= DEG:
+            if tau[c] > 0.0 and border[c] <= _DEG:
                 L = tau[c] if tau[c] < hmax else hmax
                 jmax = 0.0
                 if pieces > 0 and hist_t[pieces - 1] + hist_h[pieces - 1] >= a - tol:
                     # derivatives of the left piece at its end, scaled to L
                     hl = hist_h[pieces - 1]
-                    for j in range(NC):
+                    for j in range(_NC):
                         tmp[j] = hist_c[pieces - 1, c, j]
-                    _shift_scale(tmp, NC, 1.0, L / hl, work, work2)
+                    _shift_scale(tmp, _NC, 1.0, L / hl, work, work2)
                     r = 1.0
-                    for j in range(NC):
-                        d = fabs(V[c, j] * r - work[j])
+                    for j in range(_NC):
+                        dj = fabs(V[c, j] * r - work[j])
                         r *= L / H
-                        if d > jmax:
-                            jmax = d
+                        if dj > jmax:
+                            jmax = dj
                 else:
                     r = 1.0
-                    for j in range(NC):
-                        d = fabs(V[c, j] * r)
+                    for j in range(_NC):
+                        dj = fabs(V[c, j] * r)
                         r *= L / H
-                        if d > jmax:
-                            jmax = d
+                        if dj > jmax:
+                            jmax = dj
                 if jmax > _JUMP * scale[c]:
                     if not _add_bp(bp_t, bp_o, bp_n, c, a, border[c], tol):
-                        status = STATUS_CAPACITY
+                        status = _CAPACITY
                         break
-            border[c] = DEG + 1
-        if status != STATUS_OK:
+            border[c] = _DEG + 1
+        if status != _OK:
             break
         # -- the outputs' jumps at the start, the requested times on the piece ---------------------------------
         if jcap > 0:
             jm = 0.0
             for o in range(ny):
-                d = fabs(Y[o, 0] - Yprev[o])
-                if d > jm:
-                    jm = d
+                dj = fabs(Y[o, 0] - Yprev[o])
+                if dj > jm:
+                    jm = dj
                 if fabs(Y[o, 0]) > yscale:
                     yscale = fabs(Y[o, 0])
             if jm > 1e-12 * yscale:
                 if njump >= jcap:
-                    status = STATUS_CAPACITY
+                    status = _CAPACITY
                     break
                 jump_t[njump] = a
                 for o in range(ny):
@@ -427,29 +434,29 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
                 x = 0.0
             for o in range(ny):
                 if deriv:
-                    out[o, kq] = _horner_d(Y[o, :], NC, x) / H
+                    out[o, kq] = _horner_d(Y[o, :], _NC, x) / H
                 else:
-                    out[o, kq] = _horner(Y[o, :], NC, x)
+                    out[o, kq] = _horner(Y[o, :], _NC, x)
             kq += 1
         # -- store the piece, advance -------------------------------------------------------------------------
         hist_t[pieces] = a
         hist_h[pieces] = H
         for c in range(m):
-            for j in range(NC):
+            for j in range(_NC):
                 hist_c[pieces, c, j] = V[c, j]
         pieces += 1
         finite = True
         for i in range(n):
             s = 0.0
-            for j in range(NC - 1, -1, -1):
+            for j in range(_NC - 1, -1, -1):
                 s += X[i, j]
             xa[i] = s
             if not isfinite(s):
                 finite = False
         for o in range(ny):
-            Yprev[o] = _horner(Y[o, :], NC, 1.0)
+            Yprev[o] = _horner(Y[o, :], _NC, 1.0)
         if not finite:
-            status = STATUS_OVERFLOW
+            status = _OVERFLOW
             a = b
             break
         a = b
@@ -458,7 +465,7 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
             break
         # -- the breakpoints at the new start ----------------------------------------------------------------------
         for i in range(m):
-            border[i] = DEG + 1
+            border[i] = _DEG + 1
         while kn < nk and ut[kn] <= a + tol:  # a knot of the inputs: a jump of slope (order 1)
             for l in range(nu):
                 s1 = (uv[kn + 1, l] - uv[kn, l]) / (ut[kn + 1] - ut[kn]) if kn + 1 < nk else 0.0
@@ -488,7 +495,7 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
     info[1] = pieces
     info[2] = njump
     info[3] = a
-    while kq < nt and status != STATUS_OK:
+    while kq < nt and status != _OK:
         for o in range(ny):
             out[o, kq] = np.nan
         kq += 1
@@ -499,12 +506,12 @@ def _tail(X, n, V, m):
     t = 0.0
     for i in range(n + m):
         big = 0.0
-        for j in range(NC):
+        for j in range(_NC):
             c = fabs(X[i, j]) if i < n else fabs(V[i - n, j])
             if c > big:
                 big = c
         if big > 0.0:
-            last = fabs(X[i, DEG]) if i < n else fabs(V[i - n, DEG])
+            last = fabs(X[i, _DEG]) if i < n else fabs(V[i - n, _DEG])
             if last / big > t:
                 t = last / big
     return t
@@ -514,7 +521,7 @@ def _cut(P, rows, xc):
     """Rescale the polynomials ``P[:rows]`` from ``[0, 1]`` to ``[0, xc]``."""
     for i in range(rows):
         b = 1.0
-        for j in range(NC):
+        for j in range(_NC):
             P[i, j] *= b
             b *= xc
 
@@ -529,7 +536,7 @@ def _recursion(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, mode, xa, U, 
     ny = C1.shape[0]
     for i in range(n):
         X[i, 0] = xa[i]
-    for k in range(NC):
+    for k in range(_NC):
         # the channels without delay (their D22 among each other is 0)
         for c in range(m):
             if tau[c] == 0.0:
@@ -547,7 +554,7 @@ def _recursion(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, mode, xa, U, 
                     W[c, k] = hi[c] if mode[c] == _HIGH else lo[c]
                 else:
                     W[c, k] = 0.0
-        if k < DEG:
+        if k < _DEG:
             f = H / (k + 1)
             for i in range(n):
                 s = 0.0
@@ -559,7 +566,7 @@ def _recursion(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, mode, xa, U, 
                     s += B2[i, d] * W[d, k]
                 X[i, k + 1] = f * s
     for c in range(m):
-        for k in range(NC):
+        for k in range(_NC):
             s = 0.0
             for i in range(n):
                 s += C2[c, i] * X[i, k]
@@ -575,7 +582,7 @@ def _recursion(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, mode, xa, U, 
             else:
                 V[c, k] = 0.0
     for o in range(ny):
-        for k in range(NC):
+        for k in range(_NC):
             s = 0.0
             for i in range(n):
                 s += C1[o, i] * X[i, k]
