@@ -313,11 +313,28 @@ def test_result_repr_json_and_unpacking():
 
 def test_truncation_is_reported(monkeypatch):
     monkeypatch.setattr(S, "MAX_PIECES", 16)
-    r = tf("exp(-0.01*s)/(s+1)").step(np.linspace(0, 50, 11))
-    assert r.status == "truncated" and r.t_reached < 50
+    r = tf("exp(-0.1*s)/(s+1)").step(np.linspace(0, 50, 11))   # 10 pieces of 0.1 s after the start at least
+    assert r.status == "truncated" and 0 < r.t_reached < 50
     assert np.isnan(r.outputs[0, 0, -1]) and np.isfinite(r.outputs[0, 0, 0])
     d = json.loads(json.dumps(r.to_dict(), allow_nan=False))
     assert d["outputs"][0][0][-1] is None and "truncated" in repr(r)
+
+
+@pytest.mark.parametrize("tau", [1e-3, 1e-6, 1e-12])
+def test_tiny_delays_take_few_pieces(tau):
+    # a delay far below the loop's time scale is read from the piece being built (fixed-point passes) once its
+    # breakpoints have faded: the piece count stays that of a run without the delay, and the answer exact
+    # (references: the closed form of the lag; the Loop kernel for the paper's loop)
+    t = np.linspace(0.0, 10.0, 101)
+    r = tf(f"exp(-{tau}*s)/(s+1)").step(t)
+    np.testing.assert_allclose(r.outputs[0, 0], np.where(t >= tau, 1 - np.exp(-(t - tau)), 0.0), atol=1e-14)
+    assert r.pieces < 40
+    loop = AltitudeLoop(kp=1.31, delay=tau)
+    ref = simulate(loop, t_end=10.0)
+    r = from_loop(loop).step(t)
+    np.testing.assert_allclose(r.outputs[0, 0], ref.output(t), atol=1e-12)
+    np.testing.assert_allclose(r.outputs[1, 0], ref.command(t), atol=1e-12)
+    assert r.pieces < 100
 
 
 def test_default_horizon():

@@ -3,8 +3,8 @@
 # no bounds or negative-index checks, as numba).
 cimport cython
 
-cdef Py_ssize_t _DEG, _NC, _OK, _CAPACITY, _STALLED, _OVERFLOW, _LIN, _HIGH, _LOW, _GRIDN, _MODE_TRIES
-cdef double _EPS, _JUMP, _TAILMAX, _TAILGROW, _GROW
+cdef Py_ssize_t _DEG, _NC, _OK, _CAPACITY, _STALLED, _OVERFLOW, _LIN, _HIGH, _LOW, _GRIDN, _MODE_TRIES, _PICARD
+cdef double _EPS, _JUMP, _TAILMAX, _TAILGROW, _GROW, _SELF, _PICARD_TOL
 
 @cython.locals(i=Py_ssize_t, j=Py_ssize_t, b=double)
 cdef void _shift_scale(const double[:] src, Py_ssize_t n, double alpha, double beta, double[:] dst,
@@ -43,7 +43,7 @@ cdef void _recursion(const double[:, :] A, const double[:, :] B1, const double[:
                X="double[:, ::1]", U="double[:, ::1]", W="double[:, ::1]", Z="double[:, ::1]", V="double[:, ::1]",
                Y="double[:, ::1]", Yprev="double[::1]", xa="double[::1]", work="double[::1]", tmp="double[::1]",
                work2="double[::1]", scale="double[::1]", mode="long long[::1]", rd="long long[::1]",
-               ip="long long[::1]", border="long long[::1]",
+               ip="long long[::1]", border="long long[::1]", selfr="long long[::1]",
                i=Py_ssize_t, c=Py_ssize_t, l=Py_ssize_t, j=Py_ssize_t, d=Py_ssize_t, o=Py_ssize_t, k0=Py_ssize_t,
                q=Py_ssize_t, kq=Py_ssize_t, kn=Py_ssize_t, pieces=Py_ssize_t, njump=Py_ssize_t, status=Py_ssize_t,
                tries=Py_ssize_t, cfirst=Py_ssize_t, nxt=Py_ssize_t, to=Py_ssize_t, switched=Py_ssize_t,
@@ -51,7 +51,8 @@ cdef void _recursion(const double[:, :] A, const double[:, :] B1, const double[:
                a=double, e=double, H=double, hcap=double, s=double, lim=double, slope=double, alpha=double,
                beta=double, z0=double, xcut=double, xs=double, x2=double, tl=double, big=double, L=double,
                jmax=double, hl=double, r=double, jm=double, dj=double, yscale=double, b=double, x=double,
-               s1=double, s0=double, settled=bint, last=bint, finite=bint)
+               s1=double, s0=double, diff=double, sweep=Py_ssize_t, it=Py_ssize_t, settled=bint, last=bint,
+               finite=bint, keep=bint, anyself=bint, converged=bint, picard_failed=bint)
 cpdef run(const double[:, :] A, const double[:, :] B1, const double[:, :] B2, const double[:, :] C1,
           const double[:, :] C2, const double[:, :] D11, const double[:, :] D12, const double[:, :] D21,
           const double[:, :] D22, const double[:] tau, const double[:] lo, const double[:] hi, const double[:] ut,

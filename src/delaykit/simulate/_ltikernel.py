@@ -91,6 +91,9 @@ _LOW = 2
 _TAILMAX = 1e-20
 _TAILGROW = 1.0 / 620448401733239439360000.0
 _GROW = 4.0
+_SELF = 0.125  # a delay at most this times hmax is read from the piece being built (as the Loop kernel)
+_PICARD = 200  # fixed-point passes of a self-read piece before it is redone shorter
+_PICARD_TOL = 4.0 * _EPS
 _GRIDN = 32  # grid of the switch search on a piece
 _MODE_TRIES = 8
 
@@ -209,6 +212,8 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
         xa[i] = x0[i]
     for c in range(m):
         bp_n[c] = 0
+    selfr = np.zeros(m, dtype=np.int64)
+    anyself = False
     status = _OK
     hcap = hmax
     pieces = 0
@@ -247,19 +252,38 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
         H = e - a
         if H > hcap:
             H = hcap
+        # a delay short against the piece, with no breakpoint of its channel within one delay before the start
+        # nor at it, is read from the piece being built (self-read: implicit, solved by fixed-point passes)
+        for c in range(m):
+            selfr[c] = 0
+            if tau[c] > 0.0 and tau[c] <= _SELF * hmax and ip[c] == bp_n[c] and border[c] > _DEG:
+                selfr[c] = 1
         for c in range(m):
             if tau[c] > 0.0:
-                if tau[c] < H:
-                    H = tau[c]  # read the stored pieces, never past the piece's start (an explicit scheme)
                 s = a - tau[c]
                 if s >= -tol:
                     q = rd[c]
                     while q + 1 < pieces and hist_t[q + 1] <= s + tol:
                         q += 1
                     rd[c] = q
-                    lim = hist_t[q] + 2.0 * hist_h[q] - s
-                    if lim < H:
-                        H = lim
+        for sweep in range(2):
+            for c in range(m):
+                if tau[c] > 0.0 and selfr[c] == 0:
+                    if tau[c] < H:
+                        H = tau[c]  # read the stored pieces, never past the piece's start (an explicit scheme)
+                    s = a - tau[c]
+                    if s >= -tol:
+                        q = rd[c]
+                        lim = hist_t[q] + 2.0 * hist_h[q] - s
+                        if lim < H:
+                            H = lim
+            anyself = False
+            for c in range(m):
+                if selfr[c] == 1:
+                    if H < 2.0 * tau[c]:
+                        selfr[c] = 0  # a self-read piece is at least twice the delay long
+                    else:
+                        anyself = True
         if H <= 0.0:
             H = tol
         # -- the inputs on the piece ------------------------------------------------------------------------
@@ -289,9 +313,12 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
                     beta = H / hist_h[q]
                     for j in range(_NC):
                         tmp[j] = hist_c[q, c, j]
-                    _shift_scale(tmp, _NC, alpha, beta, work, work2)
-                    for j in range(_NC):
-                        W[c, j] = work[j]
+                    if selfr[c] == 1:  # the first pass reads the history's value, held
+                        W[c, 0] = _horner(tmp, _NC, alpha)
+                    else:
+                        _shift_scale(tmp, _NC, alpha, beta, work, work2)
+                        for j in range(_NC):
+                            W[c, j] = work[j]
         # -- the Taylor recursion, with the saturations' regimes settled at the start -------------------------------
         for c in range(m):
             if lo[c] > -1e308 or hi[c] < 1e308:
@@ -314,9 +341,35 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
         xcut = 1.0
         settled = False
         tries = 0
+        picard_failed = False
         while tries < _MODE_TRIES:
             tries += 1
             _recursion(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, mode, xa, U, W, X, Z, V, Y, H)
+            if anyself:
+                converged = False
+                for it in range(_PICARD):
+                    diff = 0.0
+                    for c in range(m):
+                        if selfr[c] == 1:
+                            for j in range(_NC):
+                                tmp[j] = V[c, j]
+                            _shift_scale(tmp, _NC, -tau[c] / H, 1.0, work, work2)
+                            big = 0.0
+                            dj = 0.0
+                            for j in range(_NC):
+                                big += fabs(work[j])
+                                if fabs(work[j] - W[c, j]) > dj:
+                                    dj = fabs(work[j] - W[c, j])
+                                W[c, j] = work[j]
+                            if dj > _PICARD_TOL * (big + scale[c]):
+                                diff = 1.0
+                    _recursion(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, mode, xa, U, W, X, Z, V, Y, H)
+                    if diff == 0.0:
+                        converged = True
+                        break
+                if not converged:
+                    picard_failed = True
+                    break
             # the first switch in the piece
             xcut = 2.0
             cfirst = -1
@@ -350,6 +403,9 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
                 # the Taylor coefficients do not decay enough: the piece is too long for the signals' rates
                 H *= 0.5
                 hcap = H
+                if anyself:
+                    picard_failed = True  # (redone from the start: the self-read channels' shift changes)
+                    break
                 _cut(U, nu, 0.5)
                 _cut(W, m, 0.5)
                 tries = 0
@@ -358,6 +414,12 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
                 hcap *= 2.0
             settled = True
             break
+        if picard_failed:
+            # redone shorter (the fixed point did not converge, or the tail was long): a delay over _SELF times
+            # the shorter cap is read from the stored pieces again
+            if hcap > 0.5 * H:
+                hcap = 0.5 * H
+            continue
         if not settled:
             status = _STALLED
             break
@@ -383,7 +445,10 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
             if tau[c] > 0.0 and border[c] <= _DEG:
                 L = tau[c] if tau[c] < hmax else hmax
                 jmax = 0.0
-                if pieces > 0 and hist_t[pieces - 1] + hist_h[pieces - 1] >= a - tol:
+                keep = False
+                if L > 1e6 * H or (pieces > 0 and L > 1e6 * hist_h[pieces - 1]):
+                    keep = True  # pieces far shorter than the window: not measured (the breakpoint is kept)
+                elif pieces > 0 and hist_t[pieces - 1] + hist_h[pieces - 1] >= a - tol:
                     # derivatives of the left piece at its end, scaled to L
                     hl = hist_h[pieces - 1]
                     for j in range(_NC):
@@ -402,7 +467,7 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
                         r *= L / H
                         if dj > jmax:
                             jmax = dj
-                if jmax > _JUMP * scale[c]:
+                if keep or jmax > _JUMP * scale[c]:
                     if not _add_bp(bp_t, bp_o, bp_n, c, a, border[c], tol):
                         status = _CAPACITY
                         break

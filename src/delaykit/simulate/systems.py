@@ -406,7 +406,7 @@ def _run(red: _Reduced, ut: np.ndarray, uv: np.ndarray, x0: np.ndarray, tq: np.n
             v = red.AL @ v
     tol = 64.0 * np.finfo(float).eps * max(1.0, t_end)
     hmax = min(red.hmax, max(t_end, 1e-300))
-    cap = 1024
+    cap = min(1024, MAX_PIECES)
     while True:
         out = np.full((ny, tq.size), np.nan)
         hist_t, hist_h = np.zeros(cap), np.zeros(cap)
