@@ -36,7 +36,7 @@ from types import ModuleType
 
 from .errors import DelaykitWarning, InvalidValueError
 
-__all__ = ["MODES", "load", "built", "StaleExtensionWarning"]
+__all__ = ["MODES", "load", "built", "sibling", "StaleExtensionWarning"]
 
 MODES = ("cython", "numba", "python")
 _loaded: dict[tuple[str, str], ModuleType] = {}
@@ -102,6 +102,20 @@ def load(package: str, name: str, mode: str | None = None) -> ModuleType:
     if key not in _loaded:
         _loaded[key] = _from_source(package, name, mode)
     return _loaded[key]
+
+
+def sibling(name: str, package: str, kernel: str) -> ModuleType:
+    """The kernel module ``package.kernel`` for a kernel loaded as ``name`` (its ``__name__``) to call, in the same
+    mode: numba's copy for numba's copy (numba code calls numba code), Python's for Python's and for the plain
+    ``.py``.  (The extension module cimports the other extension instead; see ``simulate/_discretekernel.py``.)
+
+    Examples
+    --------
+    >>> sibling("delaykit.simulate._discretekernel_python", "delaykit.models", "_expmkernel").__name__
+    'delaykit.models._expmkernel_python'
+    """
+    mode = name.rpartition("_")[2]
+    return load(package, kernel, mode if mode in ("numba", "python") else "python")
 
 
 def _from_source(package: str, name: str, mode: str) -> ModuleType:
