@@ -12,7 +12,7 @@ import sys
 from Cython.Build import cythonize
 from setuptools import Extension, setup
 
-KERNELS = ["delaykit.spectrum._rootkernel",
+KERNELS = ["delaykit.spectrum._rootkernel", "delaykit.spectrum._trackkernel",
            "delaykit.models._expmkernel", "delaykit.simulate._discretekernel", "delaykit.simulate._varyingkernel"]
 
 # numba's arithmetic: no bounds or negative-index checks, C's pow, Python's division (a zero divisor raises)

@@ -133,9 +133,12 @@ def _from_source(package: str, name: str, mode: str) -> ModuleType:
             import numba
 
             # every function the module defines, so that kernels calling one another call compiled code (numba
-            # reads a called function from the module's globals when it compiles the caller, on first use)
+            # reads a called function from the module's globals when it compiles the caller, on first use); but
+            # not those it lists in PYTHON_ONLY (an entry that releases the GIL around a kernel, in a `with` block
+            # numba cannot compile: numba's copy releases it itself)
+            keep = set(getattr(mod, "PYTHON_ONLY", ()))
             for attr, fn in list(vars(mod).items()):
-                if inspect.isfunction(fn) and fn.__module__ == full:
+                if inspect.isfunction(fn) and fn.__module__ == full and attr not in keep:
                     setattr(mod, attr, numba.njit(cache=True, nogil=True)(fn))
     except BaseException:
         del sys.modules[full]
