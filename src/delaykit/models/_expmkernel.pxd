@@ -10,5 +10,5 @@ cpdef void mul_into(const double[:, :] X, const double[:, :] Y, double[:, :] Z) 
 cpdef void expm_into(double[:, :] X, double[:, :] E, double[:, :] T, double[:, :] W) noexcept nogil
 
 @cython.locals(q=Py_ssize_t, i=Py_ssize_t, j=Py_ssize_t, X="double[:, ::1]", E="double[:, ::1]",
-               T="double[:, ::1]", W="double[:, ::1]")
+               work="double[:, :, ::1]")
 cpdef expm(const double[:, :] M)

@@ -80,12 +80,11 @@ def expm_into(X, E, T, W):
 def expm(M):
     """``exp(M)`` of a small square matrix, as a new array (``M`` is not changed)."""
     q = M.shape[0]
-    X = np.empty((q, q))
+    E = np.empty((q, q))
+    work = np.empty((3, q, q))  # X, T and W in one allocation (each costs a call into Python when compiled)
+    X = work[0]
     for i in range(q):
         for j in range(q):
             X[i, j] = M[i, j]
-    E = np.empty((q, q))
-    T = np.empty((q, q))
-    W = np.empty((q, q))
-    expm_into(X, E, T, W)
+    expm_into(X, E, work[1], work[2])
     return np.asarray(E)

@@ -6,8 +6,8 @@ cpdef void aug_expm(const double[:, :] A, const double[:] B, double t, double[:,
                     double[:, :] T, double[:, :] W) noexcept nogil
 
 @cython.locals(n=Py_ssize_t, i=Py_ssize_t, j=Py_ssize_t, k=Py_ssize_t, acc=double, phi="double[:, ::1]",
-               ge="double[::1]", gl="double[::1]", Er="double[:, ::1]", Ef="double[:, ::1]", X="double[:, ::1]",
-               T="double[:, ::1]", W="double[:, ::1]")
+               g="double[:, ::1]", ge="double[::1]", gl="double[::1]", work="double[:, :, ::1]",
+               Er="double[:, ::1]", Ef="double[:, ::1]")
 cpdef held_arrays(const double[:, :] A, const double[:] B, double h, double f)
 
 @cython.locals(n=Py_ssize_t, N=Py_ssize_t, i=Py_ssize_t, k=Py_ssize_t, q=Py_ssize_t, lag_now=Py_ssize_t,

@@ -55,18 +55,17 @@ def held_arrays(A, B, h, f):
     (two exponentials: over ``f`` and over ``h - f``; ``phi = Phi(h - f) Phi(f)``)."""
     n = A.shape[0]
     phi = np.zeros((n, n))
-    ge = np.zeros(n)
-    gl = np.zeros(n)
-    Er = np.empty((n + 1, n + 1))
-    X = np.empty((n + 1, n + 1))
-    T = np.empty((n + 1, n + 1))
-    W = np.empty((n + 1, n + 1))
-    aug_expm(A, B, h - f, Er, X, T, W)
+    g = np.zeros((2, n))  # g_early, g_late
+    ge = g[0]
+    gl = g[1]
+    work = np.empty((5, n + 1, n + 1))  # the two exponentials and their work space, in one allocation
+    Er = work[0]
+    Ef = work[1]
+    aug_expm(A, B, h - f, Er, work[2], work[3], work[4])
     for i in range(n):
         gl[i] = Er[i, n]
     if f > 0.0:
-        Ef = np.empty((n + 1, n + 1))
-        aug_expm(A, B, f, Ef, X, T, W)
+        aug_expm(A, B, f, Ef, work[2], work[3], work[4])
         for i in range(n):
             for j in range(n):
                 acc = 0.0
@@ -81,7 +80,7 @@ def held_arrays(A, B, h, f):
         for i in range(n):
             for j in range(n):
                 phi[i, j] = Er[i, j]
-    return np.asarray(phi), np.asarray(ge), np.asarray(gl)
+    return np.asarray(phi), np.asarray(g)[0], np.asarray(g)[1]
 
 
 def run_into(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive, closed, kp, kv, lo, hi, y, dy, u, x, xn):
