@@ -27,8 +27,8 @@ else:
     from math import atan2, ceil, cos, exp, log, pi, sin
     from math import inf as HUGE_VAL
 
-__all__ = ["qeval", "stack_size", "stacks", "contour", "contour_into", "newton", "newton_into", "grid_minima", "bound", "bound_into",
-           "COMPILED"]
+__all__ = ["qeval", "stack_size", "stacks", "contour", "contour_into", "newton", "newton_into", "grid_minima", "bound",
+           "bound_into", "COMPILED"]
 
 COMPILED: bool = cython.compiled
 """Whether this module is the extension module Cython built (False: this file, run by Python or numba)."""

@@ -49,10 +49,10 @@ _STACK = 1 << 14  # the contour's first stacks; grown (and the point done again)
 
 def track(Wc, Wt, nt, n1, k0, starts, nstart, sym, absc, max_phase, reliable, cap):
     """Points ``k0, k0 + 1, ...`` of ``Wc``, ``Wt`` (one quasi-polynomial a row: its coefficients, ``nt`` terms of
-    ``n1``, term after term, and its ``nt`` delays), each from Newton's method started at the previous point's roots right of its
-    abscissa (``starts[:nstart]``, updated), confirmed by one argument-principle count.  Writes each confirmed
-    point's abscissa into ``absc``; stops at the first point not confirmed.  Returns its index (``Wc.shape[0]``
-    when all are) and the number of starts."""
+    ``n1``, term after term, and its ``nt`` delays), each from Newton's method started at the previous point's
+    roots right of its abscissa (``starts[:nstart]``, updated), confirmed by one argument-principle count.  Writes
+    each confirmed point's abscissa into ``absc``; stops at the first point not confirmed.  Returns its index
+    (``Wc.shape[0]`` when all are) and the number of starts."""
     C = np.empty((nt, n1), np.complex128)
     A = np.empty((nt, n1))
     tau = np.empty(nt)
@@ -92,9 +92,10 @@ def track(Wc, Wt, nt, n1, k0, starts, nstart, sym, absc, max_phase, reliable, ca
 
 def track_points(Wc, Wt, nt, n1, k0, starts, absc, sym, max_phase, reliable, cap, C, A, tau, found, sout, conv,
                  clean, p0, oth, box, n_init, cs, csr, buf, buf2, sa, sb, wa, wb, ra, rb, state):
-    """:func:`track` with its work space given (``csr``: the real view of ``cs``; the contour's stacks ``sa`` to ``rb``, of one length; the number
-    of starts in ``state[0]``, updated; ``state[1]`` set to the stack a point needs where it is longer, the point
-    then not done): allocates nothing, runs without the GIL.  Returns the index of the first point not done."""
+    """:func:`track` with its work space given (``csr``: the real view of ``cs``; the contour's stacks ``sa`` to
+    ``rb``, of one length; the number of starts in ``state[0]``, updated; ``state[1]`` set to the stack a point
+    needs where it is longer, the point then not done): allocates nothing, runs without the GIL.  Returns the
+    index of the first point not done."""
     nstart = state[0]
     for k in range(k0, Wc.shape[0]):
         taumax = 0.0
@@ -156,8 +157,8 @@ def track_points(Wc, Wt, nt, n1, k0, starts, absc, sym, max_phase, reliable, cap
             state[0] = nstart
             state[1] = stack_size(n_init)
             return k
-        status, total, used, where = contour_into(C, A, tau, cs, n_init, max_phase, reliable, cap, buf, buf2, sa, sb, wa,
-                                           wb, ra, rb)
+        status, total, used, where = contour_into(C, A, tau, cs, n_init, max_phase, reliable, cap, buf, buf2, sa,
+                                                  sb, wa, wb, ra, rb)
         want = 0
         for m in range(nf):
             if found[m].real > x and found[m].imag > y0:
