@@ -188,3 +188,18 @@ def test_identifications_numba_code_gets_numbas_copies_of_the_kernels():
         assert hasattr(getattr(discrete, name), "py_func")
     with pytest.raises(AttributeError, match="_nothing"):
         discrete._nothing  # noqa: B018
+
+
+def test_an_extension_whose_cimported_kernel_is_missing_counts_as_not_built(monkeypatch):
+    # setup.py builds each extension optionally: where the exponential's failed, the simulators' cannot load
+    import importlib
+
+    real = importlib.import_module
+
+    def failing(name, *args):
+        if name == "delaykit.simulate._discretekernel":
+            raise ImportError("delaykit.models._expmkernel has no C function expm_into")
+        return real(name, *args)
+
+    monkeypatch.setattr(importlib, "import_module", failing)
+    assert not _native.built("delaykit.simulate", "_discretekernel")

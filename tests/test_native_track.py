@@ -11,6 +11,11 @@ measures.
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+import textwrap
+
 import numpy as np
 import pytest
 
@@ -63,3 +68,19 @@ def test_the_loop_grows_its_stacks_and_does_the_point_again(monkeypatch):
     monkeypatch.setattr(tk, "_STACK", 8)
     assert np.array_equal(S.stability_map(PID, "kp", x, "ki", y, workers=1).abscissa, want)
 
+
+
+def test_a_stability_map_loads_no_numba():
+    code = textwrap.dedent("""
+        import sys
+        from delaykit import Controller, Loop
+        from delaykit.spectrum.stability import stability_map
+        pid = Loop("1/((s+1)*(0.5*s+1))", Controller.pid(1.0, 0.5, 0.2, 0.05), delay=0.2)
+        m = stability_map(pid, "kp", [0.5, 2.0, 8.0], "ki", [0.5, 4.0])
+        print("@@", "numba" in sys.modules, m.stable.astype(int).tolist())
+    """)
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600,
+                         env={**os.environ, "DELAYKIT_KERNELS": ""})
+    assert run.returncode == 0, run.stderr
+    # (the verdicts are stability_map's docstring example's, from the certified search)
+    assert run.stdout.rpartition("@@")[2].strip().split(maxsplit=1) == ["False", "[[1, 1, 1], [0, 1, 0]]"]
