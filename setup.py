@@ -12,7 +12,14 @@ import sys
 from Cython.Build import cythonize
 from setuptools import Extension, setup
 
-KERNELS = ["delaykit.spectrum._rootkernel", "delaykit.simulate._ltikernel"]
+KERNELS = [
+    "delaykit.spectrum._rootkernel",
+    "delaykit.spectrum._trackkernel",
+    "delaykit.models._expmkernel",
+    "delaykit.simulate._discretekernel",
+    "delaykit.simulate._varyingkernel",
+    "delaykit.simulate._ltikernel",
+]
 
 # numba's arithmetic: no bounds or negative-index checks, C's pow, Python's division (a zero divisor raises)
 DIRECTIVES = {"language_level": 3, "boundscheck": False, "wraparound": False, "initializedcheck": False,

@@ -1,10 +1,15 @@
-"""Benchmark: the root-finding kernel compiled ahead of time by Cython against the same source compiled by numba.
+"""Benchmark: the kernels compiled ahead of time by Cython against the same source compiled by numba.
 
-Both are ``spectrum/_rootkernel.py``: the extension module that ``pip install`` builds (:mod:`delaykit._native`,
-``setup.py``) and numba's copy of the same file, side by side in this one process.  For each kernel on a realistic
-input (the quasi-polynomials of the paper's P loop and of a PI loop on a lagged integrator; a contour around a large
-rectangle, Newton from a grid of starts, the grid scan for starting points, the root bound), and for the library
-calls that use them (``find_roots``, ``rightmost``, ``margins``), the table gives the least CPU time of the calling
+Each is one ``.py`` file: the extension module that ``pip install`` builds (:mod:`delaykit._native`, ``setup.py``)
+and numba's copy of the same file, side by side in this one process.  For the root-finding kernel
+(``spectrum/_rootkernel.py``) on a realistic input (the quasi-polynomials of the paper's P loop and of a PI loop on a
+lagged integrator; a contour around a large rectangle, Newton from a grid of starts, the grid scan for starting
+points, the root bound), and for the library calls that use it (``find_roots``, ``rightmost``, ``margins``); for
+the kernels of held-input stepping (``models/_expmkernel.py``, ``simulate/_discretekernel.py``,
+``simulate/_varyingkernel.py``: the matrix exponential, the one-period map, a closed loop of 10,000 samples, a log on
+an uneven clock) and the library calls on them (``hold_matrices``, ``simulate_varying``); and for the stability
+map's loop (``spectrum/_trackkernel.py``, with the root kernel of the same mode, in ``stability_map``), the table
+gives the least CPU time of the calling
 thread over ``--repeat`` runs for each (all run on that one thread) and their ratio (numba / Cython: above 1,
 Cython is faster), and the largest difference of the results (relative, over all outputs; the test suite checks
 1e-12).  numba's compilation is timed apart (its first call, cached or not as the cache is), and so is the Cython
@@ -31,6 +36,9 @@ from rich.console import Console
 from rich.table import Table
 
 from delaykit import AltitudeLoop, Controller, Loop, _native
+from delaykit.models import hold
+from delaykit.models.transfer import TransferFunction
+from delaykit.simulate import varying as V
 from delaykit.spectrum import roots as R
 from delaykit.spectrum import stability as S
 from delaykit.spectrum.frequency import margins
@@ -106,6 +114,59 @@ def kernel_cases(rk: Any) -> dict[str, Callable[[], Any]]:
     return cases
 
 
+def held_cases(mode: str) -> dict[str, Callable[[], Any]]:
+    """The kernels of held-input stepping on large inputs, in ``mode``."""
+    ek = _native.load("delaykit.models", "_expmkernel", mode)
+    dk = _native.load("delaykit.simulate", "_discretekernel", mode)
+    A, B, C, _ = TransferFunction.parse("(s+2)/(s*(0.05*s+1)*(0.3*s+1))").state_space()
+    n = len(B)
+    A, B, C = np.asarray(A, float).reshape(n, n), np.asarray(B, float).ravel(), np.asarray(C, float).ravel()
+    M = np.random.default_rng(3).normal(size=(8, 8))
+    phi, ge, gl = dk.held_arrays(A, B, 0.065, 0.045)
+    ca, cb = C @ A, float(C @ B)
+    r = np.ones(10_000)
+    t = np.cumsum(np.random.default_rng(4).uniform(0.03, 0.12, 2_000))
+    u = np.random.default_rng(5).normal(size=t.size)
+    starts = np.array([0, t.size], dtype=np.int64)
+    outs = [np.zeros(t.size) for _ in range(4)]
+
+    def at() -> Any:
+        dk.run_at_logs(A, B, C, 0.0, ca, cb, 0.37, 1e-12, t, u, starts, True, *outs)
+        return [o.copy() for o in outs]
+
+    return {
+        "expm (8x8) x1000": lambda: [ek.expm(M) for _ in range(1000)][-1],
+        "held_arrays (3rd order) x1000": lambda: [dk.held_arrays(A, B, 0.065, 0.045) for _ in range(1000)][-1],
+        "run, closed loop (3rd order, 10,000 samples)":
+            lambda: dk.run(phi, ge, gl, C, 0.0, ca, cb, 5, True, r, True, 0.8, 0.1, -1.0, 1.0),
+        "run_at_logs (3rd order, 2,000 uneven samples)": at,
+    }
+
+
+def held_library_cases() -> dict[str, Callable[[], Any]]:
+    """Library calls on the held-input kernels and the stability map's loop, with whichever modules are in use."""
+    A, B, _, _ = TransferFunction.parse("(s+2)/(s*(0.05*s+1)*(0.3*s+1))").state_space()
+    A = np.asarray(A, float).reshape(len(B), len(B))
+    G = np.asarray(B, float).reshape(-1, 1)
+    jitter = V.Jitter(0.3, "uniform", spread=0.1, seed=3)
+    return {
+        "hold_matrices (3rd order) x1000": lambda: [hold.hold_matrices(A, G, 0.065) for _ in range(1000)][-1],
+        "simulate_varying (PI loop, 20 s)": lambda: V.simulate_varying(PI_SAMPLED, jitter, t_end=20.0).output,
+        "stability_map (PI loop, 30 x 20, 1 thread)":
+            lambda: S.stability_map(PI_LOOP, "kp", np.linspace(0.1, 3, 30), "delay", np.linspace(0.05, 0.8, 20),
+                                    workers=1).abscissa,
+    }
+
+
+def use_held(mode: str) -> None:
+    hold._loaded[:] = [_native.load("delaykit.models", "_expmkernel", mode)]
+    V.VK = _native.load("delaykit.simulate", "_varyingkernel", mode)
+    S.TK = _native.load("delaykit.spectrum", "_trackkernel", mode)
+
+
+PI_SAMPLED = Loop("1/(s*(0.05*s+1))", Controller.pi(0.8, 0.15), umin=-1, umax=1, period=0.065)
+
+
 def library_cases() -> dict[str, Callable[[], Any]]:
     """The library calls, with whichever kernel module ``roots.RK`` is now."""
     return {
@@ -127,9 +188,12 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=25, help="Runs of each case; the fastest is kept.")
     ap.add_argument("--json", type=Path, default=None, help="Also write the results here as JSON.")
     args = ap.parse_args()
-    if not _native.built("delaykit.spectrum", "_rootkernel"):
-        raise SystemExit("the Cython extension of delaykit.spectrum._rootkernel is not built: run `make` or "
-                         "`pip install -e .` first")
+    for package, name in (("delaykit.spectrum", "_rootkernel"), ("delaykit.spectrum", "_trackkernel"),
+                          ("delaykit.models", "_expmkernel"), ("delaykit.simulate", "_discretekernel"),
+                          ("delaykit.simulate", "_varyingkernel")):
+        if not _native.built(package, name):
+            raise SystemExit(f"the Cython extension of {package}.{name} is not built: run `make` or "
+                             "`pip install -e .` first")
     cy = _native.load("delaykit.spectrum", "_rootkernel", "cython")
     t0 = time.perf_counter()
     next(iter(kernel_cases(cy).values()))()
@@ -137,6 +201,12 @@ def main() -> None:
     nb = _native.load("delaykit.spectrum", "_rootkernel", "numba")
     t0 = time.perf_counter()
     for fn in kernel_cases(nb).values():  # compiles (or loads from numba's cache) every kernel
+        fn()
+
+    for fn in held_cases("numba").values():
+        fn()
+    use_held("numba")
+    for fn in held_library_cases().values():
         fn()
     nb_first = time.perf_counter() - t0
 
@@ -154,9 +224,22 @@ def main() -> None:
         use(cy)
         rows.append({"case": name, "cython": t_cy, "numba": t_nb, "ratio": t_nb / t_cy,
                      "difference": difference(r_cy, r_nb)})
+    for (name, f_cy), f_nb in zip(held_cases("cython").items(), held_cases("numba").values()):
+        t_cy, r_cy = best(f_cy, args.repeat)
+        t_nb, r_nb = best(f_nb, args.repeat)
+        rows.append({"case": name, "cython": t_cy, "numba": t_nb, "ratio": t_nb / t_cy,
+                     "difference": difference(r_cy, r_nb)})
+    for name in held_library_cases():
+        use_held("cython")
+        t_cy, r_cy = best(held_library_cases()[name], args.repeat)
+        use_held("numba")
+        t_nb, r_nb = best(held_library_cases()[name], args.repeat)
+        use_held("cython")
+        rows.append({"case": name, "cython": t_cy, "numba": t_nb, "ratio": t_nb / t_cy,
+                     "difference": difference(r_cy, r_nb)})
 
     console = Console(width=max(Console().width, 120))
-    table = Table(title=f"Root kernel: Cython (ahead of time) against numba, same source, least CPU time of "
+    table = Table(title=f"Kernels: Cython (ahead of time) against numba, same source, least CPU time of "
                         f"{args.repeat} (load {os.getloadavg()[0]:.1f})")
     for col in ("case", "Cython ms", "numba ms", "numba / Cython", "largest rel. difference"):
         table.add_column(col, justify="left" if col == "case" else "right")

@@ -15,7 +15,8 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "delaykit"
 
 LAYERS = {
     "errors": 0, "_lazy": 0,
-    "models": 1, "_native": 1,  # _native: the kernels compiled ahead of time (loads them; uses errors)
+    "_native": 0.5,  # the kernels compiled ahead of time (loads them; uses errors; models' exponential uses it)
+    "models": 1,
     "systems": 2,  # delay systems as objects: their algebra and exact frequency response read models only
     "simulate": 3, "spectrum": 3,  # peers: neither imports the other
     "identify": 4,

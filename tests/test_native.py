@@ -180,7 +180,7 @@ def test_the_side_by_side_benchmark_runs_and_finds_the_modes_equal(tmp_path):
     subprocess.run([sys.executable, bench, "--repeat", "1", "--json", str(out)], check=True, capture_output=True,
                    text=True, timeout=900)
     rows = json.loads(out.read_text())["rows"]
-    assert len(rows) == 12 and all(r["cython"] > 0 and r["numba"] > 0 for r in rows)
+    assert len(rows) == 19 and all(r["cython"] > 0 and r["numba"] > 0 for r in rows)
     assert max(r["difference"] for r in rows) <= 1e-12
 
 

@@ -36,7 +36,7 @@ from types import ModuleType
 
 from .errors import DelaykitWarning, InvalidValueError
 
-__all__ = ["MODES", "load", "built", "StaleExtensionWarning"]
+__all__ = ["MODES", "load", "built", "sibling", "StaleExtensionWarning"]
 
 MODES = ("cython", "numba", "python")
 _loaded: dict[tuple[str, str], ModuleType] = {}
@@ -58,7 +58,10 @@ def built(package: str, name: str) -> bool:
     >>> isinstance(built("delaykit.spectrum", "_rootkernel"), bool)
     True
     """
-    mod = importlib.import_module(f"{package}.{name}")
+    try:
+        mod = importlib.import_module(f"{package}.{name}")
+    except ImportError:  # an extension that cimports another whose build failed (setup.py's builds are optional)
+        return False
     if not getattr(mod, "COMPILED", False):
         return False
     stale = _newer_sources(Path(mod.__file__ or ""), name)
@@ -104,6 +107,20 @@ def load(package: str, name: str, mode: str | None = None) -> ModuleType:
     return _loaded[key]
 
 
+def sibling(name: str, package: str, kernel: str) -> ModuleType:
+    """The kernel module ``package.kernel`` for a kernel loaded as ``name`` (its ``__name__``) to call, in the same
+    mode: numba's copy for numba's copy (numba code calls numba code), Python's for Python's and for the plain
+    ``.py``.  (The extension module cimports the other extension instead; see ``simulate/_discretekernel.py``.)
+
+    Examples
+    --------
+    >>> sibling("delaykit.simulate._discretekernel_python", "delaykit.models", "_expmkernel").__name__
+    'delaykit.models._expmkernel_python'
+    """
+    mode = name.rpartition("_")[2]
+    return load(package, kernel, mode if mode in ("numba", "python") else "python")
+
+
 def _from_source(package: str, name: str, mode: str) -> ModuleType:
     """The kernel's ``.py`` file as a module of its own name, its functions compiled by numba in mode numba."""
     folder = Path(importlib.import_module(package).__file__ or "").parent
@@ -119,9 +136,12 @@ def _from_source(package: str, name: str, mode: str) -> ModuleType:
             import numba
 
             # every function the module defines, so that kernels calling one another call compiled code (numba
-            # reads a called function from the module's globals when it compiles the caller, on first use)
+            # reads a called function from the module's globals when it compiles the caller, on first use); but
+            # not those it lists in PYTHON_ONLY (an entry that releases the GIL around a kernel, in a `with` block
+            # numba cannot compile: numba's copy releases it itself)
+            keep = set(getattr(mod, "PYTHON_ONLY", ()))
             for attr, fn in list(vars(mod).items()):
-                if inspect.isfunction(fn) and fn.__module__ == full:
+                if inspect.isfunction(fn) and fn.__module__ == full and attr not in keep:
                     setattr(mod, attr, numba.njit(cache=True, nogil=True)(fn))
     except BaseException:
         del sys.modules[full]

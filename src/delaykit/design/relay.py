@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidValueError, check_real
+from ..models.hold import hold_matrices
 from ..models.transfer import TransferFunction
 from .pid_rules import UltimatePoint, ultimate_point
 
@@ -70,17 +71,6 @@ class RelayCycle:
                 f"describing ku {self.ku_describing:.4g}{ex})")
 
 
-def _expm_aug(A: np.ndarray, B: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(e^{At}, ∫_0^t e^{As} ds B)`` from one exponential of the augmented matrix (delaykit's compiled one)."""
-    from ..simulate._sampled_batch import expm
-
-    n = A.shape[0]
-    M = np.zeros((n + 1, n + 1))
-    M[:n, :n], M[:n, n] = A, B
-    E = expm(M * t)
-    return E[:n, :n], E[:n, n]
-
-
 def _switch(theta: float, h: float, d: float) -> tuple[float, float]:
     """``(t_break, v0)``: the first switch of the plant's input ``v(t) = u(t - θ)`` in ``[0, h)`` (``h``: none) and
     its value before it, for the cycle that switches ``u`` to ``+d`` at ``t = 0`` (``u`` = ``+d`` on ``[0, h)``,
@@ -92,10 +82,10 @@ def _switch(theta: float, h: float, d: float) -> tuple[float, float]:
 def _start_state(A: np.ndarray, B: np.ndarray, d: float, theta: float, h: float) -> np.ndarray:
     """The state ``x0`` at the switch to ``+d`` of the symmetric cycle of half-period ``h``."""
     t_break, v0 = _switch(theta, h, d)
-    E1, G1 = _expm_aug(A, B, t_break)
+    E1, G1 = hold_matrices(A, B, t_break)
     forced = G1 * v0
     if t_break < h:
-        E2, G2 = _expm_aug(A, B, h - t_break)
+        E2, G2 = hold_matrices(A, B, h - t_break)
         forced = E2 @ forced + G2 * (-v0)
         Eh = E2 @ E1
     else:
@@ -181,12 +171,12 @@ def _output_over(A: np.ndarray, B: np.ndarray, C: np.ndarray, d: float, theta: f
     from the start state (exact)."""
     x0 = _start_state(A, B, d, theta, h)
     t_break, v0 = _switch(theta, h, d)
-    E, G = _expm_aug(A, B, t_break)
+    E, G = hold_matrices(A, B, t_break)
     xb = E @ x0 + G * v0
     if times is not None:
         out = np.empty(np.size(times))
         for k, t in enumerate(np.atleast_1d(times)):
-            E, G = _expm_aug(A, B, t if t <= t_break else t - t_break)
+            E, G = hold_matrices(A, B, t if t <= t_break else t - t_break)
             out[k] = C @ (E @ x0 + G * v0) if t <= t_break else C @ (E @ xb - G * v0)
         return out
     # n + 1 equal steps over [0, h] and the input's switch, stepped by one exponential per segment
@@ -195,7 +185,7 @@ def _output_over(A: np.ndarray, B: np.ndarray, C: np.ndarray, d: float, theta: f
     ys = [float(C @ x0)]
     for length, steps, x, v in ((t_break, n1, x0, v0), (h - t_break, n2, xb, -v0)):
         if steps:
-            E, G = _expm_aug(A, B, length / steps)
+            E, G = hold_matrices(A, B, length / steps)
             for _ in range(steps):
                 x = E @ x + G * v
                 ys.append(float(C @ x))

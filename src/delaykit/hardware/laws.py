@@ -45,11 +45,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.linalg import expm
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.compensators import Compensator
 from ..models.controllers import Controller
+from ..models.hold import hold_matrices
 
 __all__ = ["FlightLaw", "Relay", "RelayLaw"]
 
@@ -141,7 +141,6 @@ class FlightLaw:
                 cuts.add(self._hist_t[k] + tm)
                 k += 1
         edges = sorted(cuts)
-        M = np.zeros((n + 5, n + 5))
         x = self._x
         wi = w.copy()
         for a, b in zip(edges[:-1], edges[1:]):
@@ -151,10 +150,8 @@ class FlightLaw:
             mid = 0.5 * (a + b)  # (at the midpoint: a cut that rounding puts a hair off a command's time is harmless)
             wi[3] = self._u_at(mid)
             wi[4] = self._u_at(mid - tm) if tm > 0 else 0.0
-            M[:n, :n] = A * h
-            M[:n, n:] = B * h
-            E = expm(M)
-            x = E[:n, :n] @ x + E[:n, n:] @ wi
+            Phi, Gam = hold_matrices(A, B, h)
+            x = Phi @ x + Gam @ wi
         self._x = x
 
     def _rest(self, r: float, y: float, vm: float) -> np.ndarray:

@@ -37,9 +37,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-from numba import njit
+from typing import Any
 
+import numpy as np
+
+from .. import _native
 from ..errors import InvalidValueError, check_real
 from ..models.hold import hold_matrices, split_delay
 from ..models.transfer import TransferFunction
@@ -90,47 +92,24 @@ class HeldResponse:
         return f"HeldResponse({self.y.size} samples, y in [{self.y.min():.4g}, {self.y.max():.4g}])"
 
 
-@njit(cache=True)
-def _expm(M):  # pragma: no cover (compiled)
-    """exp(M) of a small matrix: scaling and squaring with a Taylor series of degree 18 on ||M / 2^s||_1 <= 1/2,
-    whose remainder (below 0.5^19 / 19! ~ 2e-23 relative) is far under rounding."""
-    n = M.shape[0]
-    norm = 0.0
-    for j in range(n):
-        c = 0.0
-        for i in range(n):
-            c += abs(M[i, j])
-        norm = max(norm, c)
-    s = 0
-    while norm > 0.5:
-        norm *= 0.5
-        s += 1
-    X = M / (2.0 ** s)
-    E = np.eye(n)
-    T = np.eye(n)
-    for k in range(1, 19):
-        T = T @ X / k
-        E = E + T
-    for _ in range(s):
-        E = E @ E
-    return E
+DK = _native.load("delaykit.simulate", "_discretekernel")
+"""The compiled loops (``simulate/_discretekernel.py``): the extension built at install, else numba's copy."""
+
+_NUMBA_NAMES = {"_held_arrays": "held_arrays", "_run_logs": "run_logs", "_run_at_logs": "run_at_logs"}
 
 
-@njit(cache=True)
-def _phi_gamma_fast(A, B, t):  # pragma: no cover (compiled)
-    n = A.shape[0]
-    E = np.empty((n + 1, n + 1))
-    _aug_expm(A, B, t, E)
-    return E[:n, :n].copy(), E[:n, n].copy()
+def __getattr__(name: str) -> Any:
+    """numba's copies of the kernels, for the numba code of identification that calls them (it needs numba code:
+    ``_held_arrays``, ``_run_logs``, ``_run_at_logs``), loaded only when that code asks."""
+    if name in _NUMBA_NAMES:
+        return getattr(_native.load("delaykit.simulate", "_discretekernel", "numba"), _NUMBA_NAMES[name])
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _phi_gamma(A: np.ndarray, B: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
     if A.shape[0] == 0:
         return np.zeros((0, 0)), np.zeros(0)
-    if np.abs(A).sum() * t > 1e3:  # far from what the compiled series is meant for: SciPy's Pade method
-        E, J = hold_matrices(A, B[:, None], t)
-        return E, J[:, 0]
-    return _phi_gamma_fast(np.ascontiguousarray(A, dtype=float), np.ascontiguousarray(B, dtype=float), float(t))
+    return hold_matrices(np.asarray(A, dtype=float), np.asarray(B, dtype=float).ravel(), float(t))
 
 
 def held_delay_model(plant: TransferFunction, period: float, delay: float = 0.0) -> HeldDelayModel:
@@ -173,177 +152,6 @@ def held_delay_model(plant: TransferFunction, period: float, delay: float = 0.0)
                           m=m, fractional=f > 0.0, period=h, delay=T)
 
 
-@njit(cache=True)
-def _run_into(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive, closed, kp, kv, lo, hi, y, dy, u,
-              x, xn):  # pragma: no cover (compiled)
-    """One log from rest into ``y``, ``dy`` and ``u`` (``x``, ``xn``: work vectors of the plant's order)."""
-    n = phi.shape[0]
-    N = drive.shape[0]
-    for i in range(n):
-        x[i] = 0.0
-    lag_now = m + 1 if fractional else m  # the command acting at a sample instant was issued lag_now samples ago
-    for k in range(N):
-        j = k - lag_now
-        u_now = u[j] if j >= 0 and j < k else 0.0
-        yk = d * u_now
-        dk = cb * u_now
-        for i in range(n):
-            yk += c[i] * x[i]
-            dk += ca[i] * x[i]
-        if closed:
-            uk = kp * (drive[k] - yk) - kv * dk
-            if uk < lo:
-                uk = lo
-            elif uk > hi:
-                uk = hi
-        else:
-            uk = drive[k]
-        u[k] = uk
-        if j == k:  # no delay: the command issued now acts now
-            yk += d * uk
-            dk += cb * uk
-        y[k] = yk
-        dy[k] = dk
-        je = k - m - 1
-        jl = k - m
-        ue = u[je] if je >= 0 else 0.0
-        ul = u[jl] if jl >= 0 else 0.0
-        for i in range(n):
-            s = g_early[i] * ue + g_late[i] * ul
-            for q in range(n):
-                s += phi[i, q] * x[q]
-            xn[i] = s
-        for i in range(n):
-            x[i] = xn[i]
-
-
-@njit(cache=True)
-def _run(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive, closed, kp, kv, lo, hi):  # pragma: no cover
-    N = drive.shape[0]
-    n = phi.shape[0]
-    u = np.zeros(N)
-    y = np.empty(N)
-    dy = np.empty(N)
-    _run_into(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive, closed, kp, kv, lo, hi, y, dy, u,
-              np.zeros(n), np.zeros(n))
-    return y, dy, u
-
-
-@njit(cache=True)
-def _run_logs(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive, starts, closed, kp, kv, lo, hi, unit,
-              y, dy, uy, udy):  # pragma: no cover (compiled)
-    """Several logs laid end to end (log ``i`` is ``drive[starts[i]:starts[i + 1]]``, each from rest, each with its
-    own limits ``lo[i]``, ``hi[i]``) into ``y`` and ``dy``; with ``unit``, also each log's response to a held unit
-    command (open loop) into ``uy`` and ``udy``."""
-    n = phi.shape[0]
-    x = np.zeros(n)
-    xn = np.zeros(n)
-    u = np.zeros(drive.shape[0])
-    for i in range(starts.shape[0] - 1):
-        a = starts[i]
-        b = starts[i + 1]
-        _run_into(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive[a:b], closed, kp, kv, lo[i], hi[i],
-                  y[a:b], dy[a:b], u[a:b], x, xn)
-        if unit:
-            for k in range(a, b):
-                u[k] = 1.0
-            _run_into(phi, g_early, g_late, c, d, ca, cb, m, fractional, u[a:b], False, 0.0, 0.0, lo[i], hi[i],
-                      uy[a:b], udy[a:b], u[a:b], x, xn)
-
-
-@njit(cache=True)
-def _mul_into(X, Y, Z):  # pragma: no cover (compiled)
-    """Z = X @ Y for small square matrices (explicit loops: no BLAS call overhead)."""
-    n = X.shape[0]
-    for i in range(n):
-        for j in range(n):
-            s = 0.0
-            for k in range(n):
-                s += X[i, k] * Y[k, j]
-            Z[i, j] = s
-
-
-@njit(cache=True)
-def _aug_expm(A, B, t, E):  # pragma: no cover (compiled)
-    """``E = exp([[A t, B t], [0, 0]])`` ((n+1) x (n+1)): ``E[:n, :n] = Phi(t)``, ``E[:n, n] = Gamma(t)``.
-
-    Scaling and squaring with a Taylor series on ``||M / 2^s||_1 <= 1/2``, summed until a term is below 1e-18 of
-    the sum (at most degree 18, as :func:`_expm`)."""
-    n = A.shape[0]
-    q = n + 1
-    X = np.zeros((q, q))
-    for i in range(n):
-        for j in range(n):
-            X[i, j] = A[i, j] * t
-        X[i, n] = B[i] * t
-    norm = 0.0
-    for j in range(q):
-        c = 0.0
-        for i in range(q):
-            c += abs(X[i, j])
-        norm = max(norm, c)
-    s = 0
-    while norm > 0.5:
-        norm *= 0.5
-        s += 1
-    sc = 0.5 ** s
-    for i in range(q):
-        for j in range(q):
-            X[i, j] *= sc
-    T = np.eye(q)
-    W = np.empty((q, q))
-    for i in range(q):
-        for j in range(q):
-            E[i, j] = 1.0 if i == j else 0.0
-    for k in range(1, 19):
-        _mul_into(T, X, W)
-        big = 0.0
-        for i in range(q):
-            for j in range(q):
-                T[i, j] = W[i, j] / k
-                E[i, j] += T[i, j]
-                big = max(big, abs(T[i, j]))
-        if big < 1e-18:
-            break
-    for _ in range(s):
-        _mul_into(E, E, W)
-        for i in range(q):
-            for j in range(q):
-                E[i, j] = W[i, j]
-
-
-@njit(cache=True)
-def _held_arrays(A, B, h, f):  # pragma: no cover (compiled)
-    """``phi``, ``g_early`` and ``g_late`` of a realisation ``(A, B)`` for the delay's fraction ``f`` of a period
-    (two exponentials: over ``f`` and over ``h - f``; ``phi = Phi(h - f) Phi(f)``)."""
-    n = A.shape[0]
-    phi = np.zeros((n, n))
-    ge = np.zeros(n)
-    gl = np.zeros(n)
-    Er = np.empty((n + 1, n + 1))
-    _aug_expm(A, B, h - f, Er)
-    for i in range(n):
-        gl[i] = Er[i, n]
-    if f > 0.0:
-        Ef = np.empty((n + 1, n + 1))
-        _aug_expm(A, B, f, Ef)
-        for i in range(n):
-            for j in range(n):
-                acc = 0.0
-                for k in range(n):
-                    acc += Er[i, k] * Ef[k, j]
-                phi[i, j] = acc
-            acc = 0.0
-            for k in range(n):
-                acc += Er[i, k] * Ef[k, n]
-            ge[i] = acc
-    else:
-        for i in range(n):
-            for j in range(n):
-                phi[i, j] = Er[i, j]
-    return phi, ge, gl
-
-
 def held_matrices_of(A: np.ndarray, B: np.ndarray, period: float, delay: float
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, bool]:
     """``(phi, g_early, g_late, m, fractional)`` of :class:`HeldDelayModel` for a realisation ``(A, B)`` given as
@@ -364,7 +172,7 @@ def held_matrices_of(A: np.ndarray, B: np.ndarray, period: float, delay: float
             _, gam_f = _phi_gamma(A, B, f)
             return phi_h, phi_r @ gam_f, gam_r, m, True
         return phi_h, np.zeros_like(gam_h), gam_h, m, False
-    phi, ge, gl = _held_arrays(A, B, float(period), float(f))
+    phi, ge, gl = DK.held_arrays(A, B, float(period), float(f))
     return phi, ge, gl, m, f > 0.0
 
 
@@ -389,7 +197,7 @@ def held_response(model: HeldDelayModel, u: np.ndarray) -> HeldResponse:
     [0.0, 0.0, 0.0, 0.05, 0.15, 0.25]
     """
     a = _drive("u (the held command)", u)
-    y, dy, uu = _run(model.phi, model.g_early, model.g_late, model.c, model.d, model.ca, model.cb, model.m,
+    y, dy, uu = DK.run(model.phi, model.g_early, model.g_late, model.c, model.d, model.ca, model.cb, model.m,
                      model.fractional, a, False, 0.0, 0.0, -math.inf, math.inf)
     return HeldResponse(y=y, dy=dy, u=uu)
 
@@ -417,68 +225,9 @@ def closed_loop_response(model: HeldDelayModel, r: np.ndarray, *, kp: float, kv:
     if model.m == 0 and not model.fractional and (model.d != 0.0 or (kv != 0.0 and model.cb != 0.0)):
         raise InvalidValueError("a sampled loop without delay around a plant with a direct feedthrough (or a "
                                 "velocity term on a plant whose velocity jumps) is an algebraic loop")
-    y, dy, uu = _run(model.phi, model.g_early, model.g_late, model.c, model.d, model.ca, model.cb, model.m,
+    y, dy, uu = DK.run(model.phi, model.g_early, model.g_late, model.c, model.d, model.ca, model.cb, model.m,
                      model.fractional, a, True, kp, kv, lo, hi)
     return HeldResponse(y=y, dy=dy, u=uu)
-
-
-@njit(cache=True)
-def _advance(A, B, dt, v, x, xn, E):  # pragma: no cover (compiled)
-    """``x <- Phi(dt) x + Gamma(dt) v`` (``E``: work matrix of order n + 1)."""
-    n = A.shape[0]
-    if dt <= 0.0:
-        return
-    _aug_expm(A, B, dt, E)
-    for i in range(n):
-        s = E[i, n] * v
-        for q in range(n):
-            s += E[i, q] * x[q]
-        xn[i] = s
-    for i in range(n):
-        x[i] = xn[i]
-
-
-@njit(cache=True)
-def _run_at_into(A, B, c, d, ca, cb, delay, tol, t, drive, y, dy):  # pragma: no cover (compiled)
-    """One log from rest on its own clock ``t``: ``drive[k]`` held from ``t[k]`` reaches the plant at
-    ``t[k] + delay``; an arrival within ``tol`` of a sample acts at that sample."""
-    n = A.shape[0]
-    N = t.shape[0]
-    x = np.zeros(n)
-    xn = np.zeros(n)
-    E = np.empty((n + 1, n + 1))
-    tau = t[0]
-    j = -1  # the last command that has reached the plant (-1: none yet, the input is 0)
-    v = 0.0
-    for i in range(N):
-        while j + 1 < N and t[j + 1] + delay <= t[i] + tol:
-            s = min(t[j + 1] + delay, t[i])
-            _advance(A, B, s - tau, v, x, xn, E)
-            tau = max(tau, s)
-            j += 1
-            v = drive[j]
-        _advance(A, B, t[i] - tau, v, x, xn, E)
-        tau = t[i]
-        yk = d * v
-        dk = cb * v
-        for q in range(n):
-            yk += c[q] * x[q]
-            dk += ca[q] * x[q]
-        y[i] = yk
-        dy[i] = dk
-
-
-@njit(cache=True)
-def _run_at_logs(A, B, c, d, ca, cb, delay, tol, t, drive, starts, unit, y, dy, uy, udy):  # pragma: no cover
-    """Several logs laid end to end (as :func:`_run_logs`, each on its own clock ``t[starts[i]:starts[i + 1]]``);
-    with ``unit``, also each log's response to a held unit command into ``uy`` and ``udy``."""
-    ones = np.ones(drive.shape[0])
-    for i in range(starts.shape[0] - 1):
-        a = starts[i]
-        b = starts[i + 1]
-        _run_at_into(A, B, c, d, ca, cb, delay, tol, t[a:b], drive[a:b], y[a:b], dy[a:b])
-        if unit:
-            _run_at_into(A, B, c, d, ca, cb, delay, tol, t[a:b], ones[a:b], uy[a:b], udy[a:b])
 
 
 def held_response_at(plant: TransferFunction, t: np.ndarray, u: np.ndarray, delay: float = 0.0) -> HeldResponse:
@@ -528,6 +277,6 @@ def held_response_at(plant: TransferFunction, t: np.ndarray, u: np.ndarray, dela
     C = np.ascontiguousarray(C, dtype=float).ravel()
     y, dy = np.empty(tt.size), np.empty(tt.size)
     tol = 1e-12 * max(abs(float(tt[-1])), T, 1.0)
-    _run_at_into(A, B, C, float(D), np.ascontiguousarray(C @ A if A.size else np.zeros(0)),
+    DK.run_at_into(A, B, C, float(D), np.ascontiguousarray(C @ A if A.size else np.zeros(0)),
                  float(C @ B) if A.size else 0.0, T, tol, tt, a, y, dy)
     return HeldResponse(y=y, dy=dy, u=a.copy())

@@ -43,14 +43,13 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 import numpy as np
-from numba import njit
 
+from .. import _native
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.ranges import parse_number
 from ..models.altitude import as_loop
 from ..models.controllers import Controller
 from ..models.loop import Loop
-from .discrete import _expm
 from .metrics import StepMetrics, step_metrics
 
 __all__ = ["DelayModel", "DelaySchedule", "Jitter", "Burst", "DelayTrace", "CombinedDelay", "as_delay_model",
@@ -517,36 +516,8 @@ def _plan(a: np.ndarray, keep_order: bool) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ---------------------------------------------------------------------------------------------- the kernel
-@njit(cache=True)
-def _events(M, rows, lo, hi, r, ev_t, ev_kind, ev_idx, u_cmd, rec):  # pragma: no cover (compiled)
-    """Walk the sorted events: 0 = a sample (packet ev_idx), 1 = an arrival (packet ev_idx takes over), 2 = a
-    record (row ev_idx: y, the input, y' just after and just before).  ``z`` is the state, then the plant's input
-    and the reference, constant between events, where ``z' = M z`` moves it exactly by ``exp(M tau)``."""
-    n = M.shape[0] - 2
-    z = np.zeros(n + 2)
-    z[n + 1] = r
-    E = np.eye(n + 2)
-    t, last, t_switch, w_left = 0.0, -1.0, -1.0, 0.0
-    for e in range(ev_t.shape[0]):
-        tau = ev_t[e] - t
-        if tau > 0.0:
-            if tau != last:
-                E = _expm(M * tau)
-                last = tau
-            z = E @ z
-            t = ev_t[e]
-        k, i = ev_kind[e], ev_idx[e]
-        if k == 0:
-            u_cmd[i] = min(max(np.sum(rows[2] * z), lo), hi)
-        elif k == 1:
-            if t_switch != t:
-                w_left, t_switch = z[n], t
-            z[n] = u_cmd[i]
-        else:
-            rec[i, 0] = np.sum(rows[0] * z)
-            rec[i, 1] = z[n]
-            rec[i, 2] = np.sum(rows[1] * z)
-            rec[i, 3] = rec[i, 2] - rows[1, n] * (z[n] - w_left) if t_switch == t else rec[i, 2]
+VK = _native.load("delaykit.simulate", "_varyingkernel")
+"""The compiled event loop (``simulate/_varyingkernel.py``): the extension built at install, else numba's copy."""
 
 
 def _loop_matrices(loop: Loop) -> tuple[np.ndarray, np.ndarray]:
@@ -733,8 +704,8 @@ def simulate_varying(loop: Any, delay: Any = None, *, step: float = 1.0, z0: flo
     ev_idx = np.concatenate([np.arange(send.size), sw, np.arange(rec_c.size)]).astype(np.int64)
     o = np.lexsort((ev_idx, ev_kind, ev_t))
     u_cmd, rec = np.zeros(send.size), np.zeros((rec_c.size, 4))
-    _events(M, rows, gen.umin, gen.umax, step, np.ascontiguousarray(ev_t[o]), np.ascontiguousarray(ev_kind[o]),
-            np.ascontiguousarray(ev_idx[o]), u_cmd, rec)
+    VK.events(M, rows, gen.umin, gen.umax, step, np.ascontiguousarray(ev_t[o]), np.ascontiguousarray(ev_kind[o]),
+              np.ascontiguousarray(ev_idx[o]), u_cmd, rec)
     z = z0 + rec[:, 0]
     ok = np.all(np.isfinite(z)) and z.size >= 3
     metrics = _metrics(rec_c - To, rec[:, 0], rec[:, 3], rec[:, 2], step, z0, band) if ok else None

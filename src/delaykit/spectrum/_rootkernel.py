@@ -27,7 +27,8 @@ else:
     from math import atan2, ceil, cos, exp, log, pi, sin
     from math import inf as HUGE_VAL
 
-__all__ = ["qeval", "contour", "newton", "grid_minima", "bound", "COMPILED"]
+__all__ = ["qeval", "stack_size", "stacks", "contour", "contour_into", "newton", "newton_into", "grid_minima", "bound",
+           "bound_into", "COMPILED"]
 
 COMPILED: bool = cython.compiled
 """Whether this module is the extension module Cython built (False: this file, run by Python or numba)."""
@@ -81,6 +82,22 @@ def qeval(C, A, tau, s):
     return Q, dQ, (n1 + 1) * _EPS * nz
 
 
+def stack_size(n_init):
+    """The length of :func:`contour_into`'s stacks for edges of ``n_init`` initial segments: the initial segments of
+    one edge, plus up to 63 entries for each of 64 levels of refinement below them."""
+    size = 0
+    for e in range(n_init.shape[0]):
+        size = max(size, n_init[e])
+    return size + 64 * 64
+
+
+def stacks(size):
+    """:func:`contour_into`'s six stacks, ``size`` long: endpoints ``sa``, ``sb``, Q values ``wa``, ``wb`` (complex),
+    and ``|Q'/Q|`` ``ra``, ``rb``."""
+    return (np.empty(size, np.complex128), np.empty(size, np.complex128), np.empty(size, np.complex128),
+            np.empty(size, np.complex128), np.empty(size), np.empty(size))
+
+
 def contour(C, A, tau, corners, n_init, max_phase, reliable, cap, out_s, out_dl):
     """Adaptive phase tracking around the closed polygon ``corners``.
 
@@ -88,21 +105,17 @@ def contour(C, A, tau, corners, n_init, max_phase, reliable, cap, out_s, out_dl)
     2 = more than ``cap`` samples needed.  ``out_s[:m]`` and ``out_dl[:m]`` receive segment midpoints and log
     increments of Q (for contour-integral moments).
     """
+    sa, sb, wa, wb, ra, rb = stacks(stack_size(n_init))
+    return contour_into(C, A, tau, corners, n_init, max_phase, reliable, cap, out_s, out_dl, sa, sb, wa, wb, ra, rb)
+
+
+def contour_into(C, A, tau, corners, n_init, max_phase, reliable, cap, out_s, out_dl, sa, sb, wa, wb, ra, rb):
+    """:func:`contour` with its stack of segments given (endpoints ``sa``, ``sb``, Q values ``wa``, ``wb`` and
+    ``|Q'/Q|`` ``ra``, ``rb``; each at least :func:`stack_size` long): allocates nothing, runs without the GIL."""
     nc = corners.shape[0]
     total = 0.0
     m = 0
-    # explicit stack of segments: endpoints, Q values and |Q'/Q| (the initial segments of one edge, plus up
-    # to 63 entries for each level of refinement below them)
-    size = 0
-    for e in range(nc):
-        size = max(size, n_init[e])
-    size += 64 * 64
-    sa = np.empty(size, np.complex128)
-    sb = np.empty(size, np.complex128)
-    wa = np.empty(size, np.complex128)
-    wb = np.empty(size, np.complex128)
-    ra = np.empty(size)
-    rb = np.empty(size)
+    size = stack_size(n_init)
     for e in range(nc):
         a0 = corners[e]
         b0 = corners[(e + 1) % nc]
@@ -192,8 +205,18 @@ def newton(C, A, tau, s0, maxit, box):
     out = np.empty(n, np.complex128)
     conv = np.zeros(n, np.uint8)  # flags as bytes (Cython writes them through a typed view), bool on return
     clean = np.zeros(n, np.uint8)
+    newton_into(C, A, tau, s0, maxit, box, out, conv, clean)
+    return np.asarray(out), np.asarray(conv) != 0, np.asarray(clean) != 0
+
+
+def newton_into(C, A, tau, s0, maxit, box, out, conv, clean):
+    """:func:`newton` into ``out``, ``conv`` and ``clean`` (flags as bytes, 1 for true): allocates nothing, runs
+    without the GIL."""
+    n = s0.shape[0]
     x0, x1, y0, y1 = box[0], box[1], box[2], box[3]
     for i in range(n):
+        conv[i] = 0
+        clean[i] = 0
         s = s0[i]
         for _ in range(maxit):
             Q, dQ, nz = qeval(C, A, tau, s)
@@ -216,7 +239,6 @@ def newton(C, A, tau, s0, maxit, box):
             if s.real < x0 or s.real > x1 or s.imag < y0 or s.imag > y1:
                 break
         out[i] = s
-    return np.asarray(out), np.asarray(conv) != 0, np.asarray(clean) != 0
 
 
 def grid_minima(C, tau, xs, ys):
@@ -268,10 +290,18 @@ def bound(C, tau, x):
     :func:`~delaykit.spectrum.roots.root_bound`: the positive root of ``lead - sum rest_k r^-k``, which increases
     in ``r``), or -1 where no such bound exists (no delay-free term of positive degree, neutral chains at or
     right of ``x``, or an advanced term)."""
+    n1 = C.shape[1]
+    return bound_into(C, tau, x, np.zeros(n1, np.complex128), np.zeros(n1))
+
+
+def bound_into(C, tau, x, p0, oth):
+    """:func:`bound` with its work vectors given (``p0``, ``oth``: as long as a row of ``C``): allocates nothing,
+    runs without the GIL."""
     nt = C.shape[0]
     n1 = C.shape[1]
-    p0 = np.zeros(n1, np.complex128)
-    oth = np.zeros(n1)
+    for k in range(n1):
+        p0[k] = 0j
+        oth[k] = 0.0
     for j in range(nt):
         if tau[j] == 0.0:
             for k in range(n1):

@@ -447,97 +447,24 @@ def _position(grid: np.ndarray, value: Any) -> Any:
     return (value - grid[0]) / (grid[-1] - grid[0]) if grid[-1] != grid[0] else 0.0 * value
 
 
-_NOWHERE = np.array([-1e300, 1e300, -1e300, 1e300])
-
-
-def _track(W, nt, n1, k0, starts, nstart, sym, absc, max_phase, reliable, cap):  # pragma: no cover - compiled
-    """Points ``k0, k0 + 1, ...`` of ``W`` (one quasi-polynomial a row, as :func:`_flat`), each from Newton's
-    method started at the previous point's roots right of its abscissa (``starts[:nstart]``, updated), confirmed by
-    one argument-principle count (see :func:`stability_map`).  Stops at the first point not confirmed; returns
-    its index (``W.shape[0]`` when all are) and the number of starts."""
-    C = np.empty((nt, n1), np.complex128)
-    A = np.empty((nt, n1))
-    tau = np.empty(nt)
-    found = np.empty(2 * starts.size, np.complex128)
-    buf = np.empty(1, np.complex128)
-    buf2 = np.empty(1, np.complex128)
-    n_init = np.empty(4, np.int64)
-    cs = np.empty(4, np.complex128)
-    for k in range(k0, W.shape[0]):
-        for i in range(nt):
-            for j in range(n1):
-                C[i, j] = complex(W[k, 2 * (i * n1 + j)], W[k, 2 * (i * n1 + j) + 1])
-                A[i, j] = abs(C[i, j])
-            tau[i] = W[k, 2 * nt * n1 + i]
-        s, conv, clean = RKN.newton(C, A, tau, starts[:nstart], 60, _NOWHERE)
-        nf = 0
-        for i in range(nstart):
-            if not (conv[i] and clean[i]):
-                continue
-            z = s[i]
-            if sym and abs(z.imag) <= 1e-10 * (1.0 + abs(z)):
-                z = complex(z.real, 0.0)
-            for c in range(2 if sym and z.imag != 0.0 else 1):
-                zz = z if c == 0 else z.conjugate()
-                new = True
-                for m in range(nf):
-                    if abs(found[m] - zz) <= 1e-9 * (1.0 + abs(zz)):
-                        new = False
-                if new and nf < found.size:
-                    found[nf] = zz
-                    nf += 1
-        if nf == 0:
-            return k, nstart
-        top = found[0]
-        for m in range(1, nf):
-            if found[m].real > top.real or (found[m].real == top.real and found[m].imag > top.imag):
-                top = found[m]
-        x = top.real - 1e-6 * (1.0 + abs(top))
-        R = RKN.bound(C, tau, x)
-        if R < 0.0:
-            return k, nstart
-        R = max(R, abs(top)) * (1.0 + 1e-9) + 1e-12
-        y0 = -1e-3 * (1.0 + abs(top)) if sym else -R  # a real q: the upper half, its real roots inside
-        cs[0], cs[1], cs[2], cs[3] = complex(x, y0), complex(R, y0), complex(R, R), complex(x, R)
-        total_init = 0
-        for e in range(4):
-            n_init[e] = 8 + int(abs(cs[(e + 1) % 4] - cs[e]) * (tau.max() + 0.25) / max_phase)
-            total_init += n_init[e]
-        if total_init > cap:
-            return k, nstart
-        status, total, _, _ = RKN.contour(C, A, tau, cs, n_init, max_phase, reliable, cap, buf, buf2)
-        want = 0
-        for m in range(nf):
-            if found[m].real > x and found[m].imag > y0:
-                want += 1
-        if status != 0 or abs(total - round(total)) > 0.05 or int(round(total)) != want:
-            return k, nstart
-        absc[k] = top.real  # (a neutral loop's chains lie left of x, where the bound holds)
-        nstart = 0
-        for m in range(nf):
-            if found[m].real > x and found[m].imag >= 0.0 and nstart < starts.size:
-                starts[nstart] = found[m]
-                nstart += 1
-    return W.shape[0], nstart
-
-
-RKN: Any = None  # the root kernel compiled by numba, which _track calls (set by _tracker)
-_tracked: list[Callable[..., tuple[int, int]]] = []
-_tracker_lock = threading.Lock()
+TK: Any = None
+"""The stability map's compiled loop (``spectrum/_trackkernel.py``: the extension built at install, else numba's
+copy), loaded by the first map."""
 
 
 def _tracker() -> Callable[..., tuple[int, int]]:
-    """:func:`_track` compiled by numba on first use (then loaded from numba's cache).  A stability map's loop is
-    still numba's: it calls the root kernel's numba copy (:func:`delaykit._native.load`), so numba is imported only
-    by a stability map, not by roots or margins, which call the kernel compiled ahead of time."""
-    global RKN
-    with _tracker_lock:
-        if not _tracked:
-            from numba import njit
+    """:data:`TK`'s ``track``, called as ``track(W, nt, n1, k0, starts, nstart, sym, absc, max_phase, reliable,
+    cap)`` on the points' quasi-polynomials in the form of :func:`_flat`, one a row of ``W``."""
+    global TK
+    if TK is None:
+        TK = _native.load("delaykit.spectrum", "_trackkernel")
+    tk = TK
 
-            RKN = _native.load("delaykit.spectrum", "_rootkernel", "numba")
-            _tracked.append(njit(cache=True, nogil=True)(_track))
-    return _tracked[0]
+    def track(W: np.ndarray, nt: int, n1: int, *rest: Any) -> tuple[int, int]:
+        n = 2 * nt * n1
+        return tk.track(W[:, :n].view(complex), W[:, n:], nt, n1, *rest)
+
+    return track
 
 
 def right_half_plane_count(q: QuasiPolynomial) -> int | None:
@@ -699,7 +626,8 @@ def stability_map(
         out[ii, jj] = absc
 
     track = _tracker()
-    track(np.zeros((0, 2)), 1, 1, 0, np.zeros(1, complex), 0, True, np.zeros(0), _MAX_PHASE, _RELIABLE, _CAP)
+    # (numba's copy, where no extension was built, compiles here, before the threads)
+    track(np.zeros((0, 3)), 1, 1, 0, np.zeros(1, complex), 0, True, np.zeros(0), _MAX_PHASE, _RELIABLE, _CAP)
     if n_workers == 1:
         block(0, ys.size)
     else:
