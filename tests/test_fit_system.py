@@ -191,3 +191,21 @@ def test_px4_delay_agrees_with_identify(px4_fit):
     d1, s1 = px4_fit.params["tau"], px4_fit.stderr["tau"]
     d2, s2 = m.params["delay"], m.stderr["delay"]
     assert abs(d1 - d2) < 3 * math.hypot(s1, s2), (d1, s1, d2, s2)
+
+
+def test_example_file_is_the_fitted_interconnection(px4_fit):
+    # examples/px4-vehicle.toml holds the fit's numbers to 4 digits, and is the same system as the blocks above
+    # (its limits left out): frequency responses equal to 1e-10
+    import tomllib
+
+    from delaykit.systems.files import read_system_file
+
+    path = Path(__file__).parents[1] / "examples" / "px4-vehicle.toml"
+    blocks = {b.get("name"): b for b in tomllib.loads(path.read_text())["blocks"]}
+    written = {"k": blocks["thrust to acceleration"]["tf"], "tau": blocks["dead time"]["delay"],
+               "kappa": blocks["ground effect"]["tf"]}
+    assert written == {k: float(f"{v:.4g}") for k, v in px4_fit.params.items()}, (written, px4_fit.params)
+    w = np.logspace(-2, 2, 60)
+    got = read_system_file(path).system.frequency_response(w).response
+    want = px4(**written).without_limits().frequency_response(w).response
+    np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12)
