@@ -15,8 +15,8 @@ output's residuals are divided by its noise scale: the standard deviation of the
 (its "wander") unless ``weights`` gives one.
 
 Standard errors come from the Jacobian (central differences of the exact simulation at the optimum) and the
-residuals' own colour: per log, a vector autoregressive model of the outputs' residuals (an autoregressive one per
-output when they are kept at different samples), in the sandwich of :func:`.noise.ar_covariance`.  They assume the
+residuals' own colour: per log, a vector autoregressive model of the outputs' residuals (an autoregressive one for a
+single output), in the sandwich of :func:`.noise.ar_covariance`.  They assume the
 model's structure is right: flights that disagree beyond them show a model error, not bad luck.
 """
 
@@ -349,20 +349,21 @@ def fit_system(build: Callable[..., DelayLTI], p0: Mapping[str, float], experime
     dev = [{o: e.outputs[o] - e.baseline(o) for o in outs} for e in exps]
 
     def blocks(x: np.ndarray) -> list[list[np.ndarray]]:
+        """Each log's weighted residuals of each output at every sample."""
         sys = make(x)
         res = []
-        for e, d, s, k in zip(exps, dev, scale, keep):
+        for e, d, s in zip(exps, dev, scale):
             y = _run(sys, e, outs)
-            res.append([np.where(np.isfinite(r := (y[o] - d[o])[k[o]] / s[o]), r, _FAILED) for o in outs])
+            res.append([np.where(np.isfinite(r := (y[o] - d[o]) / s[o]), r, _FAILED) for o in outs])
         return res
 
     def flat(x: np.ndarray) -> np.ndarray:
-        return np.concatenate([r for b in blocks(x) for r in b])
+        return np.concatenate([r[k[o]] for b, k in zip(blocks(x), keep) for r, o in zip(b, outs)])
 
     sol = least_squares(flat, x0, bounds=(lo, hi), x_scale="jac", diff_step=1e-6, max_nfev=max_nfev)
     x = sol.x
     res = blocks(x)
-    r_all = np.concatenate([r for b in res for r in b])
+    r_all = flat(x)
     J = _jacobian(flat, x, lo, hi)
     cov, models_ok = _covariance(J, res, keep, outs)
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None)) if models_ok else np.full(x.size, np.nan)
@@ -414,23 +415,25 @@ def _jacobian(f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, lo: np.ndarr
 
 def _covariance(J: np.ndarray, res: list[list[np.ndarray]], keep: list[dict[str, np.ndarray]],
                 outs: Sequence[str]) -> tuple[np.ndarray, bool]:
-    """The sandwich covariance with each log's residuals coloured: one vector model of its outputs when they are
-    kept at the same samples, else one autoregressive model per output."""
+    """The sandwich covariance with each log's residuals coloured: one vector autoregressive model of its outputs
+    on the samples where any is kept (an output's Jacobian rows zero where it is not), one autoregressive model
+    for a single output."""
+    if not np.all(np.isfinite(J)):
+        return np.full((J.shape[1], J.shape[1]), np.nan), False
     out = []
     row = 0
     for b, k in zip(res, keep):
         masks = [k[o] for o in outs]
-        sizes = [r.size for r in b]
-        if len(outs) > 1 and all(np.array_equal(m, masks[0]) for m in masks) and sizes[0] >= 20:
-            n = sizes[0]
-            Jb = np.stack([J[row + i * n: row + (i + 1) * n] for i in range(len(outs))], axis=1)
-            out.append((Jb, fit_var(np.column_stack(b))))
-        else:
-            start = row
-            for r in b:
-                out.append((J[start:start + r.size], fit_ar(r)))
-                start += r.size
-        row += sum(sizes)
-    if not np.all(np.isfinite(J)):
-        return np.full((J.shape[1], J.shape[1]), np.nan), False
+        union = np.logical_or.reduce(masks)
+        n = int(union.sum())
+        if len(outs) == 1:
+            out.append((J[row:row + n], fit_ar(b[0][union])))
+            row += n
+            continue
+        Jb = np.zeros((n, len(outs), J.shape[1]))
+        for i, m in enumerate(masks):
+            c = int(m.sum())
+            Jb[np.flatnonzero(m[union]), i] = J[row:row + c]
+            row += c
+        out.append((Jb, fit_var(np.column_stack([r[union] for r in b]))))
     return ar_covariance(out), True
