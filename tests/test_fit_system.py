@@ -209,3 +209,15 @@ def test_example_file_is_the_fitted_interconnection(px4_fit):
     got = read_system_file(path).system.frequency_response(w).response
     want = px4(**written).without_limits().frequency_response(w).response
     np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.slow
+def test_px4_slower_sensor_gives_more_delay():
+    # One flight at a time: the APPIUS flights' position updates at 8.5 Hz, the others' at about 30 Hz (data
+    # README); the slower sensor's flights must show more dead time than every faster one of the low flights.
+    def tau(name):
+        return fit_system(px4, START, _flights([name]), bounds=BOUNDS, fresh_only=True).params["tau"]
+
+    slow = [tau(f"APPIUS_0{i}") for i in (1, 2, 3)]
+    fast = [tau(n) for n in TRAIN + HELD_OUT + ["CHEESEMAN_01", "NO_COMPENSATION_01"]]
+    assert min(slow) > max(fast), (slow, fast)
