@@ -3,21 +3,21 @@
 :func:`identify` fits the plant families of :mod:`.structures` inside delaykit's own loops.  Many systems are
 better written as what they are: an interconnection of named blocks (``tf``, ``delay``, ``saturation``,
 ``summing_junction``, ``interconnect``) with a few unknown numbers in it.  :func:`fit_system` takes a function that
-builds that system from its parameters, simulates it exactly over each log (:func:`delaykit.simulate.systems.forced_response`,
-the logged drive as the input, every delay and saturation acting), and adjusts the parameters by least squares
-(SciPy's ``least_squares``, trust-region reflective within the bounds) on the outputs the system and the logs
-share by name.
+builds that system from its parameters, simulates it exactly over each log
+(:func:`delaykit.simulate.systems.forced_response`, the logged drive as the input, every delay and saturation
+acting), and adjusts the parameters by least squares (SciPy's ``least_squares``, trust-region reflective within
+the bounds) on the outputs the system and the logs share by name.
 
 The logs are :class:`.iodata.Experiment` objects.  The system runs in deviation variables: its single input is the
-log's drive (input or reference) minus its initial value, held between samples, each output is compared with the measured one minus its
-initial steady state, and every state starts at 0, so a log must begin at rest (as a step test does).  Each
-output's residuals are divided by its noise scale: the standard deviation of the output before the drive moves
-(its "wander") unless ``weights`` gives one.
+log's drive (input or reference) minus its initial value, held between samples; each output is compared with the
+measured one minus its initial steady state; every state starts at 0, so a log must begin at rest (as a step test
+does).  Each output's residuals are divided by its noise scale: the standard deviation of the output before the
+drive moves (its "wander") unless ``weights`` gives one.
 
 Standard errors come from the Jacobian (central differences of the exact simulation at the optimum) and the
-residuals' own colour: per log, a vector autoregressive model of the outputs' residuals (an autoregressive one for a
-single output), in the sandwich of :func:`.noise.ar_covariance`.  They assume the
-model's structure is right: flights that disagree beyond them show a model error, not bad luck.
+residuals' own colour: per log, a vector autoregressive model of the outputs' residuals (an autoregressive one for
+a single output), in the sandwich of :func:`.noise.ar_covariance`.  They assume the model's structure is right:
+logs that disagree beyond them show a model error, not bad luck.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..errors import InvalidTypeError, InvalidValueError
+from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..simulate.systems import forced_response
 from ..systems.lti import DelayLTI
 from ._fit import IdentificationError
@@ -107,7 +107,6 @@ class SystemFit:
     status: str
     warnings: tuple[str, ...] = field(default=())
     fresh_only: bool = False
-    _weights: dict[str, float] | None = field(default=None)
 
     def predict(self, experiment: Experiment) -> Prediction:
         """The fitted system's free-run prediction of a log (every sample; absolute units).
@@ -294,12 +293,14 @@ def fit_system(build: Callable[..., DelayLTI], p0: Mapping[str, float], experime
     >>> round(fit.predict(e).rms["y"], 9)
     0.0
     """
+    if isinstance(max_nfev, bool) or not isinstance(max_nfev, (int, np.integer)) or max_nfev < 1:
+        raise InvalidValueError(f"max_nfev must be a positive integer, got {max_nfev!r}")
     if not callable(build):
         raise InvalidTypeError(f"build must be a function of the parameters, got {type(build).__name__}")
     if not isinstance(p0, Mapping) or not p0:
         raise InvalidValueError(f"p0 must be a non-empty mapping of parameter names to values, got {p0!r}")
     names = [str(k) for k in p0]
-    x0 = np.array([_real(f"p0[{k!r}]", v) for k, v in p0.items()])
+    x0 = np.array([check_real(f"p0[{k!r}]", v) for k, v in p0.items()])
     exps = [experiments] if isinstance(experiments, Experiment) else list(experiments)
     if not exps or not all(isinstance(e, Experiment) for e in exps):
         raise InvalidTypeError("experiments must be an Experiment or a sequence of them")
@@ -311,8 +312,8 @@ def fit_system(build: Callable[..., DelayLTI], p0: Mapping[str, float], experime
         if not isinstance(b, (tuple, list)) or len(b) != 2:
             raise InvalidValueError(f"bounds[{k!r}] must be (lower, upper), got {b!r}")
         i = names.index(k)
-        lo[i] = -np.inf if b[0] is None else _real(f"bounds[{k!r}] lower", b[0], finite=False)
-        hi[i] = np.inf if b[1] is None else _real(f"bounds[{k!r}] upper", b[1], finite=False)
+        lo[i] = -np.inf if b[0] is None else check_real(f"bounds[{k!r}] lower", b[0], allow_neg_inf=True)
+        hi[i] = np.inf if b[1] is None else check_real(f"bounds[{k!r}] upper", b[1], allow_inf=True)
         if not lo[i] < hi[i]:
             raise InvalidValueError(f"bounds[{k!r}] = {b!r}: the lower bound must be below the upper")
         if not lo[i] <= x0[i] <= hi[i]:
@@ -340,9 +341,7 @@ def fit_system(build: Callable[..., DelayLTI], p0: Mapping[str, float], experime
                     raise InvalidValueError(f"{e.name}: the wander of {o!r} is not known (fewer than 5 samples at "
                                             "rest, or constant): give weights={...}")
             else:
-                w = _real(f"weights[{o!r}]", w)
-                if w <= 0:
-                    raise InvalidValueError(f"weights[{o!r}] must be positive, got {w:g}")
+                w = check_real(f"weights[{o!r}]", w, minimum=0.0, strict=True)
             s[o] = w
         scale.append(s)
         keep.append({o: (_fresh(e.outputs[o]) if fresh_only else np.ones(e.t.size, bool)) for o in outs})
@@ -387,17 +386,7 @@ def fit_system(build: Callable[..., DelayLTI], p0: Mapping[str, float], experime
         logs.append(SystemLogFit(e.name, rms, {o: _wander(e, o) for o in outs}, int(sum(v.sum() for v in k.values()))))
     return SystemFit(dict(zip(names, (float(v) for v in x))), dict(zip(names, (float(v) for v in se))), corr, sys,
                      tuple(logs), tuple(outs), float(np.mean(r_all ** 2)), int(sol.nfev),
-                     "converged" if sol.status > 0 else "stopped", tuple(warn), bool(fresh_only),
-                     None if weights is None else dict(weights))
-
-
-def _real(name: str, v: Any, finite: bool = True) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-        raise InvalidTypeError(f"{name} must be a number, got {v!r}")
-    x = float(v)
-    if math.isnan(x) or (finite and not math.isfinite(x)):
-        raise InvalidValueError(f"{name} must be a finite number, got {x}")
-    return x
+                     "converged" if sol.status > 0 else "stopped", tuple(warn), bool(fresh_only))
 
 
 def _jacobian(f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
