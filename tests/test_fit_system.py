@@ -221,3 +221,14 @@ def test_px4_slower_sensor_gives_more_delay():
     slow = [tau(f"APPIUS_0{i}") for i in (1, 2, 3)]
     fast = [tau(n) for n in TRAIN + HELD_OUT + ["CHEESEMAN_01", "NO_COMPENSATION_01"]]
     assert min(slow) > max(fast), (slow, fast)
+
+
+def test_a_parameter_the_logs_do_not_see_is_reported_not_determined():
+    # "unused" never reaches the output: its Jacobian column is zero, and the fit says so (strict JSON still)
+    e = _synthetic(TRUTH, 4)
+    fit = fit_system(lambda k, tau, kappa, unused: px4(k, tau, kappa), {**START, "unused": 1.0}, e, bounds=BOUNDS)
+    assert any("unused is not determined" in w for w in fit.warnings), fit.warnings
+    assert fit.params["unused"] == 1.0
+    json.dumps(fit.to_dict(), allow_nan=False)
+    for name, true in TRUTH.items():           # the others are still found
+        assert abs(fit.params[name] - true) < 3 * fit.stderr[name]
