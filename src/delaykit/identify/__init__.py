@@ -23,6 +23,7 @@ from .iodata import Experiment, read_experiment
 from .noise import ARNoise, VARNoise, fit_ar, fit_var, ljung_box
 from .online import WindowEstimate, estimate_window
 from .structures import STRUCTURES, Structure, structure
+from .system_fit import SystemFit, SystemLogFit, fit_system, simulate_log
 
 __all__ = [
     "FlightLog", "LogError", "REQUIRED", "write_log", "synthetic_log",
@@ -32,4 +33,5 @@ __all__ = [
     "IdentifiedModel", "Candidate", "LogFit", "Prediction", "IdentificationError", "identify", "predict",
     "simulate_experiment", "load_model", "ARNoise", "VARNoise", "fit_ar", "fit_var", "ljung_box",
     "ExpectedErrors", "expected_errors", "planned_signal", "SIGNALS", "WindowEstimate", "estimate_window",
+    "SystemFit", "SystemLogFit", "fit_system", "simulate_log",
 ]
