@@ -34,7 +34,7 @@ __all__ = [
     "FlightError", "FlightInterruptedError", "MissingDependencyError", "ProtocolError", "ATError", "NavdataError", "LinkError", "EstimationError", "LogError",
     "IdentificationError",
     # identification
-    "Experiment", "read_experiment", "identify", "predict", "load_model", "IdentifiedModel",
+    "Experiment", "read_experiment", "identify", "predict", "load_model", "IdentifiedModel", "fit_system", "SystemFit",
     # delay compensation and delays that vary
     "Compensator", "design_compensator", "delay_ratio_range", "simulate_varying", "monte_carlo", "DelayDistribution",
     "DelaySchedule",
@@ -71,6 +71,7 @@ _LAZY = {
     "Experiment": ".identify.iodata", "read_experiment": ".identify.iodata", "identify": ".identify.identification",
     "predict": ".identify.identification", "load_model": ".identify.identification",
     "IdentifiedModel": ".identify.identification",
+    "fit_system": ".identify.system_fit", "SystemFit": ".identify.system_fit",
     "Compensator": ".models.compensators", "design_compensator": ".design.compensators",
     "delay_ratio_range": ".design.compensators", "simulate_varying": ".simulate.varying",
     "monte_carlo": ".simulate.montecarlo", "DelayDistribution": ".simulate.montecarlo",
