@@ -362,3 +362,35 @@ def test_kernel_modes_agree_with_plain_python(monkeypatch, mode):
         results[m] = [s.step(t).outputs for s in systems] + [systems[0].impulse(t).outputs]
     for a, b in zip(results["python"], results[mode]):
         np.testing.assert_allclose(b, a, rtol=0, atol=1e-12)
+
+
+# -- many systems -----------------------------------------------------------------------------------------------
+
+def test_step_response_many_equals_one_by_one():
+    # reference: step_response of each system (the parallel run must change nothing)
+    from delaykit.simulate.systems import step_response_many
+
+    rng = np.random.default_rng(3)
+    loops = [wood_berry_pi(kc=(0.375 * rng.uniform(0.7, 1.3), -0.075 * rng.uniform(0.7, 1.3))) for _ in range(6)]
+    t = np.linspace(0.0, 60.0, 121)
+    r = step_response_many(loops, t)
+    assert r.outputs.shape == (6, 2, 2, 121) and r.status == ("exact",) * 6 and len(r) == 6
+    for k, sysk in enumerate(loops):
+        one = sysk.step(t)
+        np.testing.assert_array_equal(r.outputs[k], one.outputs)
+        assert r.pieces[k] == one.pieces and r[k].status == "exact"
+    assert "\n" not in repr(r)
+    json.dumps(r.to_dict(), allow_nan=False)
+    sat = [feedback(tf("1/s") * delay(0.368) * saturation(-1, 1) * kp, 1) for kp in (0.8, 1.31)]
+    r = step_response_many(sat, t[:41])
+    for k, sysk in enumerate(sat):
+        np.testing.assert_array_equal(r.outputs[k], sysk.step(t[:41]).outputs)
+
+
+def test_step_response_many_refuses_mixed_shapes():
+    from delaykit.simulate.systems import step_response_many
+
+    with pytest.raises(InvalidValueError, match="shape"):
+        step_response_many([tf("exp(-s)/(s+1)"), tf("exp(-s)/(s+1)^2")], [1.0])
+    with pytest.raises(InvalidValueError, match="empty"):
+        step_response_many([], [1.0])
