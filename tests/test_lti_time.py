@@ -91,6 +91,21 @@ def test_initial_and_forced_closed_forms():
     np.testing.assert_allclose(r.outputs[0], [0.0, 0.0, 0.5, 1.5], atol=1e-14)
 
 
+def test_initial_response_through_a_delayed_loop_by_hand():
+    # y' = -y - y(t - 1) with the delay line empty before 0, y(0) = 1 (feedback(exp(-s)/(s+1), 1), r = 0):
+    # y = exp(-t) on [0, 1]; y' = -y - exp(-(t - 1)) on [1, 2], so y = exp(-(t - 1)) (exp(-1) - (t - 1))
+    r = feedback(tf("exp(-s)/(s+1)"), 1).initial([0.5, 1.0, 1.5, 2.0], X0=1.0)
+    exact = [math.exp(-0.5), math.exp(-1), math.exp(-0.5) * (math.exp(-1) - 0.5), math.exp(-1) * (math.exp(-1) - 1)]
+    np.testing.assert_allclose(r.outputs[0], exact, atol=1e-14)
+
+
+def test_forced_response_of_a_saturated_loop_is_its_step_when_held():
+    # the same run twice: U = 1 held, given as samples (forced), and the unit step
+    sys = feedback(tf("1/s") * delay(0.368) * saturation(-1, 1) * 1.31, 1)
+    t = np.linspace(0.0, 10.0, 51)
+    np.testing.assert_allclose(sys.lsim(t, np.ones(t.size)).outputs[0], sys.step(t).outputs[0, 0], atol=1e-14)
+
+
 # -- python-control, every delay 0 ---------------------------------------------------------------------------------
 
 def _random_ss(seed, n=4, nu=2, ny=3, with_d=True):

@@ -32,11 +32,11 @@ cdef void _cut(double[:, :] P, Py_ssize_t rows, double xc) noexcept nogil
 
 @cython.locals(n=Py_ssize_t, nu=Py_ssize_t, m=Py_ssize_t, ny=Py_ssize_t, i=Py_ssize_t, j=Py_ssize_t,
                k=Py_ssize_t, c=Py_ssize_t, l=Py_ssize_t, d=Py_ssize_t, o=Py_ssize_t, s=double, f=double)
-cdef void _recursion(const double[:, :] A, const double[:, :] B1, const double[:, :] B2, const double[:, :] C1,
-                     const double[:, :] C2, const double[:, :] D11, const double[:, :] D12, const double[:, :] D21,
-                     const double[:, :] D22, const double[:] tau, const double[:] lo, const double[:] hi,
-                     const long long[:] mode, const double[:] xa, const double[:, :] U, double[:, :] W,
-                     double[:, :] X, double[:, :] Z, double[:, :] V, double[:, :] Y, double H) noexcept nogil
+cdef void _recursion(const double[:, ::1] A, const double[:, ::1] B1, const double[:, ::1] B2, const double[:, ::1] C1,
+                     const double[:, ::1] C2, const double[:, ::1] D11, const double[:, ::1] D12, const double[:, ::1] D21,
+                     const double[:, ::1] D22, const double[:] tau, const double[:] lo, const double[:] hi,
+                     const long long[:] mode, const double[:] xa, const double[:, ::1] U, double[:, ::1] W,
+                     double[:, ::1] X, double[:, ::1] Z, double[:, ::1] V, double[:, ::1] Y, double H) noexcept nogil
 
 @cython.locals(n=Py_ssize_t, nu=Py_ssize_t, m=Py_ssize_t, ny=Py_ssize_t, nt=Py_ssize_t, nk=Py_ssize_t,
                cap=Py_ssize_t, jcap=Py_ssize_t,
@@ -53,32 +53,32 @@ cdef void _recursion(const double[:, :] A, const double[:, :] B1, const double[:
                jmax=double, hl=double, r=double, jm=double, dj=double, yscale=double, b=double, x=double,
                s1=double, s0=double, diff=double, sweep=Py_ssize_t, it=Py_ssize_t, settled=bint, last=bint,
                finite=bint, keep=bint, anyself=bint, converged=bint, picard_failed=bint)
-cdef void _core(const double[:, :] A, const double[:, :] B1, const double[:, :] B2, const double[:, :] C1,
-          const double[:, :] C2, const double[:, :] D11, const double[:, :] D12, const double[:, :] D21,
-          const double[:, :] D22, const double[:] tau, const double[:] lo, const double[:] hi, const double[:] ut,
-          const double[:, :] uv, const double[:] x0, const long long[:, :] Rw, const long long[:, :] Ru,
+cdef void _core(const double[:, ::1] A, const double[:, ::1] B1, const double[:, ::1] B2, const double[:, ::1] C1,
+          const double[:, ::1] C2, const double[:, ::1] D11, const double[:, ::1] D12, const double[:, ::1] D21,
+          const double[:, ::1] D22, const double[:] tau, const double[:] lo, const double[:] hi, const double[:] ut,
+          const double[:, ::1] uv, const double[:] x0, const long long[:, :] Rw, const long long[:, :] Ru,
           const long long[:] R0, const double[:] tq, bint deriv, double t_end, double hmax, double tol,
-          double[:, :] out, double[:] hist_t, double[:] hist_h, double[:, :, :] hist_c, double[:, :] bp_t,
+          double[:, :] out, double[:] hist_t, double[:] hist_h, double[:, :, ::1] hist_c, double[:, :] bp_t,
           long long[:, :] bp_o, long long[:] bp_n, double[:] jump_t, double[:, :] jump_v, double[:] info,
           double[:, ::1] FW, double[::1] F1, long long[::1] I1) noexcept nogil
 
 @cython.locals(n=Py_ssize_t, nu=Py_ssize_t, m=Py_ssize_t, ny=Py_ssize_t)
-cpdef run(const double[:, :] A, const double[:, :] B1, const double[:, :] B2, const double[:, :] C1,
-          const double[:, :] C2, const double[:, :] D11, const double[:, :] D12, const double[:, :] D21,
-          const double[:, :] D22, const double[:] tau, const double[:] lo, const double[:] hi, const double[:] ut,
-          const double[:, :] uv, const double[:] x0, const long long[:, :] Rw, const long long[:, :] Ru,
+cpdef run(const double[:, ::1] A, const double[:, ::1] B1, const double[:, ::1] B2, const double[:, ::1] C1,
+          const double[:, ::1] C2, const double[:, ::1] D11, const double[:, ::1] D12, const double[:, ::1] D21,
+          const double[:, ::1] D22, const double[:] tau, const double[:] lo, const double[:] hi, const double[:] ut,
+          const double[:, ::1] uv, const double[:] x0, const long long[:, :] Rw, const long long[:, :] Ru,
           const long long[:] R0, const double[:] tq, bint deriv, double t_end, double hmax, double tol,
-          double[:, :] out, double[:] hist_t, double[:] hist_h, double[:, :, :] hist_c, double[:, :] bp_t,
+          double[:, :] out, double[:] hist_t, double[:] hist_h, double[:, :, ::1] hist_c, double[:, :] bp_t,
           long long[:, :] bp_o, long long[:] bp_n, double[:] jump_t, double[:, :] jump_v, double[:] info)
 
 @cython.locals(njobs=Py_ssize_t, nu=Py_ssize_t, k=Py_ssize_t, tid=Py_ssize_t, sy=Py_ssize_t)
-cpdef run_batch(const double[:, :, :] A, const double[:, :, :] B1, const double[:, :, :] B2,
-                const double[:, :, :] C1, const double[:, :, :] C2, const double[:, :, :] D11,
-                const double[:, :, :] D12, const double[:, :, :] D21, const double[:, :, :] D22,
+cpdef run_batch(const double[:, :, ::1] A, const double[:, :, ::1] B1, const double[:, :, ::1] B2,
+                const double[:, :, ::1] C1, const double[:, :, ::1] C2, const double[:, :, ::1] D11,
+                const double[:, :, ::1] D12, const double[:, :, ::1] D21, const double[:, :, ::1] D22,
                 const double[:, :] tau, const double[:, :] lo, const double[:, :] hi, const double[:] ut,
-                const double[:, :, :] uvs, const double[:] x0, const long long[:, :, :] Rw,
+                const double[:, :, ::1] uvs, const double[:] x0, const long long[:, :, :] Rw,
                 const long long[:, :, :] Ru, const long long[:] R0, const double[:] tq, bint deriv, double t_end,
                 const double[:] hmax, double tol, double[:, :, :] out, double[:, :] hist_t, double[:, :] hist_h,
-                double[:, :, :, :] hist_c, double[:, :, :] bp_t, long long[:, :, :] bp_o, long long[:, :] bp_n,
+                double[:, :, :, ::1] hist_c, double[:, :, :] bp_t, long long[:, :, :] bp_o, long long[:, :] bp_n,
                 double[:, :] jump_t, double[:, :, :] jump_v, double[:, :] info, double[:, :, ::1] FW,
                 double[:, ::1] F1, long long[:, ::1] I1)

@@ -171,7 +171,7 @@ def _solve_channels(M: np.ndarray, what: str) -> np.ndarray:
         return M
     if np.linalg.cond(M) > 1e12:
         raise InvalidValueError(f"the channels without delay ({what}) form an algebraic loop that is not well "
-                                f"posed: I - D22 among them is singular (D22 = {M.round(12).tolist()} off I)")
+                                f"posed: I - D22 among them, {M.round(12).tolist()}, is singular")
     return np.linalg.inv(M)
 
 
@@ -179,14 +179,14 @@ def _eliminate(P: dict[str, np.ndarray], Z: list[int], R: list[int]) -> dict[str
     """The LFT's matrices with the channels ``Z`` closed as the identity (w_Z = z_Z), keeping channels ``R``."""
     A, B1, B2, C1, C2 = P["A"], P["B1"], P["B2"], P["C1"], P["C2"]
     D11, D12, D21, D22 = P["D11"], P["D12"], P["D21"], P["D22"]
-    Minv = _solve_channels(np.eye(len(Z)) - D22[np.ix_(Z, Z)], f"channels {Z}")
+    Minv = _solve_channels(np.eye(len(Z)) - D22[Z][:, Z], f"channels {Z}")
     Kx = Minv @ C2[Z]
     Ku = Minv @ D21[Z]
-    Kw = Minv @ D22[np.ix_(Z, R)]
-    B2Z, D12Z, D22RZ = B2[:, Z], D12[:, Z], D22[np.ix_(R, Z)]
+    Kw = Minv @ D22[Z][:, R]
+    B2Z, D12Z, D22RZ = B2[:, Z], D12[:, Z], D22[R][:, Z]
     return {"A": A + B2Z @ Kx, "B1": B1 + B2Z @ Ku, "B2": B2[:, R] + B2Z @ Kw,
             "C1": C1 + D12Z @ Kx, "D11": D11 + D12Z @ Ku, "D12": D12[:, R] + D12Z @ Kw,
-            "C2": C2[R] + D22RZ @ Kx, "D21": D21[R] + D22RZ @ Ku, "D22": D22[np.ix_(R, R)] + D22RZ @ Kw}
+            "C2": C2[R] + D22RZ @ Kx, "D21": D21[R] + D22RZ @ Ku, "D22": D22[R][:, R] + D22RZ @ Kw}
 
 
 def _rel_degree(direct: np.ndarray, C: np.ndarray, A: np.ndarray, B: np.ndarray, deg: int) -> np.ndarray:
@@ -202,7 +202,7 @@ def _rel_degree(direct: np.ndarray, C: np.ndarray, A: np.ndarray, B: np.ndarray,
     nC = float(np.abs(C).max()) if C.size else 0.0
     P = B.copy()
     norm = float(np.abs(B).max()) if B.size else 0.0
-    for r in range(1, deg + 1):
+    for r in range(1, min(deg, A.shape[0] + 1) + 1):  # (C A^k B for k >= n is a combination of the lower ones)
         if not P.size or not C.size:
             break
         G = C @ P
@@ -244,7 +244,7 @@ def _reduce(sys: Any, deg: int) -> _Reduced:
     Ru = np.full((m, sys.ninputs), deg + 1, dtype=np.int64)
     if D:
         Ru[D] = _rel_degree(L["D21"], L["C2"], L["A"], L["B1"], deg)
-    mats = [Q["A"], L["A"]]
+    mats = [Q["A"], L["A"]] if S else [Q["A"]]
     if D:  # the loop's rates with its delays set to 0, where that loop is well posed
         try:
             mats.append(_eliminate(L, list(range(len(D))), [])["A"])
@@ -395,6 +395,7 @@ def _run(red: _Reduced, ut: np.ndarray, uv: np.ndarray, x0: np.ndarray, tq: np.n
          deriv: bool = False, jumps: bool = False) -> tuple[np.ndarray, str, int, float, np.ndarray, np.ndarray]:
     """One kernel run: outputs at ``tq`` (relative to the start), status, pieces, time reached, output jumps."""
     K = _kernel()
+    c_ = np.ascontiguousarray
     deg = K.DEG
     m, ny, n = len(red.tau), red.C1.shape[0], red.A.shape[0]
     R0 = np.full(m, deg + 1, dtype=np.int64)
@@ -417,7 +418,8 @@ def _run(red: _Reduced, ut: np.ndarray, uv: np.ndarray, x0: np.ndarray, tq: np.n
         jump_t, jump_v = np.zeros(jcap), np.zeros((jcap, ny))
         info = np.zeros(K.NINFO)
         K.run(red.A, red.B1, red.B2, red.C1, red.C2, red.D11, red.D12, red.D21, red.D22, red.tau, red.lo, red.hi,
-              ut, uv, x0, red.Rw, red.Ru, R0, tq, bool(deriv), float(t_end), float(hmax), float(tol), out, hist_t,
+              c_(ut), c_(uv), c_(x0), red.Rw, red.Ru, R0, c_(tq), bool(deriv), float(t_end), float(hmax), float(tol),
+              out, hist_t,
               hist_h, hist_c, bp_t, bp_o, bp_n, jump_t, jump_v, info)
         status = int(info[0])
         if status == K.STATUS_CAPACITY and cap < MAX_PIECES:
