@@ -30,18 +30,19 @@ cdef double _tail(const double[:, :] X, Py_ssize_t n, const double[:, :] V, Py_s
 @cython.locals(i=Py_ssize_t, j=Py_ssize_t, b=double)
 cdef void _cut(double[:, :] P, Py_ssize_t rows, double xc) noexcept nogil
 
-@cython.locals(n=Py_ssize_t, nu=Py_ssize_t, m=Py_ssize_t, ny=Py_ssize_t, i=Py_ssize_t, j=Py_ssize_t,
-               k=Py_ssize_t, c=Py_ssize_t, l=Py_ssize_t, d=Py_ssize_t, o=Py_ssize_t, s=double, f=double)
-cdef void _recursion(const double[:, ::1] A, const double[:, ::1] B1, const double[:, ::1] B2, const double[:, ::1] C1,
-                     const double[:, ::1] C2, const double[:, ::1] D11, const double[:, ::1] D12, const double[:, ::1] D21,
-                     const double[:, ::1] D22, const double[:] tau, const double[:] lo, const double[:] hi,
-                     const long long[:] mode, const double[:] xa, const double[:, ::1] U, double[:, ::1] W,
-                     double[:, ::1] X, double[:, ::1] Z, double[:, ::1] V, double[:, ::1] Y, double H) noexcept nogil
+@cython.locals(w0=Py_ssize_t, i=Py_ssize_t, k=Py_ssize_t, c=Py_ssize_t, o=Py_ssize_t, q=Py_ssize_t, s=double,
+               f=double)
+cdef void _recursion(const long long[:] gp, const long long[:] gi, const double[:] gv, const long long[:] hp,
+                     const long long[:] hi_, const double[:] hv, const long long[:] jp, const long long[:] ji,
+                     const double[:] jv, Py_ssize_t n, Py_ssize_t nu, Py_ssize_t m, Py_ssize_t ny,
+                     const double[:] tau, const double[:] lo, const double[:] hi, const long long[:] mode,
+                     const double[:] xa, double[:, ::1] S, double[:, ::1] Z, double[:, ::1] V, double[:, ::1] Y,
+                     double H) noexcept nogil
 
 @cython.locals(n=Py_ssize_t, nu=Py_ssize_t, m=Py_ssize_t, ny=Py_ssize_t, nt=Py_ssize_t, nk=Py_ssize_t,
                cap=Py_ssize_t, jcap=Py_ssize_t,
                X="double[:, ::1]", U="double[:, ::1]", W="double[:, ::1]", Z="double[:, ::1]", V="double[:, ::1]",
-               Y="double[:, ::1]", Yprev="double[::1]", xa="double[::1]", work="double[::1]", tmp="double[::1]",
+               Y="double[:, ::1]", SW="double[:, ::1]", Yprev="double[::1]", xa="double[::1]", work="double[::1]", tmp="double[::1]",
                work2="double[::1]", scale="double[::1]", mode="long long[::1]", rd="long long[::1]",
                ip="long long[::1]", border="long long[::1]", selfr="long long[::1]",
                i=Py_ssize_t, c=Py_ssize_t, l=Py_ssize_t, j=Py_ssize_t, d=Py_ssize_t, o=Py_ssize_t, k0=Py_ssize_t,
@@ -55,7 +56,9 @@ cdef void _recursion(const double[:, ::1] A, const double[:, ::1] B1, const doub
                finite=bint, keep=bint, anyself=bint, converged=bint, picard_failed=bint)
 cdef void _core(const double[:, ::1] A, const double[:, ::1] B1, const double[:, ::1] B2, const double[:, ::1] C1,
           const double[:, ::1] C2, const double[:, ::1] D11, const double[:, ::1] D12, const double[:, ::1] D21,
-          const double[:, ::1] D22, const double[:] tau, const double[:] lo, const double[:] hi, const double[:] ut,
+          const double[:, ::1] D22, const long long[:] gp, const long long[:] gi, const double[:] gv,
+          const long long[:] hp, const long long[:] hi_, const double[:] hv, const long long[:] jp,
+          const long long[:] ji, const double[:] jv, const double[:] tau, const double[:] lo, const double[:] hi, const double[:] ut,
           const double[:, ::1] uv, const double[:] x0, const long long[:, :] Rw, const long long[:, :] Ru,
           const long long[:] R0, const double[:] tq, bint deriv, double t_end, double hmax, double tol,
           double[:, :] out, double[:] hist_t, double[:] hist_h, double[:, :, ::1] hist_c, double[:, :] bp_t,
@@ -65,7 +68,9 @@ cdef void _core(const double[:, ::1] A, const double[:, ::1] B1, const double[:,
 @cython.locals(n=Py_ssize_t, nu=Py_ssize_t, m=Py_ssize_t, ny=Py_ssize_t)
 cpdef run(const double[:, ::1] A, const double[:, ::1] B1, const double[:, ::1] B2, const double[:, ::1] C1,
           const double[:, ::1] C2, const double[:, ::1] D11, const double[:, ::1] D12, const double[:, ::1] D21,
-          const double[:, ::1] D22, const double[:] tau, const double[:] lo, const double[:] hi, const double[:] ut,
+          const double[:, ::1] D22, const long long[:] gp, const long long[:] gi, const double[:] gv,
+          const long long[:] hp, const long long[:] hi_, const double[:] hv, const long long[:] jp,
+          const long long[:] ji, const double[:] jv, const double[:] tau, const double[:] lo, const double[:] hi, const double[:] ut,
           const double[:, ::1] uv, const double[:] x0, const long long[:, :] Rw, const long long[:, :] Ru,
           const long long[:] R0, const double[:] tq, bint deriv, double t_end, double hmax, double tol,
           double[:, :] out, double[:] hist_t, double[:] hist_h, double[:, :, ::1] hist_c, double[:, :] bp_t,
@@ -75,7 +80,9 @@ cpdef run(const double[:, ::1] A, const double[:, ::1] B1, const double[:, ::1] 
 cpdef run_batch(const double[:, :, ::1] A, const double[:, :, ::1] B1, const double[:, :, ::1] B2,
                 const double[:, :, ::1] C1, const double[:, :, ::1] C2, const double[:, :, ::1] D11,
                 const double[:, :, ::1] D12, const double[:, :, ::1] D21, const double[:, :, ::1] D22,
-                const double[:, :] tau, const double[:, :] lo, const double[:, :] hi, const double[:] ut,
+                const long long[:, :] gp, const long long[:, :] gi, const double[:, :] gv, const long long[:, :] hp,
+                const long long[:, :] hi_, const double[:, :] hv, const long long[:, :] jp, const long long[:, :] ji,
+                const double[:, :] jv, const double[:, :] tau, const double[:, :] lo, const double[:, :] hi, const double[:] ut,
                 const double[:, :, ::1] uvs, const double[:] x0, const long long[:, :, :] Rw,
                 const long long[:, :, :] Ru, const long long[:] R0, const double[:] tq, bint deriv, double t_end,
                 const double[:] hmax, double tol, double[:, :, :] out, double[:, :] hist_t, double[:, :] hist_h,

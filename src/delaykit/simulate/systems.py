@@ -164,6 +164,18 @@ class _Reduced:
     C2L: np.ndarray
     hmax: float
 
+    def csr(self) -> tuple[np.ndarray, ...]:
+        """``[A B1 B2]``, ``[C2 D21 D22]``, ``[C1 D11 D12]`` as compressed rows (pointers, columns, values each),
+        the kernel's form of them (its sums skip the zero terms)."""
+        out: list[np.ndarray] = []
+        for M in (np.hstack([self.A, self.B1, self.B2]), np.hstack([self.C2, self.D21, self.D22]),
+                  np.hstack([self.C1, self.D11, self.D12])):
+            rows, cols = np.nonzero(M)
+            ptr = np.zeros(M.shape[0] + 1, dtype=np.int64)
+            np.cumsum(np.bincount(rows, minlength=M.shape[0]), out=ptr[1:])
+            out += [ptr, cols.astype(np.int64), np.ascontiguousarray(M[rows, cols], dtype=float)]
+        return tuple(out)
+
 
 def _solve_channels(M: np.ndarray, what: str) -> np.ndarray:
     """``M^-1`` for ``M = I - D22`` of channels without delay, or an error saying the loop is not well posed."""
@@ -408,6 +420,7 @@ def _run(red: _Reduced, ut: np.ndarray, uv: np.ndarray, x0: np.ndarray, tq: np.n
     tol = 64.0 * np.finfo(float).eps * max(1.0, t_end)
     hmax = min(red.hmax, max(t_end, 1e-300))
     cap = min(1024, MAX_PIECES)
+    csr = red.csr()
     while True:
         out = np.full((ny, tq.size), np.nan)
         hist_t, hist_h = np.zeros(cap), np.zeros(cap)
@@ -417,10 +430,9 @@ def _run(red: _Reduced, ut: np.ndarray, uv: np.ndarray, x0: np.ndarray, tq: np.n
         jcap = cap if jumps else 0
         jump_t, jump_v = np.zeros(jcap), np.zeros((jcap, ny))
         info = np.zeros(K.NINFO)
-        K.run(red.A, red.B1, red.B2, red.C1, red.C2, red.D11, red.D12, red.D21, red.D22, red.tau, red.lo, red.hi,
-              c_(ut), c_(uv), c_(x0), red.Rw, red.Ru, R0, c_(tq), bool(deriv), float(t_end), float(hmax), float(tol),
-              out, hist_t,
-              hist_h, hist_c, bp_t, bp_o, bp_n, jump_t, jump_v, info)
+        K.run(red.A, red.B1, red.B2, red.C1, red.C2, red.D11, red.D12, red.D21, red.D22, *csr, red.tau, red.lo,
+              red.hi, c_(ut), c_(uv), c_(x0), red.Rw, red.Ru, R0, c_(tq), bool(deriv), float(t_end), float(hmax),
+              float(tol), out, hist_t, hist_h, hist_c, bp_t, bp_o, bp_n, jump_t, jump_v, info)
         status = int(info[0])
         if status == K.STATUS_CAPACITY and cap < MAX_PIECES:
             cap *= 4
@@ -717,8 +729,17 @@ def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
 
         nth = max(1, os.cpu_count() or 1)
         cap = _BATCH_CAP
+        csrs = [r.csr() for r in reds]
+        packed = []  # each system's compressed rows, the columns and values padded to the longest
+        for q in range(9):
+            parts = [c[q] for c in csrs]
+            width = max(1, max(p.size for p in parts))
+            arr = np.zeros((ns, width), dtype=parts[0].dtype)
+            for k, p in enumerate(parts):
+                arr[k, :p.size] = p
+            packed.append(arr)
         K.run_batch(stack["A"], stack["B1"], stack["B2"], stack["C1"], stack["C2"], stack["D11"], stack["D12"],
-                    stack["D21"], stack["D22"], stack["tau"], stack["lo"], stack["hi"], np.zeros(1), uvs,
+                    stack["D21"], stack["D22"], *packed, stack["tau"], stack["lo"], stack["hi"], np.zeros(1), uvs,
                     np.zeros(n), stack["Rw"], stack["Ru"], R0, t, False, t_end, hmax, tol, out,
                     np.zeros((nth, cap)), np.zeros((nth, cap)), np.zeros((nth, cap, m, K.NC)),
                     np.zeros((nth, m, cap)), np.zeros((nth, m, cap), dtype=np.int64),
