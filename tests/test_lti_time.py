@@ -82,6 +82,12 @@ def test_impulse_regular_part_and_dirac_terms():
     np.testing.assert_allclose(r.outputs[0, 0], [3.0, 3.0 * math.exp(-2.0)], atol=1e-13)
 
 
+def test_a_response_at_zero_only_is_the_right_limit():
+    # y(0+) = D for a step into ss(A, B, C, D) (python-control's step_response gives D at 0 too)
+    r = ss([[-1.0]], [[1.0]], [[1.0]], [[0.5]]).step([0.0])
+    assert r.status == "exact" and r.outputs.tolist() == [[[0.5]]]
+
+
 def test_initial_and_forced_closed_forms():
     # x' = -x, x(0) = 2: 2 exp(-t); the delay line is empty before 0
     r = initial_response(ss([[-1.0]], [[0.0]], [[1.0]], [[0.0]]), [0.0, 1.0, 2.0], X0=2.0)

@@ -417,8 +417,10 @@ def _run(red: _Reduced, ut: np.ndarray, uv: np.ndarray, x0: np.ndarray, tq: np.n
             hit = (np.abs(red.C2L @ v) > 0.0) & (R0 > r)
             R0[hit] = r
             v = red.AL @ v
+    if not t_end > 0.0:
+        t_end = 1.0  # (times at 0 only: the right limits there, from a first piece)
     tol = 64.0 * np.finfo(float).eps * max(1.0, t_end)
-    hmax = min(red.hmax, max(t_end, 1e-300))
+    hmax = min(red.hmax, t_end)
     cap = min(1024, MAX_PIECES)
     csr = red.csr()
     while True:
@@ -716,11 +718,11 @@ def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
     ns, nu, ny = len(systems), first.ninputs, first.noutputs
     out = np.full((ns * nu, ny, t.size), np.nan)
     info = np.zeros((ns * nu, K.NINFO))
-    t_end = float(t[-1])
+    t_end = float(t[-1]) if t[-1] > 0 else 1.0  # (times at 0 only: the right limits there, from a first piece)
     tol = 64.0 * np.finfo(float).eps * max(1.0, t_end)
     stack = {k: np.ascontiguousarray(np.stack([getattr(r, k) for r in reds]))
              for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21", "D22", "tau", "lo", "hi", "Rw", "Ru")}
-    hmax = np.array([min(r.hmax, max(t_end, 1e-300)) for r in reds])
+    hmax = np.array([min(r.hmax, t_end) for r in reds])
     uvs = np.eye(nu).reshape(nu, 1, nu).copy()
     m, n = len(reds[0].tau), first.nstates
     R0 = np.full(m, K.DEG + 1, dtype=np.int64)
