@@ -143,8 +143,8 @@ class SystemTimeResponse:
 
 @dataclass(frozen=True)
 class _Reduced:
-    """The system with its linear channels without delay eliminated: channels ``keep`` of the original (delayed,
-    or saturations without delay), their matrices, and what the kernel needs besides."""
+    """The system with its linear channels without delay eliminated (the channels left are the delayed ones and
+    the saturations without delay, in the original order), and what the kernel needs besides."""
 
     A: np.ndarray
     B1: np.ndarray
