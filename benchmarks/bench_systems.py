@@ -134,7 +134,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     r1 = rows[1]
     table.add_row(r1["case"], f"{r1['wall_s']:.2f} s wall, {r1['cpu_s']:.2f} s CPU", "", "",
                   f"{r1['threads']} threads, load {r1['load']:.1f}; building the systems {r1['build_s']:.1f} s "
-                  f"(not timed); {r1['not_exact']} not exact; equal to one by one within {r1['difference_from_one_by_one']:.0e}")
+                  f"(not timed); {r1['not_exact']} not exact; equal to one by one within "
+                  f"{r1['difference_from_one_by_one']:.0e}")
     console.print(table)
     result = {"rows": rows}
     if args.json:

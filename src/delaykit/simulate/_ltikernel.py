@@ -60,8 +60,8 @@ if cython.compiled:  # C's own functions (Cython turns these imports into cimpor
 else:  # (prange and threadid: run_batch, their one user, is called in compiled mode only)
     from math import fabs, isfinite
 
-__all__ = ["run", "run_batch", "DEG", "NC", "NINFO", "STATUS_OK", "STATUS_CAPACITY", "STATUS_STALLED", "STATUS_OVERFLOW",
-           "COMPILED"]
+__all__ = ["run", "run_batch", "DEG", "NC", "NINFO", "STATUS_OK", "STATUS_CAPACITY", "STATUS_STALLED",
+           "STATUS_OVERFLOW", "COMPILED"]
 
 COMPILED: bool = cython.compiled
 """Whether this module is the extension module Cython built (False: this file, run by Python or numba)."""
