@@ -90,6 +90,16 @@ class SystemTimeResponse:
         delayed images (a path from the input to the output without any state).  They are not in
         :attr:`outputs`, which hold the regular part (python-control drops ``D`` with a warning; here it is kept,
         apart).
+
+    Examples
+    --------
+    >>> from delaykit import tf
+    >>> r = tf("exp(-s)/(s+1)", inputs="u", outputs="y").step([0.0, 2.0])
+    >>> r
+    SystemTimeResponse(step: 1 output x 1 input at 2 times, 0 to 2 s, exact, 2 pieces)
+    >>> t, y = r                       # unpacks as python-control's response
+    >>> y.round(6).tolist(), r.output_labels
+    ([[[0.0, 0.632121]]], ('y',))
     """
 
     time: np.ndarray
