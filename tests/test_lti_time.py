@@ -273,6 +273,17 @@ def test_neutral_strongly_stable_against_dop853():
     np.testing.assert_allclose(r.outputs[0, 0], _neutral_oracle(t, 0.4), rtol=0, atol=1e-9)
 
 
+def test_neutral_tiny_delay_tends_to_the_delay_free_loop():
+    # reference: the same loop with the delay 0 (python-control-exact delay-free run); the difference is O(tau)
+    # (the step's jump fades through 0.4^k images, each tau later), and the tiny delay costs few pieces
+    t = np.linspace(0.0, 8.0, 17)
+    r0 = feedback(tf("1/(s+1)") + tf("0.4"), 1).step(t).outputs
+    for tau in (1e-3, 1e-6):
+        r = feedback(tf("1/(s+1)") + tf(f"0.4*exp(-{tau}*s)"), 1).step(t)
+        assert r.status == "exact" and r.pieces < 100
+        assert np.abs(r.outputs - r0)[..., 1:].max() < 0.2 * tau
+
+
 def test_neutral_not_strongly_stable_is_refused():
     sys = feedback(tf("1/(s+1)") + tf("1.5*exp(-0.5*s)"), 1)    # e = 1 - x - 1.5 e(t - 0.5): jumps grow
     with pytest.raises(InvalidValueError, match="not strongly stable"):
