@@ -214,25 +214,57 @@ def _eliminate(P: dict[str, np.ndarray], Z: list[int], R: list[int]) -> dict[str
 def _rel_degree(direct: np.ndarray, C: np.ndarray, A: np.ndarray, B: np.ndarray, deg: int) -> np.ndarray:
     """``R[i, j]``: 0 where ``direct[i, j] != 0``, else the least ``r >= 1`` with ``(C A^(r-1) B)[i, j] != 0``
     (``deg + 1`` when none up to ``deg``): the lowest derivative of output ``i`` that a jump of input ``j``
-    moves."""
+    moves.  One system's matrices, or stacks of them (leading axes)."""
     R = np.full(direct.shape, deg + 1, dtype=np.int64)
     if R.size == 0:
         return R
-    scale = (np.abs(direct).max() if direct.size else 0.0) + 1.0
-    R[np.abs(direct) > 1e-14 * scale] = 0
-    nA = max(float(np.abs(A).max()) if A.size else 0.0, 1e-300)
-    nC = float(np.abs(C).max()) if C.size else 0.0
+
+    def big(x: np.ndarray) -> np.ndarray:  # the largest entry of each matrix of a stack
+        return np.abs(x).max(axis=(-2, -1), keepdims=True) if x.size else np.zeros(x.shape[:-2] + (1, 1))
+
+    R[np.abs(direct) > 1e-14 * (big(direct) + 1.0)] = 0
+    n = A.shape[-1]
+    nA, nC, norm = np.maximum(big(A), 1e-300), big(C), big(B)
     P = B.copy()
-    norm = float(np.abs(B).max()) if B.size else 0.0
-    for r in range(1, min(deg, A.shape[0] + 1) + 1):  # (C A^k B for k >= n is a combination of the lower ones)
+    for r in range(1, min(deg, n + 1) + 1):  # (C A^k B for k >= n is a combination of the lower ones)
         if not P.size or not C.size:
             break
         G = C @ P
-        hit = (np.abs(G) > 1e-13 * max(nC * norm * A.shape[0], 1e-300)) & (R > r)
+        hit = (np.abs(G) > 1e-13 * np.maximum(nC * norm * n, 1e-300)) & (R > r)
         R[hit] = r
         P = A @ P
-        norm *= nA
+        norm = norm * nA
     return R
+
+
+def _reduce_many(systems: list[Any], deg: int) -> list[_Reduced]:
+    """:func:`_reduce` of each system, the work done on stacks of their matrices where every channel of every
+    system has a delay and no limits (a parameter sweep of a linear loop); one by one otherwise."""
+    if any(0.0 in sysk.delays or sysk.saturations for sysk in systems):
+        return [_reduce(sysk, deg) for sysk in systems]
+    P = {k: np.stack([np.asarray(getattr(sysk, k), float) for sysk in systems])
+         for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21", "D22")}
+    tau = np.array([sysk.delays for sysk in systems], float)
+    ns, m, n = len(systems), tau.shape[1], P["A"].shape[1]
+    for k in np.flatnonzero(np.abs(P["D22"]).reshape(ns, -1).max(axis=1, initial=0.0) > 0.0):
+        _check_neutral(P["D22"][k], list(range(m)), tau[k])
+    Rw = _rel_degree(P["D22"], P["C2"], P["A"], P["B2"], deg)
+    Ru = _rel_degree(P["D21"], P["C2"], P["A"], P["B1"], deg)
+    rate = np.max(np.abs(np.linalg.eigvals(P["A"])), axis=-1) if n else np.zeros(ns)
+    if m and n:  # the loop with its delays at 0, where it is well posed (as _reduce)
+        M = np.eye(m) - P["D22"]
+        ok = np.linalg.cond(M) <= 1e12
+        if ok.any():
+            A0 = P["A"][ok] + P["B2"][ok] @ (np.linalg.inv(M[ok]) @ P["C2"][ok])
+            rate[ok] = np.maximum(rate[ok], np.max(np.abs(np.linalg.eigvals(A0)), axis=-1))
+    lim = np.full(m, math.inf)
+    out = []
+    for k in range(ns):
+        mats = {key: np.ascontiguousarray(v[k]) for key, v in P.items()}
+        out.append(_Reduced(**mats, tau=np.ascontiguousarray(tau[k]), lo=-lim, hi=lim.copy(), Rw=Rw[k],
+                            Ru=Ru[k], AL=mats["A"], C2L=mats["C2"],
+                            hmax=1.0 / rate[k] if rate[k] > 0.0 else math.inf))
+    return out
 
 
 def _reduce(sys: Any, deg: int) -> _Reduced:
@@ -714,7 +746,6 @@ def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
     first = systems[0]
     t = _default_times(first, T)
     K = _kernel()
-    reds = []
     for k, sysk in enumerate(systems):
         shape = (sysk.nstates, sysk.ninputs, sysk.noutputs, sysk.ndelays)
         if shape != (first.nstates, first.ninputs, first.noutputs, first.ndelays) or \
@@ -722,7 +753,7 @@ def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
             raise InvalidValueError(f"system {k} ({sysk!r}) is not of the first one's shape ({first!r}): the same "
                                     "numbers of states, inputs, outputs and delay channels, and the same channels "
                                     "without delay, are needed")
-        reds.append(_reduce(sysk, K.DEG))
+    reds = _reduce_many(systems, K.DEG)
     if len({len(r.tau) for r in reds}) > 1 or len({tuple(np.isfinite(r.lo) | np.isfinite(r.hi)) for r in reds}) > 1:
         raise InvalidValueError("the systems' saturation channels differ: give systems of one structure")
     ns, nu, ny = len(systems), first.ninputs, first.noutputs
