@@ -413,6 +413,12 @@ def test_step_response_many_equals_one_by_one():
         assert r.pieces[k] == one.pieces and r[k].status == "exact"
     assert "\n" not in repr(r)
     json.dumps(r.to_dict(), allow_nan=False)
+    neutral = [feedback(tf("1/(s+1)") + tf(f"{d}*exp(-0.5*s)"), 1) for d in (0.2, 0.4)]
+    r = step_response_many(neutral, t[:41])
+    for k, sysk in enumerate(neutral):
+        np.testing.assert_array_equal(r.outputs[k], sysk.step(t[:41]).outputs)
+    with pytest.raises(InvalidValueError, match="not strongly stable"):
+        step_response_many(neutral + [feedback(tf("1/(s+1)") + tf("1.5*exp(-0.5*s)"), 1)], [1.0])
     sat = [feedback(tf("1/s") * delay(0.368) * saturation(-1, 1) * kp, 1) for kp in (0.8, 1.31)]
     r = step_response_many(sat, t[:41])
     for k, sysk in enumerate(sat):
