@@ -82,6 +82,12 @@ def test_impulse_regular_part_and_dirac_terms():
     np.testing.assert_allclose(r.outputs[0, 0], [3.0, 3.0 * math.exp(-2.0)], atol=1e-13)
 
 
+def test_a_response_at_zero_only_is_the_right_limit():
+    # y(0+) = D for a step into ss(A, B, C, D) (python-control's step_response gives D at 0 too)
+    r = ss([[-1.0]], [[1.0]], [[1.0]], [[0.5]]).step([0.0])
+    assert r.status == "exact" and r.outputs.tolist() == [[[0.5]]]
+
+
 def test_initial_and_forced_closed_forms():
     # x' = -x, x(0) = 2: 2 exp(-t); the delay line is empty before 0
     r = initial_response(ss([[-1.0]], [[0.0]], [[1.0]], [[0.0]]), [0.0, 1.0, 2.0], X0=2.0)
@@ -89,6 +95,21 @@ def test_initial_and_forced_closed_forms():
     # the integral of a ramp-then-hold input one second late (closed form)
     r = tf("exp(-s)/s").lsim([0.0, 1.0, 2.0, 3.0], [0.0, 1.0, 1.0, 1.0])
     np.testing.assert_allclose(r.outputs[0], [0.0, 0.0, 0.5, 1.5], atol=1e-14)
+
+
+def test_initial_response_through_a_delayed_loop_by_hand():
+    # y' = -y - y(t - 1) with the delay line empty before 0, y(0) = 1 (feedback(exp(-s)/(s+1), 1), r = 0):
+    # y = exp(-t) on [0, 1]; y' = -y - exp(-(t - 1)) on [1, 2], so y = exp(-(t - 1)) (exp(-1) - (t - 1))
+    r = feedback(tf("exp(-s)/(s+1)"), 1).initial([0.5, 1.0, 1.5, 2.0], X0=1.0)
+    exact = [math.exp(-0.5), math.exp(-1), math.exp(-0.5) * (math.exp(-1) - 0.5), math.exp(-1) * (math.exp(-1) - 1)]
+    np.testing.assert_allclose(r.outputs[0], exact, atol=1e-14)
+
+
+def test_forced_response_of_a_saturated_loop_is_its_step_when_held():
+    # the same run twice: U = 1 held, given as samples (forced), and the unit step
+    sys = feedback(tf("1/s") * delay(0.368) * saturation(-1, 1) * 1.31, 1)
+    t = np.linspace(0.0, 10.0, 51)
+    np.testing.assert_allclose(sys.lsim(t, np.ones(t.size)).outputs[0], sys.step(t).outputs[0, 0], atol=1e-14)
 
 
 # -- python-control, every delay 0 ---------------------------------------------------------------------------------
@@ -252,6 +273,17 @@ def test_neutral_strongly_stable_against_dop853():
     np.testing.assert_allclose(r.outputs[0, 0], _neutral_oracle(t, 0.4), rtol=0, atol=1e-9)
 
 
+def test_neutral_tiny_delay_tends_to_the_delay_free_loop():
+    # reference: the same loop with the delay 0 (python-control-exact delay-free run); the difference is O(tau)
+    # (the step's jump fades through 0.4^k images, each tau later), and the tiny delay costs few pieces
+    t = np.linspace(0.0, 8.0, 17)
+    r0 = feedback(tf("1/(s+1)") + tf("0.4"), 1).step(t).outputs
+    for tau in (1e-3, 1e-6):
+        r = feedback(tf("1/(s+1)") + tf(f"0.4*exp(-{tau}*s)"), 1).step(t)
+        assert r.status == "exact" and r.pieces < 100
+        assert np.abs(r.outputs - r0)[..., 1:].max() < 0.2 * tau
+
+
 def test_neutral_not_strongly_stable_is_refused():
     sys = feedback(tf("1/(s+1)") + tf("1.5*exp(-0.5*s)"), 1)    # e = 1 - x - 1.5 e(t - 0.5): jumps grow
     with pytest.raises(InvalidValueError, match="not strongly stable"):
@@ -362,3 +394,41 @@ def test_kernel_modes_agree_with_plain_python(monkeypatch, mode):
         results[m] = [s.step(t).outputs for s in systems] + [systems[0].impulse(t).outputs]
     for a, b in zip(results["python"], results[mode]):
         np.testing.assert_allclose(b, a, rtol=0, atol=1e-12)
+
+
+# -- many systems -----------------------------------------------------------------------------------------------
+
+def test_step_response_many_equals_one_by_one():
+    # reference: step_response of each system (the parallel run must change nothing)
+    from delaykit.simulate.systems import step_response_many
+
+    rng = np.random.default_rng(3)
+    loops = [wood_berry_pi(kc=(0.375 * rng.uniform(0.7, 1.3), -0.075 * rng.uniform(0.7, 1.3))) for _ in range(6)]
+    t = np.linspace(0.0, 60.0, 121)
+    r = step_response_many(loops, t)
+    assert r.outputs.shape == (6, 2, 2, 121) and r.status == ("exact",) * 6 and len(r) == 6
+    for k, sysk in enumerate(loops):
+        one = sysk.step(t)
+        np.testing.assert_array_equal(r.outputs[k], one.outputs)
+        assert r.pieces[k] == one.pieces and r[k].status == "exact"
+    assert "\n" not in repr(r)
+    json.dumps(r.to_dict(), allow_nan=False)
+    neutral = [feedback(tf("1/(s+1)") + tf(f"{d}*exp(-0.5*s)"), 1) for d in (0.2, 0.4)]
+    r = step_response_many(neutral, t[:41])
+    for k, sysk in enumerate(neutral):
+        np.testing.assert_array_equal(r.outputs[k], sysk.step(t[:41]).outputs)
+    with pytest.raises(InvalidValueError, match="not strongly stable"):
+        step_response_many(neutral + [feedback(tf("1/(s+1)") + tf("1.5*exp(-0.5*s)"), 1)], [1.0])
+    sat = [feedback(tf("1/s") * delay(0.368) * saturation(-1, 1) * kp, 1) for kp in (0.8, 1.31)]
+    r = step_response_many(sat, t[:41])
+    for k, sysk in enumerate(sat):
+        np.testing.assert_array_equal(r.outputs[k], sysk.step(t[:41]).outputs)
+
+
+def test_step_response_many_refuses_mixed_shapes():
+    from delaykit.simulate.systems import step_response_many
+
+    with pytest.raises(InvalidValueError, match="shape"):
+        step_response_many([tf("exp(-s)/(s+1)"), tf("exp(-s)/(s+1)^2")], [1.0])
+    with pytest.raises(InvalidValueError, match="empty"):
+        step_response_many([], [1.0])

@@ -30,7 +30,8 @@ _SOURCES = {
     "varying": ["DelayModel", "DelaySchedule", "Jitter", "Burst", "DelayTrace", "CombinedDelay", "as_delay_model",
                 "arrival_plan", "VaryingResponse", "simulate_varying"],
     "montecarlo": ["MonteCarlo", "monte_carlo", "DelayDistribution"],
-    "systems": ["SystemTimeResponse", "step_response", "impulse_response", "initial_response", "forced_response"],
+    "systems": ["SystemTimeResponse", "step_response", "impulse_response", "initial_response", "forced_response",
+                "step_response_many", "BatchTimeResponse"],
 }
 
 __all__ = [
@@ -39,6 +40,7 @@ __all__ = [
     "DelayModel", "DelaySchedule", "Jitter", "Burst", "DelayTrace", "CombinedDelay", "as_delay_model", "arrival_plan",
     "VaryingResponse", "simulate_varying", "MonteCarlo", "monte_carlo", "DelayDistribution",
     "SystemTimeResponse", "step_response", "impulse_response", "initial_response", "forced_response",
+    "step_response_many", "BatchTimeResponse",
 ]
 
 

@@ -54,13 +54,14 @@ except ImportError:  # plain Python without Cython installed: only ``cython.comp
 
     cython = SimpleNamespace(compiled=False)
 
-if cython.compiled:  # C's own functions (Cython turns these imports into cimports)
+if cython.compiled:  # C's own functions (Cython turns these imports into cimports), OpenMP's threads
     from cython.cimports.libc.math import fabs, isfinite
-else:
+    from cython.parallel import prange, threadid
+else:  # (prange and threadid: run_batch, their one user, is called in compiled mode only)
     from math import fabs, isfinite
 
-__all__ = ["run", "DEG", "NC", "NINFO", "STATUS_OK", "STATUS_CAPACITY", "STATUS_STALLED", "STATUS_OVERFLOW",
-           "COMPILED"]
+__all__ = ["run", "run_batch", "DEG", "NC", "NINFO", "STATUS_OK", "STATUS_CAPACITY", "STATUS_STALLED",
+           "STATUS_OVERFLOW", "COMPILED"]
 
 COMPILED: bool = cython.compiled
 """Whether this module is the extension module Cython built (False: this file, run by Python or numba)."""
@@ -81,6 +82,7 @@ _STALLED = 2
 _OVERFLOW = 3
 
 _EPS = 2.220446049250313e-16
+_NAN = float("nan")
 _JUMP = 16.0 * _EPS  # a breakpoint's jump, relative to its channel's scale, below which it is not imaged
 _LIN = 0
 _HIGH = 1
@@ -174,16 +176,53 @@ def _add_bp(bp_t, bp_o, bp_n, c, t, order, tol):
     return True
 
 
-def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, R0, tq, deriv, t_end, hmax,
-        tol, out, hist_t, hist_h, hist_c, bp_t, bp_o, bp_n, jump_t, jump_v, info):
+def run(A, B1, B2, C1, C2, D11, D12, D21, D22, gp, gi, gv, hp, hi_, hv, jp, ji, jv, tau, lo, hi, ut, uv, x0, Rw, Ru,
+        R0, tq, deriv, t_end, hmax, tol, out, hist_t, hist_h, hist_c, bp_t, bp_o, bp_n, jump_t, jump_v, info):
     """Integrate the reduced system from 0 to ``t_end``; write ``out[:, k]`` (the outputs, or their derivative
     when ``deriv``) at the sorted times ``tq`` and the jumps of the outputs into ``jump_t``/``jump_v``.
 
     ``tau``, ``lo``, ``hi``: each channel's delay and limits (+-inf: none); ``ut``, ``uv``: the inputs' knots and
     values there (piecewise linear, held after the last, 0 before 0); ``Rw[i, c]``: relative degree from ``W_c``
     to ``V_i`` (``> DEG``: no path), ``Ru[i, l]`` from input ``l``, ``R0[i]`` from the initial state;
-    ``hist_*``, ``bp_*``: work space whose size bounds the pieces and breakpoints (status CAPACITY when full).
-    ``info``: status, pieces, jumps recorded, the time reached."""
+    ``gp, gi, gv`` (and ``hp...``, ``jp...``): ``[A B1 B2]`` (``[C2 D21 D22]``, ``[C1 D11 D12]``) as compressed rows
+    (see :func:`_recursion`); ``hist_*``, ``bp_*``: work space whose size bounds the pieces and breakpoints (status
+    CAPACITY when full).  ``info``: status, pieces, jumps recorded, the time reached."""
+    n = A.shape[0]
+    nu = B1.shape[1]
+    m = B2.shape[1]
+    ny = C1.shape[0]
+    FW = np.zeros((n + nu + 3 * m + ny, _NC))
+    F1 = np.zeros(ny + n + 3 * _NC + m)
+    I1 = np.zeros(5 * m, dtype=np.int64)
+    _core(A, B1, B2, C1, C2, D11, D12, D21, D22, gp, gi, gv, hp, hi_, hv, jp, ji, jv, tau, lo, hi, ut, uv, x0, Rw,
+          Ru, R0, tq, deriv, t_end, hmax, tol, out, hist_t, hist_h, hist_c, bp_t, bp_o, bp_n, jump_t, jump_v, info,
+          FW, F1, I1)
+
+
+def run_batch(A, B1, B2, C1, C2, D11, D12, D21, D22, gp, gi, gv, hp, hi_, hv, jp, ji, jv, tau, lo, hi, ut, uvs, x0,
+              Rw, Ru, R0, tq, deriv, t_end, hmax, tol, out, hist_t, hist_h, hist_c, bp_t, bp_o, bp_n, jump_t, jump_v,
+              info, FW, F1, I1):
+    """Step responses of many systems of one shape in parallel threads (compiled mode only; the other modes call
+    :func:`run` per job): job ``k`` is system ``k // nu``'s response to the inputs ``uvs[k % nu]``, written to
+    ``out[k]`` and ``info[k]``.  The system arrays have a leading system axis; the work arrays (``hist_*``,
+    ``bp_*``, ``jump_*``, ``FW``, ``F1``, ``I1``) a leading thread axis."""
+    njobs = out.shape[0]
+    nu = B1.shape[2]
+    for k in prange(njobs, nogil=True, schedule="dynamic"):  # noqa: F821 (compiled mode only)
+        tid = threadid()  # noqa: F821
+        sy = k // nu
+        _core(A[sy], B1[sy], B2[sy], C1[sy], C2[sy], D11[sy], D12[sy], D21[sy], D22[sy], gp[sy], gi[sy], gv[sy],
+              hp[sy], hi_[sy], hv[sy], jp[sy], ji[sy], jv[sy], tau[sy], lo[sy], hi[sy], ut, uvs[k % nu], x0,
+              Rw[sy], Ru[sy], R0, tq, deriv, t_end, hmax[sy], tol, out[k], hist_t[tid],
+              hist_h[tid], hist_c[tid], bp_t[tid], bp_o[tid], bp_n[tid], jump_t[tid], jump_v[tid], info[k],
+              FW[tid], F1[tid], I1[tid])
+
+
+def _core(A, B1, B2, C1, C2, D11, D12, D21, D22, gp, gi, gv, hp, hi_, hv, jp, ji, jv, tau, lo, hi, ut, uv, x0, Rw,
+          Ru, R0, tq, deriv, t_end, hmax, tol, out, hist_t, hist_h, hist_c, bp_t, bp_o, bp_n, jump_t, jump_v, info,
+          FW, F1, I1):
+    """:func:`run`'s work, with its work space given: ``FW`` (n + nu + 3 m + ny rows of NC), ``F1`` (ny + n +
+    3 NC + m numbers), ``I1`` (5 m integers); allocates nothing (so that threads can run it without the GIL)."""
     n = A.shape[0]
     nu = B1.shape[1]
     m = B2.shape[1]
@@ -192,27 +231,37 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
     nk = ut.shape[0]
     cap = hist_t.shape[0]
     jcap = jump_t.shape[0]
-    X = np.zeros((n, _NC))
-    U = np.zeros((nu, _NC))
-    W = np.zeros((m, _NC))
-    Z = np.zeros((m, _NC))
-    V = np.zeros((m, _NC))
-    Y = np.zeros((ny, _NC))
-    Yprev = np.zeros(ny)
-    xa = np.zeros(n)
-    work = np.zeros(_NC)
-    tmp = np.zeros(_NC)
-    work2 = np.zeros(_NC)
-    mode = np.zeros(m, dtype=np.int64)
-    rd = np.zeros(m, dtype=np.int64)  # read pointer into the history, per channel
-    ip = np.zeros(m, dtype=np.int64)  # next breakpoint to image, per channel
-    scale = np.zeros(m)
-    border = np.full(m, _DEG + 1, dtype=np.int64)  # orders of the breakpoints at the piece's start
+    SW = FW[0:n + nu + m, :]  # the states', inputs' and channels' coefficients, one block (see _recursion)
+    X = FW[0:n, :]
+    U = FW[n:n + nu, :]
+    W = FW[n + nu:n + nu + m, :]
+    Z = FW[n + nu + m:n + nu + 2 * m, :]
+    V = FW[n + nu + 2 * m:n + nu + 3 * m, :]
+    Y = FW[n + nu + 3 * m:n + nu + 3 * m + ny, :]
+    Yprev = F1[0:ny]
+    xa = F1[ny:ny + n]
+    work = F1[ny + n:ny + n + _NC]
+    tmp = F1[ny + n + _NC:ny + n + 2 * _NC]
+    work2 = F1[ny + n + 2 * _NC:ny + n + 3 * _NC]
+    scale = F1[ny + n + 3 * _NC:ny + n + 3 * _NC + m]
+    mode = I1[0:m]
+    rd = I1[m:2 * m]  # read pointer into the history, per channel
+    ip = I1[2 * m:3 * m]  # next breakpoint to image, per channel
+    border = I1[3 * m:4 * m]  # orders of the breakpoints at the piece's start
+    selfr = I1[4 * m:5 * m]
+    for o in range(ny):
+        Yprev[o] = 0.0
+    for c in range(m):
+        mode[c] = _LIN
+        rd[c] = 0
+        ip[c] = 0
+        border[c] = _DEG + 1
+        selfr[c] = 0
+        scale[c] = 0.0
     for i in range(n):
         xa[i] = x0[i]
     for c in range(m):
         bp_n[c] = 0
-    selfr = np.zeros(m, dtype=np.int64)
     anyself = False
     status = _OK
     hcap = hmax
@@ -308,7 +357,7 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
                 if s >= -tol and pieces > 0:
                     q = rd[c]
                     alpha = (s - hist_t[q]) / hist_h[q]
-                    if alpha < 0.0:
+                    if alpha < 1e-13:  # (a read from a stored piece's start, to rounding: no Taylor shift)
                         alpha = 0.0
                     beta = H / hist_h[q]
                     for j in range(_NC):
@@ -344,7 +393,7 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
         picard_failed = False
         while tries < _MODE_TRIES:
             tries += 1
-            _recursion(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, mode, xa, U, W, X, Z, V, Y, H)
+            _recursion(gp, gi, gv, hp, hi_, hv, jp, ji, jv, n, nu, m, ny, tau, lo, hi, mode, xa, SW, Z, V, Y, H)
             if anyself:
                 converged = False
                 for it in range(_PICARD):
@@ -363,7 +412,7 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
                                 W[c, j] = work[j]
                             if dj > _PICARD_TOL * (big + scale[c]):
                                 diff = 1.0
-                    _recursion(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, mode, xa, U, W, X, Z, V, Y, H)
+                    _recursion(gp, gi, gv, hp, hi_, hv, jp, ji, jv, n, nu, m, ny, tau, lo, hi, mode, xa, SW, Z, V, Y, H)
                     if diff == 0.0:
                         converged = True
                         break
@@ -449,6 +498,24 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
                 if L > 1e6 * H or (pieces > 0 and L > 1e6 * hist_h[pieces - 1]):
                     keep = True  # pieces far shorter than the window: not measured (the breakpoint is kept)
                 elif pieces > 0 and hist_t[pieces - 1] + hist_h[pieces - 1] >= a - tol:
+                    hl = hist_h[pieces - 1]
+                    # the jump of the breakpoint's own order first (one derivative): usually it is the answer
+                    k0 = border[c]
+                    b = 1.0  # C(j, k0)
+                    dj = 0.0
+                    for j in range(k0, _NC):
+                        dj += b * hist_c[pieces - 1, c, j]
+                        b = b * (j + 1) / (j + 1 - k0)
+                    r = L / hl
+                    x = L / H
+                    beta = 1.0
+                    alpha = 1.0
+                    for j in range(k0):
+                        beta *= r
+                        alpha *= x
+                    if fabs(V[c, k0] * alpha - dj * beta) > _JUMP * scale[c]:
+                        keep = True
+                if not keep and pieces > 0 and hist_t[pieces - 1] + hist_h[pieces - 1] >= a - tol:
                     # derivatives of the left piece at its end, scaled to L
                     hl = hist_h[pieces - 1]
                     for j in range(_NC):
@@ -460,7 +527,7 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
                         r *= L / H
                         if dj > jmax:
                             jmax = dj
-                else:
+                elif not keep:
                     r = 1.0
                     for j in range(_NC):
                         dj = fabs(V[c, j] * r)
@@ -562,7 +629,7 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, ut, uv, x0, Rw, Ru, 
     info[3] = a
     while kq < nt and status != _OK:
         for o in range(ny):
-            out[o, kq] = np.nan
+            out[o, kq] = _NAN
         kq += 1
 
 
@@ -591,54 +658,41 @@ def _cut(P, rows, xc):
             b *= xc
 
 
-def _recursion(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, mode, xa, U, W, X, Z, V, Y, H):
+def _recursion(gp, gi, gv, hp, hi_, hv, jp, ji, jv, n, nu, m, ny, tau, lo, hi, mode, xa, S, Z, V, Y, H):
     """The Taylor coefficients of the states, channels and outputs on a piece of length ``H`` from the states
-    ``xa`` at its start, the inputs ``U`` and the delayed channels ``W`` (the channels without delay are formed
-    here, in the regimes ``mode``)."""
-    n = A.shape[0]
-    nu = B1.shape[1]
-    m = B2.shape[1]
-    ny = C1.shape[0]
+    ``xa`` at its start.  ``S`` holds the states' coefficients (rows ``0..n``, written here), the inputs' (``n..n +
+    nu``) and the channels' (``n + nu..``: the delayed ones given, those without delay formed here, in the regimes
+    ``mode``).  ``[A B1 B2]``, ``[C2 D21 D22]`` and ``[C1 D11 D12]`` come as compressed rows (``gp, gi, gv`` and so
+    on: their non-zero entries in increasing column order over the rows of ``S``, so that each sum is the dense
+    one's without its zero terms)."""
+    w0 = n + nu
     for i in range(n):
-        X[i, 0] = xa[i]
+        S[i, 0] = xa[i]
     for k in range(_NC):
         # the channels without delay (their D22 among each other is 0)
         for c in range(m):
             if tau[c] == 0.0:
                 if mode[c] == _LIN:
                     s = 0.0
-                    for i in range(n):
-                        s += C2[c, i] * X[i, k]
-                    for l in range(nu):
-                        s += D21[c, l] * U[l, k]
-                    for d in range(m):
-                        if tau[d] > 0.0:
-                            s += D22[c, d] * W[d, k]
-                    W[c, k] = s
+                    for q in range(hp[c], hp[c + 1]):
+                        s += hv[q] * S[hi_[q], k]
+                    S[w0 + c, k] = s
                 elif k == 0:
-                    W[c, k] = hi[c] if mode[c] == _HIGH else lo[c]
+                    S[w0 + c, k] = hi[c] if mode[c] == _HIGH else lo[c]
                 else:
-                    W[c, k] = 0.0
+                    S[w0 + c, k] = 0.0
         if k < _DEG:
             f = H / (k + 1)
             for i in range(n):
                 s = 0.0
-                for j in range(n):
-                    s += A[i, j] * X[j, k]
-                for l in range(nu):
-                    s += B1[i, l] * U[l, k]
-                for d in range(m):
-                    s += B2[i, d] * W[d, k]
-                X[i, k + 1] = f * s
+                for q in range(gp[i], gp[i + 1]):
+                    s += gv[q] * S[gi[q], k]
+                S[i, k + 1] = f * s
     for c in range(m):
         for k in range(_NC):
             s = 0.0
-            for i in range(n):
-                s += C2[c, i] * X[i, k]
-            for l in range(nu):
-                s += D21[c, l] * U[l, k]
-            for d in range(m):
-                s += D22[c, d] * W[d, k]
+            for q in range(hp[c], hp[c + 1]):
+                s += hv[q] * S[hi_[q], k]
             Z[c, k] = s
             if mode[c] == _LIN:
                 V[c, k] = s
@@ -649,10 +703,6 @@ def _recursion(A, B1, B2, C1, C2, D11, D12, D21, D22, tau, lo, hi, mode, xa, U, 
     for o in range(ny):
         for k in range(_NC):
             s = 0.0
-            for i in range(n):
-                s += C1[o, i] * X[i, k]
-            for l in range(nu):
-                s += D11[o, l] * U[l, k]
-            for d in range(m):
-                s += D12[o, d] * W[d, k]
+            for q in range(jp[o], jp[o + 1]):
+                s += jv[q] * S[ji[q], k]
             Y[o, k] = s
