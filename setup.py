@@ -12,7 +12,7 @@ import sys
 from Cython.Build import cythonize
 from setuptools import Extension, setup
 
-KERNELS = ["delaykit.spectrum._rootkernel"]
+KERNELS = ["delaykit.spectrum._rootkernel", "delaykit.identify._fitkernel", "delaykit.identify._noisekernel"]
 
 # numba's arithmetic: no bounds or negative-index checks, C's pow, Python's division (a zero divisor raises)
 DIRECTIVES = {"language_level": 3, "boundscheck": False, "wraparound": False, "initializedcheck": False,
