@@ -32,7 +32,7 @@ cpdef int evaluate_fit(long code, const double[:] z, const unsigned char[:] pos,
                        bint offset, k0, p0, m0, k1, p1, m1, double w0, double w1, y, dy, uy, udy, out) except? -1
 
 @cython.locals(zz="double[::1]", c="const double[:]", i=Py_ssize_t, k=Py_ssize_t, step=double, dz=double,
-               status=int)
+               status=int, ok=bint)
 cpdef int jacobian_fit(long code, const double[:] z, const unsigned char[:] pos, const double[:] lb,
                        const double[:] ub, const double[:] r0, const double[:] rw, double h, double snap, drive,
                        starts, bint closed, double kp, double kv, lo, hi, bint bias, bint offset, k0, p0, m0, k1, p1,

@@ -228,8 +228,9 @@ def jacobian_fit(code, z, pos, lb, ub, r0, rw, h, snap, drive, starts, closed, k
         zz[i] = z[i]
         if status == STIFF_PLANT:
             return STIFF_PLANT
+        ok = status == OK
         for k in range(r0.shape[0]):
-            J[k, i] = ((c[k] if status == OK else 1e6) - r0[k]) / dz
+            J[k, i] = ((c[k] if ok else 1e6) - r0[k]) / dz
     return OK
 
 
