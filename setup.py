@@ -19,6 +19,8 @@ KERNELS = [
     "delaykit.simulate._discretekernel",
     "delaykit.simulate._varyingkernel",
     "delaykit.simulate._ltikernel",
+    "delaykit.identify._fitkernel",
+    "delaykit.identify._noisekernel",
 ]
 
 # numba's arithmetic: no bounds or negative-index checks, C's pow, Python's division (a zero divisor raises)

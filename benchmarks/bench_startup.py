@@ -20,7 +20,8 @@ as an ordinary installation does. Other work on the machine slows every run: com
 
 With ``--first-calls``, the issue-24 table instead: the first call after an install, each in a fresh process with
 an empty numba cache (``NUMBA_CACHE_DIR`` pointed at a new temporary directory, so the tree's own cache is neither
-used nor disturbed), then the same command once more with that cache filled (warm). The calls: ``simulate_many``
+used nor disturbed), then the same command once more with that cache filled (warm); the process's CPU time (user
+and system, all threads) is given beside the wall time, being far less inflated by other work on the machine. The calls: ``simulate_many``
 of the paper's 10,000 P loops (Kp = 1.31, delays uniform in [0.2, 0.5] s; import included), ``delaykit identify``
 of the heater log (tests/data/tclab), ``margins`` and ``roots`` of the paper's loop, and the Smith design of
 ``1/s`` with delay 0.37 s. Each row gives the cold and warm wall times against the issue's targets; compiled
@@ -139,20 +140,22 @@ def first_calls(names: list[str], runs: int, json_path: Path | None) -> None:
         for _ in range(runs):
             with tempfile.TemporaryDirectory(prefix="numba-cold-") as cache:
                 env = {**os.environ, "NUMBA_CACHE_DIR": cache}
-                cold.append(run_once(argv, env)[0])
-                warm.append(run_once(argv, env)[0])
+                cold.append(run_once(argv, env))
+                warm.append(run_once(argv, env))
         results[name] = {"command": " ".join(["delaykit" if cli else "python", *tail[:1 if not cli else None]]),
-                         "cold": statistics.median(cold), "warm": statistics.median(warm), "runs": runs,
+                         "cold": statistics.median(w for w, _ in cold), "warm": statistics.median(w for w, _ in warm),
+                         "cold_cpu": statistics.median(c for _, c in cold),
+                         "warm_cpu": statistics.median(c for _, c in warm), "runs": runs,
                          "cold_target": FIRST_TARGET[name][0], "warm_target": FIRST_TARGET[name][1]}
     console = Console(width=max(Console().width, 120))
     table = Table(title=f"First calls in fresh processes (issue 24): empty numba cache, then warm "
                         f"(median of {runs}; load {os.getloadavg()[0]:.1f})")
-    for col in ("call", "cold s", "target s", "warm s", "warm target s"):
+    for col in ("call", "cold s", "target s", "warm s", "warm target s", "cold CPU s", "warm CPU s"):
         table.add_column(col, justify="left" if col == "call" else "right", overflow="fold")
     for name, r in results.items():
         wt = r["warm_target"]
         table.add_row(name, f"{r['cold']:.2f}", f"{r['cold_target']:.1f}", f"{r['warm']:.2f}",
-                      "–" if wt is None else f"{wt:.1f}")
+                      "–" if wt is None else f"{wt:.1f}", f"{r['cold_cpu']:.2f}", f"{r['warm_cpu']:.2f}")
     console.print(table)
     if json_path is not None:
         doc = {"python": sys.version.split()[0], "load": os.getloadavg(), "first_calls": results}

@@ -11,19 +11,33 @@ and spectra of the layers below.
 Note that ``delaykit.identify`` as an attribute of the package root is the :func:`identify` function; import this
 layer's modules by their full names, ``from delaykit.identify.iodata import ...`` or
 ``from delaykit.identify import iodata``.
+
+The names are imported on first use: ``from delaykit.identify.identification import identify`` (what the command
+line does) loads the fits only, not the flight-log estimators of :mod:`.estimation` and :mod:`.online` nor the
+SciPy they need.
+
+Examples
+--------
+>>> from delaykit.identify import Experiment, estimate_window
+>>> Experiment.__module__, estimate_window.__module__
+('delaykit.identify.iodata', 'delaykit.identify.online')
 """
 
-from .estimation import (DelayEstimate, EstimationError, estimate_flights, estimate_lambert, estimate_overshoot,
-                         estimate_trajectory, fitted_altitude, lambert_paper_iterations)
-from .experiment import SIGNALS, ExpectedErrors, expected_errors, planned_signal
-from .flightlog import REQUIRED, FlightLog, LogError, synthetic_log, write_log
-from .identification import (Candidate, IdentificationError, IdentifiedModel, LogFit, Prediction, identify, load_model,
-                             predict, simulate_experiment)
-from .iodata import Experiment, read_experiment
-from .noise import ARNoise, VARNoise, fit_ar, fit_var, ljung_box
-from .online import WindowEstimate, estimate_window
-from .structures import STRUCTURES, Structure, structure
-from .system_fit import SystemFit, SystemLogFit, fit_system, simulate_log
+from .._lazy import by_module, lazy_exports
+
+_SOURCES = {
+    "estimation": ["DelayEstimate", "EstimationError", "estimate_flights", "estimate_lambert", "estimate_overshoot",
+                   "estimate_trajectory", "fitted_altitude", "lambert_paper_iterations"],
+    "experiment": ["SIGNALS", "ExpectedErrors", "expected_errors", "planned_signal"],
+    "flightlog": ["REQUIRED", "FlightLog", "LogError", "synthetic_log", "write_log"],
+    "identification": ["Candidate", "IdentificationError", "IdentifiedModel", "LogFit", "Prediction", "identify",
+                       "load_model", "predict", "simulate_experiment"],
+    "iodata": ["Experiment", "read_experiment"],
+    "noise": ["ARNoise", "VARNoise", "fit_ar", "fit_var", "ljung_box"],
+    "online": ["WindowEstimate", "estimate_window"],
+    "structures": ["STRUCTURES", "Structure", "structure"],
+    "system_fit": ["SystemFit", "SystemLogFit", "fit_system", "simulate_log"],
+}
 
 __all__ = [
     "FlightLog", "LogError", "REQUIRED", "write_log", "synthetic_log",
@@ -35,3 +49,6 @@ __all__ = [
     "ExpectedErrors", "expected_errors", "planned_signal", "SIGNALS", "WindowEstimate", "estimate_window",
     "SystemFit", "SystemLogFit", "fit_system", "simulate_log",
 ]
+
+
+__getattr__, __dir__ = lazy_exports(__name__, by_module(_SOURCES), globals())

@@ -5,7 +5,7 @@ The compiled path of :mod:`._fit` steps every log with one exact one-period map,
 Here each trial plant is simulated at each log's own sample times instead, every logged command held until the
 next and reaching the plant ``delay`` later (:func:`~delaykit.simulate.discrete.held_response_at`'s compiled
 stepper: one matrix exponential per stretch between a sample and a command's arrival, exact); the residual blocks
-and the projection of each log's offset and hover level are the compiled path's (:func:`._fit._residual_blocks`).
+and the projection of each log's offset and hover level are the compiled path's (:func:`._fitkernel.residual_blocks`).
 Closed-loop fits through a controller sampled at the log's samples need a uniform clock (resample the log);
 a continuous controller's loop is simulated at the samples' own times by :mod:`._closed_general` already.
 
@@ -74,9 +74,9 @@ class ClockProblem(F._Problem):
         _run_at_logs(A, B, C, 0.0, ca, cb, float(p[-1]), self.tol, self.t, self.drive, self.starts, self.fit_bias,
                      self._y, self._dy, self._uy, self._udy)
         out = np.empty(self._rw.size)
-        F._residual_blocks(self._y, self._dy, self._uy, self._udy, self.starts, self.k0, self.p0, self.m0, self.k1,
-                           self.p1, self.m1, float(self.w[self.first]), float(self.w[self.rate]) if self.rate else 1.0,
-                           self.fit_bias, self.fit_offset, out)
+        F.FK.residual_blocks(self._y, self._dy, self._uy, self._udy, self.starts, self.k0, self.p0, self.m0, self.k1,
+                             self.p1, self.m1, float(self.w[self.first]), float(self.w[self.rate]) if self.rate else 1.0,
+                             self.fit_bias, self.fit_offset, out)
         return out
 
 

@@ -437,9 +437,9 @@ class GeneralProblem(F._Problem):
         dy = np.ascontiguousarray(np.concatenate(dys)) if self.rate else np.zeros(y.size)
         out = np.empty(self._rw.size)
         empty = np.zeros(y.size)
-        F._residual_blocks(y, dy, empty, empty, self.starts, self.k0, self.p0, self.m0, self.k1, self.p1, self.m1,
-                           float(self.w[self.first]), float(self.w[self.rate]) if self.rate else 1.0, False,
-                           self.fit_offset, out)
+        F.FK.residual_blocks(y, dy, empty, empty, self.starts, self.k0, self.p0, self.m0, self.k1, self.p1, self.m1,
+                             float(self.w[self.first]), float(self.w[self.rate]) if self.rate else 1.0, False,
+                             self.fit_offset, out)
         return out
 
 

@@ -16,23 +16,24 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numba import njit
 
+from .. import _native
 from ..errors import InvalidValueError, check_real
 from ..models.altitude import as_loop
 from ..models.controllers import Controller
 from ..models.hold import SNAP
 from ..models.loop import Loop
 from ..models.transfer import TransferFunction
-from ..simulate.discrete import (STIFF, _held_arrays, _run_logs, closed_loop_response, held_delay_model,
-                                 held_matrices_of, held_response)
+from ..simulate.discrete import closed_loop_response, held_delay_model, held_matrices_of, held_response
 from .iodata import Experiment
-from .structures import Structure, _realise
+from .structures import Structure
 
 __all__ = ["IdentificationError"]
 
+FK = _native.load("delaykit.identify", "_fitkernel")  # the compiled loops of the fits (Cython, else numba)
+
 # the compiled kernels' status values (code reads these, never a message)
-_OK, _STIFF, _NEGATIVE, _ALGEBRAIC, _NONFINITE = 0, 1, 2, 3, 4
+_OK, _STIFF, _ALGEBRAIC = FK.OK, FK.STIFF_PLANT, FK.ALGEBRAIC
 
 
 class IdentificationError(InvalidValueError):
@@ -237,6 +238,7 @@ class _Problem:
                  fit_offset: bool) -> None:
         self.st, self.preps, self.law, self.w, self.fit_offset = st, preps, law, weights, fit_offset
         self.pos = np.array(st.positive)
+        self._pos8 = self.pos.view(np.uint8)  # (the kernels' flags are bytes)
         self.fit_bias = law is None and st.integrating
         self.h = preps[0].exp.period
         self.first, self.rate = preps[0].outputs[0], preps[0].rate
@@ -289,12 +291,12 @@ class _Problem:
             raise InvalidValueError(f"delay (s) must be >= 0, got {p[-1]!r}")
         out = np.empty(self._rw.size)
         data = self._data()
-        status = _evaluate(self.st.code, p, *data, out) if self.st.code >= 0 else _STIFF
+        status = FK.evaluate(self.st.code, p, *data, out) if self.st.code >= 0 else _STIFF
         if status == _STIFF:  # a plant far too fast for its period (or without a compiled realisation): SciPy
             A, B, C = self.st.realise(p)
             with np.errstate(all="ignore"):
                 phi, ge, gl, m, frac = held_matrices_of(A, B, self.h, float(p[-1]))
-                status = _core(phi, ge, gl, m, frac, C, np.ascontiguousarray(C @ A), float(C @ B), *data[2:], out)
+                status = FK.core(phi, ge, gl, m, frac, C, np.ascontiguousarray(C @ A), float(C @ B), *data[2:], out)
         if status == _ALGEBRAIC:
             raise InvalidValueError("a sampled loop without delay and a velocity term on a plant whose velocity "
                                     "jumps is an algebraic loop")
@@ -338,7 +340,7 @@ class _Problem:
     def _residuals(self, z: np.ndarray) -> np.ndarray:
         if self.compiled and self.st.code >= 0:
             r = np.empty(self._rw.size)
-            status = _evaluate_fit(self.st.code, z, self.pos, self._rw, *self._data(), r)
+            status = FK.evaluate_fit(self.st.code, z, self._pos8, self._rw, *self._data(), r)
             if status == _OK:
                 return r
             if status != _STIFF:
@@ -361,11 +363,11 @@ class _Problem:
         J = np.empty((r0.size, z.size))
         status = _STIFF
         if self.compiled and self.st.code >= 0:
-            status = _jacobian_fit(self.st.code, z, self.pos, lb, ub, r0, self._rw, *self._data(),
-                                   np.empty(r0.size), J)
+            status = FK.jacobian_fit(self.st.code, z, self._pos8, lb, ub, r0, self._rw, *self._data(),
+                                     np.empty(r0.size), J)
         if status == _STIFF:
             for i in range(z.size):
-                step = _STEP * max(1.0, abs(z[i])) * (1.0 if z[i] >= 0 else -1.0)
+                step = FK.STEP * max(1.0, abs(z[i])) * (1.0 if z[i] >= 0 else -1.0)
                 if not lb[i] <= z[i] + step <= ub[i]:
                     step = -step
                 zz = z.copy()
@@ -380,158 +382,6 @@ class _Problem:
     def grid_starts(self) -> list[np.ndarray]:
         """The coarse grid of starting points :func:`_fit` scores (:func:`_grid_starts`)."""
         return _grid_starts(self.st, self.preps)
-
-
-@njit(cache=True)
-def _core(phi, ge, gl, m, frac, C, ca, cb, drive, starts, closed, kp, kv, lo, hi, bias, offset, k0, p0, m0, k1, p1,
-          m1, w0, w1, y, dy, uy, udy, out):  # pragma: no cover (compiled)
-    """Simulate every log with the one-period matrices and fill ``out`` with the projected raw residuals."""
-    if closed and m == 0 and not frac and kv != 0.0 and cb != 0.0:
-        return _ALGEBRAIC
-    _run_logs(phi, ge, gl, C, 0.0, ca, cb, m, frac, drive, starts, closed, kp, kv, lo, hi, bias, y, dy, uy, udy)
-    _residual_blocks(y, dy, uy, udy, starts, k0, p0, m0, k1, p1, m1, w0, w1, bias, offset, out)
-    return _OK
-
-
-@njit(cache=True)
-def _evaluate(code, p, h, snap, drive, starts, closed, kp, kv, lo, hi, bias, offset, k0, p0, m0, k1, p1, m1, w0, w1,
-              y, dy, uy, udy, out):  # pragma: no cover (compiled)
-    """One trial point, compiled end to end: the realisation, the delay split as
-    :func:`~delaykit.models.hold.split_delay` splits it, the exact one-period matrices, the logs, the residuals.
-    Returns ``_STIFF`` (nothing computed) when the plant is far too fast for the compiled exponential."""
-    T = p[-1]
-    if not T >= 0.0:
-        return _NEGATIVE
-    A, B, C = _realise(code, p)
-    n = A.shape[0]
-    norm = 0.0
-    for i in range(n):
-        for j in range(n):
-            norm += abs(A[i, j])
-    if not norm * h <= STIFF:
-        return _STIFF
-    m = int(math.floor(T / h))
-    f = T - m * h
-    if f < snap * h:
-        f = 0.0
-    elif h - f < snap * h:
-        m += 1
-        f = 0.0
-    phi, ge, gl = _held_arrays(A, B, h, f)
-    ca = np.zeros(n)
-    cb = 0.0
-    for j in range(n):
-        cb += C[j] * B[j]
-        for i in range(n):
-            ca[j] += C[i] * A[i, j]
-    return _core(phi, ge, gl, m, f > 0.0, C, ca, cb, drive, starts, closed, kp, kv, lo, hi, bias, offset, k0, p0, m0,
-                 k1, p1, m1, w0, w1, y, dy, uy, udy, out)
-
-
-@njit(cache=True)
-def _evaluate_fit(code, z, pos, rw, h, snap, drive, starts, closed, kp, kv, lo, hi, bias, offset, k0, p0, m0, k1, p1,
-                  m1, w0, w1, y, dy, uy, udy, out):  # pragma: no cover (compiled)
-    """:func:`_evaluate` at fitting coordinates (``exp`` of the positive ones, clipped at +-60), the residuals
-    weighted; ``_NONFINITE`` when they overflow."""
-    p = np.empty(z.shape[0])
-    for i in range(z.shape[0]):
-        p[i] = math.exp(min(max(z[i], -60.0), 60.0)) if pos[i] else z[i]
-        if not np.isfinite(p[i]):
-            return _NONFINITE
-    status = _evaluate(code, p, h, snap, drive, starts, closed, kp, kv, lo, hi, bias, offset, k0, p0, m0, k1, p1, m1,
-                       w0, w1, y, dy, uy, udy, out)
-    if status != _OK:
-        return status
-    for i in range(out.shape[0]):
-        out[i] /= rw[i]
-        if not np.isfinite(out[i]):
-            return _NONFINITE
-    return _OK
-
-
-_STEP = 1e-6
-"""Relative step of the forward differences in fitting coordinates."""
-
-
-@njit(cache=True)
-def _jacobian_fit(code, z, pos, lb, ub, r0, rw, h, snap, drive, starts, closed, kp, kv, lo, hi, bias, offset, k0, p0,
-                  m0, k1, p1, m1, w0, w1, y, dy, uy, udy, col, J):  # pragma: no cover (compiled)
-    """Forward differences of :func:`_evaluate_fit` around ``z`` (residuals ``r0`` there) into ``J``."""
-    zz = z.copy()
-    for i in range(z.shape[0]):
-        step = _STEP * max(1.0, abs(z[i])) * (1.0 if z[i] >= 0.0 else -1.0)
-        if z[i] + step > ub[i] or z[i] + step < lb[i]:
-            step = -step
-        zz[i] = z[i] + step
-        dz = zz[i] - z[i]
-        status = _evaluate_fit(code, zz, pos, rw, h, snap, drive, starts, closed, kp, kv, lo, hi, bias, offset, k0, p0,
-                               m0, k1, p1, m1, w0, w1, y, dy, uy, udy, col)
-        zz[i] = z[i]
-        if status == _STIFF:
-            return _STIFF
-        for k in range(r0.shape[0]):
-            J[k, i] = ((col[k] if status == _OK else 1e6) - r0[k]) / dz
-    return _OK
-
-
-@njit(cache=True)
-def _residual_blocks(y, dy, uy, udy, starts, k0, p0, m0, k1, p1, m1, w0, w1, bias, offset,
-                     out):  # pragma: no cover (compiled)
-    """Measured minus simulated at the kept samples (log by log: the first output, then its rate), with each
-    log's nuisance columns projected out by weighted least squares: the response to a held unit input (``bias``,
-    the hover level of an integrating plant) and a constant on the first output (``offset``)."""
-    pos = 0
-    for i in range(starts.shape[0] - 1):
-        s = starts[i]
-        a0, n0 = p0[i], p0[i + 1] - p0[i]
-        a1, n1 = p1[i], p1[i + 1] - p1[i]
-        for j in range(n0):
-            out[pos + j] = m0[a0 + j] - y[s + k0[a0 + j]]
-        for j in range(n1):
-            out[pos + n0 + j] = m1[a1 + j] - dy[s + k1[a1 + j]]
-        if bias or offset:
-            # normal equations of the weighted columns (at most two: well conditioned, a ramp and a constant)
-            g00 = 0.0
-            g01 = 0.0
-            g11 = 0.0
-            b0 = 0.0
-            b1 = 0.0
-            for j in range(n0 + n1):
-                if j < n0:
-                    w = w0
-                    ca = uy[s + k0[a0 + j]] if bias else 0.0
-                    cc = 1.0 if offset else 0.0
-                else:
-                    w = w1
-                    ca = udy[s + k1[a1 + j - n0]] if bias else 0.0
-                    cc = 0.0
-                ca /= w
-                cc /= w
-                rj = out[pos + j] / w
-                g00 += ca * ca
-                g01 += ca * cc
-                g11 += cc * cc
-                b0 += ca * rj
-                b1 += cc * rj
-            beta0 = 0.0
-            beta1 = 0.0
-            det = g00 * g11 - g01 * g01
-            if g00 > 0.0 and g11 > 0.0 and det > 1e-13 * g00 * g11:
-                beta0 = (g11 * b0 - g01 * b1) / det
-                beta1 = (g00 * b1 - g01 * b0) / det
-            elif g00 >= g11 and g00 > 0.0:
-                beta0 = b0 / g00
-            elif g11 > 0.0:
-                beta1 = b1 / g11
-            for j in range(n0 + n1):
-                if j < n0:
-                    ca = uy[s + k0[a0 + j]] if bias else 0.0
-                    cc = 1.0 if offset else 0.0
-                else:
-                    ca = udy[s + k1[a1 + j - n0]] if bias else 0.0
-                    cc = 0.0
-                out[pos + j] -= ca * beta0 + cc * beta1
-        pos += n0 + n1
 
 
 def _guesses(st: Structure, preps: list[_Prepared], law: Any) -> list[np.ndarray]:
@@ -627,13 +477,13 @@ def _with_best_gain(prob: _Problem, p: np.ndarray) -> tuple[np.ndarray, float]:
             d = prob.weighted(p) - r1
         except (InvalidValueError, np.linalg.LinAlgError, ValueError):
             return p, math.inf
-    dd = _dot(d, d)
+    dd = FK.dot(d, d)
     if not np.isfinite(dd) or dd == 0.0:
         return p, math.inf
-    step = -_dot(r1, d) / dd
+    step = -FK.dot(r1, d) / dd
     p[0] = 1.0 + step
     r = r1 + step * d
-    return p, _dot(r, r)
+    return p, FK.dot(r, r)
 
 
 @dataclass(frozen=True)
@@ -641,34 +491,6 @@ class _Solution:
     x: np.ndarray
     cost: float
     nfev: int
-
-
-@njit(cache=True)
-def _dot(a, b):  # pragma: no cover (compiled)
-    """``a . b`` in a plain loop (OpenBLAS threads long dot products, which stalls on a busy machine)."""
-    s = 0.0
-    for i in range(a.shape[0]):
-        s += a[i] * b[i]
-    return s
-
-
-@njit(cache=True)
-def _normal_equations(J, r):  # pragma: no cover (compiled)
-    """``J^T J`` and ``J^T r`` in plain loops (a tall, thin ``J``: no threaded BLAS call for a 4-column product)."""
-    m, n = J.shape
-    A = np.zeros((n, n))
-    g = np.zeros(n)
-    for k in range(m):
-        rk = r[k]
-        for i in range(n):
-            a = J[k, i]
-            g[i] += a * rk
-            for j in range(i, n):
-                A[i, j] += a * J[k, j]
-    for i in range(n):
-        for j in range(i):
-            A[i, j] = A[j, i]
-    return A, g
 
 
 def _levenberg_marquardt(prob: _Problem, z0: np.ndarray, lb: np.ndarray, ub: np.ndarray, *, max_nfev: int = 300,
@@ -680,8 +502,8 @@ def _levenberg_marquardt(prob: _Problem, z0: np.ndarray, lb: np.ndarray, ub: np.
     z = np.clip(np.asarray(z0, dtype=float), lb, ub)
     r = prob.residuals(z)
     nfev = 1
-    cost = 0.5 * _dot(r, r)
-    A, g = _normal_equations(prob.jacobian(z, lb, ub), r)
+    cost = 0.5 * FK.dot(r, r)
+    A, g = FK.normal_equations(prob.jacobian(z, lb, ub), r)
     d = np.sqrt(np.maximum(np.diag(A), 0.0))
     d[d == 0.0] = 1.0
     lam, nu = 1e-3, 2.0
@@ -703,7 +525,7 @@ def _levenberg_marquardt(prob: _Problem, z0: np.ndarray, lb: np.ndarray, ub: np.
             break
         r_new = prob.residuals(trial)
         nfev += 1
-        cost_new = 0.5 * _dot(r_new, r_new)
+        cost_new = 0.5 * FK.dot(r_new, r_new)
         predicted = -float(g @ step + 0.5 * step @ A @ step)
         actual = cost - cost_new
         rho = actual / predicted if predicted > 0.0 and np.isfinite(cost_new) else -1.0
@@ -713,7 +535,7 @@ def _levenberg_marquardt(prob: _Problem, z0: np.ndarray, lb: np.ndarray, ub: np.
             cost = cost_new
             if small:
                 break
-            A, g = _normal_equations(prob.jacobian(z, lb, ub), r)
+            A, g = FK.normal_equations(prob.jacobian(z, lb, ub), r)
             d = np.maximum(d, np.sqrt(np.maximum(np.diag(A), 0.0)))
             lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
             nu = 2.0

@@ -37,12 +37,11 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 import numpy as np
-from scipy import stats
+from scipy import special  # (its functions only: scipy.stats would import ten times more at start-up)
 
 from ..errors import DelaykitError, InvalidTypeError, InvalidValueError, check_real
 from ..models.loop import Loop
 from ..models.transfer import TransferFunction
-from ._closed_general import check_rest, from_static, rest_commands
 from ._fit import (IdentificationError, _fit, _guesses, _jacobian, _Law, _law, _law_dict, _law_from_dict, _prepare,
                    _Prepared, _Problem, _simulate)
 from .iodata import Experiment
@@ -55,7 +54,7 @@ __all__ = ["IdentifiedModel", "Candidate", "LogFit", "Prediction", "identify", "
 
 CORRELATION_WARNING = 0.9
 """Above this absolute correlation two time parameters are reported as traded against each other."""
-Z95 = float(stats.norm.ppf(0.975))
+Z95 = float(special.ndtri(0.975))  # the normal distribution's 97.5 % point (scipy.stats.norm.ppf's own code)
 
 
 # -- results ----------------------------------------------------------------------------------------------
@@ -527,7 +526,11 @@ def identify(
     if u0 is not None and command is not None:
         raise IdentificationError("give the command at rest as u0 or as a command column, not both")
     law = _law(loop, general=u0 is not None or command is not None)
-    rests = rest_commands(u0, command, len(exps))
+    rests: list[Any] = [None] * len(exps)  # (u0 and command need the loop: checked above)
+    if loop is not None:
+        from ._closed_general import rest_commands  # (the general closed loop's module, for closed-loop fits only)
+
+        rests = rest_commands(u0, command, len(exps))
     if outputs is None:
         outs = tuple(o for o in exps[0].outputs if o not in (rate, command))
     else:
@@ -542,6 +545,8 @@ def identify(
                                       "identify")
     preps = [_prepare(e, outs, rate, law, fresh_only, u0=w) for e, w in zip(exps, rests)]
     if law is not None and not isinstance(law, _Law):
+        from ._closed_general import check_rest
+
         check_rest(law, preps, names)
     fit_offset = baseline == "fit"
 
@@ -686,7 +691,7 @@ def _assemble(o: _Outcome, preps: list[_Prepared], law: _Law | None, crit: tuple
             d, s = np.array(dl), np.array(sl)
             wmean = float(np.sum(d / s**2) / np.sum(1 / s**2))
             chi2 = float(np.sum(((d - wmean) / s) ** 2))
-            pval = float(stats.chi2.sf(chi2, d.size - 1))
+            pval = float(special.chdtrc(d.size - 1, chi2))  # chi-square's tail (scipy.stats.chi2.sf's own code)
             if pval < 0.05:
                 warnings.append(
                     f"the logs' delays disagree beyond their errors ({d.min():.3f} to {d.max():.3f} s, "
@@ -742,6 +747,8 @@ def simulate_experiment(model: IdentifiedModel, experiment: Experiment, *, u0: f
     except (KeyError, TypeError, ValueError) as exc:
         raise IdentificationError(f"the model's closed_loop controller cannot be read ({exc})") from None
     if law is not None and (u0 is not None or command is not None) and isinstance(law, _Law):
+        from ._closed_general import from_static
+
         law = from_static(law)
     prep = _prepare(experiment, model.outputs, model.rate, law, fresh_only=False, u0=command if command else u0)
     sim = _simulate(prep, model.plant, model.delay, law)

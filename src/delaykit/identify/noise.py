@@ -32,16 +32,32 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
-from numba import njit
-from scipy import stats
+from scipy import special  # (its functions only: scipy.stats would import ten times more at start-up)
 from scipy.linalg import solve, solve_toeplitz
-from scipy.signal import lfilter
 
+from .. import _native
 from ..errors import InvalidValueError
 
 __all__ = ["ARNoise", "VARNoise", "fit_ar", "fit_var", "ar_covariance", "ljung_box", "cross_correlation"]
+
+
+def _kernel() -> Any:
+    """The compiled loops of this module (:mod:`._noisekernel`: Cython, else numba)."""
+    return _native.load("delaykit.identify", "_noisekernel")
+
+
+def _filter(b: np.ndarray, a: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``B(q) / A(q) x`` along the first axis from rest (``b`` and ``a`` of one length, ``a[0] = 1``): what
+    ``scipy.signal.lfilter(b, a, x, axis=0)`` computes for ``a`` longer than 1, to the same numbers
+    (:func:`._noisekernel.linear_filter`; importing ``scipy.signal`` would import most of SciPy)."""
+    x = np.asarray(x, dtype=float)
+    x2 = np.ascontiguousarray(x[:, None] if x.ndim == 1 else x.reshape(x.shape[0], -1))
+    y = np.empty_like(x2)
+    _kernel().linear_filter(np.ascontiguousarray(b, dtype=float), np.ascontiguousarray(a, dtype=float), x2, y)
+    return y.reshape(x.shape)
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -59,7 +75,9 @@ class ARNoise:
 
     def whiten(self, x: np.ndarray) -> np.ndarray:
         """The innovations ``A(q) x`` (along the first axis)."""
-        return lfilter(self.coeffs, [1.0], x, axis=0)
+        # (scipy.signal.lfilter(coeffs, [1.0], x, axis=0)'s own computation, without importing scipy.signal)
+        x = np.asarray(x, dtype=float)
+        return np.apply_along_axis(lambda v: np.convolve(self.coeffs, v), 0, x)[:x.shape[0]]
 
     def loglik(self) -> float:
         """Gaussian log-likelihood of the series under the model (innovations form)."""
@@ -240,25 +258,6 @@ def fit_var(x: np.ndarray, max_order: int = 20) -> VARNoise:
     return best[1]
 
 
-@njit(cache=True)
-def _var_backward(J, phi):  # pragma: no cover (compiled)
-    """``X[m] = J[m] + sum_i phi_i' X[m+i]`` from the end: ``J`` filtered backwards through the model's inverse
-    (shapes: ``J`` and ``X`` (n, d, q), ``phi`` (p, d, d))."""
-    n, d, q = J.shape
-    p = phi.shape[0]
-    X = np.zeros((n, d, q))
-    for m in range(n - 1, -1, -1):
-        for a in range(d):
-            for c in range(q):
-                s = J[m, a, c]
-                for i in range(p):
-                    if m + 1 + i < n:
-                        for b in range(d):
-                            s += phi[i, b, a] * X[m + 1 + i, b, c]
-                X[m, a, c] = s
-    return X
-
-
 def ar_covariance(blocks: list[tuple[np.ndarray, ARNoise | VARNoise]]) -> np.ndarray:
     """Covariance of a least-squares estimate whose residual blocks follow autoregressive models.
 
@@ -308,11 +307,11 @@ def ar_covariance(blocks: list[tuple[np.ndarray, ARNoise | VARNoise]]) -> np.nda
                 raise InvalidValueError(f"a vector block of {model.dim} series needs an (n, {model.dim}, q) "
                                         f"Jacobian, got shape {J.shape}")
             H += np.einsum("mdi,mdj->ij", J, J)
-            X = _var_backward(np.ascontiguousarray(J), np.ascontiguousarray(model.phi, dtype=float))
+            X = _kernel().var_backward(np.ascontiguousarray(J), np.ascontiguousarray(model.phi, dtype=float))
             M += np.einsum("mdi,de,mej->ij", X, model.sigma, X)
         else:
             H += J.T @ J
-            X = lfilter([1.0], model.coeffs, J[::-1], axis=0)[::-1]
+            X = _filter(np.eye(1, model.coeffs.size)[0], model.coeffs, J[::-1])[::-1]
             M += model.sigma2 * (X.T @ X)
     Hi = np.linalg.pinv(H)
     return Hi @ M @ Hi
@@ -339,7 +338,7 @@ def ljung_box(e: np.ndarray, lags: int = 20) -> tuple[float, float]:
         rho = float(np.dot(x[:-k], x[k:])) / den
         q += rho * rho / (n - k)
     q *= n * (n + 2)
-    return q, float(stats.chi2.sf(q, lags))
+    return q, float(special.chdtrc(lags, q))  # chi-square's tail (scipy.stats.chi2.sf's own code)
 
 
 def cross_correlation(e: np.ndarray, u: np.ndarray, lags: int = 25) -> tuple[float, int, float]:

@@ -32,12 +32,14 @@ from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
-from numba import njit
 
+from .. import _native
 from ..errors import InvalidValueError
 from ..models.transfer import TransferFunction
 
 __all__ = ["Structure", "STRUCTURES", "structure"]
+
+_FK = _native.load("delaykit.identify", "_fitkernel")  # (its realise: the well-scaled cascades)
 
 
 @dataclass(frozen=True, repr=False)
@@ -103,7 +105,7 @@ class Structure:
         ([[-2.0, 0.0], [10.0, -10.0]], [4.0, 0.0], [0.0, 1.0])
         """
         if self.code >= 0:
-            return _realise(self.code, np.asarray(values, dtype=float))
+            return _FK.realise(self.code, np.ascontiguousarray(values, dtype=float))
         A, B, C, D = self.plant(values).state_space()
         if D:
             raise InvalidValueError(f"{self.name}: realise() is for strictly proper plants")
@@ -139,28 +141,6 @@ def _fopdt(v: np.ndarray) -> tuple[list[float], list[float]]:
 
 def _sopdt(v: np.ndarray) -> tuple[list[float], list[float]]:
     return [v[0]], [v[1] * v[2], v[1] + v[2], 1.0]
-
-
-@njit(cache=True)
-def _realise(code, v):  # pragma: no cover (compiled)
-    """``(A, B, C)`` of structure number ``code`` (:attr:`Structure.code`) at the values ``v``: the physical
-    cascade (a lag's output, then the next lag or the integrator), every entry of the size of a rate."""
-    if code == 0:  # ipdt: y' = K u
-        return np.array([[0.0]]), np.array([v[0]]), np.array([1.0])
-    if code == 1:  # ipdt_lag: w' = (K u - w) / T, y' = w
-        a = 1.0 / v[1]
-        return np.array([[-a, 0.0], [1.0, 0.0]]), np.array([v[0] * a, 0.0]), np.array([0.0, 1.0])
-    if code == 2:  # ipdt_speed: (s^2 + 2 zeta wn s + wn^2) z = u in q1 = wn^2 z, q2 = wn z'; speed K (q1 + wn Tz q2)
-        k, wn, zeta, tz = v[0], v[1], v[2], v[3]
-        return (np.array([[0.0, wn, 0.0], [-wn, -2.0 * zeta * wn, 0.0], [k, k * wn * tz, 0.0]]),
-                np.array([0.0, wn, 0.0]), np.array([0.0, 0.0, 1.0]))
-    if code == 3:  # fopdt
-        a = 1.0 / v[1]
-        return np.array([[-a]]), np.array([v[0] * a]), np.array([1.0])
-    # sopdt: two lags in cascade
-    a = 1.0 / v[1]
-    b = 1.0 / v[2]
-    return np.array([[-a, 0.0], [b, -b]]), np.array([v[0] * a, 0.0]), np.array([0.0, 1.0])
 
 
 STRUCTURES: dict[str, Structure] = {
