@@ -182,14 +182,6 @@ def test_the_discrete_and_varying_simulators_load_no_numba():
     assert run.stdout.rpartition("@@")[2].split() == ["False"]
 
 
-def test_identifications_numba_code_gets_numbas_copies_of_the_kernels():
-    # identify/_fit.py's numba code calls these from its compiled loops: they must be numba's dispatchers
-    for name in ("_held_arrays", "_run_logs", "_run_at_logs"):
-        assert hasattr(getattr(discrete, name), "py_func")
-    with pytest.raises(AttributeError, match="_nothing"):
-        discrete._nothing  # noqa: B018
-
-
 def test_an_extension_whose_cimported_kernel_is_missing_counts_as_not_built(monkeypatch):
     # setup.py builds each extension optionally: where the exponential's failed, the simulators' cannot load
     import importlib

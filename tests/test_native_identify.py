@@ -207,8 +207,6 @@ def test_identify_loads_neither_scipy_stats_nor_scipy_signal_nor_the_flight_esti
     assert not loaded["scipy.stats"] and not loaded["scipy.signal"] and not loaded["estimation"], loaded
 
 
-@pytest.mark.xfail(strict=True, reason="simulate/discrete.py's loops (the held-input matrices and the logs' "
-                   "simulation, which every fit calls) are still numba's: ported by helper compkern")
 def test_identify_loads_no_numba(identify_run):
     # nothing is compiled at run time: the library call the command line makes runs on the extensions alone
     assert not identify_run[1]["numba"]

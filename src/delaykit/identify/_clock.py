@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import InvalidValueError
 from ..models.hold import SNAP
 from ..models.transfer import TransferFunction
-from ..simulate.discrete import _run_at_logs
+from ..simulate.discrete import DK
 from . import _fit as F
 from .structures import Structure
 
@@ -71,7 +71,7 @@ class ClockProblem(F._Problem):
         A, B, C, ca, cb = _state_space(self.st.realise(p))
         if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
             return np.full(self._rw.size, np.nan)
-        _run_at_logs(A, B, C, 0.0, ca, cb, float(p[-1]), self.tol, self.t, self.drive, self.starts, self.fit_bias,
+        DK.run_at_logs(A, B, C, 0.0, ca, cb, float(p[-1]), self.tol, self.t, self.drive, self.starts, self.fit_bias,
                      self._y, self._dy, self._uy, self._udy)
         out = np.empty(self._rw.size)
         F.FK.residual_blocks(self._y, self._dy, self._uy, self._udy, self.starts, self.k0, self.p0, self.m0, self.k1,
@@ -90,7 +90,7 @@ def simulate(prep: Any, plant: TransferFunction, delay: float) -> dict[str, np.n
     t = np.ascontiguousarray(prep.exp.t)
     starts = np.array([0, t.size], dtype=np.int64)
     y, dy = np.empty(t.size), np.empty(t.size)
-    _run_at_logs(A, B, C, 0.0, ca, cb, float(delay), SNAP * prep.exp.period, t, np.ascontiguousarray(prep.drive),
+    DK.run_at_logs(A, B, C, 0.0, ca, cb, float(delay), SNAP * prep.exp.period, t, np.ascontiguousarray(prep.drive),
                  starts, False, y, dy, y, dy)
     out = {prep.outputs[0]: y}
     if prep.rate:

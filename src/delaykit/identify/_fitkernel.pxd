@@ -1,7 +1,6 @@
 # The C types of _fitkernel.py for Cython: the .py stays the one source (run by Python or numba as it is); this
 # file only declares what each name is when Cython compiles it to an extension module at build time (setup.py:
-# no bounds or negative-index checks, as numba).  The arrays handed on to simulate.discrete's loops (a Python call
-# until those are a kernel of their own) stay Python objects here.
+# no bounds or negative-index checks, as numba); the discrete simulator's loops are cimported from its .pxd.
 cimport cython
 
 @cython.locals(n=Py_ssize_t, A="double[:, ::1]", B="double[::1]", C="double[::1]", a=double, b=double, k=double,
@@ -16,28 +15,38 @@ cpdef void residual_blocks(const double[:] y, const double[:] dy, const double[:
                            const double[:] m0, const long long[:] k1, const long long[:] p1, const double[:] m1,
                            double w0, double w1, bint bias, bint offset, double[:] out)
 
-cpdef int core(phi, ge, gl, Py_ssize_t m, bint frac, C, ca, double cb, drive, starts, bint closed, double kp,
-               double kv, lo, hi, bint bias, bint offset, k0, p0, m0, k1, p1, m1, double w0, double w1, y, dy, uy,
-               udy, out) except? -1
+cpdef int core(const double[:, :] phi, const double[:] ge, const double[:] gl, Py_ssize_t m, bint frac,
+               const double[:] C, const double[:] ca, double cb, const double[:] drive, const long long[:] starts,
+               bint closed, double kp, double kv, const double[:] lo, const double[:] hi, bint bias, bint offset,
+               const long long[:] k0, const long long[:] p0, const double[:] m0, const long long[:] k1,
+               const long long[:] p1, const double[:] m1, double w0, double w1, double[:] y, double[:] dy,
+               double[:] uy, double[:] udy, double[:] out) except? -1
 
 @cython.locals(T=double, A="const double[:, ::1]", B="const double[::1]", C="const double[::1]", n=Py_ssize_t,
-               norm=double, i=Py_ssize_t, j=Py_ssize_t, m=Py_ssize_t, f=double, ca="double[::1]", cb=double)
-cpdef int evaluate(long code, const double[:] p, double h, double snap, drive, starts, bint closed, double kp,
-                   double kv, lo, hi, bint bias, bint offset, k0, p0, m0, k1, p1, m1, double w0, double w1, y, dy,
-                   uy, udy, out) except? -1
+               norm=double, i=Py_ssize_t, j=Py_ssize_t, m=Py_ssize_t, f=double, ca="double[::1]", cb=double,
+               phi="const double[:, ::1]", ge="const double[::1]", gl="const double[::1]")
+cpdef int evaluate(long code, const double[:] p, double h, double snap, const double[:] drive,
+                   const long long[:] starts, bint closed, double kp, double kv, const double[:] lo,
+                   const double[:] hi, bint bias, bint offset, const long long[:] k0, const long long[:] p0,
+                   const double[:] m0, const long long[:] k1, const long long[:] p1, const double[:] m1, double w0,
+                   double w1, double[:] y, double[:] dy, double[:] uy, double[:] udy, double[:] out) except? -1
 
-@cython.locals(p="double[::1]", i=Py_ssize_t, status=int, res="double[:]")
+@cython.locals(p="double[::1]", i=Py_ssize_t, status=int)
 cpdef int evaluate_fit(long code, const double[:] z, const unsigned char[:] pos, const double[:] rw, double h,
-                       double snap, drive, starts, bint closed, double kp, double kv, lo, hi, bint bias,
-                       bint offset, k0, p0, m0, k1, p1, m1, double w0, double w1, y, dy, uy, udy, out) except? -1
+                       double snap, const double[:] drive, const long long[:] starts, bint closed, double kp,
+                       double kv, const double[:] lo, const double[:] hi, bint bias, bint offset,
+                       const long long[:] k0, const long long[:] p0, const double[:] m0, const long long[:] k1,
+                       const long long[:] p1, const double[:] m1, double w0, double w1, double[:] y, double[:] dy,
+                       double[:] uy, double[:] udy, double[:] out) except? -1
 
-@cython.locals(zz="double[::1]", c="const double[:]", i=Py_ssize_t, k=Py_ssize_t, step=double, dz=double,
-               status=int, ok=bint)
+@cython.locals(zz="double[::1]", i=Py_ssize_t, k=Py_ssize_t, step=double, dz=double, status=int, ok=bint)
 cpdef int jacobian_fit(long code, const double[:] z, const unsigned char[:] pos, const double[:] lb,
-                       const double[:] ub, const double[:] r0, const double[:] rw, double h, double snap, drive,
-                       starts, bint closed, double kp, double kv, lo, hi, bint bias, bint offset, k0, p0, m0, k1, p1,
-                       m1, double w0, double w1, y, dy, uy, udy, col, double[:, :] J) except? -1
-
+                       const double[:] ub, const double[:] r0, const double[:] rw, double h, double snap,
+                       const double[:] drive, const long long[:] starts, bint closed, double kp, double kv,
+                       const double[:] lo, const double[:] hi, bint bias, bint offset, const long long[:] k0,
+                       const long long[:] p0, const double[:] m0, const long long[:] k1, const long long[:] p1,
+                       const double[:] m1, double w0, double w1, double[:] y, double[:] dy, double[:] uy,
+                       double[:] udy, double[:] col, double[:, :] J) except? -1
 @cython.locals(s=double, i=Py_ssize_t)
 cpdef double dot(const double[:] a, const double[:] b) noexcept
 

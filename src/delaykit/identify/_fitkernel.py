@@ -6,16 +6,16 @@ One source, three modes (:mod:`delaykit._native` loads them): compiled ahead of 
 built (the C types are in ``_fitkernel.pxd``), compiled by numba on first use where no extension was built, or run
 as plain Python.  So the code here keeps to what all three read alike (see ``docs/guide/first-calls.md``).
 
-The held-input matrices and the simulation of the logs are :mod:`delaykit.simulate.discrete`'s loops
-(``_held_arrays``, ``_run_logs``), called here through Python until that module's loops are a kernel of their own
-(then they are cimported); the arrays handed to them are therefore NumPy arrays (``np.asarray`` of a typed view).
+The held-input matrices and the simulation of the logs are the discrete simulator's kernel
+(:mod:`delaykit.simulate._discretekernel`: ``held_arrays``, ``run_logs``), cimported by the extension and taken in
+this module's own mode otherwise.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from delaykit.simulate.discrete import STIFF, _held_arrays, _run_logs
+from delaykit.simulate.discrete import STIFF
 
 try:
     import cython
@@ -24,10 +24,17 @@ except ImportError:  # plain Python without Cython installed: only ``cython.comp
 
     cython = SimpleNamespace(compiled=False)
 
-if cython.compiled:  # C's own functions (Cython turns these imports into cimports)
+if cython.compiled:  # C's own functions and the discrete simulator's extension (Cython turns these into cimports)
+    from cython.cimports.delaykit.simulate._discretekernel import held_arrays as _held_arrays
+    from cython.cimports.delaykit.simulate._discretekernel import run_logs as _run_logs
     from cython.cimports.libc.math import exp, floor, isfinite
-else:
+else:  # the discrete simulator's kernel in this module's own mode (numba's copy calls numba's)
     from math import exp, floor, isfinite
+
+    from delaykit import _native
+
+    _held_arrays = _native.sibling(__name__, "delaykit.simulate", "_discretekernel").held_arrays
+    _run_logs = _native.sibling(__name__, "delaykit.simulate", "_discretekernel").run_logs
 
 __all__ = ["realise", "core", "evaluate", "evaluate_fit", "jacobian_fit", "residual_blocks", "dot",
            "normal_equations", "OK", "STIFF_PLANT", "NEGATIVE", "ALGEBRAIC", "NONFINITE", "STEP", "COMPILED"]
@@ -160,9 +167,7 @@ def evaluate(code, p, h, snap, drive, starts, closed, kp, kv, lo, hi, bias, offs
     T = p[p.shape[0] - 1]
     if not T >= 0.0:
         return NEGATIVE
-    Ao, Bo, Co = realise(code, p)
-    A = Ao
-    C = Co
+    A, B, C = realise(code, p)
     n = A.shape[0]
     norm = 0.0
     for i in range(n):
@@ -177,16 +182,15 @@ def evaluate(code, p, h, snap, drive, starts, closed, kp, kv, lo, hi, bias, offs
     elif h - f < snap * h:
         m += 1
         f = 0.0
-    phi, ge, gl = _held_arrays(Ao, Bo, h, f)
+    phi, ge, gl = _held_arrays(A, B, h, f)
     ca = np.zeros(n)
     cb = 0.0
-    B = Bo
     for j in range(n):
         cb += C[j] * B[j]
         for i in range(n):
             ca[j] += C[i] * A[i, j]
-    return core(phi, ge, gl, m, f > 0.0, Co, np.asarray(ca), cb, drive, starts, closed, kp, kv, lo, hi, bias, offset,
-                k0, p0, m0, k1, p1, m1, w0, w1, y, dy, uy, udy, out)
+    return core(phi, ge, gl, m, f > 0.0, C, ca, cb, drive, starts, closed, kp, kv, lo, hi, bias, offset, k0, p0, m0,
+                k1, p1, m1, w0, w1, y, dy, uy, udy, out)
 
 
 def evaluate_fit(code, z, pos, rw, h, snap, drive, starts, closed, kp, kv, lo, hi, bias, offset, k0, p0, m0, k1, p1,
@@ -202,10 +206,9 @@ def evaluate_fit(code, z, pos, rw, h, snap, drive, starts, closed, kp, kv, lo, h
                       w0, w1, y, dy, uy, udy, out)
     if status != OK:
         return status
-    res = out
-    for i in range(res.shape[0]):
-        res[i] /= rw[i]
-        if not isfinite(res[i]):
+    for i in range(out.shape[0]):
+        out[i] /= rw[i]
+        if not isfinite(out[i]):
             return NONFINITE
     return OK
 
@@ -216,7 +219,6 @@ def jacobian_fit(code, z, pos, lb, ub, r0, rw, h, snap, drive, starts, closed, k
     zz = np.empty(z.shape[0])
     for i in range(z.shape[0]):
         zz[i] = z[i]
-    c = col
     for i in range(z.shape[0]):
         step = STEP * max(1.0, abs(z[i])) * (1.0 if z[i] >= 0.0 else -1.0)
         if z[i] + step > ub[i] or z[i] + step < lb[i]:
@@ -230,7 +232,7 @@ def jacobian_fit(code, z, pos, lb, ub, r0, rw, h, snap, drive, starts, closed, k
             return STIFF_PLANT
         ok = status == OK
         for k in range(r0.shape[0]):
-            J[k, i] = ((c[k] if ok else 1e6) - r0[k]) / dz
+            J[k, i] = ((col[k] if ok else 1e6) - r0[k]) / dz
     return OK
 
 

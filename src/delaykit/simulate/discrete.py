@@ -37,7 +37,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from typing import Any
 
 import numpy as np
 
@@ -94,17 +93,6 @@ class HeldResponse:
 
 DK = _native.load("delaykit.simulate", "_discretekernel")
 """The compiled loops (``simulate/_discretekernel.py``): the extension built at install, else numba's copy."""
-
-_NUMBA_NAMES = {"_held_arrays": "held_arrays", "_run_logs": "run_logs", "_run_at_logs": "run_at_logs"}
-
-
-def __getattr__(name: str) -> Any:
-    """numba's copies of the kernels, for the numba code of identification that calls them (it needs numba code:
-    ``_held_arrays``, ``_run_logs``, ``_run_at_logs``), loaded only when that code asks."""
-    if name in _NUMBA_NAMES:
-        return getattr(_native.load("delaykit.simulate", "_discretekernel", "numba"), _NUMBA_NAMES[name])
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
 
 def _phi_gamma(A: np.ndarray, B: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
     if A.shape[0] == 0:
