@@ -116,13 +116,12 @@ def fastest_rate(lay: LoopMatrices, dvy: float, dvv: float, cv: np.ndarray, dela
     rate = max(rate, abs(dvy * lay.dyd))
     if np.any(lay.bu):  # a predictor's model reads the command, u = v while it is not saturated
         rate = max(rate, float(np.max(np.abs(np.linalg.eigvals(lay.M + np.outer(lay.bu, cv))))))
-    if delay_free:
-        kd = dvy * lay.dy + dvv * lay.dyd
-        if abs(1.0 - kd) < 1e-12:
+    if delay_free:  # the loop's realisation with the measurement folded in (at these gains), closed by u = v = w
+        f = replace(lay, dvy=dvy, dvv=dvv, cv=cv).folded()
+        if abs(1.0 - f.kw) < 1e-12:
             raise InvalidValueError("the loop without delay is ill-posed: the controller's direct feedthrough "
                                     "cancels the plant's (1 + C(inf) P(inf) = 0)")
-        krow = cv + dvy * lay.cy + dvv * lay.cyd
-        acl = lay.M + np.outer(lay.bw + lay.bym * lay.dy + lay.bvm * lay.dyd, krow) / (1.0 - kd)
+        acl = lay.M + np.outer(f.b, f.k) / (1.0 - f.kw)
         acl += np.outer(lay.bym, lay.cy) + np.outer(lay.bvm, lay.cyd)
         rate = max(rate, float(np.max(np.abs(np.linalg.eigvals(acl)))))
     return rate
