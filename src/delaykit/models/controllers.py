@@ -40,7 +40,7 @@ import numpy as np
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from .transfer import TransferFunction
 
-__all__ = ["Controller", "Realisation", "controller_branches", "parallel", "feedback_transfer", "CONTROLLER_KINDS", "ANTIWINDUP_CHOICES", "VELOCITY_CHOICES"]
+__all__ = ["Controller", "Realisation", "controller_branches", "parallel", "feedback_transfer", "input_transfer", "CONTROLLER_KINDS", "ANTIWINDUP_CHOICES", "VELOCITY_CHOICES"]
 
 CONTROLLER_KINDS = ("p", "pv", "pi", "pd", "pid", "tf")
 ANTIWINDUP_CHOICES = ("none", "clamp", "backcalc")
@@ -528,6 +528,23 @@ def _adjugate(A: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
     return np.array(coef), Ns
 
 
+def input_transfer(r: Realisation, b: np.ndarray, d: float) -> tuple[np.ndarray, np.ndarray]:
+    """The law's transfer function from one of its inputs (the state input column ``b``, the feedthrough ``d``):
+    the numerator ``Cc adj(sI - Ac) b + d det(sI - Ac)`` (``order + 1`` coefficients, highest power first) and the
+    denominator ``det(sI - Ac)``.
+
+    Examples
+    --------
+    >>> r = Controller.pi(2.0, 0.5).realisation()
+    >>> [p.tolist() for p in input_transfer(r, r.Bcr, r.dvr)]   # 2 + 0.5/s from the reference
+    [[2.0, 0.5], [1.0, 0.0]]
+    """
+    den, Ns = _adjugate(np.asarray(r.Ac, float))
+    cc = np.asarray(r.Cc, float)
+    q = np.array([cc @ N @ np.asarray(b, float) for N in Ns])
+    return np.polyadd(d * den, np.r_[0.0, q]), den
+
+
 def feedback_transfer(r: Realisation) -> tuple[np.ndarray, np.ndarray]:
     """Numerator and denominator of the feedback part ``Cy(s)`` of a realisation's law ``v = ... - Cy(s) ym``,
     with the velocity read as ``s ym``: ``Cy = -(dvy + dvv s) - Cc adj(sI - Ac) (Bcy + s Bcv) / det(sI - Ac)``
@@ -538,13 +555,10 @@ def feedback_transfer(r: Realisation) -> tuple[np.ndarray, np.ndarray]:
     >>> [p.tolist() for p in feedback_transfer(Controller.pd(2.0, 0.1, 0.02).realisation())]
     [[7.0, 100.0], [1.0, 50.0]]
     """
-    den, Ns = _adjugate(np.asarray(r.Ac, float))
-    cc = np.asarray(r.Cc, float)
-    qy = np.array([cc @ N @ r.Bcy for N in Ns])
-    qv = np.array([cc @ N @ r.Bcv for N in Ns])
-    num = np.polyadd(-r.dvy * den, -qy)
-    if r.dvv != 0.0 or np.any(qv):
-        num = np.polyadd(num, np.polymul(np.polyadd(-r.dvv * den, -qv), [1.0, 0.0]))
+    ny, den = input_transfer(r, r.Bcy, r.dvy)
+    num = -ny
+    if r.dvv != 0.0 or np.any(r.Bcv):
+        num = np.polyadd(num, -np.polymul(input_transfer(r, r.Bcv, r.dvv)[0], [1.0, 0.0]))
     return _trim(num), den
 
 
