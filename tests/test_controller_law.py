@@ -141,3 +141,15 @@ def test_simulate_many_keeps_the_setpoint_weights(c):
         assert abs(m.rise_time[i] - ref.rise_time) < 1e-9
         assert abs(m.overshoot[i] - ref.overshoot) < 1e-9
         assert abs(m.settling_time[i] - ref.settling_time) < 1e-9
+
+
+def test_the_law_is_built_once_per_controller_and_cannot_be_changed_through_it():
+    c = Controller.pid(2.0, 0.5, 0.1, 0.02)
+    r = c.realisation()
+    assert c.realisation() is r
+    with pytest.raises(ValueError):
+        r.Cc[0] = 1.0  # read-only: a caller cannot change the controller's law behind its back
+    num, _ = c.feedback_polynomials()
+    num[0] = 99.0  # the polynomials are copies
+    assert c.feedback_polynomials()[0][0] != 99.0
+    assert c.replace(kp=3.0).realisation().dvy == -3.0 - 0.1 / 0.02  # a changed controller has its own law

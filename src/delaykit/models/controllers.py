@@ -23,6 +23,11 @@ command is saturated (``u = clip(v, umin, umax) != v``):
   the tracking time ``Tt`` (default ``sqrt(Ti Td)`` for PID and ``Ti`` for PI, with ``Ti = Kp / Ki``
   and ``Td = Kd / Kp``; ``1 / Ki`` when ``Kp = 0``).
 
+Each law is written once, by :func:`controller_branches` (its parallel branches, each a small
+:class:`Realisation`): :meth:`Controller.realisation` is their sum (:func:`parallel`),
+:meth:`Controller.feedback_polynomials` the sum of their transfer functions (:func:`feedback_transfer`), and a
+batch of simulations over arrays of gains evaluates them at the arrays.
+
 Examples
 --------
 >>> Controller.pid(kp=2.0, ki=0.5, kd=0.1, derivative_filter=0.02)
@@ -337,7 +342,13 @@ class Controller:
         >>> (r.dvr, r.dvy, r.Cc.tolist())
         (1.0, -1.0, [0.5])
         """
-        return parallel(controller_branches(self))
+        cached = self.__dict__.get("_realisation")
+        if cached is None:  # the controller is immutable: its law is built once, its arrays read-only
+            cached = parallel(controller_branches(self))
+            for name in ("Ac", "Bcr", "Bcy", "Bcv", "Baw", "Cc"):
+                getattr(cached, name).flags.writeable = False
+            object.__setattr__(self, "_realisation", cached)
+        return cached
 
     def feedback_polynomials(self) -> tuple[np.ndarray, np.ndarray]:
         """Numerator and denominator of the feedback part ``Cy(s)`` of the law ``v = ... - Cy(s) ym``
@@ -351,11 +362,15 @@ class Controller:
         """
         if self.kind == "tf":
             return self.transfer_function.num.copy(), self.transfer_function.den.copy()
-        num, den = np.zeros(1), np.ones(1)
-        for b in controller_branches(self):
-            nb, db = feedback_transfer(b)
-            num, den = np.polyadd(np.polymul(num, db), np.polymul(nb, den)), np.polymul(den, db)
-        return _trim(num), den
+        cached = self.__dict__.get("_feedback")
+        if cached is None:  # built once (the controller is immutable)
+            num, den = np.zeros(1), np.ones(1)
+            for b in controller_branches(self):
+                nb, db = feedback_transfer(b)
+                num, den = _padd(np.convolve(num, db), np.convolve(nb, den)), np.convolve(den, db)
+            cached = (_trim(num), den)
+            object.__setattr__(self, "_feedback", cached)
+        return cached[0].copy(), cached[1].copy()
 
     # -- output -----------------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -445,13 +460,16 @@ def controller_branches(c: Controller, kp: Any = None, ki: Any = None, kd: Any =
     kd = c.kd if kd is None else kd
     kv = c.kv if kv is None else kv
     z = np.zeros
-    zero = 0.0 * np.asarray(kp, float) if np.ndim(kp) else 0.0  # a gain-shaped zero
+    scalar = not any(np.ndim(g) for g in (kp, ki, kd, kv))
+    zero = 0.0 if scalar else 0.0 * sum(np.asarray(g, float) for g in (kp, ki, kd, kv))  # a gain-shaped zero
 
     def col(*v: Any) -> np.ndarray:  # an output row, gain-shaped: (..., k)
+        if scalar:
+            return np.array(v, float)
         return np.stack(np.broadcast_arrays(*(np.asarray(x, float) for x in v)), axis=-1)
 
     def static(dvr: Any, dvy: Any, dvv: Any = 0.0) -> Realisation:
-        return Realisation(z((0, 0)), z(0), z(0), z(0), z(0), col(zero)[..., :0], dvr, dvy, dvv, -1)
+        return Realisation(z((0, 0)), z(0), z(0), z(0), z(0), z(np.shape(zero) + (0,)), dvr, dvy, dvv, -1)
 
     if c.kind == "tf":
         A, B, C, D = c.transfer_function.state_space()
@@ -507,9 +525,13 @@ def parallel(branches: tuple[Realisation, ...]) -> Realisation:
         for b in branches[1:]:
             total = total + getattr(b, name)
         dv[name] = total
-    shape = np.broadcast_shapes(*(np.shape(b.Cc)[:-1] for b in branches))
-    Cc = np.concatenate([np.broadcast_to(b.Cc, shape + (b.order,)) for b in branches], axis=-1)
-    Baw = np.concatenate([np.broadcast_to(b.Baw, shape + (b.order,)) for b in branches], axis=-1)
+    if all(np.ndim(b.Cc) == 1 and np.ndim(b.Baw) == 1 for b in branches):  # scalar gains
+        Cc, Baw = cat("Cc"), cat("Baw")
+    else:
+        shape = np.broadcast_shapes(*(np.shape(b.Cc)[:-1] for b in branches),
+                                    *(np.shape(b.Baw)[:-1] for b in branches))
+        Cc = np.concatenate([np.broadcast_to(b.Cc, shape + (b.order,)) for b in branches], axis=-1)
+        Baw = np.concatenate([np.broadcast_to(b.Baw, shape + (b.order,)) for b in branches], axis=-1)
     return Realisation(Ac, cat("Bcr"), cat("Bcy"), cat("Bcv"), Baw, Cc, dv["dvr"], dv["dvy"], dv["dvv"], integ)
 
 
@@ -518,13 +540,14 @@ def _adjugate(A: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
     ``adj(sI - A) = sum_k s^(n-1-k) N_k`` (Faddeev-LeVerrier: exact in the small controllers' structures)."""
     n = A.shape[0]
     coef, Ns = [1.0], []
-    N = np.eye(n)
+    eye = np.eye(n)
+    N = eye
     for k in range(1, n + 1):
         Ns.append(N)
         AN = A @ N
         ck = -float(np.trace(AN)) / k + 0.0  # + 0.0: no negative zeros
         coef.append(ck)
-        N = AN + ck * np.eye(n)
+        N = AN + ck * eye
     return np.array(coef), Ns
 
 
@@ -542,7 +565,7 @@ def input_transfer(r: Realisation, b: np.ndarray, d: float) -> tuple[np.ndarray,
     den, Ns = _adjugate(np.asarray(r.Ac, float))
     cc = np.asarray(r.Cc, float)
     q = np.array([cc @ N @ np.asarray(b, float) for N in Ns])
-    return np.polyadd(d * den, np.r_[0.0, q]), den
+    return d * den + np.r_[0.0, q], den
 
 
 def feedback_transfer(r: Realisation) -> tuple[np.ndarray, np.ndarray]:
@@ -558,8 +581,17 @@ def feedback_transfer(r: Realisation) -> tuple[np.ndarray, np.ndarray]:
     ny, den = input_transfer(r, r.Bcy, r.dvy)
     num = -ny
     if r.dvv != 0.0 or np.any(r.Bcv):
-        num = np.polyadd(num, -np.polymul(input_transfer(r, r.Bcv, r.dvv)[0], [1.0, 0.0]))
+        num = _padd(num, -np.r_[input_transfer(r, r.Bcv, r.dvv)[0], 0.0])
     return _trim(num), den
+
+
+def _padd(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The sum of two polynomials (highest power first) of any lengths."""
+    if a.size < b.size:
+        a, b = b, a
+    out = a.copy()
+    out[a.size - b.size:] += b
+    return out
 
 
 def _trim(p: np.ndarray) -> np.ndarray:
