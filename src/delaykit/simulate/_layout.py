@@ -76,8 +76,9 @@ realisation, :class:`~delaykit.models.closed_loop.LoopRealisation`."""
 
 
 def loop_matrices(loop: Loop) -> LoopMatrices:
-    """The kernel's matrices of a loop (at most ``MAXN`` states in all): :func:`~delaykit.models.closed_loop.
-    loop_realisation`, with one inert state for a static plant under a static law (the kernel needs a state).
+    """The kernel's matrices of a loop (at most ``MAXN`` states in all): its closed-loop realisation
+    (:func:`~delaykit.models.closed_loop.loop_realisation`), with one inert state for a static plant under a
+    static law (the kernel needs a state).
 
     Examples
     --------
