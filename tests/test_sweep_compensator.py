@@ -25,6 +25,10 @@ def _single(loop: Loop, **gains: float):
      {"kp": np.array([3.0, 5.0]), "ki": np.array([0.5, 1.0])}),
     (Loop("1/s", Compensator.predictor("1/s", 0.37, closed_loop_time=0.3), delay=0.37),
      {"kp": np.array([4.0, 6.0]), "ki": np.array([8.0, 11.0])}),
+    (Loop("1/s", Compensator.filtered_smith("1/s", 0.4), delay=0.4, umin=-2.0, umax=2.0),
+     {"kp": np.array([1.5, 2.5, 4.0])}),
+    (Loop("2/(5*s+1)", Compensator.smith("2/(5*s+1)", 1.0, closed_loop_time=0.5), delay=1.0, period=0.1),
+     {"kp": np.array([3.0, 5.0])}),
 ])
 def test_simulate_many_of_a_compensator_equals_single_runs(loop, sweep):
     m = simulate_many(loop, **sweep)

@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..models.closed_loop import realisation_of
 from ..models.compensators import Compensator
 from ..models.controllers import Controller
 from ..models.loop import Loop
@@ -323,15 +324,7 @@ def _matrices(A: np.ndarray, B: np.ndarray, C: np.ndarray, rz: Any) -> K.LoopMat
     if n > K.MAXN:
         raise F.IdentificationError(f"the loop has {n} states (plant {npl}, controller {nc}); the simulator takes "
                                     f"at most {K.MAXN}")
-    M = np.zeros((n, n))
-    M[:npl, :npl] = A
-    if nc:
-        M[npl:, npl:] = rz.Ac
-    zp, zc = np.zeros(npl), np.zeros(nc)
-    return K.LoopMatrices(npl=npl, M=M, bw=np.r_[B, zc], br=np.r_[zp, rz.Bcr], bym=np.r_[zp, rz.Bcy],
-                          bvm=np.r_[zp, rz.Bcv], baw=np.r_[zp, rz.Baw], cy=np.r_[C, zc], cyd=np.r_[C @ A, zc],
-                          cv=np.r_[zp, rz.Cc], bu=np.zeros(n), bum=np.zeros(n), dy=0.0, dyd=float(C @ B),
-                          integ=npl + rz.integ if rz.integ >= 0 else -1)
+    return realisation_of(A, B, C, 0.0, rz)
 
 
 def _outputs(runs: list[_LogRun], plant: tuple[np.ndarray, np.ndarray, np.ndarray], delay: float,

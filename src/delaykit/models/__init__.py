@@ -23,6 +23,7 @@ _SOURCES = {
     "altitude": ["AltitudeLoop", "VELOCITY_CHOICES", "PAPER_PERIOD"],
     "quasipolynomial": ["QuasiPolynomial"],
     "controllers": ["Controller", "Realisation", "CONTROLLER_KINDS", "ANTIWINDUP_CHOICES"],
+    "closed_loop": ["LoopRealisation", "loop_realisation"],
     "compensators": ["Compensator", "COMPENSATOR_KINDS"],
     "loop": ["Loop", "LOOP_KEYS", "load_loop", "loop_from_dict"],
     "plants": ["PLANT_FAMILIES", "integrator", "integrator_lag", "integrator_speed_loop", "first_order", "second_order",
@@ -35,6 +36,7 @@ _SOURCES = {
 __all__ = [
     "AltitudeLoop", "VELOCITY_CHOICES", "PAPER_PERIOD", "QuasiPolynomial",
     "Controller", "Realisation", "CONTROLLER_KINDS", "ANTIWINDUP_CHOICES", "Compensator", "COMPENSATOR_KINDS",
+    "LoopRealisation", "loop_realisation",
     "Loop", "LOOP_KEYS", "load_loop", "loop_from_dict",
     "PLANT_FAMILIES", "integrator", "integrator_lag", "integrator_speed_loop", "first_order", "second_order",
     "second_order_wn",

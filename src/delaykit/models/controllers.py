@@ -23,6 +23,11 @@ command is saturated (``u = clip(v, umin, umax) != v``):
   the tracking time ``Tt`` (default ``sqrt(Ti Td)`` for PID and ``Ti`` for PI, with ``Ti = Kp / Ki``
   and ``Td = Kd / Kp``; ``1 / Ki`` when ``Kp = 0``).
 
+Each law is written once, by :func:`controller_branches` (its parallel branches, each a small
+:class:`Realisation`): :meth:`Controller.realisation` is their sum (:func:`parallel`),
+:meth:`Controller.feedback_polynomials` the sum of their transfer functions (:func:`feedback_transfer`), and a
+batch of simulations over arrays of gains evaluates them at the arrays.
+
 Examples
 --------
 >>> Controller.pid(kp=2.0, ki=0.5, kd=0.1, derivative_filter=0.02)
@@ -32,7 +37,6 @@ Controller(pid: kp=2, ki=0.5, kd=0.1, Tf=0.02 s)
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -41,7 +45,7 @@ import numpy as np
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from .transfer import TransferFunction
 
-__all__ = ["Controller", "Realisation", "CONTROLLER_KINDS", "ANTIWINDUP_CHOICES", "VELOCITY_CHOICES"]
+__all__ = ["Controller", "Realisation", "controller_branches", "parallel", "feedback_transfer", "input_transfer", "CONTROLLER_KINDS", "ANTIWINDUP_CHOICES", "VELOCITY_CHOICES"]
 
 CONTROLLER_KINDS = ("p", "pv", "pi", "pd", "pid", "tf")
 ANTIWINDUP_CHOICES = ("none", "clamp", "backcalc")
@@ -299,6 +303,17 @@ class Controller:
         return self.kind in ("pi", "pid")
 
     @property
+    def gain_names(self) -> tuple[str, ...]:
+        """The gains the law uses (none for a tf controller, whose law is its transfer function).
+
+        Examples
+        --------
+        >>> Controller.pid(2.0, 0.5, 0.1, 0.02).gain_names
+        ('kp', 'ki', 'kd')
+        """
+        return () if self.kind == "tf" else ("kp",) + _USES[self.kind]
+
+    @property
     def filtered(self) -> bool:
         """True for the PV law through the derivative filter (with Kv > 0)."""
         return self.kind == "pv" and self.velocity == "filtered" and self.kv > 0.0
@@ -310,14 +325,7 @@ class Controller:
 
     def default_tracking_time(self) -> float:
         """The back-calculation tracking time: ``tracking_time`` or the default rule."""
-        if self.tracking_time is not None:
-            return self.tracking_time
-        if self.kp > 0 and self.ki > 0:
-            ti = self.kp / self.ki
-            if self.kind == "pid" and self.kd > 0:
-                return math.sqrt(ti * self.kd / self.kp)
-            return ti
-        return 1.0 / abs(self.ki) if self.ki else 1.0
+        return _tracking_time(self, self.kp, self.ki, self.kd)
 
     def replace(self, **changes: Any) -> "Controller":
         """A copy with some fields changed (validated again)."""
@@ -325,7 +333,8 @@ class Controller:
 
     # -- the law as matrices -----------------------------------------------------------------------------
     def realisation(self) -> Realisation:
-        """The controller as state-space matrices (see :class:`Realisation`).
+        """The controller as state-space matrices (see :class:`Realisation`): the parallel sum of
+        :func:`controller_branches`.
 
         Examples
         --------
@@ -333,62 +342,35 @@ class Controller:
         >>> (r.dvr, r.dvy, r.Cc.tolist())
         (1.0, -1.0, [0.5])
         """
-        kp, ki, kd, kv = self.kp, self.ki, self.kd, self.kv
-        z = np.zeros
-        if self.kind == "p" or (self.kind == "pv" and not self.filtered):
-            return Realisation(z((0, 0)), z(0), z(0), z(0), z(0), z(0), kp, -kp, -kv if self.kind == "pv" else 0.0, -1)
-        if self.kind == "pv":
-            w, zt = self.filter_wn, self.filter_zeta
-            return Realisation(np.array([[0.0, 1.0], [-w * w, -2 * zt * w]]), z(2), np.array([0.0, 1.0]), z(2), z(2),
-                               np.array([0.0, -kv * w * w]), kp, -kp, 0.0, -1)
-        if self.kind == "tf":
-            A, B, C, D = self.transfer_function.state_space()
-            n = A.shape[0]
-            return Realisation(np.atleast_2d(A).reshape(n, n), np.asarray(B, float).reshape(n),
-                               -np.asarray(B, float).reshape(n), z(n), z(n), np.asarray(C, float).reshape(n),
-                               float(D), -float(D), 0.0, -1)
-        aw = 0.0
-        if self.antiwindup == "backcalc":
-            aw = 1.0 / (ki * self.default_tracking_time())
-        b, c = self.setpoint_weight, self.derivative_weight
-        if self.kind == "pi":
-            return Realisation(z((1, 1)), np.array([1.0]), np.array([-1.0]), z(1), np.array([aw]), np.array([ki]),
-                               b * kp, -kp, 0.0, 0)
-        tf = self.derivative_filter
-        if self.kind == "pd":
-            return Realisation(np.array([[-1.0 / tf]]), z(1), np.array([1.0 / tf]), z(1), z(1), np.array([kd / tf]),
-                               kp, -kp - kd / tf, 0.0, -1)
-        # the filter state low-passes ym - c r; the derivative is kd/Tf ((ym - c r) filtered minus (ym - c r))
-        return Realisation(np.array([[0.0, 0.0], [0.0, -1.0 / tf]]), np.array([1.0, -c / tf]), np.array([-1.0, 1.0 / tf]),
-                           z(2), np.array([aw, 0.0]), np.array([ki, kd / tf]), b * kp + c * kd / tf, -kp - kd / tf, 0.0, 0)
+        cached = self.__dict__.get("_realisation")
+        if cached is None:  # the controller is immutable: its law is built once, its arrays read-only
+            cached = parallel(controller_branches(self))
+            for name in ("Ac", "Bcr", "Bcy", "Bcv", "Baw", "Cc"):
+                getattr(cached, name).flags.writeable = False
+            object.__setattr__(self, "_realisation", cached)
+        return cached
 
     def feedback_polynomials(self) -> tuple[np.ndarray, np.ndarray]:
         """Numerator and denominator of the feedback part ``Cy(s)`` of the law ``v = ... - Cy(s) ym``
-        (the loop's characteristic equation is ``Dp Dc + Np Nc exp(-s T) = 0``).
+        (the loop's characteristic equation is ``Dp Dc + Np Nc exp(-s T) = 0``), the sum of the feedback parts of
+        :func:`controller_branches` (each from its realisation; a tf controller's is its transfer function).
 
         Examples
         --------
         >>> [c.tolist() for c in Controller.pv(2.0, 0.3).feedback_polynomials()]
         [[0.3, 2.0], [1.0]]
         """
-        kp, ki, kd, kv = self.kp, self.ki, self.kd, self.kv
-        if self.kind == "p":
-            return np.array([kp]), np.array([1.0])
-        if self.kind == "pv" and not self.filtered:
-            return np.array([kv, kp]), np.array([1.0])
-        if self.kind == "pv":
-            w, zt = self.filter_wn, self.filter_zeta
-            d = np.array([1.0, 2 * zt * w, w * w])
-            return np.polyadd(kp * d, [kv * w * w, 0.0]), d
         if self.kind == "tf":
             return self.transfer_function.num.copy(), self.transfer_function.den.copy()
-        tf = self.derivative_filter
-        if self.kind == "pi":
-            return np.array([kp, ki]), np.array([1.0, 0.0])
-        if self.kind == "pd":  # kp + kd s/(tf s + 1)
-            return np.array([kp * tf + kd, kp]), np.array([tf, 1.0])
-        # kp + ki/s + kd s/(tf s + 1) over s (tf s + 1)
-        return np.array([kp * tf + kd, kp + ki * tf, ki]), np.array([tf, 1.0, 0.0])
+        cached = self.__dict__.get("_feedback")
+        if cached is None:  # built once (the controller is immutable)
+            num, den = np.zeros(1), np.ones(1)
+            for b in controller_branches(self):
+                nb, db = feedback_transfer(b)
+                num, den = _padd(np.convolve(num, db), np.convolve(nb, den)), np.convolve(den, db)
+            cached = (_trim(num), den)
+            object.__setattr__(self, "_feedback", cached)
+        return cached[0].copy(), cached[1].copy()
 
     # -- output -----------------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -439,3 +421,180 @@ class Controller:
 _GAIN_NAMES = {"kp": "proportional gain", "ki": "integral gain, 1/s", "kd": "derivative gain, s",
                "kv": "velocity gain"}
 _USES = {"p": (), "pv": ("kv",), "pi": ("ki",), "pd": ("kd",), "pid": ("ki", "kd"), "tf": ()}
+
+
+def _tracking_time(c: Controller, kp: Any, ki: Any, kd: Any) -> Any:
+    """Back-calculation's tracking time ``Tt`` of ``c``'s structure at gains that may be arrays (see
+    :meth:`Controller.default_tracking_time`)."""
+    if c.tracking_time is not None:
+        return np.full(np.shape(ki), c.tracking_time) if np.ndim(ki) else c.tracking_time
+    kp, ki, kd = np.broadcast_arrays(np.asarray(kp, float), np.asarray(ki, float), np.asarray(kd, float))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ti = kp / ki
+        tt = np.where((kp > 0) & (ki > 0), np.where((c.kind == "pid") & (kd > 0), np.sqrt(ti * kd / kp), ti),
+                      np.where(ki != 0, 1.0 / np.abs(ki), 1.0))
+    return tt if tt.ndim else float(tt)
+
+
+def controller_branches(c: Controller, kp: Any = None, ki: Any = None, kd: Any = None,
+                        kv: Any = None) -> tuple[Realisation, ...]:
+    """The controller's law, defined once: its parallel branches (proportional, integral, derivative, velocity,
+    or the transfer function), each a :class:`Realisation` on the reference, the measurement and its velocity.
+
+    :meth:`Controller.realisation` is their parallel sum (:func:`parallel`), :meth:`Controller.feedback_polynomials`
+    the sum of their feedback parts (:func:`feedback_transfer`), and the simulator's sweeps of many gains
+    (``simulate_many(kp=...)``) evaluate them at arrays of gains: ``kp, ki, kd, kv`` default to the controller's
+    and may be arrays of one shape (only the output row ``Cc``, the ``dv*`` terms and ``Baw`` depend on them;
+    they then carry a leading axis of that shape).
+
+    Examples
+    --------
+    >>> [b.order for b in controller_branches(Controller.pid(2.0, 0.5, 0.1, 0.02))]  # P, I, D
+    [0, 1, 1]
+    >>> import numpy as np
+    >>> controller_branches(Controller.pi(1.0, 0.5), kp=np.array([1.0, 2.0]))[0].dvy.tolist()
+    [-1.0, -2.0]
+    """
+    kp = c.kp if kp is None else kp
+    ki = c.ki if ki is None else ki
+    kd = c.kd if kd is None else kd
+    kv = c.kv if kv is None else kv
+    z = np.zeros
+    scalar = not any(np.ndim(g) for g in (kp, ki, kd, kv))
+    zero = 0.0 if scalar else 0.0 * sum(np.asarray(g, float) for g in (kp, ki, kd, kv))  # a gain-shaped zero
+
+    def col(*v: Any) -> np.ndarray:  # an output row, gain-shaped: (..., k)
+        if scalar:
+            return np.array(v, float)
+        return np.stack(np.broadcast_arrays(*(np.asarray(x, float) for x in v)), axis=-1)
+
+    def static(dvr: Any, dvy: Any, dvv: Any = 0.0) -> Realisation:
+        return Realisation(z((0, 0)), z(0), z(0), z(0), z(0), z(np.shape(zero) + (0,)), dvr, dvy, dvv, -1)
+
+    if c.kind == "tf":
+        A, B, C, D = c.transfer_function.state_space()
+        n = A.shape[0]
+        return (Realisation(np.atleast_2d(A).reshape(n, n), np.asarray(B, float).reshape(n),
+                            -np.asarray(B, float).reshape(n), z(n), z(n), np.asarray(C, float).reshape(n),
+                            float(D), -float(D), 0.0, -1),)
+    if c.kind == "p":
+        return (static(kp, -kp),)
+    if c.kind == "pv" and not c.filtered:  # v = kp e - kv vm, the true velocity
+        return (static(kp, -kp), static(zero, zero, -kv))
+    if c.kind == "pv":  # - kv F(s) ym, F(s) = wf^2 s / (s^2 + 2 zf wf s + wf^2)
+        w, zt = c.filter_wn, c.filter_zeta
+        return (static(kp, -kp), Realisation(np.array([[0.0, 1.0], [-w * w, -2 * zt * w]]), z(2), np.array([0.0, 1.0]),
+                                             z(2), z(2), col(zero, -kv * w * w), zero, zero, 0.0, -1))
+    b, cw = c.setpoint_weight, c.derivative_weight
+    branches = [static(b * kp, -kp)]  # kp (b r - ym)
+    if c.has_integrator:  # ki xi, xi' = r - ym (+ back-calculation (u - v) / (ki Tt))
+        aw = 1.0 / (ki * _tracking_time(c, kp, ki, kd)) if c.antiwindup == "backcalc" else zero
+        branches.append(Realisation(z((1, 1)), np.array([1.0]), np.array([-1.0]), z(1), col(aw), col(ki), zero,
+                                    zero, 0.0, 0))
+    if c.kind in ("pd", "pid"):
+        # the filter state low-passes ym - c r; the derivative is kd/Tf ((ym - c r) filtered minus (ym - c r))
+        tf = c.derivative_filter
+        branches.append(Realisation(np.array([[-1.0 / tf]]), np.array([-cw / tf]), np.array([1.0 / tf]), z(1), z(1),
+                                    col(kd / tf), cw * kd / tf, -kd / tf, 0.0, -1))
+    return tuple(branches)
+
+
+def parallel(branches: tuple[Realisation, ...]) -> Realisation:
+    """The parallel sum of realisations on the same inputs: block-diagonal states, outputs added.
+
+    Examples
+    --------
+    >>> parallel(controller_branches(Controller.pid(2.0, 0.5, 0.1, 0.02))).Ac.tolist()
+    [[0.0, 0.0], [0.0, -50.0]]
+    """
+    first = branches[0]
+    if len(branches) == 1:
+        return first
+    n = sum(b.order for b in branches)
+    Ac = np.zeros((n, n))
+    k, integ = 0, -1
+    for b in branches:
+        Ac[k:k + b.order, k:k + b.order] = b.Ac
+        if b.integ >= 0:
+            integ = k + b.integ
+        k += b.order
+    cat = lambda name: np.concatenate([getattr(b, name) for b in branches])  # noqa: E731 (gain-free inputs)
+    dv = {}
+    for name in ("dvr", "dvy", "dvv"):
+        total = getattr(first, name)
+        for b in branches[1:]:
+            total = total + getattr(b, name)
+        dv[name] = total
+    if all(np.ndim(b.Cc) == 1 and np.ndim(b.Baw) == 1 for b in branches):  # scalar gains
+        Cc, Baw = cat("Cc"), cat("Baw")
+    else:
+        shape = np.broadcast_shapes(*(np.shape(b.Cc)[:-1] for b in branches),
+                                    *(np.shape(b.Baw)[:-1] for b in branches))
+        Cc = np.concatenate([np.broadcast_to(b.Cc, shape + (b.order,)) for b in branches], axis=-1)
+        Baw = np.concatenate([np.broadcast_to(b.Baw, shape + (b.order,)) for b in branches], axis=-1)
+    return Realisation(Ac, cat("Bcr"), cat("Bcy"), cat("Bcv"), Baw, Cc, dv["dvr"], dv["dvy"], dv["dvv"], integ)
+
+
+def _adjugate(A: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
+    """``det(sI - A)`` (highest power first) and the matrices ``N_k`` with
+    ``adj(sI - A) = sum_k s^(n-1-k) N_k`` (Faddeev-LeVerrier: exact in the small controllers' structures)."""
+    n = A.shape[0]
+    coef, Ns = [1.0], []
+    eye = np.eye(n)
+    N = eye
+    for k in range(1, n + 1):
+        Ns.append(N)
+        AN = A @ N
+        ck = -float(np.trace(AN)) / k + 0.0  # + 0.0: no negative zeros
+        coef.append(ck)
+        N = AN + ck * eye
+    return np.array(coef), Ns
+
+
+def input_transfer(r: Realisation, b: np.ndarray, d: float) -> tuple[np.ndarray, np.ndarray]:
+    """The law's transfer function from one of its inputs (the state input column ``b``, the feedthrough ``d``):
+    the numerator ``Cc adj(sI - Ac) b + d det(sI - Ac)`` (``order + 1`` coefficients, highest power first) and the
+    denominator ``det(sI - Ac)``.
+
+    Examples
+    --------
+    >>> r = Controller.pi(2.0, 0.5).realisation()
+    >>> [p.tolist() for p in input_transfer(r, r.Bcr, r.dvr)]   # 2 + 0.5/s from the reference
+    [[2.0, 0.5], [1.0, 0.0]]
+    """
+    den, Ns = _adjugate(np.asarray(r.Ac, float))
+    cc = np.asarray(r.Cc, float)
+    q = np.array([cc @ N @ np.asarray(b, float) for N in Ns])
+    return d * den + np.r_[0.0, q], den
+
+
+def feedback_transfer(r: Realisation) -> tuple[np.ndarray, np.ndarray]:
+    """Numerator and denominator of the feedback part ``Cy(s)`` of a realisation's law ``v = ... - Cy(s) ym``,
+    with the velocity read as ``s ym``: ``Cy = -(dvy + dvv s) - Cc adj(sI - Ac) (Bcy + s Bcv) / det(sI - Ac)``
+    (scalar gains; a law that reads the command, a predictor's, has none).
+
+    Examples
+    --------
+    >>> [p.tolist() for p in feedback_transfer(Controller.pd(2.0, 0.1, 0.02).realisation())]
+    [[7.0, 100.0], [1.0, 50.0]]
+    """
+    ny, den = input_transfer(r, r.Bcy, r.dvy)
+    num = -ny
+    if r.dvv != 0.0 or np.any(r.Bcv):
+        num = _padd(num, -np.r_[input_transfer(r, r.Bcv, r.dvv)[0], 0.0])
+    return _trim(num), den
+
+
+def _padd(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The sum of two polynomials (highest power first) of any lengths."""
+    if a.size < b.size:
+        a, b = b, a
+    out = a.copy()
+    out[a.size - b.size:] += b
+    return out
+
+
+def _trim(p: np.ndarray) -> np.ndarray:
+    """A polynomial without its leading zeros (at least one coefficient)."""
+    nz = np.flatnonzero(p)
+    return p[nz[0]:] + 0.0 if nz.size else np.zeros(1)

@@ -42,7 +42,7 @@ import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from .compensators import Compensator
-from .controllers import Controller
+from .controllers import Controller, input_transfer
 from .quasipolynomial import QuasiPolynomial
 from .transfer import TransferFunction
 
@@ -240,12 +240,10 @@ class Loop:
             raise InvalidValueError("compensated_polynomials() is for a loop whose controller is a Compensator; "
                                     f"this one has a {self.controller.kind} controller (see open_loop())")
         rz = self.controller.realisation()
-        dc = np.poly(rz.Ac) if rz.order else np.ones(1)
+        dc = input_transfer(rz, rz.Bcy, rz.dvy)[1]
 
         def num(b: np.ndarray, d: float) -> np.ndarray:  # Cc adj(sI - Ac) b + d Dc
-            if not rz.order:
-                return d * dc
-            return np.polysub(np.poly(rz.Ac - np.outer(b, rz.Cc)), dc) + d * dc
+            return input_transfer(rz, b, d)[0]
 
         np_, dp = self.plant.num, self.plant.den
         polys = [np.polysub(np.polymul(dc, dp), np.polymul(num(rz.Bcu, 0.0), dp)),

@@ -17,11 +17,12 @@ Examples
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import replace
 
 import numpy as np
 
 from ..errors import InvalidValueError
+from ..models.closed_loop import LoopRealisation, loop_realisation
 from ..models.loop import Loop
 from ..models.signals import LoadStep
 
@@ -69,33 +70,15 @@ NOUT = len(OUT)
 STATUS_OK, STATUS_CAPACITY, STATUS_STALLED = 0.0, 1.0, 2.0
 
 
-@dataclass(frozen=True)
-class LoopMatrices:
-    """A loop as the kernel's matrices (everything of a parameter row but the run's settings).
-
-    The state vector is the plant's states (``npl`` of them), then the controller's; ``M`` is block diagonal,
-    and the vectors couple the states to the signals (see :mod:`._kernel`).  Built by :func:`loop_matrices`.
-    """
-
-    npl: int
-    M: np.ndarray
-    bw: np.ndarray
-    br: np.ndarray
-    bym: np.ndarray
-    bvm: np.ndarray
-    baw: np.ndarray
-    cy: np.ndarray
-    cyd: np.ndarray
-    cv: np.ndarray
-    bu: np.ndarray
-    bum: np.ndarray
-    dy: float
-    dyd: float
-    integ: int
+LoopMatrices = LoopRealisation
+"""A loop as the kernel's matrices (everything of a parameter row but the run's settings): the loop's closed-loop
+realisation, :class:`~delaykit.models.closed_loop.LoopRealisation`."""
 
 
 def loop_matrices(loop: Loop) -> LoopMatrices:
-    """The kernel's matrices of a loop (at most ``MAXN`` states in all).
+    """The kernel's matrices of a loop (at most ``MAXN`` states in all): its closed-loop realisation
+    (:func:`~delaykit.models.closed_loop.loop_realisation`), with one inert state for a static plant under a
+    static law (the kernel needs a state).
 
     Examples
     --------
@@ -104,31 +87,16 @@ def loop_matrices(loop: Loop) -> LoopMatrices:
     >>> m.npl, m.M.shape, m.integ
     (2, (4, 4), 2)
     """
-    A, B, C, D = loop.plant.state_space()
-    A = np.atleast_2d(np.asarray(A, float))
-    npl = A.shape[0]
-    B = np.asarray(B, float).reshape(npl)
-    C = np.asarray(C, float).reshape(npl)
-    rz = loop.controller.realisation()
-    nc = rz.order
-    n = npl + nc
+    lay = loop_realisation(loop)
+    n = lay.order
     if n > MAXN:
         raise InvalidValueError(
-            f"the loop has {n} states (plant {npl}, controller {nc}); the simulator takes at most {MAXN}")
-    if n == 0:  # a static plant: give the kernel one inert state
-        A, B, C, npl, n = np.zeros((1, 1)), np.zeros(1), np.zeros(1), 1, 1 + nc
-    M = np.zeros((n, n))
-    M[:npl, :npl] = A
-    if nc:
-        M[npl:, npl:] = rz.Ac
-    zp, zc = np.zeros(npl), np.zeros(nc)
-    return LoopMatrices(
-        npl=npl, M=M, bw=np.r_[B, zc], br=np.r_[zp, rz.Bcr], bym=np.r_[zp, rz.Bcy], bvm=np.r_[zp, rz.Bcv],
-        baw=np.r_[zp, rz.Baw], cy=np.r_[C, zc], cyd=np.r_[C @ A, zc], cv=np.r_[zp, rz.Cc],
-        bu=np.r_[zp, rz.Bcu if rz.Bcu is not None else zc], bum=np.r_[zp, rz.Bcm if rz.Bcm is not None else zc],
-        dy=float(D),
-        dyd=float(C @ B), integ=npl + rz.integ if rz.integ >= 0 else -1,
-    )
+            f"the loop has {n} states (plant {lay.npl}, controller {n - lay.npl}); the simulator takes at most {MAXN}")
+    if n == 0:  # a static plant and a static law: give the kernel one inert state
+        z = np.zeros(1)
+        lay = replace(lay, npl=1, M=np.zeros((1, 1)), bw=z, br=z, bym=z, bvm=z, baw=z, cy=z, cyd=z, cv=z, bu=z, bum=z,
+                      dyd=0.0)
+    return lay
 
 
 def _put(row: np.ndarray, off: int, vec: np.ndarray) -> None:
@@ -149,13 +117,12 @@ def fastest_rate(lay: LoopMatrices, dvy: float, dvv: float, cv: np.ndarray, dela
     rate = max(rate, abs(dvy * lay.dyd))
     if np.any(lay.bu):  # a predictor's model reads the command, u = v while it is not saturated
         rate = max(rate, float(np.max(np.abs(np.linalg.eigvals(lay.M + np.outer(lay.bu, cv))))))
-    if delay_free:
-        kd = dvy * lay.dy + dvv * lay.dyd
-        if abs(1.0 - kd) < 1e-12:
+    if delay_free:  # the loop's realisation with the measurement folded in (at these gains), closed by u = v = w
+        f = replace(lay, dvy=dvy, dvv=dvv, cv=cv).folded()
+        if abs(1.0 - f.kw) < 1e-12:
             raise InvalidValueError("the loop without delay is ill-posed: the controller's direct feedthrough "
                                     "cancels the plant's (1 + C(inf) P(inf) = 0)")
-        krow = cv + dvy * lay.cy + dvv * lay.cyd
-        acl = lay.M + np.outer(lay.bw + lay.bym * lay.dy + lay.bvm * lay.dyd, krow) / (1.0 - kd)
+        acl = lay.M + np.outer(f.b, f.k) / (1.0 - f.kw)
         acl += np.outer(lay.bym, lay.cy) + np.outer(lay.bvm, lay.cyd)
         rate = max(rate, float(np.max(np.abs(np.linalg.eigvals(acl)))))
     return rate
@@ -194,7 +161,6 @@ def param_row(loop: Loop, lay: LoopMatrices, *, step: float, slope: float, norm:
     See the module's.
     """
     c = loop.controller
-    rz = c.realisation()
     p = np.zeros(NPAR)
     n = lay.M.shape[0]
     p[HEAD["n"]] = n
@@ -211,17 +177,17 @@ def param_row(loop: Loop, lay: LoopMatrices, *, step: float, slope: float, norm:
     p[HEAD["t_dist"]] = dist.time if dist is not None else math.inf
     p[HEAD["dy"]] = lay.dy
     p[HEAD["dyd"]] = lay.dyd
-    p[HEAD["dvr"]] = rz.dvr
-    p[HEAD["dvy"]] = rz.dvy
-    p[HEAD["dvv"]] = rz.dvv
+    p[HEAD["dvr"]] = lay.dvr
+    p[HEAD["dvy"]] = lay.dvy
+    p[HEAD["dvv"]] = lay.dvv
     p[HEAD["integ"]] = lay.integ
     p[HEAD["aw"]] = AW[c.antiwindup]
-    p[HEAD["hmax"]] = 1.0 / max(step_rate(lay, rz.dvy, rz.dvv, lay.cv, max(loop.delay, loop.output_delay),
+    p[HEAD["hmax"]] = 1.0 / max(step_rate(lay, lay.dvy, lay.dvv, lay.cv, max(loop.delay, loop.output_delay),
                                           loop.sampled), 1e-9)
-    p[HEAD["scale"]] = max(1.0, abs(rz.dvr * step), abs(norm))
+    p[HEAD["scale"]] = max(1.0, abs(lay.dvr * step), abs(norm))
     p[HEAD["step"]] = step
     p[HEAD["slope"]] = slope
-    p[HEAD["tm"]] = rz.model_delay
+    p[HEAD["tm"]] = lay.model_delay
     M = np.zeros((MAXN, MAXN))
     M[:n, :n] = lay.M
     _put(p, OFF_M, M.ravel())

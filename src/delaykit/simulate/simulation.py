@@ -30,6 +30,7 @@ from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop, as_loop
 from ..models.budget import sample_count
 from ..models.compensators import Compensator
+from ..models.controllers import controller_branches, parallel
 from ..models.loop import Loop
 from ..models.signals import LoadStep, Ramp, Samples, Step, as_reference
 from . import _jit
@@ -479,8 +480,8 @@ def simulate_many(loop: Any, *, t_end: float = 15.0, band: float = 0.02, **sweep
         raise InvalidValueError(f"simulate_many cannot sweep {', '.join(unknown)}; it sweeps {', '.join(SWEEPABLE)}")
     c = gen.controller
     owner = c.primary if isinstance(c, Compensator) and c.primary is not None else c  # whose gains are swept
-    own = ({"pv": ("kv",), "pi": ("ki",), "pd": ("kd",), "pid": ("ki", "kd")}.get(owner.kind, ())
-           if owner is not c or not isinstance(c, Compensator) else ("ki",))  # a predictor: its kp and ki
+    own = (owner.gain_names if owner is not c or not isinstance(c, Compensator)
+           else ("kp", "ki"))  # a predictor: its kp and ki
     for g in ("ki", "kd", "kv"):
         if g in sweep and g not in own:
             what = f"the {c.kind} compensator's {owner.kind} primary controller" if owner is not c else f"a {c.kind} controller"
@@ -589,35 +590,19 @@ def _with_gains(c: Compensator, gains: dict[str, float]) -> Compensator:
 
 
 def _gain_columns(loop: Loop, lay: LoopMatrices, pars: np.ndarray, g: dict[str, np.ndarray]) -> None:
-    """Write the controller's gain-dependent entries of many rows (the structure is the loop's)."""
+    """Write the controller's gain-dependent entries of many rows (the structure is the loop's): the law of
+    :func:`~delaykit.models.controllers.controller_branches` evaluated at the arrays of gains."""
     c = loop.controller
     H = K.HEAD
-    kp, ki, kd, kv = g["kp"], g["ki"], g["kd"], g["kv"]
-    npl = lay.npl
-    pars[:, H["dvr"]] = kp
-    if c.kind == "p" or (c.kind == "pv" and c.velocity == "true"):
-        pars[:, H["dvy"]] = -kp
-        pars[:, H["dvv"]] = -kv if c.kind == "pv" else 0.0
-    elif c.kind == "pv":
-        w = c.filter_wn
-        pars[:, H["dvy"]] = -kp
-        pars[:, K.OFF_CV + npl + 1] = -kv * w * w
-    elif c.kind == "pi":
-        pars[:, H["dvy"]] = -kp
-        pars[:, K.OFF_CV + npl] = ki
-    else:
-        tf = c.derivative_filter
-        pars[:, H["dvy"]] = -kp - kd / tf
-        if c.kind == "pd":
-            pars[:, K.OFF_CV + npl] = kd / tf
-        else:
-            pars[:, K.OFF_CV + npl] = ki
-            pars[:, K.OFF_CV + npl + 1] = kd / tf
-    if c.antiwindup == "backcalc":
-        if np.any(ki == 0):
-            raise InvalidValueError("back-calculation anti-windup needs ki != 0 in every swept loop")
-        tt = np.array([c.replace(kp=a, ki=b, kd=d).default_tracking_time() for a, b, d in zip(kp, ki, kd)])
-        pars[:, K.OFF_BAW + npl] = 1.0 / (ki * tt)
+    if c.antiwindup == "backcalc" and np.any(g["ki"] == 0):
+        raise InvalidValueError("back-calculation anti-windup needs ki != 0 in every swept loop")
+    rz = parallel(controller_branches(c, **g))
+    npl, nc = lay.npl, rz.order
+    m = pars.shape[0]
+    for name in ("dvr", "dvy", "dvv"):
+        pars[:, H[name]] = np.broadcast_to(getattr(rz, name), (m,))
+    pars[:, K.OFF_CV + npl:K.OFF_CV + npl + nc] = np.broadcast_to(rz.Cc, (m, nc))
+    pars[:, K.OFF_BAW + npl:K.OFF_BAW + npl + nc] = np.broadcast_to(rz.Baw, (m, nc))
     rate0 = float(np.max(np.abs(np.linalg.eigvals(lay.M)))) if lay.M.size else 0.0
     pars[:, H["hmax"]] = 1.0 / np.maximum(np.maximum(rate0, np.abs(pars[:, H["dvy"]] * lay.dyd)), 1e-9)
 

@@ -48,6 +48,7 @@ from .. import _native
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.ranges import parse_number
 from ..models.altitude import as_loop
+from ..models.closed_loop import loop_realisation
 from ..models.controllers import Controller
 from ..models.loop import Loop
 from .metrics import StepMetrics, step_metrics
@@ -530,26 +531,17 @@ def _loop_matrices(loop: Loop) -> tuple[np.ndarray, np.ndarray]:
     if c.antiwindup != "none":
         raise InvalidValueError(f"simulate_varying does not model anti-windup (antiwindup={c.antiwindup!r}); "
                                 "use antiwindup='none'")
-    rz = c.realisation()
-    A, B, C, D = loop.plant.state_space()
-    npl, nc = A.shape[0], rz.order
-    n = npl + nc
-    A = np.asarray(A, float).reshape(npl, npl)
-    B, C = np.asarray(B, float).reshape(npl), np.asarray(C, float).reshape(npl)
+    lr = loop_realisation(loop)
+    f = lr.folded()  # the measurement is the output itself (no output delay)
+    n = lr.order
     rows = np.zeros((3, n + 2))  # y, y' and v
-    rows[0, :npl], rows[0, n] = C, D
-    if npl:
-        rows[1, :npl], rows[1, n] = C @ A, C @ B
-    rows[2] = rz.dvy * rows[0] + rz.dvv * rows[1]
-    rows[2, npl:n] += rz.Cc
-    rows[2, n + 1] = rz.dvr
+    rows[0, :n], rows[0, n] = lr.cy, lr.dy
+    rows[1, :n], rows[1, n] = lr.cyd, lr.dyd
+    rows[2, :n], rows[2, n], rows[2, n + 1] = f.k, f.kw, f.dvr
     M = np.zeros((n + 2, n + 2))
-    M[:npl, :npl] = A
-    M[:npl, n] = B
-    if nc:  # xc' = Ac xc + Bcr r + Bcy y + Bcv y'
-        M[npl:n] = np.outer(rz.Bcy, rows[0]) + np.outer(rz.Bcv, rows[1])
-        M[npl:n, npl:n] += rz.Ac
-        M[npl:n, n + 1] = rz.Bcr
+    M[:n, :n] = f.A
+    M[:n, n] = f.b
+    M[:n, n + 1] = f.br
     return M, rows
 
 

@@ -70,6 +70,7 @@ import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError
 from ..models.altitude import AltitudeLoop, as_loop
+from ..models.closed_loop import loop_realisation
 from ..models.hold import hold_matrices, split_delay
 from ..models.loop import Loop
 from .frequency import FrequencyResponse
@@ -381,39 +382,26 @@ def sampled_model(loop: Loop | AltitudeLoop) -> SampledModel:
     """
     lp = _sampled_loop(loop, "sampled_model")
     h = float(lp.period)
-    A, B, C, D = lp.plant.state_space()
-    n = A.shape[0]
-    A = np.asarray(A, float).reshape(n, n)
-    B = np.asarray(B, float).reshape(n)
-    C = np.asarray(C, float).reshape(n)
-    D = float(D)
-    rz = lp.controller.realisation()
-    nc = rz.order
-    CA, CB = C @ A, float(C @ B) if n else 0.0
-    nx = n + nc
-    # xi' = F xi + G w + Gr r, the controller driven by the continuous measurement (and velocity, if any)
-    F = np.zeros((nx, nx))
-    F[:n, :n] = A
-    F[n:, :n] = np.outer(rz.Bcy, C) + np.outer(rz.Bcv, CA)
-    F[n:, n:] = rz.Ac
-    G = np.r_[B, rz.Bcy * D + rz.Bcv * CB]
-    Gr = np.r_[np.zeros(n), rz.Bcr]
-    kx = np.r_[rz.dvy * C + rz.dvv * CA, rz.Cc]
-    kl = rz.dvy * D + rz.dvv * CB  # the sample's dependence on the plant input at the left limit
+    lr = loop_realisation(lp)
+    n, nx = lr.npl, lr.order
+    nc = nx - n
+    # xi' = F xi + G w + Gr r, the controller driven by the continuous measurement (and velocity, if any): the
+    # loop's realisation with the measurement folded in (the output delay is moved to the input, the total delay)
+    fo = lr.folded()
+    F, G, Gr, kx = fo.A, fo.b, fo.br, fo.k
+    kl = fo.kw  # the sample's dependence on the plant input at the left limit
     m, f = split_delay(lp.total_delay, h)
     p = m + 1 if (f > 0.0 or kl != 0.0) else m
-    comp = rz.reads_command
+    comp = bool(np.any(lr.bu) or np.any(lr.bum))
     if comp:  # a compensator also reads u_k and u(t - Tm): hold enough commands for its model's delay too
-        mm, fm = split_delay(rz.model_delay, h)
+        mm, fm = split_delay(lr.model_delay, h)
         p = max(p, mm + 1 if fm > 0.0 else mm)
     N = nx + p
     if N > MAX_ORDER:
         raise InvalidValueError(
             f"the total delay {lp.total_delay:g} s is {m} periods of {h:g} s: the lifted state would have {N} "
             f"entries, more than {MAX_ORDER}; use a longer period or the continuous loop")
-    zc = np.zeros(n)
-    X, xr, Xp = _period_transition(F, G, Gr, h, m, f, N,
-                                   model=(np.r_[zc, rz.Bcu], np.r_[zc, rz.Bcm], mm, fm) if comp else None)
+    X, xr, Xp = _period_transition(F, G, Gr, h, m, f, N, model=(fo.bu, fo.bum, mm, fm) if comp else None)
     Ao = np.zeros((N, N))
     Bo = np.zeros(N)
     K = np.zeros(N)
@@ -432,7 +420,7 @@ def sampled_model(loop: Loop | AltitudeLoop) -> SampledModel:
     if kl != 0.0:
         K[nx + m] += kl
         Kp[nx + m] = kl
-    b_ref = Bo * rz.dvr + np.r_[xr, np.zeros(p)]
+    b_ref = Bo * fo.dvr + np.r_[xr, np.zeros(p)]
     return SampledModel(period=h, total_delay=lp.total_delay, whole_periods=m, fraction=f, n_plant=n,
                         n_controller=nc, n_held=p, phi=Ao + np.outer(Bo, K), a_open=Ao, b_open=Bo, k_row=K,
                         b_ref=b_ref, structural=lp.controller.structural_zeros() if comp else 0,
