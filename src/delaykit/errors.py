@@ -142,7 +142,7 @@ def check_real(
     except (TypeError, ValueError) as exc:
         raise InvalidTypeError(f"{name} must be a real number, got {value!r}") from exc
     if math.isnan(x) or (math.isinf(x) and not ((allow_inf and x > 0) or (allow_neg_inf and x < 0))):
-        raise InvalidValueError(f"{name} must be finite, got {value!r}")
+        raise InvalidValueError(f"{name} must be finite, got {x!r}")  # a plain float: nan, not np.float64(nan)
     if minimum is not None:
         if strict and not x > minimum:
             raise InvalidValueError(f"{name} must be greater than {minimum:g}, got {x:g}")
