@@ -121,7 +121,7 @@ def test_pi_loop_with_internal_delays_simulated_equals_system_step():
     (tf("1/(s+1)") + tf("exp(-s)/(s+1)"), "different delays [0, 1]"),
     (tf("2/(1 + 2/(s+1)*(1 - exp(-0.37*s)))"), "delay inside a loop"),
     (tf([["1/(s+1)", "exp(-s)"]]), "2 inputs"),
-    (tf("1/s") * saturation(-1, 1), "saturates"),
+    (saturation(-1, 1) * tf("1/s"), "saturates"),           # at the output: not a loop's actuator
 ])
 def test_refusals_say_why(sys, words):
     with pytest.raises(InvalidValueError) as err:
@@ -138,3 +138,20 @@ def test_bad_arguments():
         to_loop(tf("exp(-s)/(s+1)"), output_delay=2.0)
     with pytest.raises(InvalidValueError, match="output_delay"):
         to_loop(tf("exp(-s)/(s+1)"), output_delay=float("nan"))
+
+
+def test_a_saturation_at_the_input_becomes_the_loops_limits():
+    # G exp(-sT) sat(u): the Loop's actuator limits; the Loop kernel (simulate) equals the delay-system kernel's
+    # closed loop of the same system (independent implementations) to 1e-9
+    plant = tf("exp(-0.368*s)/s") * saturation(-1.0, 1.0)
+    loop = to_loop(plant, Controller.p(1.31))
+    assert (loop.umin, loop.umax, loop.delay) == (-1.0, 1.0, pytest.approx(0.368))
+    t = np.linspace(0.0, 12.0, 121)
+    r = feedback(plant * 1.31, 1).step(t)
+    np.testing.assert_allclose(r.outputs[0, 0], simulate(loop, t_end=12.0).output(t), rtol=0, atol=1e-9)
+    one_sided = to_loop(tf("2/(s+1)") * delay(0.1) * saturation(None, 0.5))
+    assert (one_sided.umin, one_sided.umax) == (-np.inf, 0.5)
+    with pytest.raises(InvalidValueError, match="not both"):
+        to_loop(plant, umin=-2.0, umax=2.0)
+    with pytest.raises(InvalidValueError, match="saturates"):           # a second saturation, inside
+        to_loop(saturation(-1, 1) * tf("1/s") * saturation(-1, 1))

@@ -533,14 +533,30 @@ def plant_of(sys: DelayLTI) -> tuple[TransferFunction, float]:
     return g, float(T)
 
 
-def to_loop(plant: DelayLTI, controller: Any = None, *, output_delay: float = 0.0, umin: float = -np.inf,
-            umax: float = np.inf, period: float | None = None, sample_offset: float = 0.0,
+def _input_saturation(sys: DelayLTI) -> tuple[DelayLTI, tuple[float, float]] | None:
+    """``(rest, (lower, upper))`` when the SISO ``sys`` is ``rest * saturation(lower, upper)``: a saturation channel
+    without delay that reads the input alone (``z_j = u``) and is the input's only path; else None."""
+    for j in sys.saturations:
+        others = [i for i in range(sys.ndelays) if i != j]
+        if (sys.delays[j] == 0.0 and sys.D21[j, 0] == 1.0 and not sys.C2[j].any() and not sys.D22[j].any()
+                and not sys.B1.any() and not sys.D11.any() and not sys.D21[others].any()):
+            rest = DelayLTI(sys.A, sys.B2[:, [j]], sys.B2[:, others], sys.C1, sys.C2[others], sys.D12[:, [j]],
+                            sys.D12[:, others], sys.D22[others][:, [j]], sys.D22[np.ix_(others, others)],
+                            delays=[sys.delays[i] for i in others], limits=[sys.limits[i] for i in others],
+                            inputs=sys.inputs, outputs=sys.outputs, name=sys.name)
+            return rest, sys.limits[j]
+    return None
+
+
+def to_loop(plant: DelayLTI, controller: Any = None, *, output_delay: float = 0.0, umin: float | None = None,
+            umax: float | None = None, period: float | None = None, sample_offset: float = 0.0,
             name: str = "") -> Any:
     """A :class:`~delaykit.models.Loop` around a plant given as a system ``exp(-s T) G(s)`` (see :func:`plant_of`).
 
     The inverse of :func:`from_loop`'s plant side: ``G`` becomes the loop's plant and the dead time ``T`` its
     delay, all of it on the command unless ``output_delay`` (at most ``T``) puts part of it on the measurement
-    (the same loop transfer; the load disturbance and the measured output see the split).
+    (the same loop transfer; the load disturbance and the measured output see the split).  A saturation at the
+    plant's input (``G * delay(T) * saturation(lower, upper)``) becomes the loop's actuator limits.
 
     Parameters
     ----------
@@ -550,7 +566,9 @@ def to_loop(plant: DelayLTI, controller: Any = None, *, output_delay: float = 0.
         The control law (default ``Controller.p(1.0)``, as ``Loop``'s).
     output_delay : float
         The part of ``T`` on the measurement (s).
-    umin, umax, period, sample_offset, name
+    umin, umax : float, optional
+        The actuator's limits (none by default; not with a saturation at the plant's input, which gives them).
+    period, sample_offset, name
         As :class:`~delaykit.models.Loop`.
 
     Returns
@@ -566,11 +584,23 @@ def to_loop(plant: DelayLTI, controller: Any = None, *, output_delay: float = 0.
     >>> from delaykit import Controller, tf
     >>> to_loop(tf("exp(-0.368*s)/s"), Controller.p(1.31), umin=-1, umax=1)
     Loop(plant 1/s, p: kp=1.31, delay=0.368 s, u in [-1, 1], continuous)
+    >>> from delaykit import saturation
+    >>> to_loop(tf("exp(-0.368*s)/s") * saturation(-1, 1), Controller.p(1.31))     # the limits from the system
+    Loop(plant 1/s, p: kp=1.31, delay=0.368 s, u in [-1, 1], continuous)
     """
     from ..models.controllers import Controller
     from ..models.loop import Loop
 
+    if isinstance(plant, DelayLTI) and plant.saturations and (plant.ninputs, plant.noutputs) == (1, 1):
+        found = _input_saturation(plant)
+        if found is not None:
+            if umin is not None or umax is not None:
+                raise InvalidValueError("the plant system saturates its input already, which gives the loop's "
+                                        "limits; give umin and umax, or the saturation, not both")
+            plant, (umin, umax) = found
     g, T = plant_of(plant)
+    umin = -np.inf if umin is None else umin
+    umax = np.inf if umax is None else umax
     To = check_real("output_delay (s)", output_delay, minimum=0.0)
     if To > T * (1 + 1e-12):
         raise InvalidValueError(f"output_delay {To:g} s is more than the plant's dead time {T:g} s")
