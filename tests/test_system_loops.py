@@ -78,6 +78,18 @@ def test_round_trip_through_a_system(loop):
     np.testing.assert_allclose(from_loop(back, ignore_limits=True).frequency_response(w).response,
                                from_loop(loop, ignore_limits=True).frequency_response(w).response,
                                rtol=1e-10, atol=1e-12)
+    # with the limits as a saturation at the plant system's input, in time (both loops' from_loop systems, limits
+    # acting): the same responses to r and d
+    sat = tf("1") if not loop.saturated else saturation(loop.umin, loop.umax)
+    back2 = to_loop(sys * sat, loop.controller, output_delay=loop.output_delay)
+    assert (back2.umin, back2.umax) == (loop.umin, loop.umax)
+    t = np.linspace(0.0, 5 * (1 + loop.total_delay), 101)
+    np.testing.assert_allclose(from_loop(back2).step(t).outputs, from_loop(loop).step(t).outputs, rtol=0,
+                               atol=1e-10)
+    # and the other way: the plant system made again from the loop has the original's frequency response
+    again = tf((back.plant.num, back.plant.den, back.total_delay))
+    np.testing.assert_allclose(again.frequency_response(w).response, sys.frequency_response(w).response,
+                               rtol=1e-12, atol=1e-14)
 
 
 def test_plant_of_a_loops_own_plant_block():
