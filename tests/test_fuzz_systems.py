@@ -197,6 +197,20 @@ def test_fit_system_messages(kwargs, err, words):
     assert "np.float64(" not in msg
 
 
+@pytest.mark.parametrize("call, shown", [
+    (lambda: delaykit.loop_margins(_S, np.int64(-3)), "got -3"),
+    (lambda: delaykit.c2d(_S, 0.1, thiran_order=np.float64(1.5)), "got 1.5"),
+    (lambda: _S.to_control(np.float64(1.5)), "got 1.5"),
+    (lambda: feedback(_S, 1, sign=np.float64(0.5)), "got 0.5"),
+    (lambda: _S[np.float64(0.5), 0], "got 0.5"),
+    (lambda: delaykit.Controller.p(np.float64("nan")), "got nan"),
+])
+def test_numpy_scalars_are_shown_as_plain_numbers(call, shown):
+    with pytest.raises(DelaykitError) as exc:
+        call()
+    assert shown in str(exc.value) and "np." not in str(exc.value), str(exc.value)
+
+
 def test_budget_refusal_is_before_the_run(monkeypatch):
     # the kernel must not be reached: replaced by one that fails the test
     from delaykit.simulate import systems as S

@@ -37,7 +37,7 @@ from typing import Any
 
 __all__ = ["DelaykitError", "DelaykitWarning", "InvalidValueError", "InvalidTypeError", "RangeSpecError", "PortError",
            "PortNumberError", "FlightError", "FlightInterruptedError", "MissingDependencyError", "check_real",
-           "check_finite_array"]
+           "check_finite_array", "plain"]
 
 
 class DelaykitError(Exception):
@@ -93,6 +93,21 @@ class MissingDependencyError(DelaykitError, ImportError):
 
     An :class:`ImportError`, so ``except ImportError`` around optional features keeps working.
     """
+
+
+def plain(value: Any) -> Any:
+    """``value`` as a message shows it: a NumPy scalar as the Python number it holds (``1.5``, not
+    ``np.float64(1.5)``), anything else unchanged.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> f"got {plain(np.float64(0.5))!r}"
+    'got 0.5'
+    """
+    if type(value).__module__ == "numpy" and getattr(value, "shape", None) == () and hasattr(value, "item"):
+        return value.item()
+    return value
 
 
 def check_real(

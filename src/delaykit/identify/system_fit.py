@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
 from ..simulate.systems import forced_response
 from ..systems.lti import DelayLTI
 from ._fit import IdentificationError
@@ -151,11 +151,6 @@ def _clean(d: Mapping[str, float]) -> dict[str, float | None]:
 def _wander(e: Experiment, o: str) -> float:
     pre = 0 if e.starts_moving else e.onset
     return float(np.std(e.outputs[o][:pre])) if pre >= 5 else math.nan
-
-
-def _plain(x: Any) -> Any:
-    """A NumPy scalar as the Python number it holds (messages show ``1.5``, not ``np.float64(1.5)``)."""
-    return x.item() if isinstance(x, np.generic) else x
 
 
 def _check_system(sys: Any, where: str) -> DelayLTI:
@@ -300,17 +295,17 @@ def fit_system(build: Callable[..., DelayLTI], p0: Mapping[str, float], experime
     0.0
     """
     if isinstance(max_nfev, bool) or not isinstance(max_nfev, (int, np.integer)) or max_nfev < 1:
-        raise InvalidValueError(f"max_nfev must be a positive integer, got {_plain(max_nfev)!r}")
+        raise InvalidValueError(f"max_nfev must be a positive integer, got {plain(max_nfev)!r}")
     if not isinstance(fresh_only, (bool, np.bool_)):
-        raise InvalidTypeError(f"fresh_only must be True or False, got {_plain(fresh_only)!r}")
+        raise InvalidTypeError(f"fresh_only must be True or False, got {plain(fresh_only)!r}")
     for what, m in (("bounds", bounds), ("weights", weights)):
         if m is not None and not isinstance(m, Mapping):
-            raise InvalidTypeError(f"{what} must be a mapping of names (a dict), got {reprlib.repr(_plain(m))}")
+            raise InvalidTypeError(f"{what} must be a mapping of names (a dict), got {reprlib.repr(plain(m))}")
     if not callable(build):
         raise InvalidTypeError(f"build must be a function of the parameters, got {type(build).__name__}")
     if not isinstance(p0, Mapping) or not p0:
         raise InvalidValueError(f"p0 must be a non-empty mapping of parameter names to values, got "
-                                f"{reprlib.repr(_plain(p0))}")
+                                f"{reprlib.repr(plain(p0))}")
     names = [str(k) for k in p0]
     x0 = np.array([check_real(f"p0[{k!r}]", v) for k, v in p0.items()])
     try:

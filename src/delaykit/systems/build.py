@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
 from ..models.interop import require_control
 from ..models.transfer import TransferFunction, check_control_system
 from .algebra import append, close, feedback, gain, interconnect, summing_junction
@@ -321,7 +321,7 @@ def to_control(sys: DelayLTI, pade_order: int | None = None) -> Any:
                                 "exactly: give pade_order=n for an n-th order Padé approximation of each")
     if live:
         if isinstance(pade_order, bool) or not isinstance(pade_order, numbers.Integral) or pade_order < 1:
-            raise InvalidValueError(f"pade_order must be an integer of at least 1, got {pade_order!r}")
+            raise InvalidValueError(f"pade_order must be an integer of at least 1, got {plain(pade_order)!r}")
     m, nu, ny = sys.ndelays, sys.ninputs, sys.noutputs
     if m:
         P = DelayLTI(sys.A, np.hstack([sys.B1, sys.B2]), None, np.vstack([sys.C1, sys.C2]), None,
