@@ -195,7 +195,7 @@ def test_px4_delay_agrees_with_identify(px4_fit):
 
 def test_example_file_is_the_fitted_interconnection(px4_fit):
     # examples/px4-vehicle.toml holds the fit's numbers to 4 digits, and is the same system as the blocks above
-    # (its limits left out): frequency responses equal to 1e-10
+    # (frequency responses, the small-signal loop's, equal to 1e-10; the limits: test_system_file_saturation.py)
     import tomllib
 
     from delaykit.systems.files import read_system_file

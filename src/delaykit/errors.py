@@ -37,7 +37,7 @@ from typing import Any
 
 __all__ = ["DelaykitError", "DelaykitWarning", "InvalidValueError", "InvalidTypeError", "RangeSpecError", "PortError",
            "PortNumberError", "FlightError", "FlightInterruptedError", "MissingDependencyError", "check_real",
-           "check_finite_array"]
+           "check_finite_array", "plain"]
 
 
 class DelaykitError(Exception):
@@ -95,6 +95,21 @@ class MissingDependencyError(DelaykitError, ImportError):
     """
 
 
+def plain(value: Any) -> Any:
+    """``value`` as a message shows it: a NumPy scalar as the Python number it holds (``1.5``, not
+    ``np.float64(1.5)``), anything else unchanged.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> f"got {plain(np.float64(0.5))!r}"
+    'got 0.5'
+    """
+    if type(value).__module__ == "numpy" and getattr(value, "shape", None) == () and hasattr(value, "item"):
+        return value.item()
+    return value
+
+
 def check_real(
     name: str,
     value: Any,
@@ -142,7 +157,7 @@ def check_real(
     except (TypeError, ValueError) as exc:
         raise InvalidTypeError(f"{name} must be a real number, got {value!r}") from exc
     if math.isnan(x) or (math.isinf(x) and not ((allow_inf and x > 0) or (allow_neg_inf and x < 0))):
-        raise InvalidValueError(f"{name} must be finite, got {value!r}")
+        raise InvalidValueError(f"{name} must be finite, got {x!r}")  # a plain float: nan, not np.float64(nan)
     if minimum is not None:
         if strict and not x > minimum:
             raise InvalidValueError(f"{name} must be greater than {minimum:g}, got {x:g}")

@@ -23,6 +23,7 @@ logs that disagree beyond them show a model error, not bad luck.
 from __future__ import annotations
 
 import math
+import reprlib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -30,7 +31,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
 from ..simulate.systems import forced_response
 from ..systems.lti import DelayLTI
 from ._fit import IdentificationError
@@ -294,14 +295,23 @@ def fit_system(build: Callable[..., DelayLTI], p0: Mapping[str, float], experime
     0.0
     """
     if isinstance(max_nfev, bool) or not isinstance(max_nfev, (int, np.integer)) or max_nfev < 1:
-        raise InvalidValueError(f"max_nfev must be a positive integer, got {max_nfev!r}")
+        raise InvalidValueError(f"max_nfev must be a positive integer, got {plain(max_nfev)!r}")
+    if not isinstance(fresh_only, (bool, np.bool_)):
+        raise InvalidTypeError(f"fresh_only must be True or False, got {plain(fresh_only)!r}")
+    for what, m in (("bounds", bounds), ("weights", weights)):
+        if m is not None and not isinstance(m, Mapping):
+            raise InvalidTypeError(f"{what} must be a mapping of names (a dict), got {reprlib.repr(plain(m))}")
     if not callable(build):
         raise InvalidTypeError(f"build must be a function of the parameters, got {type(build).__name__}")
     if not isinstance(p0, Mapping) or not p0:
-        raise InvalidValueError(f"p0 must be a non-empty mapping of parameter names to values, got {p0!r}")
+        raise InvalidValueError(f"p0 must be a non-empty mapping of parameter names to values, got "
+                                f"{reprlib.repr(plain(p0))}")
     names = [str(k) for k in p0]
     x0 = np.array([check_real(f"p0[{k!r}]", v) for k, v in p0.items()])
-    exps = [experiments] if isinstance(experiments, Experiment) else list(experiments)
+    try:
+        exps = [experiments] if isinstance(experiments, Experiment) else list(experiments)
+    except TypeError:
+        exps = []
     if not exps or not all(isinstance(e, Experiment) for e in exps):
         raise InvalidTypeError("experiments must be an Experiment or a sequence of them")
     lo = np.full(x0.size, -np.inf)
@@ -315,19 +325,21 @@ def fit_system(build: Callable[..., DelayLTI], p0: Mapping[str, float], experime
         lo[i] = -np.inf if b[0] is None else check_real(f"bounds[{k!r}] lower", b[0], allow_neg_inf=True)
         hi[i] = np.inf if b[1] is None else check_real(f"bounds[{k!r}] upper", b[1], allow_inf=True)
         if not lo[i] < hi[i]:
-            raise InvalidValueError(f"bounds[{k!r}] = {b!r}: the lower bound must be below the upper")
+            raise InvalidValueError(f"bounds[{k!r}] = ({lo[i]:g}, {hi[i]:g}): the lower bound must be below the upper")
         if not lo[i] <= x0[i] <= hi[i]:
-            raise InvalidValueError(f"p0[{k!r}] = {x0[i]:g} is outside its bounds {b!r}")
+            raise InvalidValueError(f"p0[{k!r}] = {x0[i]:g} is outside its bounds ({lo[i]:g}, {hi[i]:g})")
 
-    def make(x: np.ndarray) -> DelayLTI:
+    def make(x: np.ndarray, first: bool = False) -> DelayLTI:
         p = dict(zip(names, (float(v) for v in x)))
         try:
             sys = build(**p)
-        except (ValueError, TypeError) as exc:
-            raise IdentificationError(f"build refused the parameters {p} ({exc}); bound them") from exc
+        except Exception as exc:  # the user's function: whatever it raises is reported, with its type
+            why = f"{type(exc).__name__}: {exc}" if not isinstance(exc, (ValueError, TypeError)) else str(exc)
+            hint = "check build and p0" if first else "bound them"
+            raise IdentificationError(f"build refused the parameters {p} ({why}); {hint}") from exc
         return _check_system(sys, "build")
 
-    sys0 = make(x0)
+    sys0 = make(x0, first=True)
     outs = _shared(sys0, exps)
     scale: list[dict[str, float]] = []
     keep: list[dict[str, np.ndarray]] = []

@@ -11,7 +11,8 @@ generous (each is far beyond what the paper or a flight needs) and come from mem
 * :data:`MAX_FREQUENCY_DECADES` decades of a frequency range (a plot);
 * :data:`MAX_SAMPLES` samples in one record (a response sampled every ``dt``, a log put on a uniform clock):
   each sample is some 32 bytes per column in memory and some 60 bytes of CSV, so the limit keeps a record below a
-  gigabyte.
+  gigabyte;
+* :data:`MAX_PIECES` Taylor pieces of one exact time response of a delay system.
 
 The user documentation lists them (``docs/guide/limits.md``).
 
@@ -29,7 +30,8 @@ import math
 
 from ..errors import InvalidValueError
 
-__all__ = ["MAX_RANGE_POINTS", "MAX_GRID_POINTS", "MAX_ROOT_GRID_POINTS", "MAX_FREQUENCY_DECADES", "MAX_SAMPLES", "check_count", "sample_count"]
+__all__ = ["MAX_RANGE_POINTS", "MAX_GRID_POINTS", "MAX_ROOT_GRID_POINTS", "MAX_FREQUENCY_DECADES", "MAX_SAMPLES",
+           "MAX_PIECES", "check_count", "sample_count"]
 
 MAX_RANGE_POINTS = 10_000
 """Values in one range (a sweep of delays or gains, Lambert branches)."""
@@ -47,9 +49,13 @@ MAX_FREQUENCY_DECADES = 24
 MAX_SAMPLES = 10_000_000
 """Samples in one record: a response sampled every ``dt``, a log resampled on a uniform clock."""
 
+MAX_PIECES = 1 << 21
+"""Taylor pieces of one exact time response of a delay system (``delaykit.step_response`` and its kin): the kernel
+keeps every piece's polynomials (some 200 bytes per delay channel each) for the delays to read."""
+
 _NAMES = {MAX_RANGE_POINTS: "MAX_RANGE_POINTS", MAX_GRID_POINTS: "MAX_GRID_POINTS",
           MAX_ROOT_GRID_POINTS: "MAX_ROOT_GRID_POINTS", MAX_FREQUENCY_DECADES: "MAX_FREQUENCY_DECADES",
-          MAX_SAMPLES: "MAX_SAMPLES"}
+          MAX_SAMPLES: "MAX_SAMPLES", MAX_PIECES: "MAX_PIECES"}
 
 
 def check_count(what: str, count: float, limit: int, unit: str, hint: str = "") -> int:

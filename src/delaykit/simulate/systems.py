@@ -41,7 +41,8 @@ from typing import Any
 import numpy as np
 
 from .. import _native
-from ..errors import InvalidTypeError, InvalidValueError
+from ..errors import InvalidTypeError, InvalidValueError, check_finite_array
+from ..models.budget import MAX_PIECES  # the most pieces one run may use (the kernel's history grows to it)
 
 __all__ = ["SystemTimeResponse", "BatchTimeResponse", "step_response", "impulse_response", "initial_response",
            "forced_response", "step_response_many", "default_horizon", "STATUSES"]
@@ -51,7 +52,6 @@ STATUSES = ("exact", "truncated", "overflow", "stalled")
 :data:`MAX_PIECES`); stopped where a value left the floating-point range; stopped where a saturation's regime could
 not be settled.  Past the point reached, outputs are NaN."""
 
-MAX_PIECES = 1 << 21  # the most pieces one run may use (the kernel's history memory grows to this)
 _NPOINTS = 1001  # times of a response when none are given
 
 _K = None
@@ -377,7 +377,7 @@ def _times(T: Any, name: str = "T") -> np.ndarray:
     if arr.ndim != 1 or arr.size == 0:
         raise InvalidValueError(f"{name} must be a non-empty one-dimensional array of times, got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
-        raise InvalidValueError(f"{name} must be finite, got {arr[~np.isfinite(arr)][0]!r}")
+        raise InvalidValueError(f"{name} must be finite, got {float(arr[~np.isfinite(arr)][0])!r}")
     if np.any(np.diff(arr) <= 0):
         k = int(np.argmax(np.diff(arr) <= 0))
         raise InvalidValueError(f"{name} must be strictly increasing, got {arr[k]:g} then {arr[k + 1]:g}")
@@ -426,18 +426,24 @@ def _default_times(sys: Any, T: Any) -> np.ndarray:
 
 def _initial_state(sys: Any, X0: Any) -> np.ndarray:
     n = sys.nstates
-    try:
-        x = np.asarray(X0, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidTypeError(f"X0 must be a number or {n} numbers (the states), got {reprlib.repr(X0)}") from exc
+    x = check_finite_array("X0", X0)
     if x.ndim == 0:
         x = np.full(n, float(x))
     x = x.ravel()
     if x.size != n:
         raise InvalidValueError(f"X0 must have {n} entries (the system's states), got {x.size}")
-    if not np.all(np.isfinite(x)):
-        raise InvalidValueError(f"X0 must be finite, got {x.tolist()}")
     return x
+
+
+def _check_horizon(red: _Reduced, t_end: float) -> None:
+    """Refuse before the run a horizon that needs more pieces than the budget allows: a piece is at most
+    ``red.hmax`` long, so ``t_end / hmax`` is a lower bound of the count."""
+    from ..models import budget  # the module's limit (a test may shrink this module's MAX_PIECES to truncate)
+
+    if t_end > 0.0 and math.isfinite(red.hmax):
+        budget.check_count(f"T: a horizon of {t_end:g} s", t_end / red.hmax, budget.MAX_PIECES, "pieces at least",
+                           f"each piece is at most {red.hmax:.3g} s (the system's fastest time scale); ask for a "
+                           "shorter horizon")
 
 
 # -- one run ---------------------------------------------------------------------------------------------------
@@ -448,6 +454,7 @@ _STATUS = {0: "exact", 2: "stalled", 3: "overflow"}
 def _run(red: _Reduced, ut: np.ndarray, uv: np.ndarray, x0: np.ndarray, tq: np.ndarray, t_end: float,
          deriv: bool = False, jumps: bool = False) -> tuple[np.ndarray, str, int, float, np.ndarray, np.ndarray]:
     """One kernel run: outputs at ``tq`` (relative to the start), status, pieces, time reached, output jumps."""
+    _check_horizon(red, t_end)
     K = _kernel()
     c_ = np.ascontiguousarray
     deg = K.DEG
@@ -631,20 +638,13 @@ def forced_response(sys: Any, T: Any, U: Any, X0: Any = 0.0) -> SystemTimeRespon
     _check_system(sys)
     t = _times(T)
     nu = sys.ninputs
-    if isinstance(U, (str, bytes)):
-        raise InvalidTypeError(f"U must be input values (numbers), got {reprlib.repr(U)}")
-    try:
-        u = np.asarray(U, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidTypeError(f"U must be an array of input values, got {reprlib.repr(U)}") from exc
+    u = check_finite_array("U", U)
     if u.ndim == 0:
         u = np.full((nu, t.size), float(u))
     elif u.ndim == 1 and nu == 1 and u.size == t.size:
         u = u[None, :]
     if u.shape != (nu, t.size):
         raise InvalidValueError(f"U must have shape ({nu}, {t.size}) (inputs, times), got {u.shape}")
-    if not np.all(np.isfinite(u)):
-        raise InvalidValueError("U must be finite")
     x0 = _initial_state(sys, X0)
     red = _reduce(sys, _kernel().DEG)
     rel = t - t[0]

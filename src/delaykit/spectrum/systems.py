@@ -34,7 +34,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
 from ..systems.algebra import feedback, gain
 from ..systems.lti import DelayLTI
 from .neutral import neutral_abscissa
@@ -430,7 +430,7 @@ def loop_margins(L: DelayLTI, channel: int = 0) -> LoopMargins:
         raise InvalidValueError(f"loop margins need a square loop, got {L!r}")
     n = L.noutputs
     if isinstance(channel, bool) or not isinstance(channel, (int, np.integer)) or not 0 <= channel < n:
-        raise InvalidValueError(f"channel must be an integer from 0 to {n - 1}, got {channel!r}")
+        raise InvalidValueError(f"channel must be an integer from 0 to {n - 1}, got {plain(channel)!r}")
     if n > 1:
         E = np.eye(n)
         E[channel, channel] = 0.0

@@ -21,13 +21,14 @@ from .._lazy import by_module, lazy_exports
 _SOURCES = {
     "lti": ["DelayLTI", "SystemResponse"],
     "algebra": ["append", "series", "parallel", "feedback", "interconnect", "summing_junction", "gain"],
-    "build": ["tf", "ss", "delay", "saturation", "to_control", "from_loop"],
+    "build": ["tf", "ss", "delay", "saturation", "to_control", "from_loop", "plant_of", "to_loop"],
     "discrete": ["DiscreteLTI", "c2d"],
     "files": ["SystemFile", "read_system_file", "load_system", "system_from_dict"],
 }
 
 __all__ = ["DelayLTI", "SystemResponse", "append", "series", "parallel", "feedback", "interconnect",
-           "summing_junction", "gain", "tf", "ss", "delay", "saturation", "to_control", "from_loop", "DiscreteLTI",
+           "summing_junction", "gain", "tf", "ss", "delay", "saturation", "to_control", "from_loop", "plant_of",
+           "to_loop", "DiscreteLTI",
            "c2d", "SystemFile", "read_system_file", "load_system", "system_from_dict"]
 
 

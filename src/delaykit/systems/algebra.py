@@ -25,7 +25,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError
+from ..errors import InvalidTypeError, InvalidValueError, plain
 from .lti import DelayLTI
 
 __all__ = ["as_system", "close", "close_parts", "blockdiag", "append", "series", "parallel", "negate", "feedback",
@@ -267,7 +267,7 @@ def feedback(sys1: Any, sys2: Any = 1, sign: int = -1) -> DelayLTI:
     True
     """
     if isinstance(sign, bool) or sign not in (1, -1):
-        raise InvalidValueError(f"sign must be -1 (negative feedback) or +1, got {sign!r}")
+        raise InvalidValueError(f"sign must be -1 (negative feedback) or +1, got {plain(sign)!r}")
     sys1 = as_system(sys1, "forward path")
     sys2 = as_system(sys2, "return path")
     if sys2.ninputs == sys2.noutputs == 1 and sys2.nstates == sys2.ndelays == 0 and sys1.noutputs != 1:
@@ -296,7 +296,7 @@ def _index(key: Any, names: tuple[str, ...], what: str) -> list[int]:
     try:
         keys = list(keys)
     except TypeError:
-        raise InvalidTypeError(f"{what} index must be an integer, a name, a slice or a list, got {key!r}") from None
+        raise InvalidTypeError(f"{what} index must be an integer, a name, a slice or a list, got {plain(key)!r}") from None
     out = []
     for k in keys:
         if isinstance(k, str):
@@ -308,7 +308,7 @@ def _index(key: Any, names: tuple[str, ...], what: str) -> list[int]:
                 raise InvalidValueError(f"{what} index {k} is out of range for {n} {what}s")
             out.append(int(k) % n)
         else:
-            raise InvalidTypeError(f"{what} index must be an integer or a name, got {k!r}")
+            raise InvalidTypeError(f"{what} index must be an integer or a name, got {plain(k)!r}")
     return out
 
 

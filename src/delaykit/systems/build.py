@@ -24,13 +24,13 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
 from ..models.interop import require_control
 from ..models.transfer import TransferFunction, check_control_system
 from .algebra import append, close, feedback, gain, interconnect, summing_junction
 from .lti import DelayLTI
 
-__all__ = ["tf", "ss", "delay", "saturation", "to_control", "from_loop"]
+__all__ = ["tf", "ss", "delay", "saturation", "to_control", "from_loop", "plant_of", "to_loop"]
 
 
 def _rename(sys: DelayLTI, inputs: Any, outputs: Any, name: str | None) -> DelayLTI:
@@ -321,7 +321,7 @@ def to_control(sys: DelayLTI, pade_order: int | None = None) -> Any:
                                 "exactly: give pade_order=n for an n-th order Padé approximation of each")
     if live:
         if isinstance(pade_order, bool) or not isinstance(pade_order, numbers.Integral) or pade_order < 1:
-            raise InvalidValueError(f"pade_order must be an integer of at least 1, got {pade_order!r}")
+            raise InvalidValueError(f"pade_order must be an integer of at least 1, got {plain(pade_order)!r}")
     m, nu, ny = sys.ndelays, sys.ninputs, sys.noutputs
     if m:
         P = DelayLTI(sys.A, np.hstack([sys.B1, sys.B2]), None, np.vstack([sys.C1, sys.C2]), None,
@@ -421,3 +421,189 @@ def from_loop(loop: Any, *, ignore_limits: bool = False) -> DelayLTI:
                                                            name="output delay")]
     return interconnect(blocks, inputs=["r", "d"], outputs=["y", "u"], name="loop")
 
+
+
+def _subset_terms(sys: DelayLTI, transfer: bool) -> dict[float, np.ndarray]:
+    """The characteristic function ``det(sI - A) det(I - P22 Delta)`` (``transfer`` False) or the numerator of the
+    SISO transfer function over it (True) as ``{delay: ascending polynomial coefficients}``, equal delays summed.
+
+    Both are multilinear in the channels' ``exp(-s tau_j)``: a sum over the subsets ``S`` of channels of
+    ``exp(-s sum_S tau_j)`` times the determinant of ``[[sI - A, -B2_S], [-C2_S, -D22_SS]]`` (bordered by
+    ``[-B1; -D21_S]`` and ``[C1, D12_S, D11]`` for the numerator, by the Schur complement), each polynomial
+    interpolated on a circle as :meth:`DelayLTI.characteristic`.
+    """
+    n, m = sys.nstates, sys.ndelays
+    eig = np.linalg.eigvals(sys.A) if n else np.zeros(0)
+    mags = np.abs(eig[eig != 0])
+    radius = float(np.exp(np.mean(np.log(mags)))) if mags.size else 1.0
+    pts = radius * np.exp(2j * np.pi * np.arange(n + 1) / (n + 1))
+    terms: dict[float, np.ndarray] = {}
+    for mask in range(1 << m):
+        S = [j for j in range(m) if mask >> j & 1]
+        rows = [np.hstack([-sys.A, -sys.B2[:, S]]), np.hstack([-sys.C2[S, :], -sys.D22[np.ix_(S, S)]])]
+        if transfer:
+            rows = [np.hstack([rows[0], -sys.B1]), np.hstack([rows[1], -sys.D21[S, :]]),
+                    np.hstack([sys.C1, sys.D12[:, S], sys.D11])]
+        G = np.vstack(rows)
+        F = np.zeros_like(G)
+        F[:n, :n] = np.eye(n)
+        vals = np.array([np.linalg.det(p * F + G) for p in pts])
+        c = np.fft.fft(vals).real / (n + 1) / radius ** np.arange(n + 1)
+        tau = sum(sys.delays[j] for j in S)
+        key = next((k for k in terms if abs(k - tau) <= 1e-12 * max(1.0, tau)), tau)
+        terms[key] = terms.get(key, 0.0) + c
+    scale = radius ** np.arange(n + 1)
+    big = max(float(np.max(np.abs(c * scale))) for c in terms.values())
+    # coefficients at rounding level of the largest (scaled) one are noise of the interpolation or cancellations
+    terms = {k: np.where(np.abs(c * scale) <= 1e-11 * big, 0.0, c) for k, c in terms.items()}
+    return {k: c for k, c in terms.items() if c.any()}
+
+
+def plant_of(sys: DelayLTI) -> tuple[TransferFunction, float]:
+    """A SISO system that is a rational transfer function times a dead time, as ``(G, T)``: ``exp(-s T) G(s)``.
+
+    The inverse of ``tf((num, den, T))`` and the shape of :meth:`TransferFunction.parse_with_delay`'s answer,
+    ready to be a :class:`~delaykit.models.Loop`'s plant and delay (see :func:`to_loop`).  Any realisation is
+    accepted, internal delays included, as long as no delay lies inside a loop of the system and every path from
+    the input to the output carries the same total delay; ``G``'s denominator is ``det(sI - A)`` (hidden modes
+    kept, as :func:`from_loop` keeps them; :meth:`TransferFunction.minimal` cancels them).
+
+    Parameters
+    ----------
+    sys : DelayLTI
+        One input, one output, no saturation channel.
+
+    Returns
+    -------
+    (TransferFunction, float)
+        The rational part and the dead time (s).
+
+    Raises
+    ------
+    InvalidValueError
+        For several inputs or outputs, a saturation, a delay inside a loop (the characteristic function has
+        delayed terms: not rational times a dead time), paths with different delays (``1 + exp(-s)``), or a
+        rational part of order over :data:`~delaykit.models.transfer.MAX_ORDER`.
+
+    See Also
+    --------
+    to_loop, from_loop, tf
+
+    Examples
+    --------
+    >>> from delaykit import tf, delay
+    >>> plant_of(delay(0.1) * tf("2*exp(-0.25*s)/(s+1)"))
+    (TransferFunction(2/(s + 1)), 0.35)
+    >>> plant_of(tf("1/(s+1)") + tf("exp(-s)/(s+1)"))
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.InvalidValueError: the system's paths from input to output carry different delays [0, 1] s, so it is not a rational transfer function times one dead time
+    """
+    if not isinstance(sys, DelayLTI):
+        raise InvalidTypeError(f"plant_of takes a DelayLTI, got {type(sys).__name__}")
+    label = f"the system {sys.name!r}" if sys.name else "the system"
+    if (sys.ninputs, sys.noutputs) != (1, 1):
+        raise InvalidValueError(f"{label} has {sys.ninputs} inputs and {sys.noutputs} outputs; a loop's plant has "
+                                "one of each (select one with sys[i, j])")
+    if sys.saturations:
+        raise InvalidValueError(f"{label} saturates (channels {list(sys.saturations)}), which a loop's plant "
+                                "cannot; give the actuator's limits as the loop's umin and umax")
+    from .lti import _MAX_CHANNELS
+
+    if sys.ndelays > _MAX_CHANNELS:
+        raise InvalidValueError(f"{label} has {sys.ndelays} delay channels; at most {_MAX_CHANNELS} are supported")
+    char = _subset_terms(sys, transfer=False)
+    looped = sorted(k for k in char if k > 0)
+    if looped:
+        raise InvalidValueError(f"{label} has a delay inside a loop (its characteristic function has terms delayed "
+                                f"by [{', '.join(f'{k:.6g}' for k in looped)}] s), so it is not a rational transfer "
+                                "function times a dead time")
+    if 0.0 not in char:
+        raise InvalidValueError(f"{label} is not well posed: its characteristic function is zero")
+    num = _subset_terms(sys, transfer=True)
+    if len(num) > 1:
+        raise InvalidValueError(f"{label}'s paths from input to output carry different delays "
+                                f"[{', '.join(f'{k:.6g}' for k in sorted(num))}] s, so it is not a rational transfer "
+                                "function times one dead time")
+    T, b = next(iter(num.items()), (0.0, np.zeros(1)))
+    try:
+        g = TransferFunction(b[::-1], char[0.0][::-1])
+    except InvalidValueError as exc:
+        raise InvalidValueError(f"{label}: the rational part {exc}") from None
+    return g, float(T)
+
+
+def _input_saturation(sys: DelayLTI) -> tuple[DelayLTI, tuple[float, float]] | None:
+    """``(rest, (lower, upper))`` when the SISO ``sys`` is ``rest * saturation(lower, upper)``: a saturation channel
+    without delay that reads the input alone (``z_j = u``) and is the input's only path; else None."""
+    for j in sys.saturations:
+        others = [i for i in range(sys.ndelays) if i != j]
+        if (sys.delays[j] == 0.0 and sys.D21[j, 0] == 1.0 and not sys.C2[j].any() and not sys.D22[j].any()
+                and not sys.B1.any() and not sys.D11.any() and not sys.D21[others].any()):
+            rest = DelayLTI(sys.A, sys.B2[:, [j]], sys.B2[:, others], sys.C1, sys.C2[others], sys.D12[:, [j]],
+                            sys.D12[:, others], sys.D22[others][:, [j]], sys.D22[np.ix_(others, others)],
+                            delays=[sys.delays[i] for i in others], limits=[sys.limits[i] for i in others],
+                            inputs=sys.inputs, outputs=sys.outputs, name=sys.name)
+            return rest, sys.limits[j]
+    return None
+
+
+def to_loop(plant: DelayLTI, controller: Any = None, *, output_delay: float = 0.0, umin: float | None = None,
+            umax: float | None = None, period: float | None = None, sample_offset: float = 0.0,
+            name: str = "") -> Any:
+    """A :class:`~delaykit.models.Loop` around a plant given as a system ``exp(-s T) G(s)`` (see :func:`plant_of`).
+
+    The inverse of :func:`from_loop`'s plant side: ``G`` becomes the loop's plant and the dead time ``T`` its
+    delay, all of it on the command unless ``output_delay`` (at most ``T``) puts part of it on the measurement
+    (the same loop transfer; the load disturbance and the measured output see the split).  A saturation at the
+    plant's input (``G * delay(T) * saturation(lower, upper)``) becomes the loop's actuator limits.
+
+    Parameters
+    ----------
+    plant : DelayLTI
+        A SISO system without a delay inside a loop.
+    controller : Controller or Compensator, optional
+        The control law (default ``Controller.p(1.0)``, as ``Loop``'s).
+    output_delay : float
+        The part of ``T`` on the measurement (s).
+    umin, umax : float, optional
+        The actuator's limits (none by default; not with a saturation at the plant's input, which gives them).
+    period, sample_offset, name
+        As :class:`~delaykit.models.Loop`.
+
+    Returns
+    -------
+    Loop
+
+    See Also
+    --------
+    plant_of, from_loop
+
+    Examples
+    --------
+    >>> from delaykit import Controller, tf
+    >>> to_loop(tf("exp(-0.368*s)/s"), Controller.p(1.31), umin=-1, umax=1)
+    Loop(plant 1/s, p: kp=1.31, delay=0.368 s, u in [-1, 1], continuous)
+    >>> from delaykit import saturation
+    >>> to_loop(tf("exp(-0.368*s)/s") * saturation(-1, 1), Controller.p(1.31))     # the limits from the system
+    Loop(plant 1/s, p: kp=1.31, delay=0.368 s, u in [-1, 1], continuous)
+    """
+    from ..models.controllers import Controller
+    from ..models.loop import Loop
+
+    if isinstance(plant, DelayLTI) and plant.saturations and (plant.ninputs, plant.noutputs) == (1, 1):
+        found = _input_saturation(plant)
+        if found is not None:
+            if umin is not None or umax is not None:
+                raise InvalidValueError("the plant system saturates its input already, which gives the loop's "
+                                        "limits; give umin and umax, or the saturation, not both")
+            plant, (umin, umax) = found
+    g, T = plant_of(plant)
+    umin = -np.inf if umin is None else umin
+    umax = np.inf if umax is None else umax
+    To = check_real("output_delay (s)", output_delay, minimum=0.0)
+    if To > T * (1 + 1e-12):
+        raise InvalidValueError(f"output_delay {To:g} s is more than the plant's dead time {T:g} s")
+    To = min(To, T)
+    return Loop(g, Controller.p(1.0) if controller is None else controller, delay=max(T - To, 0.0),
+                output_delay=To, umin=umin, umax=umax, period=period, sample_offset=sample_offset, name=name)

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
 from ..models.hold import hold_matrices, split_delay
 from ..models.interop import require_control
 from .algebra import blockdiag, close_parts
@@ -238,7 +238,7 @@ def _series(p: tuple[np.ndarray, ...], q: tuple[np.ndarray, ...]) -> tuple[np.nd
 
 def _thiran_c2d(sys: DelayLTI, h: float, order: Any) -> DiscreteLTI:
     if isinstance(order, bool) or not isinstance(order, numbers.Integral) or not 0 <= order <= 10:
-        raise InvalidValueError(f"thiran_order must be an integer from 0 to 10, got {order!r}")
+        raise InvalidValueError(f"thiran_order must be an integer from 0 to 10, got {plain(order)!r}")
     n, nu, ny, m = sys.nstates, sys.ninputs, sys.noutputs, sys.ndelays
     # the delay-free part sampled with u and w held: inputs [u; w], outputs [y; z]
     Phi, Gam = hold_matrices(sys.A, np.hstack([sys.B1, sys.B2]), h) if n else (np.zeros((0, 0)),

@@ -31,6 +31,9 @@ interconnect`).  ``break`` names the signals where the loop is opened for its ma
     sum = ["v_ref", "-v"]              # a summing junction ("-" subtracts)
     outputs = "ev"
 
+A block may also be ``saturation = [lower, upper]`` (limits; TOML's ``inf`` for none, or a table such as
+``{upper = 3.0}`` with a side left out), :func:`~delaykit.systems.build.saturation`.
+
 Opening the loop at a signal ``x``: the block that outputs ``x`` now outputs ``x_out`` and ``x`` becomes an
 external input; the loop transfer is ``L = -T(x -> x_out)`` (the other external inputs at zero), so that closing
 ``x = x_out`` is ``feedback(L, I)``, the convention of :func:`~delaykit.spectrum.systems.loop_margins`.
@@ -71,7 +74,7 @@ from typing import Any
 from ..errors import InvalidValueError
 from ..models.loop import read_toml
 from .algebra import interconnect, summing_junction
-from .build import delay, ss, tf
+from .build import delay, saturation, ss, tf
 from .lti import DelayLTI
 
 __all__ = ["SystemFile", "read_system_file", "load_system", "system_from_dict"]
@@ -80,7 +83,7 @@ _MAX_BYTES = 1_000_000
 _MAX_BLOCKS = 1000
 _MAX_DEPTH = 3  # a matrix is a list of rows of numbers: the deepest value a system file has
 _TOP_KEYS = ("name", "inputs", "outputs", "break", "blocks")
-_KINDS = ("tf", "ss", "delay", "sum")
+_KINDS = ("tf", "ss", "delay", "sum", "saturation")
 _BLOCK_KEYS = ("name", "inputs", "outputs") + _KINDS
 
 
@@ -181,6 +184,9 @@ def _block(source: str, k: int, spec: Any) -> DelayLTI:
     if kind == "delay":
         return _made(source, where, delay, _number(source, f"{where}: delay", spec["delay"]), inputs=ins, outputs=outs,
                      name=name)
+    if kind == "saturation":
+        lo, hi = _limits(source, where, spec["saturation"])
+        return _made(source, where, saturation, lo, hi, inputs=ins, outputs=outs, name=name)
     if kind == "tf":
         v = spec["tf"]
         if isinstance(v, (int, float)) and not isinstance(v, bool):
@@ -201,6 +207,27 @@ def _block(source: str, k: int, spec: Any) -> DelayLTI:
     mats = {key: _matrix(source, f"{where}: ss.{key}", m[key]) for key in m}
     return _made(source, where, ss, mats["A"], mats["B"], mats["C"], mats.get("D"), inputs=ins, outputs=outs,
                  name=name)
+
+
+def _limits(source: str, where: str, value: Any) -> tuple[float, float]:
+    """``saturation = [lower, upper]`` (TOML's ``-inf``/``inf`` for no limit) or a table with ``lower`` and/or
+    ``upper`` (an omitted side has no limit), with ``lower <= 0 <= upper`` and ``lower < upper``."""
+    if isinstance(value, dict) and value and set(value) <= {"lower", "upper"}:
+        pair = [value.get("lower", -math.inf), value.get("upper", math.inf)]
+    elif isinstance(value, list) and len(value) == 2:
+        pair = list(value)
+    else:
+        raise InvalidValueError(_where(source, f"{where}: saturation must be [lower, upper] or a table with lower "
+                                               f"and/or upper, got {value!r}"))
+    for x in pair:
+        if isinstance(x, bool) or not isinstance(x, (int, float)) or math.isnan(x):
+            raise InvalidValueError(_where(source, f"{where}: saturation limits must be numbers (inf for no "
+                                                   f"limit), got {x!r}"))
+    lo, hi = float(pair[0]), float(pair[1])
+    if not (lo <= 0.0 <= hi and lo < hi):
+        raise InvalidValueError(_where(source, f"{where}: saturation must have lower <= 0 <= upper and lower < "
+                                               f"upper (rest inside the limits), got [{lo:g}, {hi:g}]"))
+    return lo, hi
 
 
 def _made(source: str, where: str, make: Any, *args: Any, **kwargs: Any) -> DelayLTI:
