@@ -36,7 +36,7 @@ from types import ModuleType
 
 from .errors import DelaykitWarning, InvalidValueError
 
-__all__ = ["MODES", "load", "built", "StaleExtensionWarning"]
+__all__ = ["MODES", "load", "built", "sibling", "StaleExtensionWarning"]
 
 MODES = ("cython", "numba", "python")
 _loaded: dict[tuple[str, str], ModuleType] = {}
@@ -104,6 +104,30 @@ def load(package: str, name: str, mode: str | None = None) -> ModuleType:
     return _loaded[key]
 
 
+def sibling(importer: str, name: str) -> ModuleType:
+    """The kernel module ``name`` of the package of the kernel module ``importer`` (a ``__name__``), in that
+    module's mode: how a kernel run by numba or by Python finds the kernels it calls (compiled by Cython, it
+    cimports them instead).  The source imported under its own name, without an extension, counts as Python.
+
+    Examples
+    --------
+    >>> sibling("delaykit.spectrum._rootkernel_python", "_rootkernel").__name__
+    'delaykit.spectrum._rootkernel_python'
+    """
+    package, _, own = importer.rpartition(".")
+    return load(package, name, "numba" if own.endswith("_numba") else "python")
+
+
+def _numba_knows(option: str) -> bool:
+    """Whether this numba's CPU target accepts ``option`` (``_nrt``, a private one numba's own tests use: a release
+    that dropped it would refuse to compile with a ``KeyError``; asking first keeps the kernel compiling)."""
+    try:
+        from numba.core.cpu import CPUTargetOptions
+    except ImportError:
+        return False
+    return hasattr(CPUTargetOptions, option)
+
+
 def _from_source(package: str, name: str, mode: str) -> ModuleType:
     """The kernel's ``.py`` file as a module of its own name, its functions compiled by numba in mode numba."""
     folder = Path(importlib.import_module(package).__file__ or "").parent
@@ -119,10 +143,16 @@ def _from_source(package: str, name: str, mode: str) -> ModuleType:
             import numba
 
             # every function the module defines, so that kernels calling one another call compiled code (numba
-            # reads a called function from the module's globals when it compiles the caller, on first use)
+            # reads a called function from the module's globals when it compiles the caller, on first use); a
+            # module's NUMBA_OPTIONS gives some functions numba options of their own (inlining, parallel loops), or
+            # None: left as Python (a wrapper that converts its arguments for a compiled function)
+            options = getattr(mod, "NUMBA_OPTIONS", {})
             for attr, fn in list(vars(mod).items()):
-                if inspect.isfunction(fn) and fn.__module__ == full:
-                    setattr(mod, attr, numba.njit(cache=True, nogil=True)(fn))
+                if inspect.isfunction(fn) and fn.__module__ == full and options.get(attr, {}) is not None:
+                    opts = dict(options.get(attr, {}))
+                    if "_nrt" in opts and not _numba_knows("_nrt"):
+                        del opts["_nrt"]  # compile with reference counting (slower) rather than not at all
+                    setattr(mod, attr, numba.njit(cache=True, nogil=True, **opts)(fn))
     except BaseException:
         del sys.modules[full]
         raise

@@ -56,7 +56,9 @@ resolved: it is then counted as the kernel's grid would see its ends) or its wid
 So no extremum above the running maximum, no first crossing of 0.1 or 0.9 and no exit from the band is missed:
 an interval is skipped only when the bound proves it irrelevant, and an examined one has its roots certified.
 
-numba compiles this module (``cache=True``); it has no interpreted mode.  This module is private.
+One source, three modes, as the Taylor kernel (see :mod:`delaykit._native`): the extension module Cython built
+(C types in ``_sampled_batch.pxd``), numba's compilation of this file where none was built, or plain Python (for
+checking).  This module is private.
 
 Examples
 --------
@@ -71,17 +73,38 @@ import math
 
 import numpy as np
 
-from . import _jit
-from ._jit import njit, prange
 from ._layout import (DEG, HEAD, MAXN, NC, NOUT, OFF_BR, OFF_BVM, OFF_BW, OFF_BYM, OFF_CV, OFF_CY, OFF_CYD,
                       OFF_M, STATUS_OK)
+from ._poly import MAXX as _MAXX, STACK as _STACK  # the certified root search's most roots, and its stack
 
-__all__ = ["expm", "run_one", "run_batch", "NSLOT"]
+try:
+    import cython
+except ImportError:  # plain Python without Cython installed: only ``cython.compiled`` is read
+    from types import SimpleNamespace
 
-_p = _jit.sibling("_poly")  # the polynomial helpers (compiled: this module is always built compiled)
-_crossings = _p.crossings  # certified roots (see the module's notes)
-_k = _jit.sibling("_kernel")  # the step metrics' update, shared with the Taylor kernel
-_metrics_update, _metrics_row = _k._metrics_update, _k._metrics_row
+    cython = SimpleNamespace(compiled=False)
+
+if cython.compiled:  # the certified roots and the step metrics' update (shared with the Taylor kernel), as C
+    from cython.cimports.delaykit.simulate._kernel import _metrics_row, _metrics_update
+    from cython.cimports.delaykit.simulate._poly import crossings as _crossings
+    from cython.cimports.libc.math import INFINITY as _INF, NAN as _NAN, ceil, isinf, ldexp, log2
+else:  # the same modules run as this one is (numba's copies, or Python)
+    from math import ceil, inf as _INF, isinf, ldexp, log2, nan as _NAN
+
+    from .._native import sibling
+
+    _crossings = sibling(__name__, "_poly").crossings  # certified roots (see the module's notes)
+    _k = sibling(__name__, "_kernel")
+    _metrics_update, _metrics_row = _k._metrics_update, _k._metrics_row
+    if __name__.endswith("_numba"):
+        from numba import prange
+    else:
+        from builtins import range as prange
+
+__all__ = ["expm", "run_one", "run_batch", "NSLOT", "COMPILED"]
+
+COMPILED: bool = cython.compiled
+"""Whether this module is the extension module Cython built (False: this file, run by Python or numba)."""
 
 (_N, _TI, _TO, _UMIN, _UMAX, _PERIOD, _OFFSET, _T_END, _BAND, _NORM, _DIST, _T_DIST, _DY, _DYD, _DVR, _DVY, _DVV,
  _INTEG, _AW, _HMAX, _SCALE, _STEP, _SLOPE, _TM) = HEAD.values()
@@ -97,13 +120,14 @@ _GMAX_BETA = 8.0  # beyond this ||Z_S tau||, no cheap bound (every interval is e
 _SUB_BETA = 1.0  # the expansion's sub-pieces have ||Z_S tau|| at most this
 _REM = 1e-17  # the expansion's remainder, relative to the step
 _MARGIN = 1e-14  # rounding margin of the cheap bound, relative
-_MAXX, _STACK = _p.MAXX, _p.STACK  # the certified root search's (_crossings) most roots, and its stack
 # the running metrics (the kernel's but its last, w at the end), as an expansion reads and updates them: highest w
 # and when, first times w >= 0.1 and 0.9, last time outside the band
-_WMAX, _TPEAK, _T10, _T90, _TLAST = _k._WMAX, _k._TPEAK, _k._T10, _k._T90, _k._TLAST
+_WMAX, _TPEAK, _T10, _T90, _TLAST = range(5)  # (the kernel's order: see _kernel._WMAX ...)
+# numba's options where it compiles this file (see delaykit._native): the batch in parallel, small helpers inlined
+NUMBA_OPTIONS = {"_row4": {"inline": "always"}, "_slope_bound": {"inline": "always"},
+                 "_interval_metrics": {"inline": "always"}, "run_batch": {"parallel": True}, "expm": None}
 
 
-@njit(cache=True)
 def _expm_into(A, m, E, T, W):
     """``E[:m, :m] = exp(A[:m, :m])`` by scaling and squaring around a Taylor series (``T``, ``W``: work space of
     the same shape).  Returns the bound of the series' remainder, relative to ``||exp(A / 2^s)||``.
@@ -124,10 +148,10 @@ def _expm_into(A, m, E, T, W):
                 nzrow[i] = True
     sq = 0
     if nrm > 0.5:
-        sq = int(math.ceil(math.log2(nrm / 0.5)))
-        while math.ldexp(nrm, -sq) > 0.5:
+        sq = int(ceil(log2(nrm / 0.5)))
+        while ldexp(nrm, -sq) > 0.5:
             sq += 1
-    f = math.ldexp(1.0, -sq)
+    f = ldexp(1.0, -sq)
     b = nrm * f
     for i in range(m):
         for j in range(m):
@@ -175,7 +199,6 @@ def _expm_into(A, m, E, T, W):
     return rem / 0.6
 
 
-@njit(cache=True)
 def _expm(A):
     m = A.shape[0]
     E = np.empty((m, m))
@@ -208,14 +231,12 @@ def expm(A: np.ndarray) -> np.ndarray:
     return _expm(np.asarray(A, dtype=float))
 
 
-@njit(cache=True)
 def _poly_metrics(Wn, nW, a, H, band, ms, dW, xs, sr, sd):
     """The kernel's metric update (:func:`._kernel._metrics_update`) on the piece ``Wn`` (the normalised output
     over ``[a, a + H]``), with certified roots (:func:`._poly.crossings`)."""
     _metrics_update(Wn, nW, a, H, band, ms, dW, xs, xs, sr, sd, True)
 
 
-@njit(cache=True)
 def _expand(zs, Zs, cs, ns, tau, a, inv, ref, band, ms, q, qn, zsum, Y, Wn, dW, xs, sr, sd):
     """Apply the metrics to one interval through the output's Taylor polynomial (sub-pieces where
     ``||Z_S tau||`` exceeds ``_SUB_BETA``); ``zs`` (the state seen by the output at the start) is overwritten.
@@ -275,23 +296,20 @@ def _expand(zs, Zs, cs, ns, tau, a, inv, ref, band, ms, q, qn, zsum, Y, Wn, dW, 
     return trunc
 
 
-@njit(cache=True, inline="always")
 def _row4(M, s, r, z0, z1, z2, z3):
     """Row ``r`` of the map ``M[s]`` applied to the first four states, summed as a tree (the small systems'
     fixed order, which the results depend on to the last bit)."""
     return (M[s, r, 0] * z0 + M[s, r, 1] * z1) + (M[s, r, 2] * z2 + M[s, r, 3] * z3)
 
 
-@njit(cache=True, inline="always")
 def _slope_bound(G, cheap, s, v0, v1):
     """The cheap bound on the interval's higher terms from the command's coefficients ``v0``, ``v1`` (slot
     ``s``), or, where that length has none, 0 if they vanish and infinity (expand the interval) if not."""
     if cheap[s]:
         return abs(v0) * G[s, 0] + abs(v1) * G[s, 1]
-    return 0.0 if v0 == 0.0 and v1 == 0.0 else np.inf
+    return 0.0 if v0 == 0.0 and v1 == 0.0 else _INF
 
 
-@njit(cache=True, inline="always")
 def _interval_metrics(y0, y1, d1, gs, a, end, st, inv, ainv, band):
     """The metrics of one interval ``[a, end]`` from the output at its ends (``y0``, ``y1``), ``tau Y'(0)``
     (``d1``) and the cheap bound's ``G`` (``gs``); ``st`` holds the running metrics (``wmax, tpeak, t10, t90,
@@ -338,7 +356,6 @@ def _interval_metrics(y0, y1, d1, gs, a, end, st, inv, ainv, band):
     return (wmax, tpeak, t10, t90, tlast), w1, False
 
 
-@njit(cache=True)
 def _expanded(st, src, row, ns, tau, a, inv, ref, band, ms, Zs, cs, zs, q, qn, zsum, Y, Wn, dW, xs, sr, sd):
     """The running metrics ``st`` (as :func:`_interval_metrics`) after one interval expanded (:func:`_expand`)
     from the state the output sees at its start, ``src[row, :ns]``; and the expansion's remainder bound."""
@@ -349,7 +366,6 @@ def _expanded(st, src, row, ns, tau, a, inv, ref, band, ms, Zs, cs, zs, q, qn, z
     return (ms[_WMAX], ms[_TPEAK], ms[_T10], ms[_T90], ms[_TLAST]), trunc
 
 
-@njit(cache=True)
 def _pair(Q, sa, sb, tau_a, N, dpos, pw, pr, prs, ns, EA, Pab, gb, Es, Rb, Rbw):
     """A small loop's map over a whole period, the interval ``sa`` then ``sb`` (whose plant input differs by one
     image): the states at the end are ``Pab z + (w_b - w_a) gb`` (``z`` at the start, holding ``w_a``), the part
@@ -388,7 +404,6 @@ def _pair(Q, sa, sb, tau_a, N, dpos, pw, pr, prs, ns, EA, Pab, gb, Es, Rb, Rbw):
         Rbw[m] = Q[sb, r, pw] if pw < _SS else 0.0
 
 
-@njit(cache=True)
 def _fill_slot(Z, na, N, tau, dpos, ns, cs, rows, nrow, metrics, slot, Q, G, A, E, T, W):
     """For the interval length ``tau``: ``Q[slot]``, the map from the state at an interval's start (``z``,
     ``Z[:ns, :ns]`` being ``Z_S``) to, in its rows, the loop's states at the end (``N``, in the order of
@@ -431,7 +446,7 @@ def _fill_slot(Z, na, N, tau, dpos, ns, cs, rows, nrow, metrics, slot, Q, G, A, 
         c1 += abs(cs[i])
     if beta > _GMAX_BETA:
         for r in range(nrow):
-            G[slot, r] = np.inf
+            G[slot, r] = _INF
         return rem
     rho = np.empty(ns)
     rn = np.empty(ns)
@@ -453,7 +468,7 @@ def _fill_slot(Z, na, N, tau, dpos, ns, cs, rows, nrow, metrics, slot, Q, G, A, 
             big = max(big, g[i])
         pw *= beta / k
         # the terms after order k (their ratio beta / (j + 1) below 1 from here on, or no bound yet)
-        tail = pw * (beta / (k + 1)) / (1.0 - beta / (k + 2)) if beta < k + 2 else np.inf
+        tail = pw * (beta / (k + 1)) / (1.0 - beta / (k + 2)) if beta < k + 2 else _INF
         if tail <= 1e-9 * big or (big == 0.0 and tail <= 1e-300):
             break
     for r in range(nrow):
@@ -461,7 +476,6 @@ def _fill_slot(Z, na, N, tau, dpos, ns, cs, rows, nrow, metrics, slot, Q, G, A, 
     return rem
 
 
-@njit(cache=True)
 def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs, sr, sd, ms, EA,
             Pab, gb, Es, Rb, Rbw, zi):
     """Simulate one eligible sampled loop (its parameter row ``par``, a step or ramp reference) and fill ``out``
@@ -573,13 +587,13 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
     used = np.zeros(NSLOT, dtype=np.int64)  # the interval that last used each length
     for s in range(NSLOT):
         taus[s] = -1.0
-    ms[_WMAX] = -np.inf
-    ms[_TPEAK] = np.nan
-    ms[_T10] = np.nan
-    ms[_T90] = np.nan
+    ms[_WMAX] = -_INF
+    ms[_TPEAK] = _NAN
+    ms[_T10] = _NAN
+    ms[_T90] = _NAN
     ms[_TLAST] = 0.0
     # the running metrics (as the kernel's): wmax, tpeak, t10, t90, tlast
-    st = (-np.inf, np.nan, np.nan, np.nan, 0.0)
+    st = (-_INF, _NAN, _NAN, _NAN, 0.0)
     wend = 0.0
     cw = c[pw]  # the plant's direct feedthrough: the output jumps by cw times the input's
     pair_a = -1  # the period's map (small loops): of which two lengths
@@ -745,7 +759,7 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
                 taus[s_new] = tau
                 trunc = max(trunc, _fill_slot(Z, na, N, tau, dpos, ns, cs, rows, nrow, metrics, s_new, Q, G, A, E, T,
                                               W))
-                cheap[s_new] = not np.isinf(G[s_new, 0])
+                cheap[s_new] = not isinf(G[s_new, 0])
         slot_prev = slot
         slot = s_new
         used[slot] = n
@@ -805,7 +819,6 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
     return n
 
 
-@njit(cache=True, parallel=True)
 def run_batch(pars, nchunks):
     """The kernel's metrics rows (:data:`._layout.OUT`) of many eligible sampled loops, one parameter row each
     (a step or ramp reference, as :func:`._kernel.run_batch` reads it), over ``nchunks`` threads."""
