@@ -19,8 +19,9 @@ from Cython.Build import cythonize
 from setuptools import Extension, setup
 
 KERNELS = ["delaykit.spectrum._rootkernel", "delaykit.simulate._poly", "delaykit.simulate._taylor",
-           "delaykit.simulate._kernel"]
-PARALLEL = {"delaykit.simulate._kernel"}  # the kernels with a parallel loop (OpenMP where the compiler has it)
+           "delaykit.simulate._kernel", "delaykit.simulate._sampled_batch"]
+# the kernels with a parallel loop (OpenMP where the compiler has it)
+PARALLEL = {"delaykit.simulate._kernel", "delaykit.simulate._sampled_batch"}
 
 # numba's arithmetic: no bounds or negative-index checks, C's pow, Python's division (a zero divisor raises)
 DIRECTIVES = {"language_level": 3, "boundscheck": False, "wraparound": False, "initializedcheck": False,

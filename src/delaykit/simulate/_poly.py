@@ -194,7 +194,7 @@ def crossings(c, n, target, xs, sr, sd):
     noise = 4.0 * n * 1.1102230246251565e-16 * size  # Horner's rounding on [0, 1], twice over
     top = 0
     for i in range(_GRID, 0, -1):
-        sr[top] = i / _GRID
+        sr[top] = _XG[i]  # i / GRID
         sd[top] = 0
         top += 1
     k = 0
