@@ -121,8 +121,9 @@ def test_expm_of_a_loops_augmented_matrix():
 def _crossings(coef, target=0.0):
     c = np.zeros(25)
     c[:len(coef)] = coef
-    xs = np.zeros(F._MAXX)
-    k = F._crossings(c, len(coef), target, xs, np.zeros(F._STACK), np.zeros(F._STACK, dtype=np.int64))
+    poly = _native.load("delaykit.simulate", "_poly")  # the certified search the sampled batch calls, compiled
+    xs = np.zeros(poly.MAXX)
+    k = poly.crossings(c, len(coef), target, xs, np.zeros(poly.STACK), np.zeros(poly.STACK, dtype=np.int64))
     return xs[:k]
 
 

@@ -13,7 +13,7 @@ Examples
 --------
 >>> import numpy as np
 >>> from delaykit import _native
->>> p = _native.load("delaykit.simulate", "_poly", "python")
+>>> p = _native.load("delaykit.simulate", "_poly")  # compiled (Cython, or numba where not built)
 >>> c = np.array([-0.25, 0.0, 1.0])  # x**2 - 1/4
 >>> p.horner(c, 3, 0.5), p.bounds(c, 3)
 (0.0, (-0.25, 0.75))
