@@ -15,10 +15,16 @@ Cython is faster), and the largest difference of the results (relative, over all
 1e-12).  numba's compilation is timed apart (its first call, cached or not as the cache is), and so is the Cython
 extension's first call.
 
+The simulator's kernels (``simulate/_kernel.py`` with ``_taylor.py`` and ``_poly.py``, and ``_sampled_batch.py``)
+follow: one run of the paper's P loop and of a PID loop with limits (``run_one``), the batch kernels on one work
+set (1,000 of the paper's P loops; 300 sampled ones) and ``simulate_many`` of the paper's 10,000 P loops on every
+thread.  The batch rows give the CPU time of the whole process (their loops may run on OpenMP's or numba's worker
+threads), the least of ``--repeat // 5`` runs (at least 3); ``--only roots`` or ``--only simulator`` runs one part.
+
 Other work on the machine slows both (less so their CPU time than their wall time): the ratio, taken side by side,
 is the figure to read.
 
-Run: ``python benchmarks/bench_native.py [--repeat 25] [--json FILE]``.
+Run: ``python benchmarks/bench_native.py [--repeat 25] [--only roots|simulator] [--json FILE]``.
 """
 
 from __future__ import annotations
@@ -46,6 +52,7 @@ from delaykit.spectrum.roots import _Eval
 
 PAPER = AltitudeLoop(kp=1.31, delay=0.368)
 PI_LOOP = Loop("1/(s*(0.05*s+1))", Controller.pi(0.8, 0.15), delay=0.37)
+SIM_PID = Loop("1/((s+1)*(0.5*s+1))", Controller.pid(2.0, 0.8, 0.2, 0.05), delay=0.25, umin=-0.5, umax=2.0)
 
 
 def best(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:
@@ -178,16 +185,124 @@ def library_cases() -> dict[str, Callable[[], Any]]:
     }
 
 
+def best_process(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:
+    """Least CPU time of the whole process (every thread) over ``repeat`` calls, and the last result."""
+    times, out = [], None
+    for _ in range(repeat):
+        t0 = time.process_time()
+        out = fn()
+        times.append(time.process_time() - t0)
+    return min(times), out
+
+
+def batch_rows(loop: Any, **sweep: Any) -> np.ndarray:
+    """The batch kernels' parameter rows of a sweep, as ``simulate_many`` builds them."""
+    from delaykit.simulate import simulation as SIM
+
+    seen, real = {}, SIM._batch
+
+    def grab(pars: np.ndarray) -> np.ndarray:
+        seen["pars"] = pars.copy()
+        return real(pars)
+
+    SIM._batch = grab
+    try:
+        SIM.simulate_many(loop, **sweep)
+    finally:
+        SIM._batch = real
+    return np.ascontiguousarray(seen["pars"])
+
+
+def simulator_cases(kern: Any, sb: Any) -> dict[str, tuple[bool, Callable[[], Any]]]:
+    """The simulator's kernels in one mode (``kern``: ``_kernel``, ``sb``: ``_sampled_batch``): case name ->
+    (whether it runs on worker threads, the call)."""
+    from delaykit.simulate import _layout
+    from delaykit.simulate._layout import loop_matrices, param_row
+    from delaykit.simulate.simulation import as_loop
+
+    def one(loop: Any, t_end: float) -> Callable[[], Any]:
+        gen = as_loop(loop)
+        row = param_row(gen, loop_matrices(gen), step=1.0, slope=0.0, norm=1.0, t_end=t_end, band=0.02, dist=None)
+        cap, nc = 4096, _layout.NC
+        u = (np.empty(cap), np.empty(cap), np.zeros((cap, nc)), np.empty(cap, dtype=np.int64),
+             np.empty(cap, dtype=np.int8))
+        y = (np.empty(cap), np.empty(cap), np.zeros((cap, nc)), np.zeros((cap, nc)), np.empty(cap, dtype=np.int8))
+        out, knots = np.empty(_layout.NOUT), (np.zeros(1), np.ones(1), np.zeros(1))
+
+        def call() -> np.ndarray:
+            kern.run_one(row, *knots, cap, *u, *y, out, True, np.empty(0), np.empty(0))
+            return out.copy()
+        return call
+
+    td = np.random.default_rng(2024).uniform(0.2, 0.5, 1000)
+    p_rows = batch_rows(PAPER, delay=td)
+    s_rows = batch_rows(AltitudeLoop(kp=1.31, delay=0.3, period=0.065), delay=td[:300])
+    return {
+        "run_one (paper P, 15 s)": (False, one(PAPER, 15.0)),
+        "run_one (PID with limits, 15 s)": (False, one(SIM_PID, 15.0)),
+        "run_batch (1,000 paper P loops, 1 set)": (True, lambda: kern.run_batch(p_rows, 4096, 1, 1)),
+        "run_batch (300 sampled P loops, 1 set)": (True, lambda: sb.run_batch(s_rows, 1, 1)),
+    }
+
+
+def simulate_many_case() -> Callable[[], Any]:
+    """The issue's call: ``simulate_many`` of the paper's 10,000 P loops, with the kernels ``DELAYKIT_KERNELS``
+    chooses (on every thread)."""
+    from delaykit import simulate_many
+
+    td = np.random.default_rng(2024).uniform(0.2, 0.5, 10_000)
+    return lambda: simulate_many(AltitudeLoop(kp=1.31, delay=0.3), delay=td).overshoot
+
+
+def simulator_rows(repeat: int) -> tuple[list[dict[str, Any]], float, float]:
+    """The simulator's rows, and the first calls of its Cython and numba kernels (numba's: compiled or cached)."""
+    pkg = "delaykit.simulate"
+    for name in ("_poly", "_taylor", "_kernel", "_sampled_batch"):
+        if not _native.built(pkg, name):
+            raise SystemExit(f"the Cython extension of {pkg}.{name} is not built: run `make` or `pip install -e .`")
+    cy = simulator_cases(_native.load(pkg, "_kernel", "cython"), _native.load(pkg, "_sampled_batch", "cython"))
+    t0 = time.perf_counter()
+    next(iter(cy.values()))[1]()
+    cy_first = time.perf_counter() - t0
+    nb = simulator_cases(_native.load(pkg, "_kernel", "numba"), _native.load(pkg, "_sampled_batch", "numba"))
+    t0 = time.perf_counter()
+    for _, fn in nb.values():  # compiles (or loads from numba's cache) every kernel
+        fn()
+    nb_first = time.perf_counter() - t0
+    rows = []
+    few = max(3, repeat // 5)
+    for (name, (threads, f_cy)), (_, f_nb) in zip(cy.items(), nb.values()):
+        t_cy, r_cy = best_process(f_cy, few) if threads else best(f_cy, repeat)
+        t_nb, r_nb = best_process(f_nb, few) if threads else best(f_nb, repeat)
+        rows.append({"case": name, "cython": t_cy, "numba": t_nb, "ratio": t_nb / t_cy,
+                     "difference": difference(r_cy, r_nb)})
+    call = simulate_many_case()
+    before = os.environ.get("DELAYKIT_KERNELS")
+    try:
+        got = {}
+        for mode in ("numba", "cython"):
+            os.environ["DELAYKIT_KERNELS"] = mode
+            call()  # (numba: compiles the batch's parallel loop, or loads it from the cache)
+            got[mode] = best_process(call, few)
+    finally:
+        if before is None:
+            os.environ.pop("DELAYKIT_KERNELS", None)
+        else:
+            os.environ["DELAYKIT_KERNELS"] = before
+    rows.append({"case": "simulate_many (10,000 paper P loops, all threads)", "cython": got["cython"][0],
+                 "numba": got["numba"][0], "ratio": got["numba"][0] / got["cython"][0],
+                 "difference": difference(got["cython"][1], got["numba"][1])})
+    return rows, cy_first, nb_first
+
+
 def use(rk: Any) -> None:
     R.RK = rk
     S.RK = rk
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeat", type=int, default=25, help="Runs of each case; the fastest is kept.")
-    ap.add_argument("--json", type=Path, default=None, help="Also write the results here as JSON.")
-    args = ap.parse_args()
+def root_rows(repeat: int) -> tuple[list[dict[str, Any]], float, float]:
+    """The rows of the root kernel and of the held-input and stability-map kernels, and the first calls of the root
+    kernel's Cython and numba copies."""
     for package, name in (("delaykit.spectrum", "_rootkernel"), ("delaykit.spectrum", "_trackkernel"),
                           ("delaykit.models", "_expmkernel"), ("delaykit.simulate", "_discretekernel"),
                           ("delaykit.simulate", "_varyingkernel")):
@@ -212,47 +327,69 @@ def main() -> None:
 
     rows = []
     for (name, f_cy), f_nb in zip(kernel_cases(cy).items(), kernel_cases(nb).values()):
-        t_cy, r_cy = best(f_cy, args.repeat)
-        t_nb, r_nb = best(f_nb, args.repeat)
+        t_cy, r_cy = best(f_cy, repeat)
+        t_nb, r_nb = best(f_nb, repeat)
         rows.append({"case": name, "cython": t_cy, "numba": t_nb, "ratio": t_nb / t_cy,
                      "difference": difference(r_cy, r_nb)})
     for name in library_cases():
         use(cy)
-        t_cy, r_cy = best(library_cases()[name], args.repeat)
+        t_cy, r_cy = best(library_cases()[name], repeat)
         use(nb)
-        t_nb, r_nb = best(library_cases()[name], args.repeat)
+        t_nb, r_nb = best(library_cases()[name], repeat)
         use(cy)
         rows.append({"case": name, "cython": t_cy, "numba": t_nb, "ratio": t_nb / t_cy,
                      "difference": difference(r_cy, r_nb)})
     for (name, f_cy), f_nb in zip(held_cases("cython").items(), held_cases("numba").values()):
-        t_cy, r_cy = best(f_cy, args.repeat)
-        t_nb, r_nb = best(f_nb, args.repeat)
+        t_cy, r_cy = best(f_cy, repeat)
+        t_nb, r_nb = best(f_nb, repeat)
         rows.append({"case": name, "cython": t_cy, "numba": t_nb, "ratio": t_nb / t_cy,
                      "difference": difference(r_cy, r_nb)})
     for name in held_library_cases():
         use_held("cython")
-        t_cy, r_cy = best(held_library_cases()[name], args.repeat)
+        t_cy, r_cy = best(held_library_cases()[name], repeat)
         use_held("numba")
-        t_nb, r_nb = best(held_library_cases()[name], args.repeat)
+        t_nb, r_nb = best(held_library_cases()[name], repeat)
         use_held("cython")
         rows.append({"case": name, "cython": t_cy, "numba": t_nb, "ratio": t_nb / t_cy,
                      "difference": difference(r_cy, r_nb)})
+    return rows, cy_first, nb_first
 
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=25, help="Runs of each case; the fastest is kept.")
+    ap.add_argument("--json", type=Path, default=None, help="Also write the results here as JSON.")
+    ap.add_argument("--only", choices=("roots", "simulator"), default=None, help="Run one part only.")
+    args = ap.parse_args()
     console = Console(width=max(Console().width, 120))
-    table = Table(title=f"Kernels: Cython (ahead of time) against numba, same source, least CPU time of "
-                        f"{args.repeat} (load {os.getloadavg()[0]:.1f})")
+    doc: dict[str, Any] = {"python": sys.version.split()[0], "load": os.getloadavg(), "repeat": args.repeat}
+    if args.only != "simulator":
+        rows, cy_first, nb_first = root_rows(args.repeat)
+        show(console, "Root kernel", rows, args.repeat)
+        console.print(f"first call: Cython {cy_first * 1e3:.1f} ms (nothing compiled); numba {nb_first:.1f} s "
+                      "(compiling, or loading numba's cache where it has the kernels)")
+        doc.update({"cython_first_call": cy_first, "numba_first_call": nb_first, "rows": rows})
+    if args.only != "roots":
+        rows, cy_first, nb_first = simulator_rows(args.repeat)
+        show(console, "Simulator kernels (batch rows: CPU time of every thread)", rows, args.repeat)
+        console.print(f"first call: Cython {cy_first * 1e3:.1f} ms (nothing compiled); numba {nb_first:.1f} s "
+                      "(compiling, or loading numba's cache where it has the kernels)")
+        doc.update({"simulator_cython_first_call": cy_first, "simulator_numba_first_call": nb_first,
+                    "simulator_rows": rows})
+    if args.json is not None:
+        doc["load_after"] = os.getloadavg()
+        args.json.write_text(json.dumps(doc, indent=2) + "\n")
+
+
+def show(console: Console, title: str, rows: list[dict[str, Any]], repeat: int) -> None:
+    table = Table(title=f"{title}: Cython (ahead of time) against numba, same source, least CPU time of "
+                        f"{repeat} (load {os.getloadavg()[0]:.1f})")
     for col in ("case", "Cython ms", "numba ms", "numba / Cython", "largest rel. difference"):
         table.add_column(col, justify="left" if col == "case" else "right")
     for r in rows:
         table.add_row(r["case"], f"{1e3 * r['cython']:.3f}", f"{1e3 * r['numba']:.3f}", f"{r['ratio']:.2f}",
                       f"{r['difference']:.1e}")
     console.print(table)
-    console.print(f"first call: Cython {cy_first * 1e3:.1f} ms (nothing compiled); numba {nb_first:.1f} s "
-                  "(compiling, or loading numba's cache where it has the kernels)")
-    if args.json is not None:
-        doc = {"python": sys.version.split()[0], "load": os.getloadavg(), "repeat": args.repeat,
-               "cython_first_call": cy_first, "numba_first_call": nb_first, "rows": rows}
-        args.json.write_text(json.dumps(doc, indent=2) + "\n")
 
 
 if __name__ == "__main__":

@@ -21,11 +21,12 @@ import pytest
 
 from delaykit import AltitudeLoop
 from delaykit.models import Controller, Loop
+from delaykit import _native
 from delaykit.simulate import _jit, _layout
 from delaykit.simulate._layout import NC, NOUT, HEAD, loop_matrices, param_row
 from delaykit.simulate.simulation import as_loop
 
-_T = _jit.sibling("_taylor")  # compiled (this process builds compiled modules by default)
+_T = _native.load("delaykit.simulate", "_taylor")  # compiled (by Cython, or numba without the extension)
 _K = _jit.kernel(compiled=True)
 _KI = _jit.kernel(compiled=False)  # the same source run as plain Python
 
@@ -118,11 +119,11 @@ def test_batch_rows_equal_runs_alone():
 
 
 def _metrics_state():
-    ms = np.zeros(_K._NMS)
-    ms[_K._WMAX] = -np.inf
-    ms[_K._TPEAK] = np.nan
-    ms[_K._T10] = np.nan
-    ms[_K._T90] = np.nan
+    ms = np.zeros(_KI._NMS)
+    ms[_KI._WMAX] = -np.inf
+    ms[_KI._TPEAK] = np.nan
+    ms[_KI._T10] = np.nan
+    ms[_KI._T90] = np.nan
     return ms
 
 
@@ -145,18 +146,18 @@ def test_peak_of_a_piece_is_its_maximum(seed):
         Y[1], Y[2] = 0.8, -1.0  # a maximum near x = 0.4
     a, H = rng.uniform(0.0, 10.0), rng.uniform(0.1, 0.5)
     ms = _metrics_state()
-    Wn, dW, xs, fs = np.zeros(NC), np.zeros(NC), np.zeros(_K._GRID + 2), np.zeros(_K._GRID + 1)
-    _K._step_metrics(Y, nY, 1.0, a, H, 0.02, ms, Wn, dW, xs, fs)
+    Wn, dW, xs, fs = np.zeros(NC), np.zeros(NC), np.zeros(_KI._GRID + 2), np.zeros(_KI._GRID + 1)
+    _K._step_metrics(Y, nY, 1.0, a, H, 0.02, ms, Wn, dW, xs, fs, np.zeros(1, dtype=np.int64))
     x = np.linspace(0.0, 1.0, 200_001)
     w = np.polynomial.polynomial.polyval(x, Y)
     k = int(np.argmax(w))
-    assert ms[_K._WMAX] >= w[k] - 1e-12
-    assert abs(ms[_K._WMAX] - w[k]) <= 1e-9
-    assert abs(ms[_K._TPEAK] - (a + x[k] * H)) <= 1e-4 * H
+    assert ms[_KI._WMAX] >= w[k] - 1e-12
+    assert abs(ms[_KI._WMAX] - w[k]) <= 1e-9
+    assert abs(ms[_KI._TPEAK] - (a + x[k] * H)) <= 1e-4 * H
     if kind == 0:
-        assert ms[_K._TPEAK] == a + H
+        assert ms[_KI._TPEAK] == a + H
     elif kind == 1:
-        assert ms[_K._TPEAK] == a
+        assert ms[_KI._TPEAK] == a
 
 
 def _step_response_piece(rng):
@@ -186,7 +187,8 @@ def _dense_metrics(W, a, H, band):
 
 @pytest.mark.parametrize("seed", range(16))
 def test_metric_update_serves_the_kernel_and_the_sampled_batch(seed):
-    from delaykit.simulate import _sampled_batch as SB
+    SB = _native.load("delaykit.simulate", "_sampled_batch")
+    SBI = _native.load("delaykit.simulate", "_sampled_batch", "python")  # its constants (C ones when compiled)
 
     rng = np.random.default_rng(500 + seed)
     W = _step_response_piece(rng)
@@ -198,29 +200,29 @@ def test_metric_update_serves_the_kernel_and_the_sampled_batch(seed):
     found = {}
     for way in ("kernel", "interpreted kernel", "sampled batch", "interpreted sampled way"):
         ms = _metrics_state()
-        ms[_K._TLAST] = 0.0
-        ms[_K._WEND] = sentinel
-        Wn, dW, fs = np.zeros(NC), np.zeros(NC), np.zeros(_K._GRID + 1)
-        xs = np.zeros(SB._MAXX)
-        sr, sd = np.zeros(SB._STACK), np.zeros(SB._STACK, dtype=np.int64)
+        ms[_KI._TLAST] = 0.0
+        ms[_KI._WEND] = sentinel
+        Wn, dW, fs = np.zeros(NC), np.zeros(NC), np.zeros(_KI._GRID + 1)
+        xs = np.zeros(SBI._MAXX)
+        sr, sd = np.zeros(SBI._STACK), np.zeros(SBI._STACK, dtype=np.int64)
         if way == "kernel":
-            _K._step_metrics(W, NC, 1.0, a, H, band, ms, Wn, dW, xs, fs)
+            _K._step_metrics(W, NC, 1.0, a, H, band, ms, Wn, dW, xs, fs, sd)
         elif way == "interpreted kernel":
-            _KI._step_metrics(W, NC, 1.0, a, H, band, ms, Wn, dW, xs, fs)
+            _KI._step_metrics(W, NC, 1.0, a, H, band, ms, Wn, dW, xs, fs, sd)
         elif way == "sampled batch":
             SB._poly_metrics(W.copy(), NC, a, H, band, ms, dW, xs, sr, sd)
         else:
             _KI._metrics_update(W.copy(), NC, a, H, band, ms, dW, xs, fs, sr, sd, True)
         tol = 2e-5 * H
-        assert abs(ms[_K._WMAX] - peak) <= 1e-9, way
-        assert ms[_K._WMAX] >= peak - 1e-12, way
-        assert abs(ms[_K._TPEAK] - tpeak) <= 1e-3 * H, way  # a flat maximum: its time is found less sharply
-        assert abs(ms[_K._T10] - t10) <= tol and abs(ms[_K._T90] - t90) <= tol, way
-        assert abs(ms[_K._TLAST] - tlast) <= tol, way
+        assert abs(ms[_KI._WMAX] - peak) <= 1e-9, way
+        assert ms[_KI._WMAX] >= peak - 1e-12, way
+        assert abs(ms[_KI._TPEAK] - tpeak) <= 1e-3 * H, way  # a flat maximum: its time is found less sharply
+        assert abs(ms[_KI._T10] - t10) <= tol and abs(ms[_KI._T90] - t90) <= tol, way
+        assert abs(ms[_KI._TLAST] - tlast) <= tol, way
         if way.endswith("kernel"):  # the kernel keeps w at the piece's end; the batch's ms has no such slot
-            assert abs(ms[_K._WEND] - np.polynomial.polynomial.polyval(1.0, W)) <= 1e-12, way
+            assert abs(ms[_KI._WEND] - np.polynomial.polynomial.polyval(1.0, W)) <= 1e-12, way
         else:
-            assert ms[_K._WEND] == sentinel, way
+            assert ms[_KI._WEND] == sentinel, way
         found[way] = ms.copy()
     # each way's two modes run the same arithmetic
     np.testing.assert_allclose(found["kernel"], found["interpreted kernel"], rtol=1e-12)
@@ -291,23 +293,26 @@ def test_known_input_recursion_equals_the_general_one(seed):
 
 
 def test_this_numba_accepts_the_no_refcount_option():
-    # the piece loop relies on it for a third of its speed; if this fails, numba dropped the private option and
-    # the kernel compiles with reference counting (slower, still exact): see _jit._numba_knows
-    assert _jit._numba_knows("_nrt")
-    assert not _jit._numba_knows("an_option_numba_never_had")
+    # the piece loop relies on it for a third of its speed under numba; if this fails, numba dropped the private
+    # option and the kernel compiles with reference counting (slower, still exact): see _native._numba_knows
+    assert _native._numba_knows("_nrt")
+    assert not _native._numba_knows("an_option_numba_never_had")
 
 
 def test_a_numba_without_the_option_still_compiles(monkeypatch):
-    # a numba release that drops `_nrt` would raise KeyError("Unrecognized options") at the first call: the
-    # decorator drops the option instead, and the function compiles and runs (with reference counting)
-    monkeypatch.setattr(_jit, "_numba_knows", lambda option: False)
+    # a numba release that drops `_nrt` would raise KeyError("Unrecognized options") at the first call: numba's
+    # copy of a kernel is made without the option instead, and its functions compile and run (with reference
+    # counting).  (_poly's refine asks for it in its NUMBA_OPTIONS.)
+    import sys
 
-    @_jit.njit(cache=False, _nrt=False)
-    def total(x):
-        s = 0.0
-        for i in range(x.size):
-            s += x[i]
-        return s
-
-    assert total(np.arange(5.0)) == 10.0
-    assert "_nrt" not in total.targetoptions  # dropped, not passed on (numba keeps the options it was given)
+    monkeypatch.setattr(_native, "_numba_knows", lambda option: False)
+    name = "delaykit.simulate._poly_numba"
+    before = sys.modules.get(name)
+    try:
+        p = _native._from_source("delaykit.simulate", "_poly", "numba")
+        assert "_nrt" not in p.refine.targetoptions  # dropped, not passed on (numba keeps the options it was given)
+        c = np.array([-0.25, 0.0, 1.0])  # x**2 - 1/4: its root 1/2 (refined from the bracket [0, 1])
+        assert abs(p.refine(c, 3, 0.0, 0.0, 1.0, -1.0) - 0.5) <= 1e-15
+    finally:
+        if before is not None:
+            sys.modules[name] = before

@@ -19,14 +19,15 @@ import scipy.linalg
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from delaykit import AltitudeLoop
+from delaykit import AltitudeLoop, _native
 from delaykit.models import Compensator, Controller, LoadStep, Loop, Ramp, plants
 from delaykit.simulate import _jit, _layout as K, simulate, simulate_many
-from delaykit.simulate import _sampled_batch as F
 from delaykit.simulate import simulation as S
 from oracle_loop import LoopOracle
 from strategies import plant_denominators
 from test_loop_simulation import spec_for
+
+F = _native.load("delaykit.simulate", "_sampled_batch")  # compiled (Cython, or numba without the extension)
 
 KEYS = ("overshoot", "peak_time", "peak", "t10", "t90", "rise_time", "settling_time", "final_error")
 CAP = 1 << 16  # pieces the Taylor kernel may use on one loop here
@@ -120,8 +121,9 @@ def test_expm_of_a_loops_augmented_matrix():
 def _crossings(coef, target=0.0):
     c = np.zeros(25)
     c[:len(coef)] = coef
-    xs = np.zeros(F._MAXX)
-    k = F._crossings(c, len(coef), target, xs, np.zeros(F._STACK), np.zeros(F._STACK, dtype=np.int64))
+    poly = _native.load("delaykit.simulate", "_poly")  # the certified search the sampled batch calls, compiled
+    xs = np.zeros(poly.MAXX)
+    k = poly.crossings(c, len(coef), target, xs, np.zeros(poly.STACK), np.zeros(poly.STACK, dtype=np.int64))
     return xs[:k]
 
 

@@ -107,18 +107,31 @@ def load(package: str, name: str, mode: str | None = None) -> ModuleType:
     return _loaded[key]
 
 
-def sibling(name: str, package: str, kernel: str) -> ModuleType:
-    """The kernel module ``package.kernel`` for a kernel loaded as ``name`` (its ``__name__``) to call, in the same
-    mode: numba's copy for numba's copy (numba code calls numba code), Python's for Python's and for the plain
-    ``.py``.  (The extension module cimports the other extension instead; see ``simulate/_discretekernel.py``.)
+def sibling(importer: str, name: str, package: str | None = None) -> ModuleType:
+    """The kernel module ``name`` (of ``package``, by default the package of ``importer``) for the kernel module
+    ``importer`` (its ``__name__``) to call, in that module's mode: numba's copy for numba's copy (numba code calls
+    numba code), Python's for Python's and for the plain ``.py`` imported under its own name.  (Compiled by Cython,
+    a kernel cimports the other extension instead; see ``simulate/_discretekernel.py``.)
 
     Examples
     --------
-    >>> sibling("delaykit.simulate._discretekernel_python", "delaykit.models", "_expmkernel").__name__
+    >>> sibling("delaykit.spectrum._rootkernel_python", "_rootkernel").__name__
+    'delaykit.spectrum._rootkernel_python'
+    >>> sibling("delaykit.simulate._discretekernel_python", "_expmkernel", "delaykit.models").__name__
     'delaykit.models._expmkernel_python'
     """
-    mode = name.rpartition("_")[2]
-    return load(package, kernel, mode if mode in ("numba", "python") else "python")
+    own_package, _, own = importer.rpartition(".")
+    return load(package or own_package, name, "numba" if own.endswith("_numba") else "python")
+
+
+def _numba_knows(option: str) -> bool:
+    """Whether this numba's CPU target accepts ``option`` (``_nrt``, a private one numba's own tests use: a release
+    that dropped it would refuse to compile with a ``KeyError``; asking first keeps the kernel compiling)."""
+    try:
+        from numba.core.cpu import CPUTargetOptions
+    except ImportError:
+        return False
+    return hasattr(CPUTargetOptions, option)
 
 
 def _from_source(package: str, name: str, mode: str) -> ModuleType:
@@ -136,13 +149,20 @@ def _from_source(package: str, name: str, mode: str) -> ModuleType:
             import numba
 
             # every function the module defines, so that kernels calling one another call compiled code (numba
-            # reads a called function from the module's globals when it compiles the caller, on first use); but
-            # not those it lists in PYTHON_ONLY (an entry that releases the GIL around a kernel, in a `with` block
-            # numba cannot compile: numba's copy releases it itself)
+            # reads a called function from the module's globals when it compiles the caller, on first use); a
+            # module's NUMBA_OPTIONS gives some functions numba options of their own (inlining, parallel loops), or
+            # None: left as Python (a wrapper that converts its arguments for a compiled function); so are those it
+            # lists in PYTHON_ONLY (an entry that releases the GIL around a kernel, in a `with` block numba cannot
+            # compile: numba's copy releases it itself)
+            options = getattr(mod, "NUMBA_OPTIONS", {})
             keep = set(getattr(mod, "PYTHON_ONLY", ()))
             for attr, fn in list(vars(mod).items()):
-                if inspect.isfunction(fn) and fn.__module__ == full and attr not in keep:
-                    setattr(mod, attr, numba.njit(cache=True, nogil=True)(fn))
+                if (inspect.isfunction(fn) and fn.__module__ == full and attr not in keep
+                        and options.get(attr, {}) is not None):
+                    opts = dict(options.get(attr, {}))
+                    if "_nrt" in opts and not _numba_knows("_nrt"):
+                        del opts["_nrt"]  # compile with reference counting (slower) rather than not at all
+                    setattr(mod, attr, numba.njit(cache=True, nogil=True, **opts)(fn))
     except BaseException:
         del sys.modules[full]
         raise

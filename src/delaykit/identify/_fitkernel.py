@@ -33,8 +33,8 @@ else:  # the discrete simulator's kernel in this module's own mode (numba's copy
 
     from delaykit import _native
 
-    _held_arrays = _native.sibling(__name__, "delaykit.simulate", "_discretekernel").held_arrays
-    _run_logs = _native.sibling(__name__, "delaykit.simulate", "_discretekernel").run_logs
+    _held_arrays = _native.sibling(__name__, "_discretekernel", "delaykit.simulate").held_arrays
+    _run_logs = _native.sibling(__name__, "_discretekernel", "delaykit.simulate").run_logs
 
 __all__ = ["realise", "core", "evaluate", "evaluate_fit", "jacobian_fit", "residual_blocks", "dot",
            "normal_equations", "OK", "STIFF_PLANT", "NEGATIVE", "ALGEBRAIC", "NONFINITE", "STEP", "COMPILED"]

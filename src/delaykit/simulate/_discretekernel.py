@@ -27,7 +27,7 @@ if cython.compiled:  # the models' extension, called in C
 else:  # the exponential of this module's own mode (numba's copy calls numba's)
     from delaykit import _native
 
-    expm_into = _native.sibling(__name__, "delaykit.models", "_expmkernel").expm_into
+    expm_into = _native.sibling(__name__, "_expmkernel", "delaykit.models").expm_into
 
 __all__ = ["aug_expm", "held_arrays", "run_into", "run", "run_logs", "advance", "run_at_into", "run_at_logs",
            "COMPILED"]

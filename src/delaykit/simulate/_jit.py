@@ -1,41 +1,39 @@
-"""The simulator's kernels, compiled by numba or run as plain Python: one source, two modes.
+"""The simulator's kernel in a process: compiled, or run as plain Python for short single runs.
 
-Importing numba and loading its cached machine code costs about a second, far more than one short simulation
-run as plain Python.  So the kernel modules (:mod:`._poly`, :mod:`._kernel`) take their decorators from here:
+The kernel modules (:mod:`._kernel`, with :mod:`._taylor` and :mod:`._poly`, which it calls) are one source in three
+modes (:mod:`delaykit._native`): the extension modules Cython compiled when the package was built, numba's
+compilation of the same files where none was built, or the files run by the interpreter.  Loading an extension
+costs milliseconds; importing numba and loading its cached machine code about a second, more than one short
+simulation run as plain Python.  So:
 
-* ``njit`` is numba's while a module is built *compiled*, and returns the function unchanged while it is built
-  *interpreted*; ``prange`` is numba's or the built-in ``range``.
-* The package's own names (``delaykit.simulate._kernel``, ...) are always the compiled modules.  The interpreted
-  copies are loaded from the same files under other names (``..._kernel_interpreted``) by :func:`kernel`, and a
-  kernel module finds its helpers with :func:`sibling`, in its own mode.  numba is imported only when a compiled
-  module is.
+* :func:`kernel` gives the compiled kernel (the extension, or numba's copy without one) or the interpreted one
+  (``delaykit.simulate._kernel_python``, whose helpers are interpreted too).
 * :func:`use_interpreter` makes the interpreted kernel the default for this process (the command line calls it
-  before a single simulation).  Interpreted runs draw on a budget of pieces (:func:`budget`): a run that
-  would exceed it is redone compiled, and so is every run after it, so a long run never stays slow.
+  before a single simulation, for an install without the extension).  Interpreted runs draw on a budget of pieces
+  (:func:`budget`): a run that would exceed it is redone compiled, and so is every run after it, so a long run
+  never stays slow.
 
-The two modes run the same arithmetic and agree to rounding (the tests check 1e-12).  numba's cache of a
-compiled function does not notice edits of the *other* kernel modules it calls: after changing :mod:`._poly` or
-:mod:`._taylor`, remove the cached kernels (``src/delaykit/simulate/__pycache__/*.nb*``).  This module is private.
+The modes run the same arithmetic and agree to rounding (the tests check 1e-12).  numba's cache of a compiled
+function does not notice edits of the *other* kernel modules it calls: after changing :mod:`._poly` or
+:mod:`._taylor`, remove the cached kernels (``src/delaykit/simulate/__pycache__/*.nb*``); an edited kernel's
+extension is rebuilt by ``make``.  This module is private.
 
 Examples
 --------
 >>> from delaykit.simulate import _jit
 >>> _jit.kernel(compiled=False).__name__
-'delaykit.simulate._kernel_interpreted'
+'delaykit.simulate._kernel_python'
 """
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
-import sys
-from pathlib import Path
-from types import ModuleType
 from contextlib import contextmanager
-from typing import Any, Callable, Iterator
+from types import ModuleType
+from typing import Iterator
 
-__all__ = ["njit", "use_interpreter", "interpreter", "interpreting", "budget", "spend", "kernel", "sibling",
-           "PIECE_BUDGET"]
+from .. import _native
+
+__all__ = ["use_interpreter", "interpreter", "interpreting", "budget", "spend", "kernel", "PIECE_BUDGET"]
 
 PIECE_BUDGET = 1000
 """Pieces of a one-state loop the interpreter may run in a process before the compiled kernel takes over (a loop
@@ -43,10 +41,8 @@ of ``n`` states counts ``(1 + n) / 2`` a piece).  An interpreted piece takes 0.1
 machine, so the budget is 0.1 to 0.35 s: a third of what numba's import and cache load cost (about 0.9 s)."""
 
 _PACKAGE = __name__.rpartition(".")[0]
-_building_compiled = True  # the mode of the kernel module being imported now (what njit and prange give)
 _interpreting = False  # the process's default mode
 _budget = float(PIECE_BUDGET)
-_interpreted: dict[str, ModuleType] = {}
 
 
 def use_interpreter(on: bool = True) -> None:
@@ -124,86 +120,9 @@ def spend(nstates: int, pieces: int) -> None:
     _budget -= pieces * _weight(nstates)
 
 
-def njit(*args: Any, **kwargs: Any) -> Any:
-    """numba's ``njit`` in a compiled build; in an interpreted one, the function itself (the options are numba's).
-
-    Examples
-    --------
-    >>> double = njit(lambda x: 2.0 * x)  # compiled here: this module's default build is compiled
-    >>> double(1.5)
-    3.0
-    """
-    if _building_compiled:
-        import numba
-
-        if "_nrt" in kwargs and not _numba_knows("_nrt"):
-            del kwargs["_nrt"]  # a private option: compile with reference counting rather than not at all
-        return numba.njit(*args, **kwargs)
-    if len(args) == 1 and callable(args[0]) and not kwargs:
-        return args[0]
-    return _identity
-
-
-def _numba_knows(option: str) -> bool:
-    """Whether this numba's CPU target accepts ``option``.
-
-    The piece loop is compiled with ``_nrt=False`` (no reference counting: a third of its time), a private option
-    numba's own tests use.  A numba release that drops it would refuse to compile the kernel with a ``KeyError``;
-    asking first keeps the kernel compiling, only slower, on such a release.
-    """
-    try:
-        from numba.core.cpu import CPUTargetOptions
-    except ImportError:
-        return False
-    return hasattr(CPUTargetOptions, option)
-
-
-def _identity(fn: Callable[..., Any]) -> Callable[..., Any]:
-    return fn
-
-
-def __getattr__(name: str) -> Any:
-    if name == "prange":  # read by a kernel module as it is built: numba's prange, or range
-        if _building_compiled:
-            import numba
-
-            return numba.prange
-        return range
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def _load(name: str, compiled: bool) -> ModuleType:
-    global _building_compiled
-    if not compiled and name in _interpreted:
-        return _interpreted[name]
-    before = _building_compiled
-    _building_compiled = compiled
-    try:
-        if compiled:
-            return importlib.import_module(f"{_PACKAGE}.{name}")
-        full = f"{_PACKAGE}.{name}_interpreted"
-        spec = importlib.util.spec_from_file_location(full, Path(__file__).with_name(f"{name}.py"))
-        assert spec is not None and spec.loader is not None
-        mod = importlib.util.module_from_spec(spec)
-        sys.modules[full] = mod
-        try:
-            spec.loader.exec_module(mod)
-        except BaseException:
-            del sys.modules[full]
-            raise
-        _interpreted[name] = mod
-        return mod
-    finally:
-        _building_compiled = before
-
-
-def sibling(name: str) -> ModuleType:
-    """The kernel module ``name`` (``"_poly"``), built in the mode of the module being imported now."""
-    return _load(name, _building_compiled)
-
-
 def kernel(compiled: bool | None = None) -> ModuleType:
-    """The simulator's kernel module: compiled, interpreted, or (``None``) as this process runs now.
+    """The simulator's kernel module: compiled (the extension, or numba's copy where none was built; see
+    :func:`delaykit._native.load`), interpreted, or (``None``) as this process runs now.
 
     Examples
     --------
@@ -212,4 +131,4 @@ def kernel(compiled: bool | None = None) -> ModuleType:
     """
     if compiled is None:
         compiled = not interpreting()
-    return _load("_kernel", compiled)
+    return _native.load(_PACKAGE, "_kernel", None if compiled else "python")

@@ -63,39 +63,68 @@ Step metrics are computed on the polynomials themselves while the pieces stream 
 The piece loop (``_run``) and the non-inlined helpers it calls are compiled without numba's reference counting
 (``_nrt=False``): they allocate nothing, and with it every array view bound in the loop (each inlined helper's
 array arguments) cost an atomic increment and decrement, a third of the paper's P loops' time.  Their work
-arrays come from the caller: :func:`run_one` allocates them for one run, :func:`run_batch` once per thread.
+arrays come from the caller: :func:`run_one` allocates them for one run, :func:`run_batch` once per work set
+(one per thread).
 
 The parameter row layout (``HEAD`` and the ``OFF_*`` offsets) is defined in :mod:`._layout` and filled by
-:mod:`delaykit.simulate.simulation`; the polynomial helpers are :mod:`._poly`.  numba compiles this module, or
-it runs as plain Python (see :mod:`._jit`).  This module is private.
+:mod:`delaykit.simulate.simulation`; the polynomial helpers are :mod:`._poly`.  One source, three modes (see
+:mod:`delaykit._native` and :mod:`._jit`): compiled ahead of time by Cython (the C types are in ``_kernel.pxd``;
+the piece loop runs without the GIL, and :func:`run_batch`'s loop in parallel with OpenMP), compiled by numba
+(``NUMBA_OPTIONS``) where no extension was built, or run as plain Python.  This module is private.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from . import _jit
-from ._jit import njit, prange
+try:
+    import cython
+except ImportError:  # plain Python without Cython installed: only ``cython.compiled`` is read
+    from types import SimpleNamespace
+
+    cython = SimpleNamespace(compiled=False)
+
 from ._layout import (DEG, HEAD, MAXN, NC, NOUT, OFF_BAW, OFF_BR, OFF_BU, OFF_BUM, OFF_BVM, OFF_BW, OFF_BYM, OFF_CV,
                       OFF_CY, OFF_CYD, OFF_M, SELF, GROW as _GROW, STATUS_CAPACITY, STATUS_OK, STATUS_STALLED)
+from ._poly import BINOMIAL as _BIN, GRID as _GRID
+from ._taylor import HIGH as _HIGH, LIN as _LIN, LOW as _LOW
 
-__all__ = ["run_one", "run_batch"]
+if cython.compiled:  # the polynomial helpers and the Taylor recursion, called as C; C's numbers and OpenMP's loop
+    from cython.cimports.delaykit.simulate._poly import all_cross as _all_cross, bounds as _bounds
+    from cython.cimports.delaykit.simulate._poly import crossings as _crossings, degree as _degree
+    from cython.cimports.delaykit.simulate._poly import first_cross as _first_cross, horner as _horner
+    from cython.cimports.delaykit.simulate._poly import poly_sum as _sum, scale as _scale
+    from cython.cimports.delaykit.simulate._poly import shift_scale as _shift_scale
+    from cython.cimports.delaykit.simulate._taylor import recursion as _recursion
+    from cython.cimports.delaykit.simulate._taylor import recursion_known as _recursion_known
+    from cython.cimports.libc.math import INFINITY as _INF, NAN as _NAN, isnan
+    from cython.parallel import prange
+else:  # the same modules run as this one is (numba's copies, or Python)
+    from math import inf as _INF, isnan, nan as _NAN
 
-_p = _jit.sibling("_poly")  # the polynomial helpers, built in this module's mode
-_horner, _horner_d, _sum, _bounds, _refine = _p.horner, _p.horner_d, _p.poly_sum, _p.bounds, _p.refine
-_first_cross, _all_cross, _crossings, _shift_scale, _scale, _degree = (_p.first_cross, _p.all_cross, _p.crossings,
-                                                                       _p.shift_scale, _p.scale, _p.degree)
-_GRID = _p.GRID
-_BIN = _p._BIN
-_t = _jit.sibling("_taylor")  # the Taylor recursion of one piece
-_recursion, _recursion_known = _t.recursion, _t.recursion_known
+    from .._native import sibling
+
+    _p = sibling(__name__, "_poly")
+    _horner, _sum, _bounds, _first_cross, _all_cross, _crossings, _shift_scale, _scale, _degree = (
+        _p.horner, _p.poly_sum, _p.bounds, _p.first_cross, _p.all_cross, _p.crossings, _p.shift_scale, _p.scale,
+        _p.degree)
+    _t = sibling(__name__, "_taylor")
+    _recursion, _recursion_known = _t.recursion, _t.recursion_known
+    if __name__.endswith("_numba"):
+        from numba import prange
+    else:
+        from builtins import range as prange
+
+__all__ = ["run_one", "run_batch", "COMPILED"]
+
+COMPILED: bool = cython.compiled
+"""Whether this module is the extension module Cython built (False: this file, run by Python or numba)."""
 
 # Indices of the scalars at the start of a parameter row.
 (_N, _TI, _TO, _UMIN, _UMAX, _PERIOD, _OFFSET, _T_END, _BAND, _NORM, _DIST, _T_DIST, _DY, _DYD, _DVR, _DVY, _DVV,
  _INTEG, _AW, _HMAX, _SCALE, _STEP, _SLOPE, _TM) = HEAD.values()
 _STALL = 256  # consecutive pieces shorter than 1e-9 of the run: no progress (the command chatters)
 
-_LIN, _HIGH, _LOW = _t.LIN, _t.HIGH, _t.LOW
 # A piece's length: hmax (the reciprocal of the fastest rate), or up to _GROW times that where the Taylor tail
 # relative to the signal (see _tail) stays below _TAIL = 1 / 24!, the tail of a pure mode of that rate over hmax.
 _TAIL = 1.0 / 620448401733239439360000.0
@@ -103,9 +132,15 @@ _NONE = DEG + 1  # a breakpoint's smoothness order above the Taylor degree: anal
 # A neutral loop's jump over a delay's window, relative to the signal there, below which it is not imaged
 _JUMP = 8.0 * 2.220446049250313e-16
 _PICARD = 400  # fixed-point passes before a piece that reads its own delayed signal is redone shorter
+# numba's options where it compiles this file (see delaykit._native): the helpers inlined into the piece loop, which
+# (with the rarely run helpers, kept out of its code) is compiled without reference counting; the batch in parallel
+NUMBA_OPTIONS = {name: {"inline": "always"} for name in (
+    "_classify", "_delayed", "_ref_poly", "_tail", "_step_metrics", "_metrics_row", "_metrics_update", "_first_switch",
+    "_continues", "_on_limit", "_lead_sign", "_slide_rates", "_image", "_pending", "_read_end", "_held")}
+NUMBA_OPTIONS.update({"_rel_degree": {"_nrt": False}, "_jump": {"_nrt": False}, "_picard": {"_nrt": False},
+                      "_run": {"_nrt": False}, "_batch_sets": {"parallel": True}})
 
 
-@njit(cache=True, inline="always")
 def _classify(V, n, umin, umax, tol):
     """Regime of the command at the start of a piece: linear, or saturated high or low."""
     v0 = V[0]
@@ -125,7 +160,6 @@ def _classify(V, n, umin, umax, tol):
     return _LIN
 
 
-@njit(cache=True, inline="always")
 def _delayed(t0, th, tc, tdeg, q, s, H, dst, work):
     """The stored piece ``q`` of a history, as a polynomial over [s, s + H] (extrapolated past its end
     where the signal is analytic there); returns the number of coefficients."""
@@ -140,7 +174,6 @@ def _delayed(t0, th, tc, tdeg, q, s, H, dst, work):
     return n
 
 
-@njit(cache=True, inline="always")
 def _ref_poly(rt, r0, rs, k, a, H, R):
     """The reference on [a, a + H] within its segment ``k`` (value r0[k] + rs[k] (t - rt[k]))."""
     R[0] = r0[k] + rs[k] * (a - rt[k])
@@ -148,7 +181,6 @@ def _ref_poly(rt, r0, rs, k, a, H, R):
     return 2 if rs[k] != 0.0 else 1
 
 
-@njit(cache=True, inline="always")
 def _tail(X, N, V, nt):
     """The largest last Taylor coefficient of a state or of the command, relative to that signal's largest
     coefficient on the piece (0 when the coefficients ended before degree DEG)."""
@@ -173,19 +205,18 @@ _WMAX, _TPEAK, _T10, _T90, _TLAST, _WEND = range(6)
 _NMS = 6
 
 
-@njit(cache=True, inline="always")
-def _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs, fs):
-    """Update the step metrics with the piece ``Y`` on ``[a, a + H]`` (exact: extrema and crossings are roots)."""
+def _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs, fs, sd):
+    """Update the step metrics with the piece ``Y`` on ``[a, a + H]`` (exact: extrema and crossings are roots).
+    ``sd``: any int64 array (the certified search's stack, which the kernel's way does not use)."""
     if norm == 1.0:
         for j in range(nY):
             Wn[j] = Y[j]
     else:
         for j in range(nY):
             Wn[j] = Y[j] / norm
-    _metrics_update(Wn, nY, a, H, band, ms, dW, xs, fs, fs, fs, False)
+    _metrics_update(Wn, nY, a, H, band, ms, dW, xs, fs, fs, sd, False)
 
 
-@njit(cache=True, inline="always")
 def _metrics_row(out, metrics, wmax, wend, tpeak, t10, t90, tlast, norm, band):
     """The step metrics' part of an output row (:data:`._layout.OUT`: overshoot %, peak time, peak, 10/90 %
     times, rise time, settling time, steady error) from the run's extremes and crossings (``wmax``, ``wend``,
@@ -193,19 +224,18 @@ def _metrics_row(out, metrics, wmax, wend, tpeak, t10, t90, tlast, norm, band):
     sampled batch (:mod:`._sampled_batch`) both end with it."""
     if metrics:
         out[0] = max(0.0, wmax - 1.0) * 100.0
-        out[1] = tpeak if wmax > 1.0 else np.nan
+        out[1] = tpeak if wmax > 1.0 else _NAN
         out[2] = wmax
         out[3] = t10
         out[4] = t90
         out[5] = t90 - t10
-        out[6] = tlast if abs(wend - 1.0) < band else np.nan
+        out[6] = tlast if abs(wend - 1.0) < band else _NAN
         out[7] = norm * (1.0 - wend)
     else:
         for i in range(8):
-            out[i] = np.nan
+            out[i] = _NAN
 
 
-@njit(cache=True, inline="always")
 def _metrics_update(Wn, nW, a, H, band, ms, dW, xs, fs, sr, sd, certified):
     """Update the step metrics ``ms`` with the piece ``Wn`` (the output over ``[a, a + H]``, divided by the
     step), the kernel's way or (``certified``) the sampled batch's (:mod:`._sampled_batch`).
@@ -241,15 +271,17 @@ def _metrics_update(Wn, nW, a, H, band, ms, dW, xs, fs, sr, sd, certified):
         if Wn[0] > ms[_WMAX]:
             ms[_WMAX] = Wn[0]
             ms[_TPEAK] = a
-    for idx, level in ((_T10, 0.1), (_T90, 0.9)):
-        if np.isnan(ms[idx]) and hi >= level:
+    for m in range(2):  # the first times w reaches 0.1 and 0.9
+        idx = _T10 if m == 0 else _T90
+        level = 0.1 if m == 0 else 0.9
+        if isnan(ms[idx]) and hi >= level:
             if Wn[0] >= level:
                 t = a
             elif certified:
-                t = a + xs[0] * H if _crossings(Wn, nW, level, xs, sr, sd) > 0 else np.nan
+                t = a + xs[0] * H if _crossings(Wn, nW, level, xs, sr, sd) > 0 else _NAN
             else:
                 t = a + _first_cross(Wn, nW, level, -1.0, fs) * H  # (2.0 where there is none: past the end)
-            ms[idx] = t if t <= end else np.nan
+            ms[idx] = t if t <= end else _NAN
     wend = _sum(Wn, nW)
     if not certified:
         ms[_WEND] = wend
@@ -268,7 +300,6 @@ def _metrics_update(Wn, nW, a, H, band, ms, dW, xs, fs, sr, sd, certified):
                 ms[_TLAST] = a
 
 
-@njit(cache=True, inline="always")
 def _first_switch(V, nv, E, ne, regime, frozen, umin, umax, aw, fs):
     """Where on the piece (x in (0, 1]) the command ``V`` first leaves its regime or, with clamping
     anti-windup while saturated, the error ``E`` (at most ``ne`` coefficients) changes sign; 2.0 if nowhere."""
@@ -290,7 +321,6 @@ def _first_switch(V, nv, E, ne, regime, frozen, umin, umax, aw, fs):
     return xc
 
 
-@njit(cache=True, inline="always")
 def _continues(t0, th, tc, deg, full, n, q, s, tol):
     """Whether the stored piece ``q`` of a history, continued past its end to ``s``, still agrees (to ``tol``)
     with the stored piece that covers ``s`` (or, past the history's end, with the last one at its end).
@@ -306,7 +336,6 @@ def _continues(t0, th, tc, deg, full, n, q, s, tol):
     return abs(ext - _horner(tc[k], NC if full else deg[k], (s - t0[k]) / th[k])) <= tol
 
 
-@njit(cache=True, inline="always")
 def _on_limit(v0, E, ne, umin, umax, tol):
     """The limit the command starts on (``_HIGH``, ``_LOW``) with the error ``E`` driving it further (the
     clamp would freeze the integrator beyond it); ``_LIN`` if none."""
@@ -322,7 +351,6 @@ def _on_limit(v0, E, ne, umin, umax, tol):
     return _LIN
 
 
-@njit(cache=True, inline="always")
 def _lead_sign(c, n, tol):
     """The sign of the polynomial ``c`` just right of 0: that of its first coefficient above ``tol`` (0 if none)."""
     for j in range(n):
@@ -333,7 +361,6 @@ def _lead_sign(c, n, tol):
     return 0.0
 
 
-@njit(cache=True, inline="always")
 def _slide_rates(X, integ, Fz, nt, S, D):
     """On a sliding piece: ``S`` the integrator's rate and ``D`` the free rate minus it, times the piece's
     length, as polynomials in ``x``; returns their number of coefficients."""
@@ -348,7 +375,6 @@ def _slide_rates(X, integ, Fz, nt, S, D):
     return ns
 
 
-@njit(cache=True, inline="always")
 def _image(t0, gen, n, q, qg, s, a, delay, eps):
     """In a history of ``n`` pieces (starts ``t0``, ``gen``: 0 where the signal is analytic at the start, else
     one more than the breakpoint's smoothness order): the piece ``q`` that contains ``s``, the first piece
@@ -368,7 +394,6 @@ def _image(t0, gen, n, q, qg, s, a, delay, eps):
     return q, qg, a + delay, -1
 
 
-@njit(cache=True, inline="always")
 def _pending(t0, gen, n, q, qg, s, a, delay, eps, can_self):
     """:func:`_image` at ``s = a - delay`` (before the history's start: the image of t = 0, order 0), and whether
     the piece reads the delayed signal from itself (``can_self`` and nothing pending: the image is then at
@@ -377,11 +402,10 @@ def _pending(t0, gen, n, q, qg, s, a, delay, eps, can_self):
         return q, qg, delay, 0, False
     q, qg, t_img, order = _image(t0, gen, n, q, qg, s, a, delay, eps)
     if order < 0 and can_self and n > 0:
-        return q, qg, np.inf, order, True
+        return q, qg, _INF, order, True
     return q, qg, t_img, order, False
 
 
-@njit(cache=True, inline="always")
 def _read_end(t0, th, tc, tdeg, full, n, q, delay, end, ctol):
     """Where a piece reading a delayed signal from its stored piece ``q`` must end, at most ``end``: no farther
     than twice that piece's length from its start (rescaled far past its end, a short piece's polynomial
@@ -395,7 +419,6 @@ def _read_end(t0, th, tc, tdeg, full, n, q, delay, end, ctol):
     return end
 
 
-@njit(cache=True, _nrt=False)  # (not inlined: rarely run, kept out of the piece loop's code)
 def _rel_degree(Mloc, VE, N, row_out, row_in, k0, v, w):
     """The smallest ``k0 + k`` (k >= 0) with ``VE[row_out] . M**k . VE[row_in]`` non-zero: the relative degree
     of the path through the states from the input ``row_in`` to the output ``row_out``, ``k0`` for the
@@ -419,7 +442,6 @@ def _rel_degree(Mloc, VE, N, row_out, row_in, k0, v, w):
     return _NONE
 
 
-@njit(cache=True, _nrt=False)  # (not inlined: rarely run, kept out of the piece loop's code)
 def _jump(cl, nl, hl, cr, nr, hr, L, tmp, work):
     """The jump at a breakpoint of a signal whose left piece (``cl``, ``nl`` coefficients, length ``hl``) ends
     where the right one (``cr``, ``nr``, ``hr``) starts, over a window of length ``L`` after it: the sum of the
@@ -427,7 +449,7 @@ def _jump(cl, nl, hl, cr, nr, hr, L, tmp, work):
     expansion's size (the sum of its absolute coefficients); (inf, 0) where the window is more than 4 times
     longer than either piece (rescaling would amplify the rounding of the high coefficients)."""
     if L > 4.0 * hl or L > 4.0 * hr:
-        return np.inf, 0.0
+        return _INF, 0.0
     _shift_scale(cl, nl, 1.0, L / hl, tmp, work)
     d = 0.0
     size = 0.0
@@ -441,7 +463,6 @@ def _jump(cl, nl, hl, cr, nr, hr, L, tmp, work):
     return d, size
 
 
-@njit(cache=True, _nrt=False)  # (not inlined: rarely run, kept out of the piece loop's code)
 def _picard(src, n, delta, dst):
     """One fixed-point pass of a delayed signal read from the piece being built: ``dst`` (all ``NC``
     coefficients) becomes ``src`` (``n`` coefficients) shifted back by ``delta`` (the delay over the piece's
@@ -466,7 +487,6 @@ def _picard(src, n, delta, dst):
     return big, max(out, 1)
 
 
-@njit(cache=True, inline="always")
 def _held(c, n, x, dst):
     """``dst``: the constant value of the polynomial ``c`` at ``x`` (clipped to [0, 1]); returns 1 (its number
     of coefficients)."""
@@ -480,7 +500,6 @@ def _held(c, n, x, dst):
 _NBUF = 15 * NC + 2 * _GRID + 3 + MAXN + 5 + _NMS  # the signals' coefficients and the small work arrays
 
 
-@njit(cache=True)
 def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, out, keep_y, et, ez):
     """Simulate one loop; fill ``out`` with its metrics.
 
@@ -499,7 +518,6 @@ def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd,
                 X, buf, mats)
 
 
-@njit(cache=True, _nrt=False)
 def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, out, keep_y, et, ez, X, buf,
          mats):
     """:func:`run_one` on work arrays from the caller (cleared here): ``X`` the states' coefficients
@@ -551,7 +569,7 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
     ptol = 1e-13 * max(1.0, scale)
     tdiv = max(abs(norm), scale, 1e-300)  # the truncation's scale
     # a command coefficient below rounding, relative to this, is dropped when the piece is stored
-    uref = max(abs(umax) if umax < np.inf else 0.0, abs(umin) if umin > -np.inf else 0.0, scale, 1.0)
+    uref = max(abs(umax) if umax < _INF else 0.0, abs(umin) if umin > -_INF else 0.0, scale, 1.0)
     ctol = 1e-12 * max(1.0, scale)
     jscale = max(1.0, scale)  # the smallest scale a neutral loop's jumps are measured against  # a delayed signal's continuation past its stored piece: how far it may drift
     metrics = norm != 0.0
@@ -650,7 +668,7 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
         ke += 1
     uhold = 0.0
     ksamp = 0
-    nexts = off if sampled else np.inf
+    nexts = off if sampled else _INF
     ym_left = 0.0
     vm_left = 0.0
     a = 0.0
@@ -665,10 +683,10 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
     qgm = 1
     kr = 0
     trunc = 0.0
-    ms[_WMAX] = -np.inf
-    ms[_TPEAK] = np.nan
-    ms[_T10] = np.nan
-    ms[_T90] = np.nan
+    ms[_WMAX] = -_INF
+    ms[_TPEAK] = _NAN
+    ms[_T10] = _NAN
+    ms[_T90] = _NAN
     ms[_TLAST] = 0.0
     ms[_WEND] = 0.0
     status = STATUS_OK
@@ -687,7 +705,7 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
     u_img = False
     y_img = False
     self_ok = True  # whether this piece may read its own delayed signals (not after a failed fixed point)
-    hcap = np.inf  # this piece's length at most (a piece reading itself redone shorter)
+    hcap = _INF  # this piece's length at most (a piece reading itself redone shorter)
     y_end = 0.0
 
     while a < tend - eps:
@@ -706,12 +724,12 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
             nexts = off + ksamp * per
         # where the piece must end, and why
         end = min(tend, a + min(hlen, hcap))
-        t_img_u = np.inf
-        t_img_y = np.inf
-        t_img_m = np.inf
+        t_img_u = _INF
+        t_img_y = _INF
+        t_img_m = _INF
         if sampled:
             end = min(end, nexts)
-        t_knot = rt[kr + 1] if kr + 1 < nref else np.inf
+        t_knot = rt[kr + 1] if kr + 1 < nref else _INF
         end = min(end, t_knot)
         dist_on = has_dist and a >= tdist - eps
         if has_dist and not dist_on:
@@ -931,7 +949,7 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
         # the length as it was)
         if H >= hmax * (1.0 - 1e-9) or self_any:
             tail = _tail(X, N, V, nt)
-            grow = (_TAIL / tail) ** (1.0 / DEG) if tail > 0.0 else np.inf
+            grow = (_TAIL / tail) ** (1.0 / DEG) if tail > 0.0 else _INF
             if H > hmax * (1.0 + 1e-9) and tail > 64.0 * _TAIL:
                 hlen = max(hmax, H * grow)
                 regime = prev_regime
@@ -943,7 +961,7 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
                 continue
             if H >= hmax * (1.0 - 1e-9):
                 hlen = min(_GROW * hmax, max(hmax, H * grow))
-        hcap = np.inf
+        hcap = _INF
         self_ok = True
         cut = xc < 1.0 - 1e-13
         if cut:
@@ -1016,7 +1034,7 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
             ny += 1
         trunc = max(trunc, abs(Y[DEG]) / tdiv)
         if metrics:
-            _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs, fs)
+            _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs, fs, tdeg)
         # the requested samples of y on this piece
         while ke < ne and et[ke] <= end + eps:
             x = (et[ke] - a) / H
@@ -1101,35 +1119,44 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
     return n
 
 
-@njit(cache=True, parallel=True)
-def run_batch(pars, cap, nchunks):
-    """Metrics of many loops (one parameter row each, a step or ramp reference), over ``nchunks`` threads."""
+def run_batch(pars, cap, nchunks, nsets=1):
+    """Metrics of many loops (one parameter row each, a step or ramp reference): ``nchunks`` chunks of rows, taken
+    in turn by ``nsets`` work sets run in parallel (one per thread)."""
     m = pars.shape[0]
     out = np.empty((m, NOUT))
-    for c in prange(nchunks):
-        lo = c * m // nchunks
-        hi = (c + 1) * m // nchunks
-        tu0 = np.empty(cap)
-        thu = np.empty(cap)
-        tuc = np.zeros((cap, NC))
-        tdeg = np.empty(cap, dtype=np.int64)
-        ugen = np.empty(cap, dtype=np.int8)
-        ty0 = np.empty(cap)
-        tyh = np.empty(cap)
-        tyc = np.empty((cap, NC))
-        tyd = np.empty((cap, NC))
-        ygen = np.empty(cap, dtype=np.int8)
-        X = np.empty((MAXN, NC + 1))
-        buf = np.empty(_NBUF)
-        mats = np.empty((4, MAXN, MAXN))
-        rt = np.zeros(1)
-        r0 = np.zeros(1)
-        rs = np.zeros(1)
-        et = np.empty(0)
-        ez = np.empty(0)
-        for i in range(lo, hi):
-            r0[0] = pars[i, _STEP]
-            rs[0] = pars[i, _SLOPE]
-            _run(pars[i], rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, out[i], False, et, ez,
-                 X, buf, mats)
+    nsets = max(1, min(nsets, nchunks))
+    tu0 = np.empty((nsets, cap))
+    thu = np.empty((nsets, cap))
+    tuc = np.zeros((nsets, cap, NC))
+    tdeg = np.empty((nsets, cap), dtype=np.int64)
+    ugen = np.empty((nsets, cap), dtype=np.int8)
+    ty0 = np.empty((nsets, cap))
+    tyh = np.empty((nsets, cap))
+    tyc = np.empty((nsets, cap, NC))
+    tyd = np.empty((nsets, cap, NC))
+    ygen = np.empty((nsets, cap), dtype=np.int8)
+    X = np.empty((nsets, MAXN, NC + 1))
+    buf = np.empty((nsets, _NBUF))
+    mats = np.empty((nsets, 4, MAXN, MAXN))
+    ref = np.zeros((nsets, 3))  # the reference's knot, value and slope (rt, r0, rs)
+    none = np.empty(0)
+    _batch_sets(pars, cap, nchunks, nsets, out, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, X, buf, mats, ref,
+                none)
     return out
+
+
+def _batch_sets(pars, cap, nchunks, nsets, out, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, X, buf, mats, ref,
+                none):
+    """:func:`run_batch`'s parallel loop: work set ``s`` runs the chunks ``s, s + nsets, ...`` on its own arrays
+    (``ref[s]``: the reference's knot, value and slope; ``none``: no samples of y)."""
+    m = pars.shape[0]
+    for s in prange(nsets):
+        for k in range((nchunks - 1 - s) // nsets + 1):  # (a step of nsets from s)
+            c = s + k * nsets
+            lo = c * m // nchunks
+            hi = (c + 1) * m // nchunks
+            for i in range(lo, hi):
+                ref[s, 1] = pars[i, _STEP]
+                ref[s, 2] = pars[i, _SLOPE]
+                _run(pars[i], ref[s, 0:1], ref[s, 1:2], ref[s, 2:3], cap, tu0[s], thu[s], tuc[s], tdeg[s], ugen[s],
+                     ty0[s], tyh[s], tyc[s], tyd[s], ygen[s], out[i], False, none, none, X[s], buf[s], mats[s])

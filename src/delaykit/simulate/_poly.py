@@ -1,19 +1,19 @@
 """Polynomials on [0, 1] for the simulator kernel: evaluation, bounds, roots, Taylor shifts.
 
 A polynomial is its coefficients ``c[0] + c[1] x + ... + c[n-1] x**(n-1)`` in a local variable ``x`` in
-``[0, 1]`` (one piece of a response).  Compiled or interpreted with the kernel that imports it (see
-:mod:`._jit`).  This module is private.
+``[0, 1]`` (one piece of a response).  One source, three modes, as the kernels that call it (see
+:mod:`delaykit._native`): compiled ahead of time by Cython (the C types are in ``_poly.pxd``; the kernels cimport
+these functions), compiled by numba (``NUMBA_OPTIONS``: the small ones inlined), or run as plain Python.
 
-Note that numba's cache of a compiled kernel does not notice edits of this file (see :mod:`._jit`).  The
-functions that are not inlined (:func:`refine`, :func:`all_cross`) allocate nothing and are compiled without
-reference counting, as the kernel's piece loop (see :mod:`._kernel`); :func:`crossings`, the certified root
-search of the sampled batch (:mod:`._sampled_batch`), is compiled as that module's functions are.
+Note that numba's cache of a compiled kernel does not notice edits of this file (see :mod:`._jit`).  Under
+numba, the functions that are not inlined (:func:`refine`, :func:`all_cross`) allocate nothing and are compiled
+without reference counting, as the kernel's piece loop (see :mod:`._kernel`).  This module is private.
 
 Examples
 --------
 >>> import numpy as np
->>> from delaykit.simulate._jit import sibling
->>> p = sibling("_poly")
+>>> from delaykit import _native
+>>> p = _native.load("delaykit.simulate", "_poly")  # compiled (Cython, or numba where not built)
 >>> c = np.array([-0.25, 0.0, 1.0])  # x**2 - 1/4
 >>> p.horner(c, 3, 0.5), p.bounds(c, 3)
 (0.0, (-0.25, 0.75))
@@ -27,21 +27,38 @@ import math
 
 import numpy as np
 
-from ._jit import njit
+try:
+    import cython
+except ImportError:  # plain Python without Cython installed: only ``cython.compiled`` is read
+    from types import SimpleNamespace
+
+    cython = SimpleNamespace(compiled=False)
+
 from ._layout import NC
 
-__all__ = ["GRID", "MAXX", "STACK", "grid_values", "horner", "horner_d", "poly_sum", "bounds", "refine", "first_cross",
-           "all_cross", "crossings", "shift_scale", "scale", "degree"]
+__all__ = ["GRID", "MAXX", "STACK", "BINOMIAL", "grid_values", "horner", "horner_d", "poly_sum", "bounds", "refine",
+           "first_cross", "all_cross", "crossings", "shift_scale", "scale", "degree", "COMPILED"]
+
+COMPILED: bool = cython.compiled
+"""Whether this module is the extension module Cython built (False: this file, run by Python or numba)."""
 
 GRID = 16  # root searches evaluate the polynomial on this many subintervals of [0, 1]
 DEPTH = 40  # bisections of a grid cell before a same-sign cell counts as a tangency (crossings)
 MAXX = 64  # crossings kept per certified search
 STACK = GRID + DEPTH + 4  # the certified search's stack of cells
+BINOMIAL = np.array([[float(math.comb(j, k)) for k in range(NC)] for j in range(NC)])  # binomial coefficients
+# the same as C values where compiled (the public names above stay Python's, for the modules that import them)
+_GRID, _DEPTH, _MAXX, _NC = GRID, DEPTH, MAXX, NC
 _XG = np.arange(GRID + 1) / GRID  # the grid's points, 0 ... 1
-_BIN = np.array([[float(math.comb(j, k)) for k in range(NC)] for j in range(NC)])  # binomial coefficients
+_BIN = BINOMIAL
+
+# numba's options where it compiles this file (see delaykit._native): the small helpers inlined into their callers
+NUMBA_OPTIONS = {"horner": {"inline": "always"}, "horner_d": {"inline": "always"}, "poly_sum": {"inline": "always"},
+                 "bounds": {"inline": "always"}, "refine": {"_nrt": False}, "grid_values": {"inline": "always"},
+                 "first_cross": {"inline": "always"}, "all_cross": {"_nrt": False},
+                 "shift_scale": {"inline": "always"}, "scale": {"inline": "always"}, "degree": {"inline": "always"}}
 
 
-@njit(cache=True, inline="always")
 def horner(c, n, x):
     s = 0.0
     for j in range(n - 1, -1, -1):
@@ -49,7 +66,6 @@ def horner(c, n, x):
     return s
 
 
-@njit(cache=True, inline="always")
 def horner_d(c, n, x):
     p = 0.0
     dp = 0.0
@@ -59,7 +75,6 @@ def horner_d(c, n, x):
     return p, dp
 
 
-@njit(cache=True, inline="always")
 def poly_sum(c, n):
     s = 0.0
     for j in range(n):
@@ -67,7 +82,6 @@ def poly_sum(c, n):
     return s
 
 
-@njit(cache=True, inline="always")
 def bounds(c, n):
     """Lower and upper bounds of the polynomial on [0, 1] (x**j lies in [0, 1])."""
     lo = c[0]
@@ -79,7 +93,6 @@ def bounds(c, n):
     return lo, hi
 
 
-@njit(cache=True, _nrt=False)
 def refine(c, n, target, lo, hi, slo):
     """Root of c(x) - target in [lo, hi], where the sign just right of lo is ``slo`` (safeguarded Newton)."""
     x = 0.5 * (lo + hi)
@@ -104,7 +117,6 @@ def refine(c, n, target, lo, hi, slo):
     return x
 
 
-@njit(cache=True, inline="always")
 def grid_values(c, n, target, fs, i0):
     """``fs[i] = c(i / GRID) - target`` for the four grid points i = i0 ... i0 + 3, by Horner's rule on four
     independent chains at once (which the processor overlaps)."""
@@ -128,25 +140,23 @@ def grid_values(c, n, target, fs, i0):
     fs[i0 + 3] = s3 - target
 
 
-@njit(cache=True, inline="always")
 def first_cross(c, n, target, s0, fs):
     """First x in (0, 1] where c(x) - target leaves the sign ``s0`` it has just right of 0; 2.0 if none.
 
     ``fs`` is work space of GRID + 1 numbers."""
     if n <= 1:
         return 2.0
-    for i in range(1, GRID + 1):
+    for i in range(1, _GRID + 1):
         if i % 4 == 1:
             grid_values(c, n, target, fs, i)
         f = fs[i]
         if f * s0 <= 0.0:
-            if f == 0.0 and i == GRID:
+            if f == 0.0 and i == _GRID:
                 return 1.0
             return refine(c, n, target, _XG[i - 1], _XG[i], s0)
     return 2.0
 
 
-@njit(cache=True, _nrt=False)
 def all_cross(c, n, target, xs, fs):
     """All sign changes of c(x) - target in (0, 1), refined; returns their count (stored in xs).
 
@@ -155,12 +165,12 @@ def all_cross(c, n, target, xs, fs):
         return 0
     k = 0
     fp = c[0] - target
-    for i in range(1, GRID + 1):
+    for i in range(1, _GRID + 1):
         if i % 4 == 1:
             grid_values(c, n, target, fs, i)
         f = fs[i]
         if (fp < 0.0 and f >= 0.0) or (fp > 0.0 and f <= 0.0):
-            if not (i == GRID and f == 0.0):
+            if not (i == _GRID and f == 0.0):
                 xs[k] = refine(c, n, target, _XG[i - 1], _XG[i], 1.0 if fp > 0.0 else -1.0)
                 k += 1
         if f != 0.0:
@@ -168,7 +178,6 @@ def all_cross(c, n, target, xs, fs):
     return k
 
 
-@njit(cache=True)
 def crossings(c, n, target, xs, sr, sd):
     """All points of (0, 1) where ``c(x) - target`` changes sign, in increasing order (at most ``MAXX``), with
     none missed (the certified isolation described in :mod:`._sampled_batch`); ``sr``, ``sd``: a stack of
@@ -184,8 +193,8 @@ def crossings(c, n, target, xs, sr, sd):
         size += abs(c[j])
     noise = 4.0 * n * 1.1102230246251565e-16 * size  # Horner's rounding on [0, 1], twice over
     top = 0
-    for i in range(GRID, 0, -1):
-        sr[top] = i / GRID
+    for i in range(_GRID, 0, -1):
+        sr[top] = _XG[i]  # i / GRID
         sd[top] = 0
         top += 1
     k = 0
@@ -214,7 +223,7 @@ def crossings(c, n, target, xs, sr, sd):
             ok = min(abs(fl), abs(fr)) > 0.125 * w * w * b2 or abs(fl) + abs(fr) > w * b1
         if not ok and abs(fl) <= noise and abs(fr) <= noise:
             ok = True  # f is at rounding level across the cell (a tangency): its sign there is not resolved
-        if not ok and d < DEPTH:
+        if not ok and d < _DEPTH:
             sr[top] = r
             sd[top] = d + 1
             top += 1
@@ -222,7 +231,7 @@ def crossings(c, n, target, xs, sr, sd):
             sd[top] = d + 1
             top += 1
             continue
-        if change and k < MAXX:
+        if change and k < _MAXX:
             xs[k] = refine(c, n, target, xl, r, 1.0 if sl > 0.0 else -1.0)
             k += 1
         xl = r
@@ -232,13 +241,12 @@ def crossings(c, n, target, xs, sr, sd):
     return k
 
 
-@njit(cache=True, inline="always")
 def shift_scale(src, n, alpha, beta, dst, work):
     """dst(y) = src(alpha + beta*y): Taylor shift by alpha, then scale by beta (zeros above degree n-1).
 
     The shift sums the binomial expansion, ``dst[k] = sum_j C(j, k) alpha**(j-k) src[j]``: independent
     products rather than Horner's chain of dependent ones.  ``work`` is work space of NC numbers."""
-    for k in range(NC):
+    for k in range(_NC):
         dst[k] = 0.0
     if alpha == 0.0:
         for j in range(n):
@@ -258,7 +266,6 @@ def shift_scale(src, n, alpha, beta, dst, work):
             b *= beta
 
 
-@njit(cache=True, inline="always")
 def scale(c, n, s):
     b = 1.0
     for j in range(n):
@@ -266,7 +273,6 @@ def scale(c, n, s):
         b *= s
 
 
-@njit(cache=True, inline="always")
 def degree(c, n):
     """Number of coefficients up to the last non-zero one (at least 1)."""
     while n > 1 and c[n - 1] == 0.0:

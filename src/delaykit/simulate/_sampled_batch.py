@@ -56,7 +56,9 @@ resolved: it is then counted as the kernel's grid would see its ends) or its wid
 So no extremum above the running maximum, no first crossing of 0.1 or 0.9 and no exit from the band is missed:
 an interval is skipped only when the bound proves it irrelevant, and an examined one has its roots certified.
 
-numba compiles this module (``cache=True``); it has no interpreted mode.  This module is private.
+One source, three modes, as the Taylor kernel (see :mod:`delaykit._native`): the extension module Cython built
+(C types in ``_sampled_batch.pxd``), numba's compilation of this file where none was built, or plain Python (for
+checking).  This module is private.
 
 Examples
 --------
@@ -71,23 +73,46 @@ import math
 
 import numpy as np
 
-from . import _jit
-from ._jit import njit, prange
 from ._layout import (DEG, HEAD, MAXN, NC, NOUT, OFF_BR, OFF_BVM, OFF_BW, OFF_BYM, OFF_CV, OFF_CY, OFF_CYD,
                       OFF_M, STATUS_OK)
+from ._poly import MAXX as _MAXX, STACK as _STACK  # the certified root search's most roots, and its stack
 
-__all__ = ["expm", "run_one", "run_batch", "NSLOT"]
+try:
+    import cython
+except ImportError:  # plain Python without Cython installed: only ``cython.compiled`` is read
+    from types import SimpleNamespace
 
-_p = _jit.sibling("_poly")  # the polynomial helpers (compiled: this module is always built compiled)
-_crossings = _p.crossings  # certified roots (see the module's notes)
-_k = _jit.sibling("_kernel")  # the step metrics' update, shared with the Taylor kernel
-_metrics_update, _metrics_row = _k._metrics_update, _k._metrics_row
+    cython = SimpleNamespace(compiled=False)
+
+if cython.compiled:  # the certified roots and the step metrics' update (shared with the Taylor kernel), as C
+    from cython.cimports.delaykit.simulate._kernel import _metrics_row, _metrics_update
+    from cython.cimports.delaykit.simulate._poly import crossings as _crossings
+    from cython.cimports.libc.math import INFINITY as _INF, NAN as _NAN, ceil, isinf, ldexp, log2
+    from cython.parallel import prange
+else:  # the same modules run as this one is (numba's copies, or Python)
+    from math import ceil, inf as _INF, isinf, ldexp, log2, nan as _NAN
+
+    from .._native import sibling
+
+    _crossings = sibling(__name__, "_poly").crossings  # certified roots (see the module's notes)
+    _k = sibling(__name__, "_kernel")
+    _metrics_update, _metrics_row = _k._metrics_update, _k._metrics_row
+    if __name__.endswith("_numba"):
+        from numba import prange
+    else:
+        from builtins import range as prange
+
+__all__ = ["expm", "run_one", "run_batch", "NSLOT", "COMPILED"]
+
+COMPILED: bool = cython.compiled
+"""Whether this module is the extension module Cython built (False: this file, run by Python or numba)."""
 
 (_N, _TI, _TO, _UMIN, _UMAX, _PERIOD, _OFFSET, _T_END, _BAND, _NORM, _DIST, _T_DIST, _DY, _DYD, _DVR, _DVY, _DVV,
  _INTEG, _AW, _HMAX, _SCALE, _STEP, _SLOPE, _TM) = HEAD.values()
 
 NSLOT = 6
 """Interval lengths whose exponentials a run keeps at once (two recur; the others are the run's few odd ones)."""
+_NSLOT = NSLOT  # (a C value where compiled; the public name stays Python's)
 _NA = MAXN + 3  # the augmented state: the loop's states, then w, r, r'
 _NQ = MAXN + 3 + _NA  # the rows of an interval's map: the states, Y(0), Y(1), Y'(0), Z_S z
 # a small loop (at most 8 components in z, 4 seen by the output, 2 of those moving) runs at these fixed lengths
@@ -97,16 +122,17 @@ _GMAX_BETA = 8.0  # beyond this ||Z_S tau||, no cheap bound (every interval is e
 _SUB_BETA = 1.0  # the expansion's sub-pieces have ||Z_S tau|| at most this
 _REM = 1e-17  # the expansion's remainder, relative to the step
 _MARGIN = 1e-14  # rounding margin of the cheap bound, relative
-_MAXX, _STACK = _p.MAXX, _p.STACK  # the certified root search's (_crossings) most roots, and its stack
 # the running metrics (the kernel's but its last, w at the end), as an expansion reads and updates them: highest w
 # and when, first times w >= 0.1 and 0.9, last time outside the band
-_WMAX, _TPEAK, _T10, _T90, _TLAST = _k._WMAX, _k._TPEAK, _k._T10, _k._T90, _k._TLAST
+_WMAX, _TPEAK, _T10, _T90, _TLAST = range(5)  # (the kernel's order: see _kernel._WMAX ...)
+# numba's options where it compiles this file (see delaykit._native): the batch in parallel, small helpers inlined
+NUMBA_OPTIONS = {"_row4": {"inline": "always"}, "_slope_bound": {"inline": "always"},
+                 "_interval_metrics": {"inline": "always"}, "_batch_sets": {"parallel": True}, "expm": None}
 
 
-@njit(cache=True)
-def _expm_into(A, m, E, T, W):
+def _expm_into(A, m, E, T, W, nzrow):
     """``E[:m, :m] = exp(A[:m, :m])`` by scaling and squaring around a Taylor series (``T``, ``W``: work space of
-    the same shape).  Returns the bound of the series' remainder, relative to ``||exp(A / 2^s)||``.
+    the same shape; ``nzrow``: of ``m`` flags).  Returns the bound of the series' remainder, relative to ``||exp(A / 2^s)||``.
 
     The series runs on ``B = A / 2^s`` with ``||B||_1 <= 1/2`` until the bound of its tail, ``||T_k|| (b/(k+1)) /
     (1 - b/(k+2))`` (``T_k = B^k / k!``, ``b = ||B||_1``), is below 2^-56 (1.4e-17); ``||exp(B)|| >= e^-b >= 0.6``.
@@ -117,17 +143,18 @@ def _expm_into(A, m, E, T, W):
         for i in range(m):
             s += abs(A[i, j])
         nrm = max(nrm, s)
-    nzrow = np.zeros(m, dtype=np.bool_)
+    for i in range(m):
+        nzrow[i] = False
     for i in range(m):
         for j in range(m):
             if A[i, j] != 0.0:
                 nzrow[i] = True
     sq = 0
     if nrm > 0.5:
-        sq = int(math.ceil(math.log2(nrm / 0.5)))
-        while math.ldexp(nrm, -sq) > 0.5:
+        sq = int(ceil(log2(nrm / 0.5)))
+        while ldexp(nrm, -sq) > 0.5:
             sq += 1
-    f = math.ldexp(1.0, -sq)
+    f = ldexp(1.0, -sq)
     b = nrm * f
     for i in range(m):
         for j in range(m):
@@ -175,13 +202,12 @@ def _expm_into(A, m, E, T, W):
     return rem / 0.6
 
 
-@njit(cache=True)
 def _expm(A):
     m = A.shape[0]
     E = np.empty((m, m))
     T = np.empty((m, m))
     W = np.empty((m, m))
-    _expm_into(np.ascontiguousarray(A), m, E, T, W)
+    _expm_into(np.ascontiguousarray(A), m, E, T, W, np.zeros(m, dtype=np.uint8))
     return E
 
 
@@ -208,14 +234,12 @@ def expm(A: np.ndarray) -> np.ndarray:
     return _expm(np.asarray(A, dtype=float))
 
 
-@njit(cache=True)
 def _poly_metrics(Wn, nW, a, H, band, ms, dW, xs, sr, sd):
     """The kernel's metric update (:func:`._kernel._metrics_update`) on the piece ``Wn`` (the normalised output
     over ``[a, a + H]``), with certified roots (:func:`._poly.crossings`)."""
     _metrics_update(Wn, nW, a, H, band, ms, dW, xs, xs, sr, sd, True)
 
 
-@njit(cache=True)
 def _expand(zs, Zs, cs, ns, tau, a, inv, ref, band, ms, q, qn, zsum, Y, Wn, dW, xs, sr, sd):
     """Apply the metrics to one interval through the output's Taylor polynomial (sub-pieces where
     ``||Z_S tau||`` exceeds ``_SUB_BETA``); ``zs`` (the state seen by the output at the start) is overwritten.
@@ -275,23 +299,20 @@ def _expand(zs, Zs, cs, ns, tau, a, inv, ref, band, ms, q, qn, zsum, Y, Wn, dW, 
     return trunc
 
 
-@njit(cache=True, inline="always")
 def _row4(M, s, r, z0, z1, z2, z3):
     """Row ``r`` of the map ``M[s]`` applied to the first four states, summed as a tree (the small systems'
     fixed order, which the results depend on to the last bit)."""
     return (M[s, r, 0] * z0 + M[s, r, 1] * z1) + (M[s, r, 2] * z2 + M[s, r, 3] * z3)
 
 
-@njit(cache=True, inline="always")
 def _slope_bound(G, cheap, s, v0, v1):
     """The cheap bound on the interval's higher terms from the command's coefficients ``v0``, ``v1`` (slot
     ``s``), or, where that length has none, 0 if they vanish and infinity (expand the interval) if not."""
     if cheap[s]:
         return abs(v0) * G[s, 0] + abs(v1) * G[s, 1]
-    return 0.0 if v0 == 0.0 and v1 == 0.0 else np.inf
+    return 0.0 if v0 == 0.0 and v1 == 0.0 else _INF
 
 
-@njit(cache=True, inline="always")
 def _interval_metrics(y0, y1, d1, gs, a, end, st, inv, ainv, band):
     """The metrics of one interval ``[a, end]`` from the output at its ends (``y0``, ``y1``), ``tau Y'(0)``
     (``d1``) and the cheap bound's ``G`` (``gs``); ``st`` holds the running metrics (``wmax, tpeak, t10, t90,
@@ -338,7 +359,6 @@ def _interval_metrics(y0, y1, d1, gs, a, end, st, inv, ainv, band):
     return (wmax, tpeak, t10, t90, tlast), w1, False
 
 
-@njit(cache=True)
 def _expanded(st, src, row, ns, tau, a, inv, ref, band, ms, Zs, cs, zs, q, qn, zsum, Y, Wn, dW, xs, sr, sd):
     """The running metrics ``st`` (as :func:`_interval_metrics`) after one interval expanded (:func:`_expand`)
     from the state the output sees at its start, ``src[row, :ns]``; and the expansion's remainder bound."""
@@ -349,7 +369,6 @@ def _expanded(st, src, row, ns, tau, a, inv, ref, band, ms, Zs, cs, zs, q, qn, z
     return (ms[_WMAX], ms[_TPEAK], ms[_T10], ms[_T90], ms[_TLAST]), trunc
 
 
-@njit(cache=True)
 def _pair(Q, sa, sb, tau_a, N, dpos, pw, pr, prs, ns, EA, Pab, gb, Es, Rb, Rbw):
     """A small loop's map over a whole period, the interval ``sa`` then ``sb`` (whose plant input differs by one
     image): the states at the end are ``Pab z + (w_b - w_a) gb`` (``z`` at the start, holding ``w_a``), the part
@@ -388,17 +407,16 @@ def _pair(Q, sa, sb, tau_a, N, dpos, pw, pr, prs, ns, EA, Pab, gb, Es, Rb, Rbw):
         Rbw[m] = Q[sb, r, pw] if pw < _SS else 0.0
 
 
-@njit(cache=True)
-def _fill_slot(Z, na, N, tau, dpos, ns, cs, rows, nrow, metrics, slot, Q, G, A, E, T, W):
+def _fill_slot(Z, na, N, tau, dpos, ns, cs, rows, nrow, metrics, slot, Q, G, A, E, T, W, nzrow, gw):
     """For the interval length ``tau``: ``Q[slot]``, the map from the state at an interval's start (``z``,
     ``Z[:ns, :ns]`` being ``Z_S``) to, in its rows, the loop's states at the end (``N``, in the order of
     ``dpos``) and, with ``metrics``, the output at the start and at the end, ``Y'(0)`` and ``Z_S z`` (its
     rows ``rows``; these read ``z[:ns]`` only); and ``G[slot]``, the cheap bound's weights of those rows.
-    Returns the exponential's remainder bound."""
+    Returns the exponential's remainder bound.  ``nzrow``, ``gw``: work space (flags, and 3 rows of ``na``)."""
     for i in range(na):
         for j in range(na):
             A[i, j] = Z[i, j] * tau
-    rem = _expm_into(A, na, E, T, W)
+    rem = _expm_into(A, na, E, T, W, nzrow)
     for r in range(N + 3 + _SS):  # (zeros around a small loop's map, applied at fixed lengths)
         for k in range(_SA):
             Q[slot, r, k] = 0.0
@@ -431,11 +449,13 @@ def _fill_slot(Z, na, N, tau, dpos, ns, cs, rows, nrow, metrics, slot, Q, G, A, 
         c1 += abs(cs[i])
     if beta > _GMAX_BETA:
         for r in range(nrow):
-            G[slot, r] = np.inf
+            G[slot, r] = _INF
         return rem
-    rho = np.empty(ns)
-    rn = np.empty(ns)
-    g = np.zeros(ns)
+    rho = gw[0]
+    rn = gw[1]
+    g = gw[2]
+    for i in range(ns):
+        g[i] = 0.0
     for i in range(ns):
         rho[i] = cs[i]
     pw = c1  # ||c||_1 beta^k / k!, which bounds every term of order k
@@ -453,7 +473,7 @@ def _fill_slot(Z, na, N, tau, dpos, ns, cs, rows, nrow, metrics, slot, Q, G, A, 
             big = max(big, g[i])
         pw *= beta / k
         # the terms after order k (their ratio beta / (j + 1) below 1 from here on, or no bound yet)
-        tail = pw * (beta / (k + 1)) / (1.0 - beta / (k + 2)) if beta < k + 2 else np.inf
+        tail = pw * (beta / (k + 1)) / (1.0 - beta / (k + 2)) if beta < k + 2 else _INF
         if tail <= 1e-9 * big or (big == 0.0 and tail <= 1e-300):
             break
     for r in range(nrow):
@@ -461,12 +481,11 @@ def _fill_slot(Z, na, N, tau, dpos, ns, cs, rows, nrow, metrics, slot, Q, G, A, 
     return rem
 
 
-@njit(cache=True)
 def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs, sr, sd, ms, EA,
-            Pab, gb, Es, Rb, Rbw, zi):
+            Pab, gb, Es, Rb, Rbw, zi, Z0, vec, ring, flags, idx, used, gw):
     """Simulate one eligible sampled loop (its parameter row ``par``, a step or ramp reference) and fill ``out``
-    with the kernel's columns (:data:`._layout.OUT`); the other arguments are work space (see :func:`run_batch`).
-    Returns the number of intervals."""
+    with the kernel's columns (:data:`._layout.OUT`); the other arguments are work space (see :func:`run_batch`:
+    ``ring`` holds at least ``ti / period + 4`` numbers).  Returns the number of intervals."""
     N = int(par[_N])
     na = N + 3
     ti = par[_TI]
@@ -497,9 +516,14 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
 
     # z' = Z z, z = (X, w, r, r'); y = c.z, the law's output v = kv.z (with the left limits of y and y')
     iw, ir, irs = N, N + 1, N + 2
-    Z0 = np.zeros((na, na))
-    c0 = np.zeros(na)
-    k0 = np.zeros(na)
+    c0, k0, c, kv, cs = vec[0], vec[1], vec[2], vec[3], vec[4]
+    seen, cheap, nzrow = flags[0], flags[1], flags[2]
+    perm, pos, dpos, rows = idx[0], idx[1], idx[2], idx[3]
+    for i in range(na):
+        c0[i] = 0.0
+        k0[i] = 0.0
+        for k in range(na):
+            Z0[i, k] = 0.0
     for i in range(N):
         bym = par[OFF_BYM + i]
         bvm = par[OFF_BVM + i]
@@ -515,7 +539,6 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
     k0[ir] = dvr
     # the part S of z the output sees (closed under "the derivative of a seen component reads it") goes first:
     # z is kept in that order, z[:ns] = S
-    seen = np.zeros(na, dtype=np.bool_)
     for i in range(na):
         seen[i] = c0[i] != 0.0
     grew = True
@@ -527,8 +550,6 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
                     if Z0[i, j] != 0.0 and not seen[j]:
                         seen[j] = True
                         grew = True
-    perm = np.empty(na, dtype=np.int64)
-    pos = np.empty(na, dtype=np.int64)
     ns = 0
     for i in range(na):
         if seen[i]:
@@ -541,20 +562,17 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
             k += 1
     for i in range(na):
         pos[perm[i]] = i
-    c = np.empty(na)
-    kv = np.zeros(_NA)  # (zeros past na: a small loop's law is applied at a fixed length)
+    for i in range(_NA):
+        kv[i] = 0.0  # (zeros past na: a small loop's law is applied at a fixed length)
     for i in range(na):
         c[i] = c0[perm[i]]
         kv[i] = k0[perm[i]]
         for j in range(na):
             Z[i, j] = Z0[perm[i], perm[j]]
     pw, pr, prs = pos[iw], pos[ir], pos[irs]
-    dpos = np.empty(N, dtype=np.int64)  # where each of the loop's states sits in z
-    for i in range(N):
+    for i in range(N):  # where each of the loop's states sits in z
         dpos[i] = pos[i]
-    cs = np.empty(max(ns, 1))
-    nrow = 0
-    rows = np.empty(max(ns, 1), dtype=np.int64)  # the rows of Z_S that are not zero
+    nrow = 0  # the rows of Z_S that are not zero: rows[:nrow]
     for i in range(ns):
         cs[i] = c[i]
         nz = False
@@ -567,19 +585,20 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
     nq = N + 3 + nrow if metrics else N  # the rows of an interval's map
 
     # the held commands waiting for their image (a ring)
-    nring = int(ti / per) + 4
-    ring = np.empty(nring)
+    nring = int(ti / per)  # (a C cast where compiled, then the sum)
+    nring += 4
     nslot = 0
-    used = np.zeros(NSLOT, dtype=np.int64)  # the interval that last used each length
-    for s in range(NSLOT):
+    for s in range(_NSLOT):
         taus[s] = -1.0
-    ms[_WMAX] = -np.inf
-    ms[_TPEAK] = np.nan
-    ms[_T10] = np.nan
-    ms[_T90] = np.nan
+        used[s] = 0  # the interval that last used each length
+        cheap[s] = False  # whether a length has the cheap bound (||Z_S tau|| <= 8)
+    ms[_WMAX] = -_INF
+    ms[_TPEAK] = _NAN
+    ms[_T10] = _NAN
+    ms[_T90] = _NAN
     ms[_TLAST] = 0.0
     # the running metrics (as the kernel's): wmax, tpeak, t10, t90, tlast
-    st = (-np.inf, np.nan, np.nan, np.nan, 0.0)
+    st = (-_INF, _NAN, _NAN, _NAN, 0.0)
     wend = 0.0
     cw = c[pw]  # the plant's direct feedthrough: the output jumps by cw times the input's
     pair_a = -1  # the period's map (small loops): of which two lengths
@@ -594,7 +613,6 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
     small = na <= _SA and ns <= _SS and nrow <= 2
     cr0 = cs[rows[0]] if nrow > 0 else 0.0  # Y'(0) = tau (c_S . Z_S z) from the rows that are not zero
     cr1 = cs[rows[1]] if nrow > 1 else 0.0
-    cheap = np.zeros(NSLOT, dtype=np.bool_)  # whether a length has the cheap bound (||Z_S tau|| <= 8)
     trunc = 0.0
     ks = 0  # samples taken
     kput = 0  # where the next one goes in the ring
@@ -734,18 +752,18 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
                     s_new = s
                     break
             if s_new < 0:
-                if nslot < NSLOT:
+                if nslot < _NSLOT:
                     s_new = nslot
                     nslot += 1
                 else:  # the least recently used length makes room
                     s_new = 0
-                    for s in range(1, NSLOT):
+                    for s in range(1, _NSLOT):
                         if used[s] < used[s_new]:
                             s_new = s
                 taus[s_new] = tau
                 trunc = max(trunc, _fill_slot(Z, na, N, tau, dpos, ns, cs, rows, nrow, metrics, s_new, Q, G, A, E, T,
-                                              W))
-                cheap[s_new] = not np.isinf(G[s_new, 0])
+                                              W, nzrow, gw))
+                cheap[s_new] = not isinf(G[s_new, 0])
         slot_prev = slot
         slot = s_new
         used[slot] = n
@@ -768,22 +786,22 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
                 gs = _slope_bound(G, cheap, slot, v0, v1)
         else:
             for d in range(N):
-                s = 0.0
+                sm = 0.0
                 for k in range(na):
-                    s += Q[slot, d, k] * zb[cur, k]
-                zb[nxt, dpos[d]] = s
+                    sm += Q[slot, d, k] * zb[cur, k]
+                zb[nxt, dpos[d]] = sm
             if metrics:
                 for r in range(N, nq):
-                    s = 0.0
+                    sm = 0.0
                     for k in range(ns):
-                        s += Q[slot, r, k] * zb[cur, k]
-                    acc[r] = s
+                        sm += Q[slot, r, k] * zb[cur, k]
+                    acc[r] = sm
                 y0, y1, d1 = acc[N], acc[N + 1], acc[N + 2]
                 gs = 0.0
                 for r in range(nrow):
-                    s = acc[N + 3 + r]
-                    if s != 0.0:
-                        gs += abs(s) * G[slot, r]
+                    sm = acc[N + 3 + r]
+                    if sm != 0.0:
+                        gs += abs(sm) * G[slot, r]
         if metrics:
             st, wend, need = _interval_metrics(y0, y1, d1, gs, a, end, st, inv, ainv, band)
             if need:
@@ -805,45 +823,67 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
     return n
 
 
-@njit(cache=True, parallel=True)
-def run_batch(pars, nchunks):
+def run_batch(pars, nchunks, nsets=1):
     """The kernel's metrics rows (:data:`._layout.OUT`) of many eligible sampled loops, one parameter row each
-    (a step or ramp reference, as :func:`._kernel.run_batch` reads it), over ``nchunks`` threads."""
+    (a step or ramp reference, as :func:`._kernel.run_batch` reads it): ``nchunks`` chunks of rows, taken in turn
+    by ``nsets`` work sets run in parallel (one per thread)."""
     m = pars.shape[0]
     out = np.empty((m, NOUT))
-    for ch in prange(nchunks):
-        lo = ch * m // nchunks
-        hi = (ch + 1) * m // nchunks
-        Z = np.zeros((_NA, _NA))
-        Q = np.zeros((NSLOT, _NQ, _NA))
-        G = np.zeros((NSLOT, _NA))
-        taus = np.empty(NSLOT)
-        A = np.empty((_NA, _NA))
-        E = np.empty((_NA, _NA))
-        T = np.empty((_NA, _NA))
-        W = np.empty((_NA, _NA))
-        zb = np.zeros((2, _NA))
-        acc = np.zeros(_NQ)
-        zs = np.zeros(_NA)
-        Zs = np.zeros((_NA, _NA))
-        q = np.zeros(_NA)
-        qn = np.zeros(_NA)
-        zsum = np.zeros(_NA)
-        Y = np.zeros(NC)
-        Wn = np.zeros(NC)
-        dW = np.zeros(NC)
-        xs = np.zeros(_MAXX)
-        sr = np.zeros(_STACK)
-        sd = np.zeros(_STACK, dtype=np.int64)
-        ms = np.zeros(5)
-        EA = np.zeros((_SA, _SA))
-        Pab = np.zeros((MAXN, _SA))
-        gb = np.zeros(MAXN)
-        Es = np.zeros((_SS, _SS))
-        Rb = np.zeros((3, _SS))
-        Rbw = np.zeros(3)
-        zi = np.zeros((1, _NA))
-        for i in range(lo, hi):
-            run_one(pars[i], out[i], Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs,
-                    sr, sd, ms, EA, Pab, gb, Es, Rb, Rbw, zi)
+    nsets = max(1, min(nsets, nchunks))
+    nring = 4
+    for i in range(m):  # the ring of held commands: the longest any row needs
+        nring = max(nring, int(pars[i, _TI] / pars[i, _PERIOD]) + 4)  # (as run_one's own)
+    Z = np.zeros((nsets, _NA, _NA))
+    Q = np.zeros((nsets, _NSLOT, _NQ, _NA))
+    G = np.zeros((nsets, _NSLOT, _NA))
+    taus = np.empty((nsets, _NSLOT))
+    A = np.empty((nsets, _NA, _NA))
+    E = np.empty((nsets, _NA, _NA))
+    T = np.empty((nsets, _NA, _NA))
+    W = np.empty((nsets, _NA, _NA))
+    zb = np.zeros((nsets, 2, _NA))
+    acc = np.zeros((nsets, _NQ))
+    zs = np.zeros((nsets, _NA))
+    Zs = np.zeros((nsets, _NA, _NA))
+    q = np.zeros((nsets, _NA))
+    qn = np.zeros((nsets, _NA))
+    zsum = np.zeros((nsets, _NA))
+    Y = np.zeros((nsets, NC))
+    Wn = np.zeros((nsets, NC))
+    dW = np.zeros((nsets, NC))
+    xs = np.zeros((nsets, _MAXX))
+    sr = np.zeros((nsets, _STACK))
+    sd = np.zeros((nsets, _STACK), dtype=np.int64)
+    ms = np.zeros((nsets, 5))
+    EA = np.zeros((nsets, _SA, _SA))
+    Pab = np.zeros((nsets, MAXN, _SA))
+    gb = np.zeros((nsets, MAXN))
+    Es = np.zeros((nsets, _SS, _SS))
+    Rb = np.zeros((nsets, 3, _SS))
+    Rbw = np.zeros((nsets, 3))
+    zi = np.zeros((nsets, 1, _NA))
+    Z0 = np.zeros((nsets, _NA, _NA))
+    vec = np.zeros((nsets, 5, _NA))  # c0, k0, c, kv, cs
+    ring = np.empty((nsets, nring))
+    flags = np.zeros((nsets, 3, _NA), dtype=np.uint8)  # seen, cheap, the exponential's non-zero rows
+    idx = np.zeros((nsets, 4, _NA), dtype=np.int64)  # perm, pos, dpos, rows
+    used = np.zeros((nsets, _NSLOT), dtype=np.int64)
+    gw = np.zeros((nsets, 3, _NA))
+    _batch_sets(pars, nchunks, nsets, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs, sr,
+                sd, ms, EA, Pab, gb, Es, Rb, Rbw, zi, Z0, vec, ring, flags, idx, used, gw)
     return out
+
+
+def _batch_sets(pars, nchunks, nsets, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs, sr,
+                sd, ms, EA, Pab, gb, Es, Rb, Rbw, zi, Z0, vec, ring, flags, idx, used, gw):
+    """:func:`run_batch`'s parallel loop: work set ``s`` runs the chunks ``s, s + nsets, ...`` on its own arrays."""
+    m = pars.shape[0]
+    for s in prange(nsets):
+        for k in range((nchunks - 1 - s) // nsets + 1):  # (a step of nsets from s)
+            c = s + k * nsets
+            lo = c * m // nchunks
+            hi = (c + 1) * m // nchunks
+            for i in range(lo, hi):
+                run_one(pars[i], out[i], Z[s], Q[s], G[s], taus[s], A[s], E[s], T[s], W[s], zb[s], acc[s], zs[s],
+                        Zs[s], q[s], qn[s], zsum[s], Y[s], Wn[s], dW[s], xs[s], sr[s], sd[s], ms[s], EA[s], Pab[s],
+                        gb[s], Es[s], Rb[s], Rbw[s], zi[s], Z0[s], vec[s], ring[s], flags[s], idx[s], used[s], gw[s])

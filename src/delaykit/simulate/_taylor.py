@@ -5,15 +5,17 @@ inputs (the delayed command, the reference, the delayed measurement, anti-windup
 polynomials known before the piece or, without any delay in the loop, algebraic in the states.
 :func:`recursion_known` is the common case, the plant's input known before the piece and the command not
 acting back on the states, with the measurement folded into the matrix once per run; :func:`recursion` is
-the general one (compiled without reference counting, as the kernel's piece loop: see :mod:`._kernel`).  Built
-compiled or interpreted with the kernel (see :mod:`._jit`).  This module is private.
+the general one.  One source, three modes, as the kernel (see :mod:`delaykit._native`): compiled by Cython (C
+types in ``_taylor.pxd``; the kernel cimports these functions), by numba (``NUMBA_OPTIONS``: inlined but
+:func:`recursion`, compiled without reference counting as the kernel's piece loop), or run as plain Python.  This
+module is private.
 
 Examples
 --------
 >>> import numpy as np
->>> from delaykit.simulate._jit import sibling
+>>> from delaykit import _native
 >>> from delaykit.simulate._layout import NC
->>> t = sibling("_taylor")
+>>> t = _native.load("delaykit.simulate", "_taylor", "python")
 >>> X, Y, Yd, V, E = np.zeros((1, NC + 1)), np.zeros(NC), np.zeros(NC), np.zeros(NC), np.zeros(NC)
 >>> X[0, 0] = 1.0  # x' = -x over a piece of length 1: the coefficients of exp(-x)
 >>> A, G, VE = np.array([[-1.0]]), np.zeros((4, 1)), np.zeros((10, 1))
@@ -26,20 +28,38 @@ Examples
 
 from __future__ import annotations
 
-from . import _jit
-from ._jit import njit
+try:
+    import cython
+except ImportError:  # plain Python without Cython installed: only ``cython.compiled`` is read
+    from types import SimpleNamespace
+
+    cython = SimpleNamespace(compiled=False)
+
 from ._layout import DEG, HEAD, NC
 
-__all__ = ["LIN", "HIGH", "LOW", "recursion", "recursion_known"]
+if cython.compiled:  # the polynomial helpers, called as C
+    from cython.cimports.delaykit.simulate._poly import degree as _degree
+else:  # the same module run as this one is (numba's copy, or Python)
+    from .._native import sibling
+
+    _degree = sibling(__name__, "_poly").degree
+
+__all__ = ["LIN", "HIGH", "LOW", "recursion", "recursion_known", "COMPILED"]
+
+COMPILED: bool = cython.compiled
+"""Whether this module is the extension module Cython built (False: this file, run by Python or numba)."""
 
 LIN, HIGH, LOW = 0, 1, 2  # the command's regime on a piece: linear, saturated high or low
-
-_degree = _jit.sibling("_poly").degree
+_LIN, _HIGH, _LOW, _DEG, _NC = LIN, HIGH, LOW, DEG, NC  # (C values where compiled; the public names stay Python's)
+# numba's options where it compiles this file (see delaykit._native): all inlined but the general recursion
+NUMBA_OPTIONS = {"_vanished": {"inline": "always"}, "_clear_tail": {"inline": "always"},
+                 "_hold_at_limit": {"inline": "always"}, "_state_parts": {"inline": "always"},
+                 "_signals": {"inline": "always"}, "_known_one": {"inline": "always"},
+                 "recursion_known": {"inline": "always"}, "recursion": {"_nrt": False}}
 _UMIN, _UMAX, _DY, _DYD, _DVR, _DVY, _DVV, _INTEG, _AW = (HEAD[k] for k in ("umin", "umax", "dy", "dyd", "dvr", "dvy",
                                                                           "dvv", "integ", "aw"))
 
 
-@njit(cache=True, inline="always")
 def _vanished(X, N, j):
     """Whether every state's coefficient ``j`` is zero (past the forcing's degree, all later ones are then too)."""
     for i in range(N):
@@ -48,10 +68,9 @@ def _vanished(X, N, j):
     return True
 
 
-@njit(cache=True, inline="always")
 def _clear_tail(X, Y, Yd, V, E, N, nt):
     """Zero every signal's coefficients from ``nt`` on (the buffers are reused from piece to piece)."""
-    for j in range(nt, NC):
+    for j in range(nt, _NC):
         Y[j] = 0.0
         Yd[j] = 0.0
         V[j] = 0.0
@@ -59,10 +78,9 @@ def _clear_tail(X, Y, Yd, V, E, N, nt):
         for i in range(N):
             X[i, j] = 0.0
     for i in range(N):
-        X[i, NC] = 0.0
+        X[i, _NC] = 0.0
 
 
-@njit(cache=True, inline="always")
 def _hold_at_limit(X, V, VE, integ, j, lim, Fz):
     """Sliding on the limit (Filippov): replace the integrator's coefficient ``j`` by the one that keeps the
     command at ``lim`` (``V[0] = lim``, ``V[j] = 0`` after), and keep the free integrator's in ``Fz[j]``.
@@ -75,7 +93,6 @@ def _hold_at_limit(X, V, VE, integ, j, lim, Fz):
     V[j] = target
 
 
-@njit(cache=True, inline="always")
 def _state_parts(X, VE, N, j, need_yd):
     """The parts of the output, its derivative (only where ``need_yd``, else 0) and the command that the
     states' coefficients ``j`` carry: ``sum_i VE[5, i] X[i, j]``, with rows 6 and 7."""
@@ -92,7 +109,6 @@ def _state_parts(X, VE, N, j, need_yd):
     return cy, cyd, cv
 
 
-@njit(cache=True, inline="always")
 def _signals(j, cy, cyd, cv, wj, rj, yd_on, law_on, vj, use_meas, Ym, Vm, dy, dyd, dvr, dvy, dvv, Y, Yd, V, E):
     """Store the coefficients ``j`` of the output, its derivative, the command and the error, from the states'
     parts (:func:`_state_parts`), the plant input's ``wj`` and the reference's ``rj``; returns the measurement's
@@ -117,7 +133,6 @@ def _signals(j, cy, cyd, cv, wj, rj, yd_on, law_on, vj, use_meas, Ym, Vm, dy, dy
     return ymj, vmj, vj
 
 
-@njit(cache=True, inline="always")
 def _known_one(A, G, VE, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, need_yd, d5, X, Y, Yd, V, E,
                zero_a, nf):
     """:func:`recursion_known` for a single state, not sliding: the same arithmetic in the same order, with
@@ -133,8 +148,8 @@ def _known_one(A, G, VE, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, 
     a00 = A[0, 0]
     hold = frozen and integ == 0
     x = X[0, 0]
-    nt = NC
-    for j in range(NC):
+    nt = _NC
+    for j in range(_NC):
         if j >= nf and j > 0 and x == 0.0:
             nt = j
             break
@@ -146,7 +161,7 @@ def _known_one(A, G, VE, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, 
         cyd = 0.0 + c6 * x if need_yd else 0.0
         ymj, vmj, _ = _signals(j, cy, cyd, cv, wj, rj, need_yd, True, 0.0, use_meas, Ym, Vm, dy, dyd, dvr, dvy, dvv,
                                Y, Yd, V, E)
-        if j == DEG:
+        if j == _DEG:
             break
         f = H / (j + 1)
         if j < nf:
@@ -167,7 +182,6 @@ def _known_one(A, G, VE, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, 
     return nt
 
 
-@njit(cache=True, inline="always")
 def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, need_yd, d5, X, Y, Yd, V,
                     E, zero_a, slide, lim, Fz):
     """:func:`recursion` where the plant's input is known before the piece (delayed or held) and the command
@@ -184,12 +198,12 @@ def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, us
     dy, dyd, dvr, dvy, dvv = d5[0], d5[1], d5[2], d5[3], d5[4]
     nf = max(nR, nW, 1)
     if use_meas:
-        nf = max(nf, _degree(Ym, NC), _degree(Vm, NC))
+        nf = max(nf, _degree(Ym, _NC), _degree(Vm, _NC))
     if N == 1 and not slide:
         return _known_one(A, G, VE, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, need_yd, d5, X, Y, Yd, V,
                           E, zero_a, nf)
-    nt = NC
-    for j in range(NC):
+    nt = _NC
+    for j in range(_NC):
         if j >= nf and j > 0 and _vanished(X, N, j):
             nt = j
             break
@@ -200,7 +214,7 @@ def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, us
                                Y, Yd, V, E)
         if slide:
             _hold_at_limit(X, V, VE, integ, j, lim, Fz)
-        if j == DEG:
+        if j == _DEG:
             break
         f = H / (j + 1)
         if j < nf:
@@ -225,7 +239,6 @@ def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, us
     return nt
 
 
-@njit(cache=True, _nrt=False)
 def recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dist, X, R, nR,
               Wd, nW, Ym, Vm, use_meas, Y, Yd, V, E, need_yd, Um, nUm, has_u, slide, Fz):
     """Taylor coefficients of every signal on one piece of length ``H`` with the regime fixed.
@@ -251,15 +264,15 @@ def recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, u
     integ = int(par[_INTEG])
     aw = int(par[_AW])
     kd = dvy * dy + dvv * dyd  # direct feedthrough around a loop with no delay at all
-    lim = umax if regime == HIGH else umin
+    lim = umax if regime == _HIGH else umin
     # the forcing is a polynomial of degree < nf: once the states' coefficients vanish past it, all do
     nf = max(nR, nW if ti_pos else 1, 1)
     if has_u:
         nf = max(nf, nUm)
     if use_meas:
-        nf = max(nf, _degree(Ym, NC), _degree(Vm, NC))
-    nt = NC
-    for j in range(NC):
+        nf = max(nf, _degree(Ym, _NC), _degree(Vm, _NC))
+    nt = _NC
+    for j in range(_NC):
         if j >= nf and j > 0 and _vanished(X, N, j):
             nt = j
             break
@@ -275,7 +288,7 @@ def recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, u
             vj = 0.0
         elif algebraic:
             base = cv + dvr * rj + dvy * cy + dvv * cyd
-            if regime == LIN:
+            if regime == _LIN:
                 vj = (base + kd * dj) / (1.0 - kd)
                 wj = vj + dj
             else:
@@ -284,24 +297,24 @@ def recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, u
         else:
             # no input delay, a delayed measurement: v is known before w
             vj = cv + dvr * rj + dvy * Ym[j] + dvv * Vm[j]
-            wj = (vj if regime == LIN else (lim if j == 0 else 0.0)) + dj
+            wj = (vj if regime == _LIN else (lim if j == 0 else 0.0)) + dj
         # y' always (0 + dyd wj where nothing reads it); the law gives v where the input is delayed or held
         ymj, vmj, vj = _signals(j, cy, cyd, cv, wj, rj, True, sampled or ti_pos, vj, use_meas, Ym, Vm, dy, dyd, dvr,
                                 dvy, dvv, Y, Yd, V, E)
         if slide:
             _hold_at_limit(X, V, VE, integ, j, lim, Fz)
             vj = V[j]
-        if j == DEG:
+        if j == _DEG:
             break
         awj = 0.0
-        if aw == 2 and regime != LIN:
+        if aw == 2 and regime != _LIN:
             awj = (lim if j == 0 else 0.0) - vj
         f = H / (j + 1)
         if has_u:
             # the command as applied: held, the law's output, or the limit it is clipped to
             if sampled:
                 uj = uhold if j == 0 else 0.0
-            elif regime == LIN:
+            elif regime == _LIN:
                 uj = vj
             else:
                 uj = lim if j == 0 else 0.0

@@ -21,11 +21,13 @@ StepMetrics(overshoot=2.2630 %, peak_time=2.0761 s, rise_time=0.9050 s, settling
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from .. import _native
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop, as_loop
 from ..models.budget import sample_count
@@ -619,26 +621,40 @@ def _event_stepped(pars: np.ndarray) -> np.ndarray:
     return ok
 
 
+def _threads(kern: Any) -> int:
+    """The threads a batch kernel module runs on: numba's where numba compiled it, else the CPUs this process may use
+    (OpenMP's default; ``OMP_NUM_THREADS`` where set)."""
+    if kern.__name__.endswith("_numba"):
+        import numba
+
+        return int(numba.get_num_threads())
+    env = os.environ.get("OMP_NUM_THREADS", "").split(",")[0].strip()
+    if env.isdigit() and int(env) > 0:
+        return int(env)
+    try:
+        return len(os.sched_getaffinity(0)) or 1
+    except AttributeError:  # (not on macOS or Windows)
+        return os.cpu_count() or 1
+
+
 def _batch(pars: np.ndarray) -> np.ndarray:
     m = pars.shape[0]
     if m == 0:
         return np.empty((0, K.NOUT))
-    import numba
-
     out = np.empty((m, K.NOUT))
     fast = _event_stepped(pars)
     if np.any(fast):  # sampled loops: from event to event with matrix exponentials
-        from . import _sampled_batch
-
+        sb = _native.load("delaykit.simulate", "_sampled_batch")
         sub = np.ascontiguousarray(pars) if fast.all() else np.ascontiguousarray(pars[fast])
-        out[fast] = _sampled_batch.run_batch(sub, max(1, min(sub.shape[0], 8 * numba.get_num_threads())))
+        out[fast] = sb.run_batch(sub, max(1, min(sub.shape[0], 8 * _threads(sb))))
     rest = np.flatnonzero(~fast)
     if rest.size == 0:
         return out
     kern = _jit.kernel(compiled=True)
     # every row (the usual case: one kind of loop): no copy of the rows, 35 MB for 10,000 loops
     sub = np.ascontiguousarray(pars) if rest.size == m else np.ascontiguousarray(pars[rest])
-    res = kern.run_batch(sub, _CAP0, max(1, min(rest.size, 8 * numba.get_num_threads())))
+    threads = _threads(kern)
+    res = kern.run_batch(sub, _CAP0, max(1, min(rest.size, 8 * threads)), threads)
     redo = np.flatnonzero(res[:, K.OUT["status"]] != K.STATUS_OK)  # a stall raises its error from run()
     for i in redo:
         ws = _Workspace(store=False)

@@ -31,7 +31,7 @@ else:  # the root kernel of this module's own mode (numba's copy calls numba's)
 
     from delaykit import _native
 
-    _rk = _native.sibling(__name__, "delaykit.spectrum", "_rootkernel")
+    _rk = _native.sibling(__name__, "_rootkernel")
     bound_into, contour_into, newton_into = _rk.bound_into, _rk.contour_into, _rk.newton_into
     stack_size, stacks = _rk.stack_size, _rk.stacks
 

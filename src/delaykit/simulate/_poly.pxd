@@ -1,0 +1,36 @@
+# The C types of _poly.py for Cython: the .py stays the one source (run by Python or numba as it is); this file
+# declares what each name is when Cython compiles it at build time, and the kernels that call these functions
+# cimport them from here (C calls).  setup.py: no bounds or negative-index checks, C division, locals' types
+# inferred (as numba does).
+cimport cython
+
+cdef Py_ssize_t _GRID, _DEPTH, _MAXX, _NC
+cdef double[::1] _XG
+cdef double[:, ::1] _BIN
+
+@cython.locals(j=Py_ssize_t)
+cpdef double horner(double[:] c, Py_ssize_t n, double x) noexcept nogil
+@cython.locals(j=Py_ssize_t)
+cpdef (double, double) horner_d(double[:] c, Py_ssize_t n, double x) noexcept nogil
+@cython.locals(j=Py_ssize_t)
+cpdef double poly_sum(double[:] c, Py_ssize_t n) noexcept nogil
+@cython.locals(j=Py_ssize_t)
+cpdef (double, double) bounds(double[:] c, Py_ssize_t n) noexcept nogil
+cpdef double refine(double[:] c, Py_ssize_t n, double target, double lo, double hi, double slo) noexcept nogil
+@cython.locals(j=Py_ssize_t)
+cpdef void grid_values(double[:] c, Py_ssize_t n, double target, double[:] fs, Py_ssize_t i0) noexcept nogil
+@cython.locals(i=Py_ssize_t)
+cpdef double first_cross(double[:] c, Py_ssize_t n, double target, double s0, double[:] fs) noexcept nogil
+@cython.locals(i=Py_ssize_t)
+cpdef Py_ssize_t all_cross(double[:] c, Py_ssize_t n, double target, double[:] xs, double[:] fs) noexcept nogil
+@cython.locals(i=Py_ssize_t, b1=double, b2=double, size=double, noise=double, top=Py_ssize_t, j=Py_ssize_t,
+               k=Py_ssize_t, d=Py_ssize_t, xl=double, fl=double, sl=double, r=double, fr=double, w=double,
+               change=bint, ok=bint)
+cpdef Py_ssize_t crossings(double[:] c, Py_ssize_t n, double target, double[:] xs, double[:] sr,
+                           long long[:] sd) noexcept nogil
+@cython.locals(k=Py_ssize_t, j=Py_ssize_t)
+cpdef void shift_scale(double[:] src, Py_ssize_t n, double alpha, double beta, double[:] dst,
+                       double[:] work) noexcept nogil
+@cython.locals(j=Py_ssize_t)
+cpdef void scale(double[:] c, Py_ssize_t n, double s) noexcept nogil
+cpdef Py_ssize_t degree(double[:] c, Py_ssize_t n) noexcept nogil

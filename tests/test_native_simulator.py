@@ -1,0 +1,134 @@
+"""The simulator's kernels compiled ahead of time (``setup.py``, ``delaykit._native``): built by the set-up, equal in
+every mode, and ``simulate``/``simulate_many`` then import no numba at all.
+
+The reference is numba's compilation of the same source (:func:`delaykit._native.load` in mode ``"numba"``: what the
+package ran before the extensions existed, and what it falls back to without them); the plain-Python mode is the
+third.  The kernels' own accuracy is checked against independent oracles elsewhere (test_simulation.py,
+test_loop_simulation.py, test_sampled_batch.py against SciPy's ``expm`` and a dense evaluation).  No timing is
+asserted here: ``benchmarks/bench_native.py`` and ``benchmarks/bench_startup.py --first-calls`` measure.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from delaykit import AltitudeLoop, _native
+from delaykit.models import Controller, Loop
+from delaykit.simulate import _jit, _layout, simulate_many
+from delaykit.simulate import simulation as S
+from test_kernel_modes import run
+
+PKG = "delaykit.simulate"
+KERNELS = ("_poly", "_taylor", "_kernel", "_sampled_batch")
+PID = Loop("1/((s+1)*(0.5*s+1))", Controller.pid(2.0, 0.8, 0.2, 0.05), delay=0.25, umin=-0.5, umax=2.0)
+# representative loops, short enough for the interpreter: (loop, load, t_end)
+LOOPS = {
+    "paper P": (AltitudeLoop(kp=1.31, delay=0.368), None, 10.0),
+    "paper PV, true velocity (neutral)": (AltitudeLoop(kp=1.0, delay=0.37, kv=0.3), None, 6.0),
+    "PID with limits": (PID, None, 8.0),
+    "paper P, sampled": (AltitudeLoop(kp=1.31, delay=0.368, period=0.065), None, 6.0),
+    "PI, tiny delay (read from the piece itself)": (Loop("1/(s+1)", Controller.pi(20.0, 1.0), delay=1e-6), None, 3.0),
+}
+
+
+@pytest.fixture(scope="module")
+def kernels():
+    return {mode: _native.load(PKG, "_kernel", mode) for mode in _native.MODES}
+
+
+def close(a, b, rtol=1e-12):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    assert a.shape == b.shape
+    assert np.array_equal(np.isnan(a), np.isnan(b))
+    ok = ~np.isnan(b)
+    assert np.all(np.abs(a[ok] - b[ok]) <= rtol * np.maximum(1.0, np.abs(b[ok])))
+
+
+def test_the_set_up_builds_the_simulators_kernels_and_the_simulator_uses_them():
+    # `make` (pip install -e .) compiles them; without a C compiler they would be numba's copies, and this fails
+    for name in KERNELS:
+        assert _native.built(PKG, name), f"the Cython extension of {name} is not built (or is stale): run `make`"
+    assert _jit.kernel(compiled=True).COMPILED
+    assert not _native.load(PKG, "_kernel", "numba").COMPILED and not _jit.kernel(compiled=False).COMPILED
+
+
+@pytest.mark.parametrize("name", LOOPS)
+def test_one_run_gives_numbas_numbers_compiled_by_cython_and_interpreted(name, kernels):
+    loop, dist, t_end = LOOPS[name]
+    ref = run(kernels["numba"], loop, dist, t_end)  # (metrics row, y pieces, u pieces, samples of y)
+    assert ref[0][_layout.OUT["status"]] == _layout.STATUS_OK
+    for mode in ("cython", "python"):
+        got = run(kernels[mode], loop, dist, t_end)
+        close(got[0], ref[0])
+        for g, r in zip(got[1] + got[2], ref[1] + ref[2]):  # the same pieces: their starts and polynomials
+            close(g, r)
+        close(got[3], ref[3])
+
+
+def _rows(loop, **sweep):
+    """The batch kernels' parameter rows of a sweep, as simulate_many builds them."""
+    seen = {}
+    real = S._batch
+
+    def grab(pars):
+        seen["pars"] = pars.copy()
+        return real(pars)
+
+    S._batch = grab
+    try:
+        simulate_many(loop, t_end=6.0, **sweep)
+    finally:
+        S._batch = real
+    return np.ascontiguousarray(seen["pars"])
+
+
+def test_a_batch_gives_numbas_numbers_in_every_mode_and_on_any_number_of_threads():
+    delays = np.array([0.2, 0.3, 0.368, 0.45, 0.5, 0.62])
+    taylor = _rows(PID, delay=delays, kp=np.linspace(1.0, 3.0, delays.size))
+    sampled = _rows(AltitudeLoop(kp=1.31, delay=0.3, period=0.065), delay=delays)
+    assert not S._event_stepped(taylor).any() and S._event_stepped(sampled).all()
+    for name, pars in (("_kernel", taylor), ("_sampled_batch", sampled)):
+        mods = {mode: _native.load(PKG, name, mode) for mode in _native.MODES}
+        args = (pars, 4096) if name == "_kernel" else (pars,)
+        ref = mods["numba"].run_batch(*args, 1, 1)
+        assert np.all(ref[:, _layout.OUT["status"]] == _layout.STATUS_OK)
+        for mode in ("cython", "python"):
+            close(mods[mode].run_batch(*args, 1, 1), ref)
+        # the rows split into chunks over work sets run in parallel: the same numbers, bit for bit
+        for nchunks, nsets in ((6, 2), (5, 3), (4, 8)):
+            np.testing.assert_array_equal(mods["cython"].run_batch(*args, nchunks, nsets), mods["cython"].run_batch(
+                *args, 1, 1))
+
+
+def _python(code: str) -> dict:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    env.pop("DELAYKIT_KERNELS", None)
+    out = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, env=env,
+                         timeout=600, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_simulate_and_simulate_many_import_no_numba():
+    got = _python("""
+        import json, sys
+        import numpy as np
+        import delaykit as dk
+        m = dk.simulate_many(dk.AltitudeLoop(kp=1.31, delay=0.3), delay=np.array([0.26, 0.325, 0.364]))
+        s = dk.simulate_many(dk.AltitudeLoop(kp=1.31, delay=0.3, period=0.065), delay=np.array([0.26, 0.325]))
+        r = dk.simulate(dk.AltitudeLoop(kp=1.31, delay=0.368), t_end=30.0)
+        print(json.dumps({"numba": "numba" in sys.modules, "overshoot": m.overshoot.tolist(),
+                          "sampled": s.overshoot.tolist(), "single": r.metrics.overshoot}))
+    """)
+    assert got["numba"] is False
+    # the same numbers as in this process (where the kernels may be any mode the tests loaded)
+    m = simulate_many(AltitudeLoop(kp=1.31, delay=0.3), delay=np.array([0.26, 0.325, 0.364]))
+    close(got["overshoot"], m.overshoot)
+    # Table 1 of the paper (Armah & Yi): 0 %, 0.398 % and 2.038 % at 4, 5 and 5.6 sample periods of 0.065 s
+    close(np.round(got["overshoot"], 3), [0.0, 0.398, 2.038])
