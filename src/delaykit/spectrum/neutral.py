@@ -341,22 +341,26 @@ class ChannelAbscissa:
         return self.abscissa < 0
 
     def lead(self, x: float) -> float:
-        """A lower bound on ``|det(I - D22 Delta(s))|`` over ``Re s >= x`` (0 where none is known): per group of
-        channels that feed one another ``(1 - ||S M R(x) S^-1||)^k`` with the group's scaling ``S``, and
-        ``1 - |m| exp(-tau x)`` for a channel that feeds itself."""
+        """A lower bound on ``|det(I - D22 Delta(s))|`` over ``Re s >= x`` (0 where none is known).
+
+        Per group of channels that feed one another, with its scaling ``S`` and ``X = S M R(x) S^-1``:
+        ``prod_i (1 - sigma_i(X))`` (Weyl: ``sigma_i(I - Y) >= 1 - sigma_(k+1-i)(Y)``, and right of ``x`` the
+        singular values of ``S M R Theta S^-1`` only shrink); ``1 - |m| exp(-tau x)`` for a channel that feeds
+        only itself.
+        """
         out = abs(self._a0)
         for g in self._groups:
             M, tau, d = g
-            r = np.exp(-tau * x)
-            if M.shape[0] == 1:
-                nu = abs(M[0, 0]) * float(r[0])
-            else:
-                nu = _scaled_norm(M * r[None, :], d)
-                if nu >= 1.0:
-                    nu = _best_scaling(M * r[None, :], d[1:] - d[0])[0]
-            if nu >= 1.0:
+            X = M * np.exp(-tau * x)[None, :]
+            e = np.exp(d - d.mean())
+            sv = np.linalg.svd(X * (e[:, None] / e[None, :]), compute_uv=False)
+            if sv[0] >= 1.0 and M.shape[0] > 1:
+                d = np.concatenate([[0.0], _best_scaling(X, d[1:] - d[0])[1]])
+                e = np.exp(d - d.mean())
+                sv = np.linalg.svd(X * (e[:, None] / e[None, :]), compute_uv=False)
+            if sv[0] >= 1.0:
                 return 0.0
-            out *= (1.0 - nu) ** M.shape[0]
+            out *= float(np.prod(1.0 - sv))
         return out
 
     def to_dict(self) -> dict[str, Any]:
