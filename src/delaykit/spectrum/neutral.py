@@ -245,9 +245,10 @@ def _best_scaling(X: np.ndarray, d0: np.ndarray) -> tuple[float, np.ndarray]:
     return math.exp(f(v)), v
 
 
-def _torus_radius(X: np.ndarray) -> float:
+def _torus_radius(X: np.ndarray, enough: float = math.inf) -> float:
     """``max`` over unit phases ``Theta`` of ``rho(X Theta)``, from below: a grid over the phases (one of them
-    fixed: a common phase turns the eigenvalues, not their moduli) and the best points refined."""
+    fixed: a common phase turns the eigenvalues, not their moduli) and the best points refined, until a value
+    reaches ``enough``."""
     from scipy.optimize import minimize
 
     k = X.shape[0]
@@ -265,7 +266,9 @@ def _torus_radius(X: np.ndarray) -> float:
         grid = np.random.default_rng(0).uniform(0, 2 * math.pi, (20_000, k - 1))
     vals = rho(grid)
     best = float(vals.max())
-    for t0 in grid[np.argsort(vals)[-6:]]:
+    for t0 in grid[np.argsort(vals)[::-1][:6]]:
+        if best >= enough:
+            break
         res = minimize(lambda t: -float(rho(t)[0]), t0, method="Nelder-Mead",
                        options={"xatol": 1e-12, "fatol": 1e-16, "maxiter": 4000})
         best = max(best, -float(res.fun))
@@ -530,5 +533,5 @@ def _group_abscissa(M: np.ndarray, tau: np.ndarray) -> tuple[float, np.ndarray, 
     x = float(brentq(logmu, lo, hi, xtol=1e-4 * tol, rtol=4 * np.finfo(float).eps))
     logmu(x + 1e-4 * tol)  # the scaling just right of the root, where it gives a bound below 1
     d = np.concatenate([[0.0], state["d"]])
-    ok = _torus_radius(M * np.exp(-tau * (x - tol))[None, :]) >= 1.0
+    ok = _torus_radius(M * np.exp(-tau * (x - tol))[None, :], enough=1.0) >= 1.0
     return x, d, bool(ok), tol
