@@ -234,10 +234,9 @@ def _best_scaling(X: np.ndarray, d0: np.ndarray) -> tuple[float, np.ndarray]:
     def f(v: np.ndarray) -> float:
         return math.log(max(_scaled_norm(X, np.concatenate([[0.0], v])), 1e-300))
 
-    if k == 2:
-        a = math.log(abs(X[0, 1]) + 1e-300) - math.log(abs(X[1, 0]) + 1e-300)  # sigma balances them near d = a/2
-        res = minimize_scalar(lambda t: f(np.array([t])), bracket=(d0[0] - 1.0, d0[0] + 1.0) if d0.size else
-                              (a / 2 - 1, a / 2 + 1), method="brent", options={"xtol": 1e-12})
+    if k == 2:  # one scaling: Brent's method on a convex function of it
+        res = minimize_scalar(lambda t: f(np.array([t])), bracket=(d0[0] - 1.0, d0[0] + 1.0), method="brent",
+                              options={"xtol": 1e-12})
         v = np.array([float(res.x)])
     else:
         res = minimize(f, d0, method="Nelder-Mead", options={"xatol": 1e-11, "fatol": 1e-15, "maxiter": 4000})
