@@ -36,8 +36,8 @@ import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..systems.algebra import feedback, gain
+from ..systems.difference import ChannelAbscissa, channel_abscissa
 from ..systems.lti import DelayLTI
-from .neutral import ChannelAbscissa, channel_abscissa
 from .roots import Spectrum, find_roots, root_bound
 from .stability import right_half_plane_count, rightmost
 
