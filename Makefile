@@ -46,6 +46,7 @@ bench: $(VENV)/.test-installed
 	$(BIN)/python benchmarks/bench_simulate.py
 	$(BIN)/python benchmarks/bench_general.py
 	$(BIN)/python benchmarks/bench_roots.py
+	$(BIN)/python benchmarks/bench_poles.py
 	$(BIN)/python benchmarks/bench_frequency.py
 	$(BIN)/python benchmarks/bench_estimate.py
 

@@ -132,7 +132,7 @@ def test_index_renders_in_headless_chromium(site, tmp_path):
 def test_tutorial_figures_render_in_headless_chromium(site, tmp_path):
     # each executed tutorial shows the figures it computed: an <img> per figure, the PNG on disk and not empty
     for name, n_figures in (("paper", 1), ("heater", 2), ("px4", 1), ("smith", 1), ("flight", 1),
-                             ("pid-tuning", 2), ("wood-berry", 2)):
+                             ("pid-tuning", 2), ("wood-berry", 2), ("quadrotor-xy", 2)):
         page = site / "tutorials" / f"{name}.html"
         dom = _dom(page, tmp_path / f"profile-{name}")
         assert "<h1>" in dom, (name, dom[:300])

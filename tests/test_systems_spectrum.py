@@ -190,7 +190,7 @@ def test_loop_at_a_time_margins_of_wood_berry():
 
 def test_spectrum_errors():
     neutral = feedback(delay(1.0), 1.5)  # 1 + 1.5 e^{-s}: roots on Re s = ln 1.5 > 0
-    with pytest.raises(InvalidValueError, match="neutral and its difference operator is not shown strongly stable"):
+    with pytest.raises(InvalidValueError, match="neutral and its difference operator is not strongly stable"):
         is_stable(neutral)
     with pytest.raises(InvalidValueError, match="square"):
         nyquist_count(tf([["1/(s+1)", "1/(s+2)"]]))

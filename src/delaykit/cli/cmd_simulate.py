@@ -27,7 +27,7 @@ def simulate(
     hold: str = typer.Option("linear", "--hold", help="Between --reference samples: linear | hold."),
     disturbance: Optional[float] = typer.Option(None, "--disturbance", help="A step load disturbance at the plant input, of this size."),
     disturbance_time: float = typer.Option(0.0, "--disturbance-time", help="When the load disturbance starts, s."),
-    t_end: float = typer.Option(15.0, "--t-end", help="Simulated time after the step, s."),
+    t_end: Optional[float] = typer.Option(None, "--t-end", help="Simulated time after the step, s (default 15; with --system the system's own horizon: 7 time constants of its slowest mode plus 3 times its longest delay)."),
     band: float = typer.Option(0.02, "--band", help="Settling band, fraction of the step."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Write a figure of the response(s) here."),
@@ -41,7 +41,7 @@ def simulate(
     delay_trace: Optional[Path] = typer.Option(None, "--delay-trace", help="Replay a recorded delay, added to --delay: a CSV with a header t,delay (s), or a flight log of `delaykit fly` (its latency_ms column). Give --delay 0 for a trace of whole delays. Needs --period."),
     keep_order: Optional[bool] = typer.Option(None, "--keep-order/--no-keep-order", help="With a varying delay: packets reach the plant in the order sent (a late one holds back the ones behind it), or (the default) a packet may overtake and one arriving after a newer one is dropped."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Seed of the --jitter draws (default: new draws every run)."),
-    system: Optional[Path] = typer.Option(None, "--system", help="A delay system file: not yet (its time domain is not available; margins and roots take it)."),
+    system: Optional[Path] = typer.Option(None, "--system", help="A delay system from a TOML file of blocks connected by name (instead of a loop): the exact step response of each of its inputs, every output (exit status 1 if it stopped early)."),
     loop: Any = None,
     delays: Any = None,
 ) -> None:
@@ -59,8 +59,25 @@ def simulate(
     how many were dropped (overtaken).  A step reference only, with no anti-windup and no compensator.
     """
     if system is not None:
-        raise InvalidValueError(f"simulate --system {str(system)!r}: the time domain of delay systems is not yet "
-                                "available (margins --system and roots --system analyse it in the frequency domain)")
+        from .systemfile import system_simulate
+
+        loop_only = (("--step", step, 1.0), ("--z0", z0, 0.0), ("--ramp", ramp, None),
+                     ("--reference", reference_csv, None), ("--hold", hold, "linear"),
+                     ("--disturbance", disturbance, None), ("--disturbance-time", disturbance_time, 0.0),
+                     ("--band", band, 0.02), ("--csv", csv_path, None), ("--dt", dt, 0.01),
+                     ("--delay-schedule", delay_schedule, None), ("--jitter", jitter, None),
+                     ("--jitter-dist", jitter_dist, None), ("--jitter-scale", jitter_scale, None),
+                     ("--jitter-shape", jitter_shape, None), ("--delay-trace", delay_trace, None),
+                     ("--keep-order", keep_order, None), ("--seed", seed, None))
+        for flag, value, default in loop_only:
+            if value != default:
+                raise InvalidValueError(f"simulate --system gives the unit step response of each input; {flag} "
+                                        "does not apply to it")
+        code = system_simulate(system, t_end, as_json, plot)
+        if code:
+            raise typer.Exit(code)
+        return
+    t_end = 15.0 if t_end is None else t_end
     from ..models.altitude import AltitudeLoop
     from ..models.signals import LoadStep, Ramp, Step
     from ..simulate.simulation import simulate as sim

@@ -1,8 +1,9 @@
-"""``--system FILE`` of ``roots`` and ``margins``: a delay system read from a TOML file of blocks.
+"""``--system FILE`` of ``roots``, ``margins`` and ``simulate``: a delay system read from a TOML file of blocks.
 
 The file's format is :mod:`delaykit.systems.files`'.  ``roots`` gives the interconnection's certified poles in a
 region and its stability; ``margins`` gives the loop-at-a-time margins at the file's ``break`` signals and the
-stability of the closed system.  JSON is strict: a non-finite number is printed as null.
+stability of the closed system; ``simulate`` its exact step response, input by input.  JSON is strict: a
+non-finite number is printed as null.
 """
 
 from __future__ import annotations
@@ -12,9 +13,9 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InvalidValueError
-from .common import out, print_json
+from .common import check_output, err, out, print_json, warn
 
-__all__ = ["system_margins", "system_roots"]
+__all__ = ["system_margins", "system_roots", "system_simulate"]
 
 
 def _stability(system: Any) -> tuple[bool | None, str]:
@@ -82,3 +83,53 @@ def system_margins(path: Path, as_json: bool) -> None:
               "blocks use another).", highlight=False, markup=False)
     verdict = {True: "stable", False: "UNSTABLE"}.get(stable, f"stability not decided: {why}")
     out.print(f"The closed system is {verdict}.", highlight=False, markup=False)
+
+
+def system_simulate(path: Path, t_end: float | None, as_json: bool, plot: Path | None) -> int:
+    """Print the exact step response of each input of a system file's interconnection (a table of each output's
+    final value, extremes and time of its largest value, or JSON with every sample); draw it to ``plot``.
+
+    Returns the exit status: 0 when the response is exact at every time, 1 when it stopped early (its
+    ``status``; the outputs past the point reached are null).
+    """
+    import numpy as np
+
+    from ..errors import check_real
+    from ..simulate.systems import step_response
+    from ..systems.files import read_system_file
+
+    check_output("--plot", plot, "figure")
+    horizon = None if t_end is None else check_real("--t-end", t_end, minimum=0.0, strict=True)
+    sf = read_system_file(path)
+    with err.status("simulating…"):
+        r = step_response(sf.system, horizon)
+    if plot is not None:
+        from ..plotting.systems import plot_system_response
+
+        plot_system_response(r, path=plot, title=f"Step responses of {sf.system.name or sf.source}")
+    if as_json:
+        print_json({"system": repr(sf.system), "source": sf.source, **r.to_dict()})
+    else:
+        from rich.table import Table
+        from rich.text import Text
+
+        table = Table(title=Text(f"Step responses of {sf.system!r}, 0 to {r.time[-1]:g}"))
+        for col in ("step of", "output", "final value", "largest", "at t", "smallest"):
+            table.add_column(col, justify="right")
+        f = lambda v: "none" if not math.isfinite(v) else f"{v:.6g}"  # noqa: E731
+        for j, u in enumerate(r.input_labels):
+            for i, y in enumerate(r.output_labels):
+                v = r.outputs[i, j]
+                ok = np.isfinite(v)
+                k = int(np.argmax(np.where(ok, v, -np.inf))) if ok.any() else 0
+                table.add_row(Text(u), Text(y), f(float(v[ok][-1]) if ok.any() else math.nan),
+                              f(float(v[k]) if ok.any() else math.nan), f(float(r.time[k]) if ok.any() else math.nan),
+                              f(float(v[ok].min()) if ok.any() else math.nan))
+        out.print(table)
+        out.print(f"{r.time.size} times, {r.pieces} Taylor pieces, {r.status}. Times in the file's unit (s unless "
+                  "its blocks use another).", highlight=False, markup=False)
+    if r.status == "exact":
+        return 0
+    if not as_json:  # (the JSON's status and t_reached say it)
+        warn(f"the response stopped at t = {r.t_reached:g} ({r.status}); later outputs are not given")
+    return 1

@@ -29,8 +29,8 @@ _SOURCES = {
                          "compare_sampling"],
     "frequency": ["FrequencyResponse", "Margins", "Crossover", "frequency_response", "frequency_grid", "margins"],
     "jitter": ["JitterMargin", "jitter_margin", "stable_for", "jitter_bound"],
-    "neutral": ["NeutralAbscissa", "neutral_abscissa", "polygon_abscissa"],
-    "systems": ["poles", "is_stable", "hinfnorm", "HinfNorm", "nyquist_count", "NyquistCount", "loop_margins",
+    "neutral": ["NeutralAbscissa", "neutral_abscissa", "polygon_abscissa", "ChannelAbscissa", "channel_abscissa"],
+    "systems": ["poles", "neutral_spectrum", "is_stable", "hinfnorm", "HinfNorm", "nyquist_count", "NyquistCount", "loop_margins",
                 "LoopMargins"],
 }
 
@@ -44,7 +44,8 @@ __all__ = [
     "FrequencyResponse", "Margins", "Crossover", "frequency_response", "frequency_grid", "margins",
     "JitterMargin", "jitter_margin", "stable_for", "jitter_bound",
     "poles", "is_stable", "hinfnorm", "HinfNorm", "nyquist_count", "NyquistCount", "loop_margins", "LoopMargins",
-    "NeutralAbscissa", "neutral_abscissa", "polygon_abscissa",
+    "NeutralAbscissa", "neutral_abscissa", "polygon_abscissa", "ChannelAbscissa", "channel_abscissa",
+    "neutral_spectrum",
 ]
 
 

@@ -18,6 +18,13 @@ delays, and their exact supremum when the delays are rationally independent.  ``
 its delays (Hale & Verduyn Lunel 2002), which is what a neutral system must have for its stability to mean
 anything in practice.
 
+For a system in LFT form the difference operator is ``det(I - D22 Delta(s))``; expanded, its terms' delays are
+sums of the channels' and not independent, so the polygon bound on them is conservative.
+:func:`~delaykit.systems.difference.channel_abscissa` (in the systems layer, so that the time kernel can use it
+too; exported here as well) keeps the channels: the supremum over their independent phases, by the structured
+singular value of complex scalar channels (exact, bracketed from above and below), and the exact lines for
+commensurate delays.
+
 Examples
 --------
 >>> from delaykit.models import QuasiPolynomial
@@ -36,7 +43,6 @@ IMA J. Math. Control Inform. 19 (2002).
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 from typing import Any, Sequence
@@ -45,11 +51,10 @@ import numpy as np
 
 from ..errors import InvalidValueError
 from ..models.quasipolynomial import QuasiPolynomial
+from ..systems.difference import ChannelAbscissa, channel_abscissa, rationally_independent
 
-__all__ = ["NeutralAbscissa", "neutral_abscissa", "polygon_abscissa", "difference_operator"]
-
-_RELATION_COEFF = 6  # integer relations between delays searched with coefficients up to this size
-_RELATION_TOL = 1e-9
+__all__ = ["NeutralAbscissa", "neutral_abscissa", "polygon_abscissa", "difference_operator", "ChannelAbscissa",
+           "channel_abscissa"]
 
 
 @dataclass(frozen=True, repr=False)
@@ -141,21 +146,6 @@ def polygon_abscissa(a0: complex, b: Sequence[complex], tau: Sequence[float]) ->
     return float(brentq(h, lo, hi, xtol=1e-15 * max(1.0, abs(lo)), rtol=4 * np.finfo(float).eps))
 
 
-def _independent(tau: Sequence[float]) -> bool:
-    """No integer relation ``sum k_j tau_j = 0`` with ``0 < max |k_j| <= 6`` (to a relative 1e-9)."""
-    t = np.asarray(tau, float)
-    if t.size <= 1:
-        return True
-    if t.size > 4:
-        return False  # not searched: reported as a bound
-    scale = float(np.abs(t).max())
-    rng = range(-_RELATION_COEFF, _RELATION_COEFF + 1)
-    for k in itertools.product(rng, repeat=t.size):
-        if any(k) and abs(float(np.dot(k, t))) <= _RELATION_TOL * scale:
-            return False
-    return True
-
-
 def neutral_abscissa(q: QuasiPolynomial) -> NeutralAbscissa:
     """The polygon bound on the real parts of the roots of ``q``'s difference operator.
 
@@ -182,7 +172,7 @@ def neutral_abscissa(q: QuasiPolynomial) -> NeutralAbscissa:
     if q.kind != "neutral":
         return NeutralAbscissa(-math.inf, (), True)
     a0, b, delays = difference_operator(q)
-    return NeutralAbscissa(polygon_abscissa(a0, b, delays), delays, _independent(delays))
+    return NeutralAbscissa(polygon_abscissa(a0, b, delays), delays, rationally_independent(delays))
 
 
 def difference_operator(q: QuasiPolynomial) -> tuple[complex, tuple[complex, ...], tuple[float, ...]]:

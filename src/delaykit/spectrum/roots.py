@@ -219,9 +219,14 @@ def _grid_candidates(ev: _Eval, box: tuple[float, float, float, float], ds: tupl
     return RK.grid_minima(ev.C, ev.tau, xs, ys)
 
 
-def root_bound(q: QuasiPolynomial, re_min: float = 0.0) -> float:
+def root_bound(q: QuasiPolynomial, re_min: float = 0.0, *, lead: float | None = None) -> float:
     """A radius R such that every root with ``Re s >= re_min`` has ``|s| <= R`` (retarded, or neutral with
     the delayed leading coefficients smaller than the undelayed one there).
+
+    ``lead``, when given, is a lower bound on the modulus of the difference operator (the top-degree
+    coefficients, ``|sum_k b_k exp(-s tau_k)|``) over ``Re s >= re_min``, known from elsewhere (a system's
+    channels: :meth:`~delaykit.spectrum.neutral.ChannelAbscissa.lead`); by default it is
+    ``|a_0| - sum_k |b_k| exp(-re_min tau_k)``.
 
     For ``Re s >= re_min``: ``|p_0(s)| >= |a_n| |s|^n - sum_k |a_k| |s|^k`` and each delayed term is at most
     ``sum_k |b_k| |s|^k exp(-re_min tau)``; ``R = 2 max_k (c_k / lead)^(1/k)`` (Fujiwara's form) makes the
@@ -248,7 +253,8 @@ def root_bound(q: QuasiPolynomial, re_min: float = 0.0) -> float:
             if a.size > n + 1:
                 raise InvalidValueError("an advanced quasi-polynomial has no root bound")
             others[n + 1 - a.size:] += a
-    lead = p0[0] - others[0]
+    if lead is None:
+        lead = p0[0] - others[0]
     if lead <= 0:
         raise InvalidValueError(
             f"neutral chains reach Re s = {re_min:g}: no bounded region holds every root there"

@@ -184,7 +184,8 @@ def _without_zero_root(sp: Spectrum, k: int) -> Spectrum:
     return dataclasses.replace(sp, roots=sp.roots[keep], multiplicities=mult[keep], count=count)
 
 
-def rightmost(q: QuasiPolynomial | AltitudeLoop | Loop, *, re_min: float | None = None) -> Rightmost:
+def rightmost(q: QuasiPolynomial | AltitudeLoop | Loop, *, re_min: float | None = None,
+              neutral: Any = None) -> Rightmost:
     """The rightmost root (Im >= 0) and the spectral abscissa, from a region that provably holds it.
 
     For a retarded quasi-polynomial every root with ``Re s >= x`` has ``|s| <= R(x)`` (:func:`root_bound`), so
@@ -198,6 +199,11 @@ def rightmost(q: QuasiPolynomial | AltitudeLoop | Loop, *, re_min: float | None 
     gigabytes.  For a neutral quasi-polynomial ``x`` stays right of the neutral line, where the bound holds, and
     approaches it (to ``2e-5 / T``); if no root lies there, the abscissa is the line itself.  A polynomial
     (no delay) is searched once, in the disc that holds all its roots.
+
+    ``neutral`` replaces the polygon bound of a neutral ``q``'s difference operator by a sharper one known from
+    its structure: an object with ``abscissa`` (no root chain right of it) and ``lead(x)`` (a lower bound on the
+    difference operator's modulus over ``Re s >= x``), as a system's
+    :func:`~delaykit.spectrum.neutral.channel_abscissa`.
 
     If a strip cannot be certified (its boundary would need more samples than the root finder's budget, or it
     needs more than 4096 parts), or 400 strips hold no root, the result says ``certified=False``; if no root
@@ -217,7 +223,12 @@ def rightmost(q: QuasiPolynomial | AltitudeLoop | Loop, *, re_min: float | None 
     if q.kind == "advanced":
         raise InvalidValueError("an advanced quasi-polynomial has no rightmost root (its roots are unbounded to the "
                                 "right)")
-    lines = neutral_lines(q) if q.kind == "neutral" else ()
+    if q.kind == "neutral" and neutral is not None:
+        lines = (float(neutral.abscissa),)
+        bound = lambda q_, x_: root_bound(q_, x_, lead=neutral.lead(x_))  # noqa: E731
+    else:
+        lines = neutral_lines(q) if q.kind == "neutral" else ()
+        bound = root_bound
     if kept:  # a compensator's structural roots at 0 left in the quasi-polynomial: not the loop's
         search = lambda q_, box, lines_: _without_zero_root(_search(q_, box, lines_), kept)  # noqa: E731
     else:
@@ -251,7 +262,7 @@ def rightmost(q: QuasiPolynomial | AltitudeLoop | Loop, *, re_min: float | None 
         free = _delay_free_scale(q)
         if free < 0.01 * unit:  # delays far shorter than the loop's own time scale: start there, not at -1/T
             x, step = -free, free
-    R = root_bound(q, x)
+    R = bound(q, x)
     right = max(R, x + step)  # no root lies right of R
     sp = search(q, (x, right, lower(R), R), lines)
     for _ in range(_MAX_STRIPS):
@@ -263,11 +274,11 @@ def rightmost(q: QuasiPolynomial | AltitudeLoop | Loop, *, re_min: float | None 
         x_new = x - step
         if lines:
             x_new = max(x_new, line + 0.1 * (x - line), closest)
-        R_new = root_bound(q, x_new)
+        R_new = bound(q, x_new)
         while not lines and R_new > 8.0 * R and step > unit / 64:  # R grows fast here: a narrower strip
             step /= 2.0
             x_new = x - step
-            R_new = root_bound(q, x_new)
+            R_new = bound(q, x_new)
         if R_new < 2.0 * R:
             step *= 2.0
         x, R = x_new, R_new
@@ -467,25 +478,27 @@ def _tracker() -> Callable[..., tuple[int, int]]:
     return track
 
 
-def right_half_plane_count(q: QuasiPolynomial) -> int | None:
+def right_half_plane_count(q: QuasiPolynomial, *, radius: float | None = None) -> int | None:
     """The number of roots of a retarded (or neutral, with its chains left of the axis) quasi-polynomial in the
     closed right half-plane, by one argument-principle integral; None when it cannot be counted that way (a root
     on the imaginary axis, no bound, or too many samples), for the caller to search instead.
 
     Every root with ``Re s >= 0`` has ``|s| <= R`` (Cauchy's form of :func:`root_bound`), so the count on
-    ``[0, R] x [-R, R]`` is all of them.  (For the frequency module's stability verdict.)
+    ``[0, R] x [-R, R]`` is all of them.  (For the frequency module's stability verdict.)  ``radius``, when
+    given, is such an ``R`` known from elsewhere (a neutral system's channels:
+    :func:`~delaykit.spectrum.systems.is_stable`).
 
     Examples
     --------
     >>> [right_half_plane_count(AltitudeLoop(kp=kp, delay=0.368).characteristic()) for kp in (1.31, 5.0)]
     [0, 2]
     """
-    return _rhp_count(*_arrays(q))
+    return _rhp_count(*_arrays(q), radius=radius)
 
 
-def _rhp_count(C: np.ndarray, tau: np.ndarray) -> int | None:
+def _rhp_count(C: np.ndarray, tau: np.ndarray, radius: float | None = None) -> int | None:
     """:func:`right_half_plane_count` on the root finder's arrays (:func:`_arrays`)."""
-    R = RK.bound(C, tau, 0.0)
+    R = RK.bound(C, tau, 0.0) if radius is None else float(radius)
     if R < 0.0:
         return None
     R = R * (1.0 + 1e-9) + 1e-12

@@ -6,8 +6,8 @@ For a :class:`~delaykit.systems.DelayLTI` ``sys``:
   (:meth:`~delaykit.systems.DelayLTI.characteristic`) by the certified root finder
   (:func:`~delaykit.spectrum.roots.find_roots`, :func:`~delaykit.spectrum.stability.rightmost`), for any number of
   incommensurate delays.  Stability is decided for retarded systems and for neutral ones whose difference
-  operator is strongly stable (:func:`~delaykit.spectrum.neutral.neutral_abscissa`); other neutral systems are
-  refused with the reason.
+  operator is strongly stable, channel by channel (:func:`~delaykit.spectrum.neutral.channel_abscissa`); other
+  neutral systems are refused with the reason.
 * :func:`hinfnorm`: the peak of the largest singular value of ``H(jw)`` on a grid that resolves every feature
   (the eigenvalues of ``A``, the delays' ripple), each local peak refined by a bounded scalar search; the
   limit as ``w -> inf`` is added.
@@ -36,12 +36,12 @@ import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
 from ..systems.algebra import feedback, gain
+from ..systems.difference import ChannelAbscissa, channel_abscissa
 from ..systems.lti import DelayLTI
-from .neutral import neutral_abscissa
 from .roots import Spectrum, find_roots, root_bound
-from .stability import rightmost
+from .stability import right_half_plane_count, rightmost
 
-__all__ = ["poles", "is_stable", "hinfnorm", "HinfNorm", "nyquist_count", "NyquistCount", "loop_margins",
+__all__ = ["poles", "neutral_spectrum", "is_stable", "hinfnorm", "HinfNorm", "nyquist_count", "NyquistCount", "loop_margins",
            "LoopMargins"]
 
 _PHASE_STEP = 0.5  # rad: the largest turn of det(I + L) between two points of the Nyquist grid
@@ -59,7 +59,10 @@ def poles(sys: DelayLTI, region: Sequence[float]) -> Spectrum:
     """Every pole of ``sys`` in the rectangle ``region = (re_min, re_max, im_min, im_max)``, certified.
 
     The poles are the roots of ``det(sI - A) det(I - P22(s) Delta(s))`` (hidden modes included), found by
-    :func:`~delaykit.spectrum.roots.find_roots`: ``.roots``, ``.multiplicities``, ``.certified``.
+    :func:`~delaykit.spectrum.roots.find_roots`: ``.roots``, ``.multiplicities``, ``.certified``.  For a
+    neutral system ``.neutral_lines`` holds the supremum of its root chains' real parts for its delays, from the
+    channels (:func:`~delaykit.spectrum.neutral.channel_abscissa`'s ``lines``), not from the expanded
+    determinant.
 
     Examples
     --------
@@ -68,7 +71,38 @@ def poles(sys: DelayLTI, region: Sequence[float]) -> Spectrum:
     >>> sp.roots.round(12).tolist(), sp.certified
     ([(-3+0j)], True)
     """
-    return find_roots(_system(sys).characteristic(), region)
+    sys = _system(sys)
+    q = sys.characteristic()
+    sp = find_roots(q, region)
+    if q.kind == "neutral" and q.degree > 0:
+        import dataclasses
+
+        sp = dataclasses.replace(sp, neutral_lines=(neutral_spectrum(sys).lines,))
+    return sp
+
+
+def neutral_spectrum(sys: DelayLTI) -> ChannelAbscissa:
+    """Where the root chains of a system's difference operator ``det(I - D22 Delta(s))`` lie, per channel.
+
+    :func:`~delaykit.spectrum.neutral.channel_abscissa` of the small-signal system's ``D22`` and delays:
+    ``.abscissa`` (strong stability when negative), ``.lines`` (the supremum for these delays).  A retarded
+    system has none (``-inf``).
+
+    Examples
+    --------
+    >>> from delaykit import append, feedback, delay
+    >>> T = append(feedback(delay(1.0), -0.6), feedback(delay(2 ** 0.5), -0.7))   # w = 0.6 w(t-1), ...
+    >>> neutral_spectrum(T)
+    ChannelAbscissa(-0.252207 (strongly stable, exact), 2 channels)
+    """
+    sys = _system(sys).without_limits()
+    return channel_abscissa(sys.D22, sys.delays)
+
+
+def _rightmost(sys: DelayLTI, q: Any) -> Any:
+    """:func:`~delaykit.spectrum.stability.rightmost` of the characteristic function, a neutral one with its
+    channels' bound (the polygon bound of the expanded determinant is conservative)."""
+    return rightmost(q, neutral=neutral_spectrum(sys) if q.kind == "neutral" else None)
 
 
 def _retarded(sys: DelayLTI, what: str) -> Any:
@@ -85,9 +119,9 @@ def is_stable(sys: DelayLTI) -> bool:
 
     A retarded system is stable when its rightmost pole is (:func:`~delaykit.spectrum.stability.rightmost`).  A
     neutral one (a delay channel feeds another directly) has chains of poles that accumulate on the spectrum of
-    its difference operator; it must be *strongly stable* (the polygon bound of
-    :func:`~delaykit.spectrum.neutral.neutral_abscissa` below 0: stable under every small change of the delays),
-    and then it is stable when its rightmost pole, searched right of that bound, is.
+    its difference operator ``det(I - D22 Delta(s))``; it must be *strongly stable*, channel by channel
+    (:func:`neutral_spectrum`'s abscissa below 0: stable under every small change of each channel's delay), and
+    then it is stable when its rightmost pole, searched right of that abscissa, is.
 
     Raises
     ------
@@ -106,18 +140,27 @@ def is_stable(sys: DelayLTI) -> bool:
     sys = _system(sys)
     q = sys.characteristic()
     if q.kind == "neutral":
-        na = neutral_abscissa(q)
+        na = neutral_spectrum(sys)
         if not na.strongly_stable:
+            how = "" if na.exact else " (an upper bound)"
+            now = (f"; for these exact delays the chains reach {na.lines:.6g}, but an arbitrarily small change of "
+                   "the delays moves them right" if na.exact_lines and na.lines < 0 else "")
             raise InvalidValueError(
-                f"{sys!r} is neutral and its difference operator is not shown strongly stable: the polygon bound "
-                f"on the real parts of its roots is {na.abscissa:.6g} >= 0 (the moduli of its delayed top-degree "
-                "coefficients add up to at least the delay-free one's; with independent delays root chains come "
-                "that close to it), so no stability verdict is given")
+                f"{sys!r} is neutral and its difference operator is not strongly stable: with the channels' delays "
+                f"changed independently its root chains reach Re s = {na.abscissa:.6g}{how} >= 0{now}, so no "
+                "stability verdict is given")
         if q.degree == 0:
             return True  # only the difference operator's roots, all left of its (negative) abscissa
+        # every root right of the axis lies in |s| <= R (the channels' bound on the difference operator there):
+        # one argument-principle count on [0, R] x [-R, R] decides, the chains being left of the axis
+        lead = na.lead(0.0)
+        if lead > 0:
+            n = right_half_plane_count(q, radius=root_bound(q, 0.0, lead=lead))
+            if n is not None:
+                return n == 0
     if q.degree == 0 and len(q.polys) == 1:
         return True  # a constant: no poles at all (a static system, pure delays)
-    rm = rightmost(q)
+    rm = _rightmost(sys, q)
     if not rm.certified and not rm.abscissa < 0:
         raise InvalidValueError(f"the stability of {sys!r} could not be certified: {rm!r}")
     return rm.stable
@@ -243,7 +286,7 @@ def hinfnorm(sys: DelayLTI, *, rtol: float = 1e-10) -> HinfNorm:
     if not is_stable(sys):
         return HinfNorm(math.inf, None, False, rtol, 0)
     q = sys.characteristic()
-    rm = rightmost(q) if len(q.polys) > 1 or q.degree > 0 else None
+    rm = _rightmost(sys, q) if len(q.polys) > 1 or q.degree > 0 else None
     if sys.ninputs == 0 or sys.noutputs == 0:
         return HinfNorm(0.0, 0.0, True, rtol, 0)
     lo, hi, _ = _features(sys)
