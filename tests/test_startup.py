@@ -262,3 +262,33 @@ def test_the_status_spinner_is_skipped_only_where_rich_would_draw_nothing(monkey
     fresh = _LazyConsole(stderr=True)
     fresh.print("hello", highlight=False)
     assert buf.getvalue() == "hello\n"
+
+
+@pytest.mark.parametrize("preset", [None, "2"])
+def test_the_command_asks_blas_for_one_thread_unless_the_user_said(preset):
+    # measured by threadpoolctl in the command's own process, after it has run (numpy loaded by then): one
+    # OpenBLAS thread by default, the user's number where OPENBLAS_NUM_THREADS was set
+    pytest.importorskip("threadpoolctl")
+    code = textwrap.dedent(f"""
+        import json, sys
+        sys.argv = ["delaykit", *{PAPER!r}]
+        from delaykit.cli import main
+        try:
+            main()
+        except SystemExit:
+            pass
+        from threadpoolctl import threadpool_info
+        print("@@" + json.dumps([p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"]))
+    """)
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                                                            "OMP_NUM_THREADS")}
+    env["PYTHONPATH"] = str(SRC) + os.pathsep + os.environ.get("PYTHONPATH", "")
+    if preset:
+        env["OPENBLAS_NUM_THREADS"] = preset
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
+    assert run.returncode == 0, run.stderr
+    threads = json.loads(run.stdout.rpartition("@@")[2])
+    if not threads:
+        pytest.skip("numpy's BLAS is not one threadpoolctl sees")
+    want = int(preset) if preset else 1
+    assert all(n == min(want, os.cpu_count() or want) for n in threads), threads
