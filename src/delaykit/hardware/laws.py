@@ -128,7 +128,6 @@ class FlightLaw:
     def _advance(self, t0: float, t1: float, w: np.ndarray, saturated: bool, frozen: bool) -> None:
         """States from t0 to t1 with r, y and vm held at ``w[:3]``; u and u(t - Tm) from the history."""
         A, B = self._system(saturated, frozen)
-        n = self.order
         tm = self.model_delay
         cuts = {t0, t1}
         k = bisect.bisect_right(self._hist_t, t0)
