@@ -204,3 +204,31 @@ def test_the_source_runs_where_cython_is_not_installed():
     # the root it converged to is a root of s + 1.31 exp(-0.368 s) (the paper's loop), to rounding
     s = complex(root)
     assert abs(s + 1.31 * np.exp(-0.368 * s)) < 1e-12
+
+
+def test_without_extension_or_numba_a_kernel_runs_as_python_and_says_so(monkeypatch):
+    # numba is optional (the extra delaykit[numba]): an install without a C compiler and without numba still
+    # answers, with the plain source, and warns; asking for numba's copy then names the missing package
+    import builtins
+    import importlib.util
+
+    from delaykit import MissingDependencyError, SlowKernelWarning
+
+    monkeypatch.delenv("DELAYKIT_KERNELS", raising=False)
+    monkeypatch.setattr(_native, "built", lambda package, name: False)
+    real_find = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda n, *a: None if n == "numba" else real_find(n, *a))
+    with pytest.warns(SlowKernelWarning, match="numba is not installed"):
+        mod = _native.load("delaykit.spectrum", "_rootkernel")
+    assert mod.__name__ == "delaykit.spectrum._rootkernel_python"
+    real_import = builtins.__import__
+
+    def no_numba(name, *args, **kwargs):
+        if name == "numba" or name.startswith("numba."):
+            raise ImportError("No module named 'numba'")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_numba)
+    monkeypatch.delitem(_native._loaded, ("delaykit.models._expmkernel", "numba"), raising=False)
+    with pytest.raises(MissingDependencyError, match="delaykit\\[numba\\]"):
+        _native.load("delaykit.models", "_expmkernel", "numba")

@@ -45,7 +45,7 @@ __all__ = [
     "step_response", "impulse_response", "initial_response", "forced_response", "SystemTimeResponse",
     "step_response_many", "BatchTimeResponse",
     # PID tuning
-    "tune", "assess", "Tuning", "TuningWarning", "DelaykitWarning", "relay_cycle", "StaleExtensionWarning",
+    "tune", "assess", "Tuning", "TuningWarning", "DelaykitWarning", "relay_cycle", "StaleExtensionWarning", "SlowKernelWarning",
     # decentralised PI for square delay systems: pairing and BLT tuning
     "blt", "BLTResult", "rga", "niederlinski",
     "relay_ultimate", "measure_cycle",
@@ -90,7 +90,7 @@ _LAZY = {
     "initial_response": ".simulate.systems", "forced_response": ".simulate.systems",
     "SystemTimeResponse": ".simulate.systems", "step_response_many": ".simulate.systems",
     "BatchTimeResponse": ".simulate.systems",
-    "StaleExtensionWarning": "._native", "tune": ".design.pid", "assess": ".design.pid", "relay_cycle": ".design.relay", "Tuning": ".design.pid", "TuningWarning": ".design.pid_rules",
+    "StaleExtensionWarning": "._native", "SlowKernelWarning": "._native", "tune": ".design.pid", "assess": ".design.pid", "relay_cycle": ".design.relay", "Tuning": ".design.pid", "TuningWarning": ".design.pid_rules",
     "blt": ".design.mimo", "BLTResult": ".design.mimo", "rga": ".design.mimo", "niederlinski": ".design.mimo",
     "relay_ultimate": ".design.autotune", "measure_cycle": ".design.autotune",
 }

@@ -34,12 +34,16 @@ import warnings
 from pathlib import Path
 from types import ModuleType
 
-from .errors import DelaykitWarning, InvalidValueError
+from .errors import DelaykitWarning, InvalidValueError, MissingDependencyError
 
-__all__ = ["MODES", "load", "built", "sibling", "StaleExtensionWarning"]
+__all__ = ["MODES", "load", "built", "sibling", "StaleExtensionWarning", "SlowKernelWarning"]
 
 MODES = ("cython", "numba", "python")
 _loaded: dict[tuple[str, str], ModuleType] = {}
+
+
+class SlowKernelWarning(DelaykitWarning):
+    """A kernel runs as plain Python: neither its extension module was built nor numba is installed."""
 
 
 class StaleExtensionWarning(DelaykitWarning):
@@ -83,7 +87,8 @@ def load(package: str, name: str, mode: str | None = None) -> ModuleType:
     """The kernel module ``package.name`` in ``mode`` (one of :data:`MODES`).
 
     ``None`` takes ``DELAYKIT_KERNELS`` from the environment where it is set, and otherwise the extension module
-    where it was built, numba's copy where not.
+    where it was built, numba's copy where not (numba is optional: ``pip install delaykit[numba]``), and the plain
+    source, with a :class:`SlowKernelWarning`, where neither is there.
 
     Examples
     --------
@@ -92,7 +97,7 @@ def load(package: str, name: str, mode: str | None = None) -> ModuleType:
     (False, 'delaykit.spectrum._rootkernel_python')
     """
     if mode is None:
-        mode = os.environ.get("DELAYKIT_KERNELS") or ("cython" if built(package, name) else "numba")
+        mode = os.environ.get("DELAYKIT_KERNELS") or _default_mode(package, name)
     if mode not in MODES:
         raise InvalidValueError(f"kernel mode must be one of {', '.join(MODES)} (DELAYKIT_KERNELS), got {mode!r}")
     if mode == "cython":
@@ -105,6 +110,18 @@ def load(package: str, name: str, mode: str | None = None) -> ModuleType:
     if key not in _loaded:
         _loaded[key] = _from_source(package, name, mode)
     return _loaded[key]
+
+
+def _default_mode(package: str, name: str) -> str:
+    """The extension where it was built, else numba's copy where numba is installed, else the plain source."""
+    if built(package, name):
+        return "cython"
+    if importlib.util.find_spec("numba") is not None:
+        return "numba"
+    warnings.warn(f"{package}.{name} was not compiled when delaykit was installed and numba is not installed: it "
+                  "runs as plain Python, far slower; reinstall delaykit where a C compiler is found, or install numba "
+                  "(pip install 'delaykit[numba]')", SlowKernelWarning, stacklevel=3)
+    return "python"
 
 
 def sibling(importer: str, name: str, package: str | None = None) -> ModuleType:
@@ -146,7 +163,12 @@ def _from_source(package: str, name: str, mode: str) -> ModuleType:
     try:
         spec.loader.exec_module(mod)
         if mode == "numba":
-            import numba
+            try:
+                import numba
+            except ImportError:
+                raise MissingDependencyError(f"{package}.{name} in mode numba needs numba, which is not installed: "
+                                             "pip install 'delaykit[numba]', or set DELAYKIT_KERNELS to cython or "
+                                             "python") from None
 
             # every function the module defines, so that kernels calling one another call compiled code (numba
             # reads a called function from the module's globals when it compiles the caller, on first use); a
