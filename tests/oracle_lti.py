@@ -20,13 +20,15 @@ root finder on the dense output, and the integration restarts there in the new m
 from the dense outputs of the segments already solved: every segment is at most the smallest positive delay long,
 so ``t - tau_j`` always lies in the past.  ``z_j`` in the past is recomputed from that segment's state, the input,
 and (only when ``z_j`` depends directly on delayed channels: a neutral system) the delayed channels at that
-earlier time, recursively.
+earlier time, which each solved segment of a neutral system keeps as a Chebyshev interpolant of degree 23 (the
+segment is shorter than every delay and has no breakpoint inside, so the interpolant is exact to rounding level;
+the tests check it against a closed form and the Loop simulator).
 
 Breakpoints.  The integrator restarts at every breakpoint: the start (a jump of the input or of ``z``), the input's
 sample times (kinks), the saturation switches, and their images ``s + tau_j`` through every delay channel.  Each
 breakpoint carries the order of the lowest derivative of the signals that jumps there; an image through channel
-``j`` keeps that order when ``z_j`` has a direct path (no state in between) from what jumped, and gains one
-otherwise; images past ``max_order`` (default 6) are dropped (DOP853's step control absorbs the rest).
+``j`` keeps that order when ``z_j`` has a direct path (no state in between) from what jumped (the input, the
+delayed channel that brought the jump, a zero-delay saturation), and gains one otherwise; images past ``max_order`` (default 6) are dropped (DOP853's step control absorbs the rest).
 A switch of a saturated delayed channel (``z_j`` crossing a limit, found by a non-terminal event) has its
 breakpoint at the switch time plus ``tau_j``.
 
@@ -40,8 +42,11 @@ Dirac parts of the zero-delay channels), and the Dirac parts of ``z`` arrive thr
 jumps of the state; Dirac parts of the outputs (``D11``, ``D12`` paths) are not represented, as in
 python-control's ``impulse_response``.
 
-Not supported (NotImplementedError): saturations with an impulse; a neutral system whose recursion through the
-delayed channels has more than ``max_paths`` paths over the run; Filippov sliding on a saturation (more than 100
+A saturation whose free value grazes its limit, or rests on it (an equilibrium exactly at the limit), would
+switch back and forth at one time: it is then kept linear with its limits widened by 1e-10 (relative) until it
+next switches.
+
+Not supported (NotImplementedError): saturations with an impulse; Filippov sliding on a saturation (more than 100
 switches in a row without progress).
 """
 
@@ -59,6 +64,7 @@ from scipy.integrate import solve_ivp
 __all__ = ["LTIOracle", "Trajectory"]
 
 _GRAZE = 1e-10  # a saturation that grazes its limit (or rests on it) has it widened by this much (relative)
+_CHEB = 24  # points of the Chebyshev interpolant of a neutral system's delayed channels on each segment
 _REL = 1e-11  # breakpoints closer than this (relative to max(1, |t|)) are one; the nudge of delayed look-ups
 
 
@@ -95,13 +101,14 @@ class _Segment:
     dense: Any            # state as a function of time on [a, b] (None for a segment without states)
     x0: np.ndarray        # the state at a (used when there are no states to integrate)
     mode: tuple[int, ...]  # the zero-delay saturation channels' modes: 0 linear, -1 lower, +1 upper
+    wp: Any = None        # neutral systems: the delayed channels' values on [a, b] as a Chebyshev interpolant
 
 
 @dataclass
 class _Break:
     t: float
     u: float = math.inf     # order of the input's lowest jumping derivative (0: the input jumps)
-    w: float = math.inf     # same for the delayed channels' values arriving here
+    w: dict = field(default_factory=dict)  # same for the delayed channels' values arriving here, per channel
     x: float = math.inf     # 0: the state jumps (an impulse)
     sat: float = math.inf   # 1: a zero-delay saturation switches (its value has a kink)
     dirac: np.ndarray | None = None  # Dirac weights arriving in the delayed channels (impulse responses)
@@ -162,12 +169,9 @@ class LTIOracle:
         DOP853's tolerances.
     max_order : int
         Breakpoint images whose jumping derivative is of higher order are not restarted at.
-    max_paths : int
-        Refuse a neutral system whose history recursion has more paths than this.
     """
 
-    def __init__(self, sys: Any, *, rtol: float = 1e-12, atol: float = 1e-14, max_order: int = 6,
-                 max_paths: int = 2000) -> None:
+    def __init__(self, sys: Any, *, rtol: float = 1e-12, atol: float = 1e-14, max_order: int = 6) -> None:
         f = lambda name: np.array(getattr(sys, name), dtype=float)  # noqa: E731
         self.A, self.B1, self.B2 = f("A"), f("B1"), f("B2")
         self.C1, self.C2 = f("C1"), f("C2")
@@ -178,7 +182,7 @@ class LTIOracle:
         self.lo = np.array([p[0] for p in lim], float)
         self.hi = np.array([p[1] for p in lim], float)
         self.n, self.nu, self.ny, self.m = self.A.shape[0], self.B1.shape[1], self.C1.shape[0], m
-        self.rtol, self.atol, self.max_order, self.max_paths = rtol, atol, max_order, max_paths
+        self.rtol, self.atol, self.max_order = rtol, atol, max_order
         self.P = [j for j in range(m) if self.tau[j] > 0]            # delayed channels
         self.Z = [j for j in range(m) if self.tau[j] == 0]           # algebraic channels
         self.limited = [bool(np.isfinite(self.lo[j]) or np.isfinite(self.hi[j])) for j in range(m)]
@@ -261,31 +265,26 @@ class LTIOracle:
         mp = self._map(g.mode)
         Zx, Zu, Zp, zc = mp[4], mp[5], mp[6], mp[7]
         val = float(Zx[j] @ x + Zu[j] @ u + zc[j])
-        for k in np.flatnonzero(self.z_on_wp[j]):  # neutral: the delayed channels at s, recursively
-            jj = self.P[k]
-            v = self._z_past(tr, jj, s - self.tau[jj], sel - self.tau[jj])
-            val += Zp[j, k] * min(max(v, self.lo[jj]), self.hi[jj])
+        if self.z_on_wp[j].any():  # neutral: the delayed channels at s, from that segment's interpolant
+            val += float(Zp[j] @ g.wp(s))
         return val
 
+    def _fit_wp(self, tr: Trajectory, g: _Segment) -> Callable[[float], np.ndarray]:
+        """The delayed channels on a solved segment of a neutral system, interpolated at Chebyshev points of
+        the first kind (interior points: no jump at an end is sampled).  Between breakpoints they are smooth up to
+        derivatives of order max_order or more, and the segments are short, so the interpolant of degree
+        _CHEB - 1 is exact to rounding level; it saves the recursion through every earlier segment."""
+        if g.b - g.a <= _eps(g.b):
+            v = self._delayed(tr, g.a, g.a + _eps(g.a))
+            return lambda s, v=v: v
+        nodes = np.cos(np.pi * (np.arange(_CHEB) + 0.5) / _CHEB)
+        ts = 0.5 * (g.a + g.b) + 0.5 * (g.b - g.a) * nodes
+        vals = np.array([self._delayed(tr, float(t), float(t)) for t in ts])  # (N, len(P))
+        coef = np.polynomial.chebyshev.chebfit(nodes, vals, _CHEB - 1)
+        c, h = 0.5 * (g.a + g.b), 0.5 * (g.b - g.a)
+        return lambda s, coef=coef: np.polynomial.chebyshev.chebval((s - c) / h, coef)
+
     # -- the run ---------------------------------------------------------------------------------------------
-    def _count_paths(self, horizon: float) -> int:
-        """Paths of the neutral recursion (sequences of delayed channels with direct coupling) within horizon."""
-        count = 0
-
-        def walk(j: int, left: float) -> None:
-            nonlocal count
-            for k in np.flatnonzero(self.z_on_wp[j]):
-                jj = self.P[k]
-                if self.tau[jj] <= left:
-                    count += 1
-                    if count > self.max_paths:
-                        return
-                    walk(jj, left - self.tau[jj])
-
-        for j in self.P:
-            walk(j, horizon)
-        return count
-
     def run(self, t_end: float, *, u: Callable[[float, float], np.ndarray] | None = None, X0: Any = 0.0,
             t0: float = 0.0, kinks: Any = (), impulse: Any = None) -> Trajectory:
         """Solve on ``[t0, t_end]``.
@@ -300,8 +299,6 @@ class LTIOracle:
             u = lambda t, sel: zero  # noqa: E731
         if impulse is not None and (self.satZ or any(self.limited)):
             raise NotImplementedError("an impulse into a system with saturations has no meaning here")
-        if self.neutral and self._count_paths(t_end - t0) > self.max_paths:
-            raise NotImplementedError(f"the neutral recursion has more than {self.max_paths} paths over the run")
         x = np.zeros(n) + np.asarray(X0, float).ravel() if n else np.zeros(0)
         tr = Trajectory(self, [], u, t0, t_end)
         pending: list[_Break] = [_Break(t0, u=0.0, x=0.0)]  # at the start anything may jump
@@ -344,10 +341,12 @@ class LTIOracle:
                 self._jump_crossings(tr, pending, t, x, mode, t_end)
             seg, te, jch, crossings = self._segment(tr, t, nxt, x, mode, widen)
             tr.add(seg)
+            if self.neutral:
+                seg.wp = self._fit_wp(tr, seg)
             for ts, j in crossings:  # a delayed saturation switched at ts: a kink of w_j at ts + tau_j
                 tr.switches.append((ts, j))
                 if ts + self.tau[j] < t_end:
-                    self._add(pending, _Break(ts + self.tau[j], w=1.0))
+                    self._add(pending, _Break(ts + self.tau[j], w={self.P.index(j): 1.0}))
             end = seg.b
             x = seg.dense(end) if seg.dense is not None else seg.x0
             if te is not None:  # a zero-delay saturation switches: new mode from here
@@ -383,7 +382,7 @@ class LTIOracle:
             for lim in (self.lo[j], self.hi[j]):
                 if math.isfinite(lim) and (zl[j] - lim) * (zr[j] - lim) < 0 and t + self.tau[j] < t_end:
                     tr.switches.append((t, j))
-                    self._add(pending, _Break(t + self.tau[j], w=0.0))
+                    self._add(pending, _Break(t + self.tau[j], w={self.P.index(j): 0.0}))
 
     def _consistent_mode(self, tr: Trajectory, t: float, sel: float, x: np.ndarray, mode: tuple[int, ...]
                          ) -> tuple[int, ...]:
@@ -508,11 +507,17 @@ class LTIOracle:
     def _add(pending: list[_Break], br: _Break) -> None:
         for p in pending:
             if abs(p.t - br.t) <= _eps(br.t):
-                p.u, p.w, p.x, p.sat = min(p.u, br.u), min(p.w, br.w), min(p.x, br.x), min(p.sat, br.sat)
+                LTIOracle._merge(p, br)
                 if br.dirac is not None:
                     p.dirac = br.dirac if p.dirac is None else p.dirac + br.dirac
                 return
         bisect.insort(pending, br, key=lambda q: q.t)
+
+    @staticmethod
+    def _merge(p: _Break, br: _Break) -> None:
+        p.u, p.x, p.sat = min(p.u, br.u), min(p.x, br.x), min(p.sat, br.sat)
+        for k, o in br.w.items():
+            p.w[k] = min(p.w.get(k, math.inf), o)
 
     @staticmethod
     def _pop(pending: list[_Break], t: float) -> _Break | None:
@@ -522,8 +527,7 @@ class LTIOracle:
             if out is None:
                 out = br
             else:
-                out.u, out.w = min(out.u, br.u), min(out.w, br.w)
-                out.x, out.sat = min(out.x, br.x), min(out.sat, br.sat)
+                LTIOracle._merge(out, br)
                 if br.dirac is not None:
                     out.dirac = br.dirac if out.dirac is None else out.dirac + br.dirac
         return out
@@ -533,11 +537,11 @@ class LTIOracle:
         for k, j in enumerate(self.P):
             order = min(br.x,  # the state jumps: z jumps through C2
                         br.u + (0 if self.z_on_u[j] else 1),
-                        br.w + (0 if self.z_on_wp[j].any() else 1),
+                        min((o + (0 if self.z_on_wp[j, c] else 1) for c, o in br.w.items()), default=math.inf),
                         br.sat + (0 if self.z_on_sat[j] else 1))
             tj = br.t + self.tau[j]
             if order <= self.max_order and tj < t_end - _eps(t_end):
-                self._add(pending, _Break(tj, w=order))
+                self._add(pending, _Break(tj, w={k: order}))
 
     # -- responses shaped as python-control's ----------------------------------------------------------------
     def step(self, T: Any, *, amplitude: float = 1.0, inputs: Any = None) -> np.ndarray:
