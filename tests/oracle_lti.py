@@ -28,8 +28,8 @@ Breakpoints.  The integrator restarts at every breakpoint: the start (a jump of 
 sample times (kinks), the saturation switches, and their images ``s + tau_j`` through every delay channel.  Each
 breakpoint carries the order of the lowest derivative of the signals that jumps there; an image through channel
 ``j`` keeps that order when ``z_j`` has a direct path (no state in between) from what jumped (the input, the
-delayed channel that brought the jump, a zero-delay saturation), and gains one otherwise; images past ``max_order`` (default 6) are dropped (DOP853's step control absorbs the rest).
-A switch of a saturated delayed channel (``z_j`` crossing a limit, found by a non-terminal event) has its
+delayed channel that brought the jump, a zero-delay saturation), and gains one otherwise; images past
+``max_order`` (default 6) are dropped (DOP853's step control absorbs the rest).  A switch of a saturated delayed channel (``z_j`` crossing a limit, found by a non-terminal event) has its
 breakpoint at the switch time plus ``tau_j``.
 
 Delayed look-ups at a segment's ends: on the segment ``[a, b]`` a value at ``s = t - tau`` comes from the piece
@@ -37,7 +37,7 @@ of history that covers the shifted interior ``(a - tau, b - tau)``: the piece is
 the shifted midpoint, then evaluated at ``s``.  Outputs are right-continuous (the value just after a jump), the
 last time excepted.
 
-The impulse response is the regular part: the Dirac at ``t0`` moves the state by ``B1`` (plus ``B2`` times the
+The impulse response is the regular part: the Dirac at 0 moves the state by ``B1`` (plus ``B2`` times the
 Dirac parts of the zero-delay channels), and the Dirac parts of ``z`` arrive through each delay channel as further
 jumps of the state; Dirac parts of the outputs (``D11``, ``D12`` paths) are not represented, as in
 python-control's ``impulse_response``.
@@ -125,6 +125,7 @@ class Trajectory:
     t_end: float
     switches: list[tuple[float, int]] = field(default_factory=list)  # (time, channel) of saturation switches
     starts: list[float] = field(default_factory=list)
+    diracs: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (time, Dirac weights of the outputs)
 
     def add(self, seg: _Segment) -> None:
         self.segments.append(seg)
@@ -320,6 +321,7 @@ class LTIOracle:
                 du = dirac_now[1] if dirac_now is not None else np.zeros(self.nu)
                 dp = here.dirac if here is not None and here.dirac is not None else np.zeros(len(self.P))
                 dw = Wlin[1] @ du + Wlin[2] @ dp
+                tr.diracs.append((t, self.D11 @ du + self.D12 @ dw))
                 x = x + self.B1 @ du + self.B2 @ dw
                 dz = self.D21 @ du + self.D22 @ dw
                 for k, j in enumerate(self.P):
@@ -545,7 +547,8 @@ class LTIOracle:
 
     # -- responses shaped as python-control's ----------------------------------------------------------------
     def step(self, T: Any, *, amplitude: float = 1.0, inputs: Any = None) -> np.ndarray:
-        """Step responses ``(ny, nu, nt)``: input ``i`` steps by ``amplitude`` at ``T[0]``, the others stay 0
+        """Step responses ``(ny, nu, nt)`` at the times ``T`` (>= 0): input ``i`` steps by ``amplitude`` at 0, the
+        others stay 0
         (only the inputs listed in ``inputs``, if given; the other columns are NaN)."""
         T = np.asarray(T, float)
         out = np.full((self.ny, self.nu, T.size), np.nan)
@@ -553,26 +556,29 @@ class LTIOracle:
             e = np.zeros(self.nu)
             e[i] = amplitude
             zero = np.zeros(self.nu)
-            t0 = float(T[0])
-            tr = self.run(float(T[-1]), u=lambda t, sel, e=e, t0=t0: e if sel >= t0 else zero, t0=t0)
+            tr = self.run(float(T[-1]), u=lambda t, sel, e=e: e if sel >= 0.0 else zero)
             out[:, i, :] = tr.outputs(T)
         return out
 
-    def impulse(self, T: Any) -> np.ndarray:
-        """Impulse responses ``(ny, nu, nt)`` (the regular part; see the module docstring)."""
+    def impulse(self, T: Any, *, diracs: bool = False) -> Any:
+        """Impulse responses ``(ny, nu, nt)`` (the regular part; see the module docstring), the impulse at 0;
+        with ``diracs``, also the outputs' Dirac terms as ``(time, output, input, weight)``, weights not 0."""
         T = np.asarray(T, float)
         out = np.empty((self.ny, self.nu, T.size))
+        terms = []
         for i in range(self.nu):
             e = np.zeros(self.nu)
             e[i] = 1.0
-            tr = self.run(float(T[-1]), t0=float(T[0]), impulse=e)
+            tr = self.run(float(T[-1]), impulse=e)
             out[:, i, :] = tr.outputs(T)
-        return out
+            terms += [(tt, k, i, float(wk)) for tt, w in tr.diracs for k, wk in enumerate(w) if wk != 0.0]
+        return (out, sorted(terms)) if diracs else out
 
     def initial(self, T: Any, X0: Any) -> np.ndarray:
-        """The response ``(ny, nt)`` from the state ``X0`` with zero input and history."""
+        """The response ``(ny, nt)`` at the times ``T`` (>= 0) from the state ``X0`` at 0, with zero input and
+        history."""
         T = np.asarray(T, float)
-        return self.run(float(T[-1]), t0=float(T[0]), X0=X0).outputs(T)
+        return self.run(float(T[-1]), X0=X0).outputs(T)
 
     def forced(self, T: Any, U: Any, X0: Any = 0.0) -> np.ndarray:
         """The response ``(ny, nt)`` to ``U`` (``(nu, nt)``, linear between the samples ``T``, 0 before

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from delaykit import delay, feedback, interconnect, saturation, ss, summing_junction, tf
 
-__all__ = ["delay_free_systems", "edge_times", "linear_systems", "systems"]
+__all__ = ["delay_free_systems", "edge_times", "linear_systems", "smooth_systems", "systems"]
 
 # delays on a 0.005 grid: distinct draws are often commensurate (coinciding breakpoints), sometimes not
 _delays = st.integers(20, 300).map(lambda k: round(k * 0.005, 3))
@@ -42,22 +42,22 @@ def _with_delay(text: str, tau: float | None) -> str:
 
 
 @st.composite
-def _transfer_matrix(draw, nd: int, integrating: bool = True):
+def _transfer_matrix(draw, nd: int, integrating: bool = True, proper: bool = True):
     """A p x m transfer matrix (1 to 3 each) with ``nd`` of its entries delayed (distinct draws)."""
     p, m = draw(st.integers(1, 3)), draw(st.integers(1, 3))
     nd = min(nd, p * m)
     cells = draw(st.permutations(list(itertools.product(range(p), range(m)))))[:nd]
-    rows = [[draw(_rational(integrating)) for _ in range(m)] for _ in range(p)]
+    rows = [[draw(_rational(integrating, proper)) for _ in range(m)] for _ in range(p)]
     for (i, j) in cells:
         rows[i][j] = _with_delay(rows[i][j], draw(_delays))
     return tf(rows if (p, m) != (1, 1) else rows[0][0])
 
 
 @st.composite
-def _siso_loop(draw, nd: int, limited: bool, integrating: bool = True):
+def _siso_loop(draw, nd: int, limited: bool, integrating: bool = True, proper: bool = True):
     """``feedback(C * [sat] * G, H)``: a P or PI controller, a plant with a delay, a delayed return path, an
     optional saturation between the controller and the plant; loop gains small enough to stay stable mostly."""
-    plant = draw(_rational(integrating))
+    plant = draw(_rational(integrating, proper))
     taus = [draw(_delays) for _ in range(nd)]
     G = tf(_with_delay(plant, taus[0]))
     kp = round(draw(st.floats(0.1, 0.6)), 3) * (1 if "-" not in plant.split("/")[0] else -1)
@@ -156,6 +156,23 @@ def systems(draw, limited: bool | None = None, neutral: bool = True):
     if kind == "cascade":
         return draw(_cascade(nd, limited))
     return draw(_neutral_loop())
+
+
+@st.composite
+def smooth_systems(draw):
+    """Linear retarded systems whose step responses are continuous (strictly proper plants and return paths, a
+    P or PI controller, no saturation): where a Padé approximation's error dies out away from the delays' edges."""
+    nd = draw(st.integers(1, 3))
+    if draw(st.booleans()):
+        return draw(_transfer_matrix(nd, proper=False))
+    plant = draw(_rational(True, False))
+    taus = [draw(_delays) for _ in range(nd)]
+    kp = round(draw(st.floats(0.1, 0.6)), 3) * (1 if "-" not in plant.split("/")[0] else -1)
+    C = tf(f"{kp}*(1 + 1/(2*s))") if draw(st.booleans()) else tf(f"{kp}")
+    H = tf("1")
+    for tau in taus[1:]:
+        H = H * tf(_with_delay(draw(_rational(False, False)), tau))
+    return feedback(C * tf(_with_delay(plant, taus[0])), H)
 
 
 def linear_systems(neutral: bool = False):
