@@ -39,8 +39,8 @@ last time excepted.
 
 The impulse response is the regular part: the Dirac at 0 moves the state by ``B1`` (plus ``B2`` times the
 Dirac parts of the zero-delay channels), and the Dirac parts of ``z`` arrive through each delay channel as further
-jumps of the state; Dirac parts of the outputs (``D11``, ``D12`` paths) are not represented, as in
-python-control's ``impulse_response``.
+jumps of the state; the outputs' Dirac parts (``D11``, ``D12`` paths) are kept apart
+(``impulse(T, diracs=True)``), as python-control's ``impulse_response`` drops them.
 
 A saturation whose free value grazes its limit, or rests on it (an equilibrium exactly at the limit), would
 switch back and forth at one time: it is then kept linear with its limits widened by 1e-10 (relative) until it
