@@ -16,7 +16,7 @@ import math
 import control
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given, reject, settings
 from hypothesis import strategies as st
 
 from delaykit import AltitudeLoop, DelayLTI, feedback, from_loop, simulate, ss, tf
@@ -184,10 +184,36 @@ def _exact(r):
     return np.asarray(r.outputs, float)
 
 
+def _neutral_bound(sys) -> float:
+    """rho(|D|) for the direct coupling D among the delayed channels (those without delay eliminated, limits as
+    the identity): an upper bound of sup_theta rho(D diag(exp(i theta))), so below 1 means strongly stable."""
+    pos = [j for j, t in enumerate(sys.delays) if t > 0]
+    zero = [j for j, t in enumerate(sys.delays) if t == 0]
+    D = sys.D22
+    Deff = D[np.ix_(pos, pos)]
+    if zero:
+        Deff = Deff + D[np.ix_(pos, zero)] @ np.linalg.solve(np.eye(len(zero)) - D[np.ix_(zero, zero)],
+                                                            D[np.ix_(zero, pos)])
+    return float(max(abs(np.linalg.eigvals(np.abs(Deff))))) if pos else 0.0
+
+
+def _run_or_refused(fn, sys, *args):
+    """The kernel's response; a refusal is accepted only for a neutral system that may not be strongly stable
+    (the bound rho(|D|) >= 1; the example is then dropped), never for one the bound shows strongly stable."""
+    from delaykit.errors import InvalidValueError
+
+    try:
+        return fn(sys, *args)
+    except InvalidValueError:
+        if sys.is_retarded or _neutral_bound(sys) < 1.0:
+            raise
+        reject()
+
+
 def _check_step(sys, t_end):
     K = kernel()
     t = _grid(t_end)
-    close(_exact(K.step_response(sys, t)), LTIOracle(sys).step(t))
+    close(_exact(_run_or_refused(K.step_response, sys, t)), LTIOracle(sys).step(t))
 
 
 @FAST
@@ -205,15 +231,16 @@ def test_kernel_step_matches_oracle_many(sys, t_end):
 
 def _check_forced_and_initial(sys, data):
     K = kernel()
-    t_end = 6.0
-    # the input: random samples, linear between them (python-control's convention), on an offset grid
-    T = _grid(t_end, 40)
+    t_end = 5.0
+    # the input: random samples, linear between them (python-control's convention), on an offset grid (each
+    # sample is a kink the oracle restarts at, with its images: a few keep it quick)
+    T = _grid(t_end, 12)
     U = np.array(data.draw(st.lists(st.lists(st.floats(-1.5, 1.5), min_size=T.size, max_size=T.size),
                                     min_size=sys.ninputs, max_size=sys.ninputs)))
     X0 = np.array(data.draw(st.lists(st.floats(-1, 1), min_size=sys.nstates, max_size=sys.nstates)))
     o = LTIOracle(sys)
-    close(_exact(K.forced_response(sys, T, U, X0)), o.forced(T, U, X0))
-    close(_exact(K.initial_response(sys, T, X0)), o.initial(T, X0))
+    close(_exact(_run_or_refused(K.forced_response, sys, T, U, X0)), o.forced(T, U, X0))
+    close(_exact(_run_or_refused(K.initial_response, sys, T, X0)), o.initial(T, X0))
 
 
 @FAST
@@ -235,7 +262,7 @@ def test_kernel_impulse_matches_oracle(sys):
     # the regular part and the outputs' Dirac terms (the oracle propagates the Dirac through every delay channel)
     K = kernel()
     t = _grid(6.0)
-    r = K.impulse_response(sys, t)
+    r = _run_or_refused(K.impulse_response, sys, t)
     ref, diracs = LTIOracle(sys).impulse(t, diracs=True)
     close(_exact(r), ref)
     got = sorted((float(a), int(i), int(j), float(w)) for a, i, j, w in r.impulses if abs(w) > 1e-12)
