@@ -12,7 +12,7 @@ import sys
 from Cython.Build import cythonize
 from setuptools import Extension, setup
 
-KERNELS = ["delaykit.spectrum._rootkernel"]
+KERNELS = ["delaykit.spectrum._rootkernel", "delaykit.simulate._ltikernel"]
 
 # numba's arithmetic: no bounds or negative-index checks, C's pow, Python's division (a zero divisor raises)
 DIRECTIVES = {"language_level": 3, "boundscheck": False, "wraparound": False, "initializedcheck": False,
@@ -20,7 +20,15 @@ DIRECTIVES = {"language_level": 3, "boundscheck": False, "wraparound": False, "i
 # -O3 as numba's LLVM; no -march (a wheel runs on every CPU of its platform) and no fast-math (results to rounding)
 ARGS = [] if sys.platform == "win32" else ["-O3", "-g0"]
 
-extensions = cythonize([Extension(name, [f"src/{name.replace('.', '/')}.py"], extra_compile_args=ARGS)
+# kernels with OpenMP threads (cython.parallel.prange): built with it where the compiler has it (gcc, clang with
+# libomp: Linux; MSVC's /openmp), otherwise their loops run serially
+THREADED = {"delaykit.simulate._ltikernel"}
+OMP = [] if sys.platform == "darwin" else ["/openmp"] if sys.platform == "win32" else ["-fopenmp"]
+OMP_LINK = [] if sys.platform in ("darwin", "win32") else ["-fopenmp"]
+
+extensions = cythonize([Extension(name, [f"src/{name.replace('.', '/')}.py"],
+                                  extra_compile_args=ARGS + (OMP if name in THREADED else []),
+                                  extra_link_args=OMP_LINK if name in THREADED else [])
                         for name in KERNELS], compiler_directives=DIRECTIVES, quiet=True)
 for ext in extensions:
     ext.optional = True  # a failed C build warns and goes on (set after cythonize, which does not copy it)

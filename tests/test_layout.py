@@ -31,6 +31,9 @@ ALLOWED: set[tuple[str, str]] = {
     # DelayLTI.poles() and .is_stable() (python-control's method names) call the root finder of the layer above,
     # inside the methods; the object and its algebra need nothing from it
     ("delaykit.systems.lti", "delaykit.spectrum.systems"),
+    # DelayLTI.step(), .impulse(), .initial() and .lsim() (python-control's method names) call the time responses
+    # of the layer above, inside the methods, as poles() does
+    ("delaykit.systems.lti", "delaykit.simulate.systems"),
 }
 
 

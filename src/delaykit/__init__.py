@@ -42,6 +42,8 @@ __all__ = [
     # delay systems as objects
     "DelayLTI", "tf", "ss", "delay", "feedback", "append", "interconnect", "summing_junction", "from_loop", "c2d", "saturation", "load_system",
     "poles", "is_stable", "hinfnorm", "nyquist_count", "loop_margins",
+    "step_response", "impulse_response", "initial_response", "forced_response", "SystemTimeResponse",
+    "step_response_many", "BatchTimeResponse",
     # PID tuning
     "tune", "assess", "Tuning", "TuningWarning", "DelaykitWarning", "relay_cycle", "StaleExtensionWarning",
     # decentralised PI for square delay systems: pairing and BLT tuning
@@ -83,6 +85,10 @@ _LAZY = {
     "poles": ".spectrum.systems",
     "is_stable": ".spectrum.systems", "hinfnorm": ".spectrum.systems", "nyquist_count": ".spectrum.systems",
     "loop_margins": ".spectrum.systems",
+    "step_response": ".simulate.systems", "impulse_response": ".simulate.systems",
+    "initial_response": ".simulate.systems", "forced_response": ".simulate.systems",
+    "SystemTimeResponse": ".simulate.systems", "step_response_many": ".simulate.systems",
+    "BatchTimeResponse": ".simulate.systems",
     "StaleExtensionWarning": "._native", "tune": ".design.pid", "assess": ".design.pid", "relay_cycle": ".design.relay", "Tuning": ".design.pid", "TuningWarning": ".design.pid_rules",
     "blt": ".design.mimo", "BLTResult": ".design.mimo", "rga": ".design.mimo", "niederlinski": ".design.mimo",
     "relay_ultimate": ".design.autotune", "measure_cycle": ".design.autotune",

@@ -3,7 +3,8 @@
 :mod:`.simulation` integrates any :class:`~delaykit.models.Loop` (or the paper's :class:`~delaykit.models.AltitudeLoop`) by the method of steps (the compiled
 kernel is the private :mod:`._kernel`), one loop or a batch of them; :mod:`.varying` simulates a sampled loop whose
 delay varies packet by packet (schedules, jitter, bursts, recorded traces); :mod:`.metrics` measures a step response
-(overshoot, peak, rise and settling times, a fitted second-order model, noise level). This layer reads models only;
+(overshoot, peak, rise and settling times, a fitted second-order model, noise level); :mod:`.systems` gives the exact
+step, impulse, initial and forced responses of a :class:`~delaykit.systems.DelayLTI` (kernel :mod:`._ltikernel`). This layer reads models only;
 it is a peer of :mod:`delaykit.spectrum` and neither imports the other.
 
 The names are imported on first use: ``from delaykit.simulate.simulation import simulate`` (what the command line
@@ -29,6 +30,8 @@ _SOURCES = {
     "varying": ["DelayModel", "DelaySchedule", "Jitter", "Burst", "DelayTrace", "CombinedDelay", "as_delay_model",
                 "arrival_plan", "VaryingResponse", "simulate_varying"],
     "montecarlo": ["MonteCarlo", "monte_carlo", "DelayDistribution"],
+    "systems": ["SystemTimeResponse", "step_response", "impulse_response", "initial_response", "forced_response",
+                "step_response_many", "BatchTimeResponse"],
 }
 
 __all__ = [
@@ -36,6 +39,8 @@ __all__ = [
     "Response", "BatchMetrics", "Sampler", "simulate", "simulate_many", "as_loop", "SWEEPABLE",
     "DelayModel", "DelaySchedule", "Jitter", "Burst", "DelayTrace", "CombinedDelay", "as_delay_model", "arrival_plan",
     "VaryingResponse", "simulate_varying", "MonteCarlo", "monte_carlo", "DelayDistribution",
+    "SystemTimeResponse", "step_response", "impulse_response", "initial_response", "forced_response",
+    "step_response_many", "BatchTimeResponse",
 ]
 
 

@@ -513,6 +513,63 @@ class DelayLTI:
 
         return is_stable(self)
 
+    # -- time responses (see delaykit.simulate.systems) ---------------------------------------------------------
+    def step(self, T: Any = None) -> Any:
+        """The exact step response, ``outputs`` shaped ``(outputs, inputs, times)`` (see
+        :func:`delaykit.simulate.systems.step_response`).
+
+        Examples
+        --------
+        >>> from delaykit import tf
+        >>> tf("exp(-s)/(s+1)").step([1.0, 2.0]).outputs.round(6).tolist()
+        [[[0.0, 0.632121]]]
+        """
+        from ..simulate.systems import step_response
+
+        return step_response(self, T)
+
+    def impulse(self, T: Any = None) -> Any:
+        """The exact impulse response, its Dirac terms apart (see
+        :func:`delaykit.simulate.systems.impulse_response`).
+
+        Examples
+        --------
+        >>> from delaykit import tf
+        >>> r = tf("exp(-s)/(s+1)").impulse([1.0, 2.0])
+        >>> r.outputs.round(6).tolist(), r.impulses
+        ([[[1.0, 0.367879]]], ())
+        """
+        from ..simulate.systems import impulse_response
+
+        return impulse_response(self, T)
+
+    def initial(self, T: Any = None, X0: Any = 0.0) -> Any:
+        """The exact free response from the states ``X0`` (see :func:`delaykit.simulate.systems.initial_response`).
+
+        Examples
+        --------
+        >>> from delaykit import tf, feedback
+        >>> feedback(tf("exp(-s)/(s+1)"), 1).initial([0.5, 1.5], X0=1.0).outputs.round(6).tolist()
+        [[0.606531, -0.080135]]
+        """
+        from ..simulate.systems import initial_response
+
+        return initial_response(self, T, X0)
+
+    def lsim(self, T: Any, U: Any, X0: Any = 0.0) -> Any:
+        """The exact response to ``U`` linear between the times ``T`` (see
+        :func:`delaykit.simulate.systems.forced_response`).
+
+        Examples
+        --------
+        >>> from delaykit import tf
+        >>> tf("exp(-s)/s").lsim([0.0, 1.0, 2.0, 3.0], [0.0, 1.0, 1.0, 1.0]).outputs.tolist()
+        [[0.0, 0.0, 0.5, 1.5]]
+        """
+        from ..simulate.systems import forced_response
+
+        return forced_response(self, T, U, X0)
+
     def to_control(self, pade_order: int | None = None) -> Any:
         """A python-control ``StateSpace`` with each delay as a Padé approximation of ``pade_order``
         (see :func:`delaykit.systems.build.to_control`)."""
