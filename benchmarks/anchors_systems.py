@@ -60,13 +60,13 @@ T_END = 100.0
 TIMES = np.linspace(0.0, T_END, 201)
 
 
-def wood_berry_loop():
-    """The same closed loop built by delaykit's algebra (for the oracle and the kernel)."""
+def wood_berry_loop(kc: tuple[float, float] | np.ndarray = KC):
+    """The same closed loop built by delaykit's algebra (for the oracle and the kernel); ``kc`` the PI gains."""
     from delaykit import feedback, tf
 
     G = tf([[f"{GAIN[i, j]}*exp(-{DELAY[i, j]}*s)/({LAG[i, j]}*s+1)" for j in range(2)] for i in range(2)],
            inputs=["R", "S"], outputs=["xD", "xB"], name="Wood-Berry")
-    K = tf([[f"{KC[0]}*(1 + 1/({TAU_I[0]}*s))", 0], [0, f"{KC[1]}*(1 + 1/({TAU_I[1]}*s))"]],
+    K = tf([[f"{kc[0]}*(1 + 1/({TAU_I[0]}*s))", 0], [0, f"{kc[1]}*(1 + 1/({TAU_I[1]}*s))"]],
            inputs=["e1", "e2"], outputs=["R", "S"], name="BLT PI")
     return feedback(G * K, 1)
 

@@ -7,7 +7,9 @@ Rows (issue 21's targets in brackets):
   201 times, both input columns; delaykit's exact kernel against SciPy's DOP853 integrating the same closed loop
   interval by interval (every delay is a whole number of minutes, so each one-minute interval is free of
   breakpoints; the delayed commands are read from the dense outputs of the earlier intervals), at rtol 1e-10 and
-  atol 1e-12 (its difference from the exact answer is printed) [at least 50x];
+  atol 1e-12 (its difference from the exact answer is printed) [at least 50x], and against jitcdde at rtol 1e-8
+  and 1e-10 (its errors printed: it cannot reach the exact answer's rounding) [at least 20x at equal accuracy];
+  the anchors are ``benchmarks/anchors_systems.py``'s;
 * ``--many N`` such responses with the PI gains varied (+-30 %), in parallel threads [10,000 under 5 s on two
   cores]: the systems' construction by the algebra is timed apart.
 
@@ -22,68 +24,20 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
+import sys
 import time
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from delaykit import feedback, tf
 from delaykit.simulate.systems import step_response_many
 
-# Wood & Berry (1973), minutes; Luyben (1986) BLT PI (as docs/guide/systems.md)
-WB = [["12.8*exp(-s)/(16.7*s+1)", "-18.9*exp(-3*s)/(21*s+1)"],
-      ["6.6*exp(-7*s)/(10.9*s+1)", "-19.4*exp(-3*s)/(14.4*s+1)"]]
-GAIN = [[12.8, -18.9], [6.6, -19.4]]
-LAG = [[16.7, 21.0], [10.9, 14.4]]
-DEAD = [[1, 3], [7, 3]]
-KC, TI = (0.375, -0.075), (8.29, 23.6)
-
-
-def wood_berry_pi(kc: tuple[float, float] = KC, ti: tuple[float, float] = TI) -> Any:
-    G = tf(WB, inputs=["R", "S"], outputs=["xD", "xB"])
-    K = tf([[f"{kc[0]}*(1 + 1/({ti[0]}*s))", 0], [0, f"{kc[1]}*(1 + 1/({ti[1]}*s))"]], inputs=["e1", "e2"],
-           outputs=["R", "S"])
-    return feedback(G * K, 1)
-
-
-def scipy_method_of_steps(t_eval: np.ndarray, rtol: float = 1e-10, atol: float = 1e-12) -> np.ndarray:
-    """The closed loop's step responses ``(2, 2, nt)`` by DOP853 on [k, k + 1] min (see the module docstring).
-    States: the four first-order entries x_ij, the two integrals of the errors."""
-    from scipy.integrate import solve_ivp
-
-    out = np.empty((2, 2, t_eval.size))
-    for col in range(2):
-        r = np.zeros(2)
-        r[col] = 1.0
-        sols: list[Any] = []
-
-        def command(x: np.ndarray, r: np.ndarray = r) -> np.ndarray:
-            e = r - np.array([x[0] + x[1], x[2] + x[3]])
-            return np.array([KC[i] * (e[i] + x[4 + i] / TI[i]) for i in range(2)])
-
-        def rhs(t: float, x: np.ndarray, k: int = 0, r: np.ndarray = r) -> np.ndarray:
-            dx = np.empty(6)
-            for i in range(2):
-                for j in range(2):
-                    src = k - DEAD[i][j]  # the interval read, ends included
-                    u = 0.0 if src < 0 else command(sols[src].sol(t - DEAD[i][j]))[j]
-                    dx[2 * i + j] = (-x[2 * i + j] + GAIN[i][j] * u) / LAG[i][j]
-            dx[4:] = r - np.array([x[0] + x[1], x[2] + x[3]])
-            return dx
-
-        x = np.zeros(6)
-        for k in range(int(math.ceil(t_eval[-1]))):
-            sol = solve_ivp(rhs, (k, k + 1), x, method="DOP853", rtol=rtol, atol=atol, dense_output=True, args=(k,))
-            sols.append(sol)
-            x = sol.y[:, -1]
-        for n, t in enumerate(t_eval):
-            xs = sols[min(int(math.floor(t)), len(sols) - 1)].sol(t)
-            out[:, col, n] = [xs[0] + xs[1], xs[2] + xs[3]]
-    return out
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from anchors_systems import KC, JitcddeAnchor, scipy_method_of_steps, wood_berry_loop  # noqa: E402
 
 
 def best(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:
@@ -102,20 +56,29 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--many", type=int, default=10_000)
     ap.add_argument("--quick", action="store_true", help="200 systems in the batch, 1 SciPy run")
     ap.add_argument("--json", type=str, default=None)
+    ap.add_argument("--no-jitcdde", action="store_true", help="leave out jitcdde (it compiles C code first)")
     args = ap.parse_args(argv)
     many = 200 if args.quick else args.many
     console = Console()
     t = np.linspace(0.0, 100.0, 201)
-    T = wood_berry_pi()
+    T = wood_berry_loop()
     T.step(t)  # the first call (the extension's import) apart
     dk, exact = best(lambda: T.step(t), args.repeat)
-    sp, mos = best(lambda: scipy_method_of_steps(t), 1 if args.quick else max(1, args.repeat // 2))
-    rows = [{"case": "Wood-Berry PI, 2x2 step, 100 min, 201 times", "delaykit_ms": dk * 1e3, "scipy_ms": sp * 1e3,
-             "ratio": sp / dk, "scipy_error": float(np.abs(mos - exact.outputs).max()),
-             "pieces": exact.pieces, "status": exact.status}]
+    sp, mos = best(lambda: scipy_method_of_steps(t)[1], 1 if args.quick else max(1, args.repeat // 2))
+    rows = [{"case": "Wood-Berry PI, 2x2 step, 100 min, 201 times", "anchor": "SciPy DOP853 method of steps, rtol 1e-10",
+             "delaykit_ms": dk * 1e3, "anchor_ms": sp * 1e3, "ratio": sp / dk,
+             "anchor_error": float(np.abs(mos - exact.outputs).max()), "pieces": exact.pieces, "status": exact.status}]
+    if not args.no_jitcdde:
+        jit = JitcddeAnchor()  # compiled once, not timed
+        for rtol in (1e-8, 1e-10):
+            tj, yj = best(lambda rtol=rtol: jit.run(t, rtol=rtol, atol=rtol * 1e-2)[1], args.repeat)
+            rows.append({"case": "Wood-Berry PI, 2x2 step, 100 min, 201 times", "anchor": f"jitcdde, rtol {rtol:g}",
+                         "delaykit_ms": dk * 1e3, "anchor_ms": tj * 1e3, "ratio": tj / dk,
+                         "anchor_error": float(np.abs(yj - exact.outputs).max()), "pieces": exact.pieces,
+                         "status": exact.status})
     rng = np.random.default_rng(0)
     c0 = time.perf_counter()
-    loops = [wood_berry_pi(kc=(KC[0] * rng.uniform(0.7, 1.3), KC[1] * rng.uniform(0.7, 1.3))) for _ in range(many)]
+    loops = [wood_berry_loop(kc=(KC[0] * rng.uniform(0.7, 1.3), KC[1] * rng.uniform(0.7, 1.3))) for _ in range(many)]
     build = time.perf_counter() - c0
     w0, p0 = time.perf_counter(), time.process_time()
     batch = step_response_many(loops, t)
@@ -125,14 +88,15 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     rows.append({"case": f"{many} Wood-Berry PI loops (gains +-30 %), step_response_many", "wall_s": wall,
                  "cpu_s": cpu, "build_s": build, "threads": os.cpu_count(), "load": os.getloadavg()[0],
                  "not_exact": sum(s != "exact" for s in batch.status), "difference_from_one_by_one": diff})
-    table = Table(title="Exact time responses of delay systems")
-    for col in ("case", "delaykit", "SciPy MoS", "ratio", "notes"):
+    table = Table(title="Exact time responses of delay systems (CPU time, side by side)")
+    for col in ("case", "anchor", "delaykit", "anchor time", "ratio", "notes"):
         table.add_column(col)
-    r0 = rows[0]
-    table.add_row(r0["case"], f"{r0['delaykit_ms']:.2f} ms", f"{r0['scipy_ms']:.0f} ms", f"{r0['ratio']:.0f}x",
-                  f"{r0['pieces']} pieces, {r0['status']}; SciPy (rtol 1e-10) off by {r0['scipy_error']:.1e}")
-    r1 = rows[1]
-    table.add_row(r1["case"], f"{r1['wall_s']:.2f} s wall, {r1['cpu_s']:.2f} s CPU", "", "",
+    for r in rows[:-1]:
+        table.add_row(r["case"], r["anchor"], f"{r['delaykit_ms']:.2f} ms", f"{r['anchor_ms']:.1f} ms",
+                      f"{r['ratio']:.0f}x", f"delaykit {r['pieces']} pieces, {r['status']}; the anchor is off by "
+                      f"{r['anchor_error']:.1e}")
+    r1 = rows[-1]
+    table.add_row(r1["case"], "", f"{r1['wall_s']:.2f} s wall, {r1['cpu_s']:.2f} s CPU", "", "",
                   f"{r1['threads']} threads, load {r1['load']:.1f}; building the systems {r1['build_s']:.1f} s "
                   f"(not timed); {r1['not_exact']} not exact; equal to one by one within "
                   f"{r1['difference_from_one_by_one']:.0e}")
