@@ -88,9 +88,15 @@ cpdef Py_ssize_t _run(double[:] par, double[:] rt, double[:] r0, double[:] rs, P
                       bint keep_y, double[:] et, double[:] ez, double[:, :] X, double[:] buf,
                       double[:, :, :] mats) noexcept nogil
 cpdef run_batch(double[:, :] pars, Py_ssize_t cap, Py_ssize_t nchunks, Py_ssize_t nsets=*)
-@cython.locals(s=Py_ssize_t, k=Py_ssize_t, i=Py_ssize_t, m=Py_ssize_t, lo=Py_ssize_t, hi=Py_ssize_t, c=Py_ssize_t)
+@cython.locals(s=Py_ssize_t)
 cpdef void _batch_sets(double[:, :] pars, Py_ssize_t cap, Py_ssize_t nchunks, Py_ssize_t nsets, double[:, :] out,
                        double[:, :] tu0, double[:, :] thu, double[:, :, :] tuc, long long[:, :] tdeg,
                        signed char[:, :] ugen, double[:, :] ty0, double[:, :] tyh, double[:, :, :] tyc,
                        double[:, :, :] tyd, signed char[:, :] ygen, double[:, :, :] X, double[:, :] buf,
                        double[:, :, :, :] mats, double[:, :] ref, double[:] none) noexcept nogil
+@cython.locals(k=Py_ssize_t, i=Py_ssize_t, m=Py_ssize_t, lo=Py_ssize_t, hi=Py_ssize_t, c=Py_ssize_t)
+cpdef void _set_chunks(double[:, :] pars, Py_ssize_t cap, Py_ssize_t nchunks, Py_ssize_t nsets, Py_ssize_t s,
+                       double[:, :] out, double[:] tu0, double[:] thu, double[:, :] tuc, long long[:] tdeg,
+                       signed char[:] ugen, double[:] ty0, double[:] tyh, double[:, :] tyc, double[:, :] tyd,
+                       signed char[:] ygen, double[:, :] X, double[:] buf, double[:, :, :] mats, double[:] ref,
+                       double[:] none) noexcept nogil

@@ -1140,23 +1140,35 @@ def run_batch(pars, cap, nchunks, nsets=1):
     mats = np.empty((nsets, 4, MAXN, MAXN))
     ref = np.zeros((nsets, 3))  # the reference's knot, value and slope (rt, r0, rs)
     none = np.empty(0)
-    _batch_sets(pars, cap, nchunks, nsets, out, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, X, buf, mats, ref,
-                none)
+    if nsets == 1:  # on this thread: a parallel loop of one set would keep OpenMP's other threads spinning idle
+        _set_chunks(pars, cap, nchunks, 1, 0, out, tu0[0], thu[0], tuc[0], tdeg[0], ugen[0], ty0[0], tyh[0], tyc[0],
+                    tyd[0], ygen[0], X[0], buf[0], mats[0], ref[0], none)
+    else:
+        _batch_sets(pars, cap, nchunks, nsets, out, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, X, buf, mats,
+                    ref, none)
     return out
 
 
 def _batch_sets(pars, cap, nchunks, nsets, out, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, X, buf, mats, ref,
                 none):
-    """:func:`run_batch`'s parallel loop: work set ``s`` runs the chunks ``s, s + nsets, ...`` on its own arrays
-    (``ref[s]``: the reference's knot, value and slope; ``none``: no samples of y)."""
-    m = pars.shape[0]
+    """:func:`run_batch`'s parallel loop: work set ``s`` runs the chunks ``s, s + nsets, ...`` on its own arrays."""
     for s in prange(nsets):
-        for k in range((nchunks - 1 - s) // nsets + 1):  # (a step of nsets from s)
-            c = s + k * nsets
-            lo = c * m // nchunks
-            hi = (c + 1) * m // nchunks
-            for i in range(lo, hi):
-                ref[s, 1] = pars[i, _STEP]
-                ref[s, 2] = pars[i, _SLOPE]
-                _run(pars[i], ref[s, 0:1], ref[s, 1:2], ref[s, 2:3], cap, tu0[s], thu[s], tuc[s], tdeg[s], ugen[s],
-                     ty0[s], tyh[s], tyc[s], tyd[s], ygen[s], out[i], False, none, none, X[s], buf[s], mats[s])
+        _set_chunks(pars, cap, nchunks, nsets, s, out, tu0[s], thu[s], tuc[s], tdeg[s], ugen[s], ty0[s], tyh[s], tyc[s],
+                    tyd[s], ygen[s], X[s], buf[s], mats[s], ref[s], none)
+
+
+def _set_chunks(pars, cap, nchunks, nsets, s, out, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, X, buf, mats,
+                ref, none):
+    """Work set ``s`` of :func:`run_batch`: the chunks ``s, s + nsets, ...`` on that set's arrays (``ref``: the
+    reference's knot, value and slope; ``none``: no samples of y).  The set's arrays are sliced once, here, not per
+    row (compiled by Cython, each slice kept in a variable counts a reference on the batch's shared array)."""
+    m = pars.shape[0]
+    for k in range((nchunks - 1 - s) // nsets + 1):  # (a step of nsets from s)
+        c = s + k * nsets
+        lo = c * m // nchunks
+        hi = (c + 1) * m // nchunks
+        for i in range(lo, hi):
+            ref[1] = pars[i, _STEP]
+            ref[2] = pars[i, _SLOPE]
+            _run(pars[i], ref[0:1], ref[1:2], ref[2:3], cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, out[i],
+                 False, none, none, X, buf, mats)
