@@ -28,7 +28,7 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 from rich.console import Console
@@ -38,16 +38,7 @@ from delaykit.simulate.systems import step_response_many
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from anchors_systems import KC, JitcddeAnchor, scipy_method_of_steps, wood_berry_loop  # noqa: E402
-
-
-def best(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:
-    """Least CPU time of this thread over ``repeat`` calls, and the last result."""
-    times, out = [], None
-    for _ in range(repeat):
-        t0 = time.thread_time()
-        out = fn()
-        times.append(time.thread_time() - t0)
-    return min(times), out
+from bench_native import best  # noqa: E402  (least CPU time of this thread over repeated calls)
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:
