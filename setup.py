@@ -87,4 +87,5 @@ extensions = (cythonize([extension(n) for n in KERNELS if n not in SIMULATOR_KER
 for ext in extensions:
     ext.optional = True  # a failed C build warns and goes on (set after cythonize, which does not copy it)
 
-setup(ext_modules=extensions)
+# the extension modules are compiled side by side, one per core (a fresh install's longest step)
+setup(ext_modules=extensions, options={"build_ext": {"parallel": os.cpu_count() or 1}})

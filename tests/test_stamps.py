@@ -11,6 +11,9 @@ import pytest
 from delaykit.hardware.stamps import enable_stamps, recv_stamped
 
 
+# real time: on a saturated machine the loopback delivery itself (a deferred softirq) can come after the 80 ms, and
+# the stamp is then rightly late; run with the other timing tests, alone
+@pytest.mark.realtime
 def test_a_late_reader_gets_the_arrival_time_not_its_own():
     # the datagram is sent, then the reader sleeps 80 ms before reading: the time of reading is >= 80 ms late,
     # the kernel's stamp is the send time to within the loopback path (microseconds; 20 ms allows a busy machine)
