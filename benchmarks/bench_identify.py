@@ -112,7 +112,7 @@ def main() -> dict:
         table.add_column(col, justify="right")
 
     def ms(t: float) -> str:
-        return f"{t * 1e3:.1f} ms" if t < 10 else f"{t:.1f} s"
+        return f"{t * 1e3:.1f} ms" if t < 1 else f"{t:.2f} s"
 
     for label, r in rows.items():
         mine = "\n".join(f"{k} {r['delaykit']['params'][k]:.4f} ± {r['delaykit']['stderr'][k]:.4f}" for k in params)
