@@ -117,6 +117,36 @@ def test_the_compiled_realisation_is_the_structures_transfer_function(name, fit_
             assert h == pytest.approx(np.polyval(tf.num, s) / np.polyval(tf.den, s), rel=1e-12), mode
 
 
+@pytest.mark.parametrize("case,name", [("heater", "sopdt"), ("px4", "ipdt_speed")])
+def test_a_trial_point_leaves_nothing_in_the_work_arrays_for_the_next(case, name, fit_kernels):
+    # the kernels reuse one fit's work arrays from point to point: a point with a fractional delay (both
+    # held-input vectors, a third-order or second-order state) followed by one of whole periods (no early
+    # vector) must give what that point gives on fresh arrays, in every mode
+    for mode, fk in fit_kernels.items():
+        used, fresh = _problem(case, name), _problem(case, name)
+        p = F._guesses(used.st, used.preps, used.law)[1]
+        q = p.copy()
+        p[-1] = 3.4 * used.h
+        q[-1] = 2.0 * used.h
+        out, ref = np.empty(used.size), np.empty(used.size)
+        assert fk.evaluate(used.st.code, p, *used._data(), out) == fk.OK
+        assert fk.evaluate(used.st.code, q, *used._data(), out) == fk.OK
+        assert fk.evaluate(fresh.st.code, q, *fresh._data(), ref) == fk.OK
+        assert np.array_equal(out, ref), mode
+        # and the Jacobian, whose shifted points share the arrays with the point itself
+        z = used.to_fit(q)
+        lb, ub = used.bounds()
+        J, Jf = np.empty((used.size, q.size)), np.empty((used.size, q.size))
+        r0 = np.empty(used.size)
+        fk.evaluate_fit(used.st.code, z, used._pos8, used._rw, *used._data(), r0)
+        fk.jacobian_fit(used.st.code, used.to_fit(p), used._pos8, lb, ub, r0, used._rw, *used._data(),
+                        np.empty(used.size), J)
+        fk.jacobian_fit(used.st.code, z, used._pos8, lb, ub, r0, used._rw, *used._data(), np.empty(used.size), J)
+        fk.jacobian_fit(fresh.st.code, z, fresh._pos8, lb, ub, r0, fresh._rw, *fresh._data(), np.empty(used.size),
+                        Jf)
+        assert np.array_equal(J, Jf), mode
+
+
 def test_the_kernels_status_values_agree_in_every_mode(fit_kernels):
     prob = _problem("heater", "fopdt")
     data = prob._data()

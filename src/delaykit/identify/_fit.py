@@ -249,7 +249,8 @@ class _Problem:
         self.k0, self.p0, self.m0 = self._kept(self.first)
         self.k1, self.p1, self.m1 = self._kept(self.rate) if self.rate else self._kept(None)
         n = self.drive.size
-        self._y, self._dy, self._uy, self._udy = (np.empty(n) for _ in range(4))
+        self._y, self._dy, self._uy, self._udy, self._u = (np.empty(n) for _ in range(5))
+        self._mats, self._vecs = FK.workspace(max(st.code, 0), st.size)  # (the kernels' work arrays, made once)
         sizes = []
         for i in range(len(preps)):
             sizes += [(self.first, int(self.p0[i + 1] - self.p0[i]))]
@@ -296,7 +297,8 @@ class _Problem:
             A, B, C = self.st.realise(p)
             with np.errstate(all="ignore"):
                 phi, ge, gl, m, frac = held_matrices_of(A, B, self.h, float(p[-1]))
-                status = FK.core(phi, ge, gl, m, frac, C, np.ascontiguousarray(C @ A), float(C @ B), *data[2:], out)
+                status = FK.core(phi, ge, gl, m, frac, C, np.ascontiguousarray(C @ A), float(C @ B), *data[2:-2],
+                                 np.empty(B.size), np.empty(B.size), out)
         if status == _ALGEBRAIC:
             raise InvalidValueError("a sampled loop without delay and a velocity term on a plant whose velocity "
                                     "jumps is an algebraic loop")
@@ -327,7 +329,7 @@ class _Problem:
         return (self.h, SNAP, self.drive, self.starts, law is not None, law.kp if law else 0.0,
                 law.kv if law else 0.0, self.lo, self.hi, self.fit_bias, self.fit_offset, self.k0, self.p0, self.m0,
                 self.k1, self.p1, self.m1, float(self.w[self.first]), float(self.w[self.rate]) if self.rate else 1.0,
-                self._y, self._dy, self._uy, self._udy)
+                self._y, self._dy, self._uy, self._udy, self._u, self._mats, self._vecs)
 
     def residuals(self, z: np.ndarray) -> np.ndarray:
         """Weighted residuals at fitting coordinates ``z``; a flat 1e6 where the simulation fails or overflows

@@ -7,8 +7,12 @@ built (the C types are in ``_fitkernel.pxd``), compiled by numba on first use wh
 as plain Python.  So the code here keeps to what all three read alike (see ``docs/guide/first-calls.md``).
 
 The held-input matrices and the simulation of the logs are the discrete simulator's kernel
-(:mod:`delaykit.simulate._discretekernel`: ``held_arrays``, ``run_logs``), cimported by the extension and taken in
-this module's own mode otherwise.
+(:mod:`delaykit.simulate._discretekernel`: ``held_arrays_into``, ``run_logs_into``), cimported by the extension and
+taken in this module's own mode otherwise.
+
+A trial point allocates nothing: its matrices and vectors are rows of the two work arrays of :func:`workspace`,
+made once per fit (allocating a dozen small NumPy arrays per trial point cost the extension more than the
+simulation of a 600-sample log).
 """
 
 from __future__ import annotations
@@ -25,18 +29,18 @@ except ImportError:  # plain Python without Cython installed: only ``cython.comp
     cython = SimpleNamespace(compiled=False)
 
 if cython.compiled:  # C's own functions and the discrete simulator's extension (Cython turns these into cimports)
-    from cython.cimports.delaykit.simulate._discretekernel import held_arrays as _held_arrays
-    from cython.cimports.delaykit.simulate._discretekernel import run_logs as _run_logs
+    from cython.cimports.delaykit.simulate._discretekernel import held_arrays_into as _held_arrays_into
+    from cython.cimports.delaykit.simulate._discretekernel import run_logs_into as _run_logs_into
     from cython.cimports.libc.math import exp, floor, isfinite
 else:  # the discrete simulator's kernel in this module's own mode (numba's copy calls numba's)
     from math import exp, floor, isfinite
 
     from delaykit import _native
 
-    _held_arrays = _native.sibling(__name__, "_discretekernel", "delaykit.simulate").held_arrays
-    _run_logs = _native.sibling(__name__, "_discretekernel", "delaykit.simulate").run_logs
+    _held_arrays_into = _native.sibling(__name__, "_discretekernel", "delaykit.simulate").held_arrays_into
+    _run_logs_into = _native.sibling(__name__, "_discretekernel", "delaykit.simulate").run_logs_into
 
-__all__ = ["realise", "core", "evaluate", "evaluate_fit", "jacobian_fit", "residual_blocks", "dot",
+__all__ = ["order", "workspace", "realise", "realise_into", "core", "evaluate", "evaluate_fit", "jacobian_fit", "residual_blocks", "dot",
            "normal_equations", "OK", "STIFF_PLANT", "NEGATIVE", "ALGEBRAIC", "NONFINITE", "STEP", "COMPILED"]
 
 COMPILED: bool = cython.compiled
@@ -49,13 +53,41 @@ STEP = 1e-6
 """Relative step of the forward differences in fitting coordinates."""
 
 
+def order(code):
+    """The number of states of structure number ``code``'s realisation."""
+    return 1 if code == 0 or code == 3 else (3 if code == 2 else 2)
+
+
+def workspace(code, size):
+    """The work arrays of a fit of structure number ``code`` with ``size`` parameters: ``mats`` (7 matrices of
+    order n + 1: the realisation's ``A`` and the one-period ``phi`` in their top-left corners, and the five of the
+    held-input exponentials) and ``vecs`` (9 rows: ``B``, ``C``, ``C A``, ``g_early``, ``g_late``, the state and the
+    next state, the physical point and the Jacobian's shifted one)."""
+    n = order(code)
+    mats = np.zeros((7, n + 1, n + 1))
+    vecs = np.zeros((9, max(n, size)))
+    return np.asarray(mats), np.asarray(vecs)
+
+
 def realise(code, v):
     """``(A, B, C)`` of structure number ``code`` (:attr:`~.structures.Structure.code`) at the values ``v``: the
     physical cascade (a lag's output, then the next lag or the integrator), every entry of the size of a rate."""
-    n = 1 if code == 0 or code == 3 else (3 if code == 2 else 2)
+    n = order(code)
     A = np.zeros((n, n))
     B = np.zeros(n)
     C = np.zeros(n)
+    realise_into(code, v, A, B, C)
+    return np.asarray(A), np.asarray(B), np.asarray(C)
+
+
+def realise_into(code, v, A, B, C):
+    """:func:`realise` into ``A`` (of the order's shape), ``B`` and ``C``."""
+    n = A.shape[0]
+    for i in range(n):
+        for j in range(n):
+            A[i, j] = 0.0
+        B[i] = 0.0
+        C[i] = 0.0
     C[n - 1] = 1.0
     if code == 0:  # ipdt: y' = K u
         B[0] = v[0]
@@ -86,7 +118,6 @@ def realise(code, v):
         A[1, 0] = b
         A[1, 1] = -b
         B[0] = v[0] * a
-    return np.asarray(A), np.asarray(B), np.asarray(C)
 
 
 def residual_blocks(y, dy, uy, udy, starts, k0, p0, m0, k1, p1, m1, w0, w1, bias, offset, out):
@@ -150,25 +181,31 @@ def residual_blocks(y, dy, uy, udy, starts, k0, p0, m0, k1, p1, m1, w0, w1, bias
 
 
 def core(phi, ge, gl, m, frac, C, ca, cb, drive, starts, closed, kp, kv, lo, hi, bias, offset, k0, p0, m0, k1, p1,
-         m1, w0, w1, y, dy, uy, udy, out):
-    """Simulate every log with the one-period matrices and fill ``out`` with the projected raw residuals."""
+         m1, w0, w1, y, dy, uy, udy, u, x, xn, out):
+    """Simulate every log with the one-period matrices and fill ``out`` with the projected raw residuals (``u``:
+    work array of ``drive``'s length; ``x``, ``xn``: of the plant's order)."""
     if closed and m == 0 and not frac and kv != 0.0 and cb != 0.0:
         return ALGEBRAIC
-    _run_logs(phi, ge, gl, C, 0.0, ca, cb, m, frac, drive, starts, closed, kp, kv, lo, hi, bias, y, dy, uy, udy)
+    _run_logs_into(phi, ge, gl, C, 0.0, ca, cb, m, frac, drive, starts, closed, kp, kv, lo, hi, bias, y, dy, uy, udy,
+                   u, x, xn)
     residual_blocks(y, dy, uy, udy, starts, k0, p0, m0, k1, p1, m1, w0, w1, bias, offset, out)
     return OK
 
 
 def evaluate(code, p, h, snap, drive, starts, closed, kp, kv, lo, hi, bias, offset, k0, p0, m0, k1, p1, m1, w0, w1,
-             y, dy, uy, udy, out):
+             y, dy, uy, udy, u, mats, vecs, out):
     """One trial point, compiled end to end: the realisation, the delay split as
-    :func:`~delaykit.models.hold.split_delay` splits it, the exact one-period matrices, the logs, the residuals.
+    :func:`~delaykit.models.hold.split_delay` splits it, the exact one-period matrices, the logs, the residuals
+    (``u``: work array of ``drive``'s length; ``mats``, ``vecs``: :func:`workspace`'s).
     Returns ``STIFF_PLANT`` (nothing computed) when the plant is far too fast for the compiled exponential."""
     T = p[p.shape[0] - 1]
     if not T >= 0.0:
         return NEGATIVE
-    A, B, C = realise(code, p)
-    n = A.shape[0]
+    n = order(code)
+    A = mats[0, :n, :n]
+    B = vecs[0, :n]
+    C = vecs[1, :n]
+    realise_into(code, p, A, B, C)
     norm = 0.0
     for i in range(n):
         for j in range(n):
@@ -182,28 +219,32 @@ def evaluate(code, p, h, snap, drive, starts, closed, kp, kv, lo, hi, bias, offs
     elif h - f < snap * h:
         m += 1
         f = 0.0
-    phi, ge, gl = _held_arrays(A, B, h, f)
-    ca = np.zeros(n)
+    phi = mats[1, :n, :n]
+    ge = vecs[3, :n]
+    gl = vecs[4, :n]
+    _held_arrays_into(A, B, h, f, phi, ge, gl, mats[2:, :n + 1, :n + 1])
+    ca = vecs[2, :n]
     cb = 0.0
     for j in range(n):
         cb += C[j] * B[j]
+        ca[j] = 0.0
         for i in range(n):
             ca[j] += C[i] * A[i, j]
     return core(phi, ge, gl, m, f > 0.0, C, ca, cb, drive, starts, closed, kp, kv, lo, hi, bias, offset, k0, p0, m0,
-                k1, p1, m1, w0, w1, y, dy, uy, udy, out)
+                k1, p1, m1, w0, w1, y, dy, uy, udy, u, vecs[5, :n], vecs[6, :n], out)
 
 
 def evaluate_fit(code, z, pos, rw, h, snap, drive, starts, closed, kp, kv, lo, hi, bias, offset, k0, p0, m0, k1, p1,
-                 m1, w0, w1, y, dy, uy, udy, out):
+                 m1, w0, w1, y, dy, uy, udy, u, mats, vecs, out):
     """:func:`evaluate` at fitting coordinates (``exp`` of the positive ones, clipped at +-60), the residuals
     weighted; ``NONFINITE`` when they overflow."""
-    p = np.empty(z.shape[0])
+    p = vecs[7, :z.shape[0]]
     for i in range(z.shape[0]):
         p[i] = exp(min(max(z[i], -60.0), 60.0)) if pos[i] != 0 else z[i]
         if not isfinite(p[i]):
             return NONFINITE
     status = evaluate(code, p, h, snap, drive, starts, closed, kp, kv, lo, hi, bias, offset, k0, p0, m0, k1, p1, m1,
-                      w0, w1, y, dy, uy, udy, out)
+                      w0, w1, y, dy, uy, udy, u, mats, vecs, out)
     if status != OK:
         return status
     for i in range(out.shape[0]):
@@ -214,9 +255,9 @@ def evaluate_fit(code, z, pos, rw, h, snap, drive, starts, closed, kp, kv, lo, h
 
 
 def jacobian_fit(code, z, pos, lb, ub, r0, rw, h, snap, drive, starts, closed, kp, kv, lo, hi, bias, offset, k0, p0,
-                 m0, k1, p1, m1, w0, w1, y, dy, uy, udy, col, J):
+                 m0, k1, p1, m1, w0, w1, y, dy, uy, udy, u, mats, vecs, col, J):
     """Forward differences of :func:`evaluate_fit` around ``z`` (residuals ``r0`` there) into ``J``."""
-    zz = np.empty(z.shape[0])
+    zz = vecs[8, :z.shape[0]]
     for i in range(z.shape[0]):
         zz[i] = z[i]
     for i in range(z.shape[0]):
@@ -226,7 +267,7 @@ def jacobian_fit(code, z, pos, lb, ub, r0, rw, h, snap, drive, starts, closed, k
         zz[i] = z[i] + step
         dz = zz[i] - z[i]
         status = evaluate_fit(code, zz, pos, rw, h, snap, drive, starts, closed, kp, kv, lo, hi, bias, offset, k0, p0,
-                              m0, k1, p1, m1, w0, w1, y, dy, uy, udy, col)
+                              m0, k1, p1, m1, w0, w1, y, dy, uy, udy, u, mats, vecs, col)
         zz[i] = z[i]
         if status == STIFF_PLANT:
             return STIFF_PLANT

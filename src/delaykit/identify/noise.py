@@ -30,6 +30,7 @@ Examples
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -44,8 +45,10 @@ from ..errors import InvalidValueError
 __all__ = ["ARNoise", "VARNoise", "fit_ar", "fit_var", "ar_covariance", "ljung_box", "cross_correlation"]
 
 
+@functools.cache
 def _kernel() -> Any:
-    """The compiled loops of this module (:mod:`._noisekernel`: Cython, else numba)."""
+    """The compiled loops of this module (:mod:`._noisekernel`: Cython, else numba), found once per process as
+    :mod:`._fit` finds its own (finding it checks the extension's files: 20 µs, twice per log of a fit)."""
     return _native.load("delaykit.identify", "_noisekernel")
 
 

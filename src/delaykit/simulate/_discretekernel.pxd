@@ -5,10 +5,13 @@ cimport cython
 cpdef void aug_expm(const double[:, :] A, const double[:] B, double t, double[:, :] E, double[:, :] X,
                     double[:, :] T, double[:, :] W) noexcept nogil
 
-@cython.locals(n=Py_ssize_t, i=Py_ssize_t, j=Py_ssize_t, k=Py_ssize_t, acc=double, phi="double[:, ::1]",
-               g="double[:, ::1]", ge="double[::1]", gl="double[::1]", work="double[:, :, ::1]",
-               Er="double[:, ::1]", Ef="double[:, ::1]")
+@cython.locals(n=Py_ssize_t, phi="double[:, ::1]", g="double[:, ::1]", work="double[:, :, ::1]")
 cpdef held_arrays(const double[:, :] A, const double[:] B, double h, double f)
+
+@cython.locals(n=Py_ssize_t, i=Py_ssize_t, j=Py_ssize_t, k=Py_ssize_t, acc=double, Er="double[:, :]",
+               Ef="double[:, :]")
+cpdef void held_arrays_into(const double[:, :] A, const double[:] B, double h, double f, double[:, :] phi,
+                            double[:] ge, double[:] gl, double[:, :, :] work) noexcept nogil
 
 @cython.locals(n=Py_ssize_t, N=Py_ssize_t, i=Py_ssize_t, k=Py_ssize_t, q=Py_ssize_t, lag_now=Py_ssize_t,
                j=Py_ssize_t, je=Py_ssize_t, jl=Py_ssize_t, u_now=double, yk=double, dk=double, uk=double, ue=double,
@@ -24,12 +27,18 @@ cpdef run(const double[:, :] phi, const double[:] g_early, const double[:] g_lat
           const double[:] ca, double cb, Py_ssize_t m, bint fractional, const double[:] drive, bint closed, double kp,
           double kv, double lo, double hi)
 
-@cython.locals(n=Py_ssize_t, i=Py_ssize_t, k=Py_ssize_t, a=Py_ssize_t, b=Py_ssize_t, x="double[::1]",
-               xn="double[::1]", u="double[::1]")
+@cython.locals(n=Py_ssize_t, x="double[::1]", xn="double[::1]", u="double[::1]")
 cpdef void run_logs(const double[:, :] phi, const double[:] g_early, const double[:] g_late, const double[:] c,
                     double d, const double[:] ca, double cb, Py_ssize_t m, bint fractional, const double[:] drive,
                     const long long[:] starts, bint closed, double kp, double kv, const double[:] lo,
                     const double[:] hi, bint unit, double[:] y, double[:] dy, double[:] uy, double[:] udy)
+
+@cython.locals(i=Py_ssize_t, k=Py_ssize_t, a=Py_ssize_t, b=Py_ssize_t)
+cpdef void run_logs_into(const double[:, :] phi, const double[:] g_early, const double[:] g_late,
+                         const double[:] c, double d, const double[:] ca, double cb, Py_ssize_t m, bint fractional,
+                         const double[:] drive, const long long[:] starts, bint closed, double kp, double kv,
+                         const double[:] lo, const double[:] hi, bint unit, double[:] y, double[:] dy,
+                         double[:] uy, double[:] udy, double[:] u, double[:] x, double[:] xn) noexcept nogil
 
 @cython.locals(n=Py_ssize_t, i=Py_ssize_t, q=Py_ssize_t, s=double)
 cpdef void advance(const double[:, :] A, const double[:] B, double dt, double v, double[:] x, double[:] xn,

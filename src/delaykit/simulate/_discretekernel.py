@@ -29,8 +29,8 @@ else:  # the exponential of this module's own mode (numba's copy calls numba's)
 
     expm_into = _native.sibling(__name__, "_expmkernel", "delaykit.models").expm_into
 
-__all__ = ["aug_expm", "held_arrays", "run_into", "run", "run_logs", "advance", "run_at_into", "run_at_logs",
-           "COMPILED"]
+__all__ = ["aug_expm", "held_arrays", "held_arrays_into", "run_into", "run", "run_logs", "run_logs_into", "advance",
+           "run_at_into", "run_at_logs", "COMPILED"]
 
 COMPILED: bool = cython.compiled
 """Whether this module is the extension module Cython built (False: this file, run by Python or numba)."""
@@ -52,13 +52,19 @@ def aug_expm(A, B, t, E, X, T, W):
 
 def held_arrays(A, B, h, f):
     """``phi``, ``g_early`` and ``g_late`` of a realisation ``(A, B)`` for the delay's fraction ``f`` of a period
-    (two exponentials: over ``f`` and over ``h - f``; ``phi = Phi(h - f) Phi(f)``)."""
+    (two exponentials: over ``f`` and over ``h - f``; ``phi = Phi(h - f) Phi(f)``), as new arrays."""
     n = A.shape[0]
     phi = np.zeros((n, n))
     g = np.zeros((2, n))  # g_early, g_late
-    ge = g[0]
-    gl = g[1]
     work = np.empty((5, n + 1, n + 1))  # the two exponentials and their work space, in one allocation
+    held_arrays_into(A, B, h, f, phi, g[0], g[1], work)
+    return np.asarray(phi), np.asarray(g)[0], np.asarray(g)[1]
+
+
+def held_arrays_into(A, B, h, f, phi, ge, gl, work):
+    """:func:`held_arrays` into ``phi`` (n x n), ``ge`` and ``gl`` (``work``: five matrices of order n + 1), so that
+    a caller evaluating many trial plants (identification) allocates nothing per plant."""
+    n = A.shape[0]
     Er = work[0]
     Ef = work[1]
     aug_expm(A, B, h - f, Er, work[2], work[3], work[4])
@@ -78,9 +84,9 @@ def held_arrays(A, B, h, f):
             ge[i] = acc
     else:
         for i in range(n):
+            ge[i] = 0.0
             for j in range(n):
                 phi[i, j] = Er[i, j]
-    return np.asarray(phi), np.asarray(g)[0], np.asarray(g)[1]
 
 
 def run_into(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive, closed, kp, kv, lo, hi, y, dy, u, x, xn):
@@ -147,6 +153,14 @@ def run_logs(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive, starts, c
     x = np.zeros(n)
     xn = np.zeros(n)
     u = np.zeros(drive.shape[0])
+    run_logs_into(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive, starts, closed, kp, kv, lo, hi, unit,
+                  y, dy, uy, udy, u, x, xn)
+
+
+def run_logs_into(phi, g_early, g_late, c, d, ca, cb, m, fractional, drive, starts, closed, kp, kv, lo, hi, unit,
+                  y, dy, uy, udy, u, x, xn):
+    """:func:`run_logs` with its work arrays given: the commands ``u`` (of ``drive``'s length) and the state ``x``,
+    ``xn`` (of the plant's order); nothing is read from them before it is written."""
     for i in range(starts.shape[0] - 1):
         a = starts[i]
         b = starts[i + 1]
