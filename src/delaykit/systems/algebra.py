@@ -49,7 +49,12 @@ def gain(K: Any, *, inputs: Any = None, outputs: Any = None, name: str = "") -> 
     if k.ndim > 2:
         raise InvalidValueError(f"a gain must be a number or a matrix, got shape {k.shape}")
     k = k.reshape(1, 1) if k.ndim == 0 else k.reshape(1, -1) if k.ndim == 1 else k
-    return DelayLTI(D11=k, inputs=inputs, outputs=outputs, name=name)
+    if k.size == 0:
+        return DelayLTI(D11=k, inputs=inputs, outputs=outputs, name=name)
+    ny, nu = k.shape
+    z = np.zeros
+    return DelayLTI._from_parts((z((0, 0)), z((0, nu)), z((0, 0)), z((ny, 0)), z((0, 0)), k, z((ny, 0)), z((0, nu)),
+                                 z((0, 0))), (), None, inputs, outputs, name)
 
 
 def as_system(x: Any, what: str = "operand") -> DelayLTI:
@@ -94,8 +99,14 @@ def close(sys: DelayLTI, F: np.ndarray, G: np.ndarray, H: np.ndarray, J: np.ndar
     >>> T.A.tolist()
     [[-1.0]]
     """
+    return _closed(sys, F, G, H, J, inputs, outputs, name, what)
+
+
+def _closed(sys: DelayLTI, F: np.ndarray, G: np.ndarray, H: np.ndarray, J: np.ndarray, inputs: Any, outputs: Any,
+            name: Any, what: str, names_checked: bool = False) -> DelayLTI:
+    """:func:`close`; ``names_checked`` when the names are systems' own tuples (see ``DelayLTI._from_parts``)."""
     parts = close_parts(_partitions(sys), F, G, H, J, what)
-    return DelayLTI(*parts, delays=sys.delays, inputs=inputs, outputs=outputs, name=name, limits=sys.limits)
+    return DelayLTI._from_parts(parts, sys.delays, sys.limits, inputs, outputs, name, names_checked=names_checked)
 
 
 def close_parts(parts: Sequence[np.ndarray], F: Any, G: Any, H: Any, J: Any, what: str = "the interconnection"
@@ -115,8 +126,9 @@ def close_parts(parts: Sequence[np.ndarray], F: Any, G: Any, H: Any, J: Any, wha
     A, B1, B2, C1, C2, D11, D12, D21, D22 = parts
     ne, nv = D11.shape
     F, G, H, J = (np.asarray(M, dtype=float) for M in (F, G, H, J))
-    M = np.eye(ne) - D11 @ F
-    if ne and np.linalg.cond(M) > _COND_LIMIT:
+    LF = D11 @ F  # the direct feedthrough around the loops
+    M = np.eye(ne) - LF
+    if ne and LF.any() and np.linalg.cond(M) > _COND_LIMIT:  # M = I otherwise, whose condition number is 1
         raise InvalidValueError(f"{what} is not well posed: its algebraic loop (direct feedthroughs around a loop, "
                                 "I - D F singular) has no unique solution; add dynamics or change a gain")
     X = np.linalg.solve(M, np.hstack([C1, D11 @ G, D12])) if ne else np.zeros((0, C1.shape[1] + G.shape[1]
@@ -146,8 +158,8 @@ def blockdiag(*ms: np.ndarray) -> np.ndarray:
     return out
 
 
-def _distinct_or_none(names: list[str]) -> list[str] | None:
-    return names if len(set(names)) == len(names) else None
+def _distinct_or_none(names: list[str]) -> tuple[str, ...] | None:
+    return tuple(names) if len(set(names)) == len(names) else None
 
 
 def append(*systems: Any) -> DelayLTI:
@@ -168,8 +180,8 @@ def append(*systems: Any) -> DelayLTI:
     blocks = [blockdiag(*(p[k] for p in parts)) for k in range(9)]
     ins = _distinct_or_none([x for s in ss for x in s.inputs])
     outs = _distinct_or_none([x for s in ss for x in s.outputs])
-    return DelayLTI(*blocks, delays=[t for s in ss for t in s.delays], inputs=ins, outputs=outs,
-                    limits=[p for s in ss for p in s.limits])
+    return DelayLTI._from_parts(blocks, tuple(t for s in ss for t in s.delays), tuple(p for s in ss for p in s.limits),
+                                ins, outs, names_checked=True)
 
 
 def _check_sizes(what: str, need: int, got: int, left: DelayLTI, right: DelayLTI) -> None:
@@ -198,7 +210,7 @@ def series(G: Any, H: Any) -> DelayLTI:
     F[:k, ny:] = np.eye(k)
     Gm = np.vstack([np.zeros((k, nu)), np.eye(nu)])
     Hm = np.hstack([np.eye(ny), np.zeros((ny, k))])
-    return close(P, F, Gm, Hm, np.zeros((ny, nu)), inputs=H.inputs, outputs=G.outputs, what="G * H")
+    return _closed(P, F, Gm, Hm, np.zeros((ny, nu)), H.inputs, G.outputs, "", "G * H", names_checked=True)
 
 
 def parallel(G: Any, H: Any) -> DelayLTI:
@@ -222,7 +234,7 @@ def parallel(G: Any, H: Any) -> DelayLTI:
     F = np.zeros((2 * nu, 2 * ny))
     Gm = np.vstack([np.eye(nu), np.eye(nu)])
     Hm = np.hstack([np.eye(ny), np.eye(ny)])
-    return close(P, F, Gm, Hm, np.zeros((ny, nu)), inputs=G.inputs, outputs=G.outputs, what="G + H")
+    return _closed(P, F, Gm, Hm, np.zeros((ny, nu)), G.inputs, G.outputs, "", "G + H", names_checked=True)
 
 
 def negate(G: DelayLTI) -> DelayLTI:
@@ -234,8 +246,8 @@ def negate(G: DelayLTI) -> DelayLTI:
     >>> negate(tf("exp(-s)/(s+1)")).dcgain().tolist()
     [[-1.0]]
     """
-    return DelayLTI(G.A, G.B1, G.B2, -G.C1, G.C2, -G.D11, -G.D12, G.D21, G.D22, delays=G.delays, inputs=G.inputs,
-                    outputs=G.outputs, name=G.name, limits=G.limits)
+    return DelayLTI._from_parts((G.A, G.B1, G.B2, -G.C1, G.C2, -G.D11, -G.D12, G.D21, G.D22), G.delays, G.limits,
+                                G.inputs, G.outputs, G.name, names_checked=True)
 
 
 def feedback(sys1: Any, sys2: Any = 1, sign: int = -1) -> DelayLTI:
@@ -285,7 +297,8 @@ def feedback(sys1: Any, sys2: Any = 1, sign: int = -1) -> DelayLTI:
     F[nu:, :ny] = np.eye(ny)
     Gm = np.vstack([np.eye(nu), np.zeros((ny, nu))])
     Hm = np.hstack([np.eye(ny), np.zeros((ny, nu))])
-    return close(P, F, Gm, Hm, np.zeros((ny, nu)), inputs=sys1.inputs, outputs=sys1.outputs, what="the feedback loop")
+    return _closed(P, F, Gm, Hm, np.zeros((ny, nu)), sys1.inputs, sys1.outputs, "", "the feedback loop",
+                   names_checked=True)
 
 
 def _index(key: Any, names: tuple[str, ...], what: str) -> list[int]:
@@ -326,9 +339,9 @@ def select(sys: DelayLTI, key: Any) -> DelayLTI:
         raise InvalidTypeError(f"index a system as sys[outputs, inputs], got sys[{key!r}]")
     rows = _index(key[0], sys.outputs, "output")
     cols = _index(key[1], sys.inputs, "input")
-    return DelayLTI(sys.A, sys.B1[:, cols], sys.B2, sys.C1[rows], sys.C2, sys.D11[np.ix_(rows, cols)],
-                    sys.D12[rows], sys.D21[:, cols], sys.D22, delays=sys.delays, limits=sys.limits,
-                    inputs=[sys.inputs[j] for j in cols], outputs=[sys.outputs[i] for i in rows], name=sys.name)
+    return DelayLTI._from_parts((sys.A, sys.B1[:, cols], sys.B2, sys.C1[rows], sys.C2, sys.D11[np.ix_(rows, cols)],
+                                 sys.D12[rows], sys.D21[:, cols], sys.D22), sys.delays, sys.limits,
+                                [sys.inputs[j] for j in cols], [sys.outputs[i] for i in rows], sys.name)
 
 
 def summing_junction(inputs: Sequence[str], output: str, *, name: str = "") -> DelayLTI:
