@@ -92,6 +92,8 @@ def _quoted(text: str, limit: int = 80) -> str:
 
 def _trim(p: np.ndarray) -> np.ndarray:
     """Strip leading zeros; the zero polynomial is ``[0.]``."""
+    if p.ndim == 1 and p.size and p[0] != 0:  # the common case, without a search
+        return p[0:]
     nz = np.flatnonzero(p)
     return p[nz[0]:] if nz.size else np.zeros(1)
 
@@ -620,7 +622,7 @@ class TransferFunction:
         n = self.order
         if self.relative_degree < 0:
             raise InvalidValueError(f"{self!r} is improper and has no state-space realisation")
-        b = np.pad(self.num, (n + 1 - self.num.size, 0))
+        b = np.concatenate([np.zeros(n + 1 - self.num.size), self.num])  # padded with leading zeros
         A = np.zeros((n, n))
         if n:
             A[0] = -self.den[1:]

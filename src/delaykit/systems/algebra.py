@@ -99,14 +99,19 @@ def close(sys: DelayLTI, F: np.ndarray, G: np.ndarray, H: np.ndarray, J: np.ndar
     >>> T.A.tolist()
     [[-1.0]]
     """
-    return _closed(sys, F, G, H, J, inputs, outputs, name, what)
+    return _closed((_partitions(sys), sys.delays, sys.limits), F, G, H, J, inputs, outputs, name, what)
 
 
-def _closed(sys: DelayLTI, F: np.ndarray, G: np.ndarray, H: np.ndarray, J: np.ndarray, inputs: Any, outputs: Any,
+_Stack = tuple[tuple[np.ndarray, ...], tuple[float, ...], tuple[tuple[float, float], ...]]
+
+
+def _closed(stack: _Stack, F: np.ndarray, G: np.ndarray, H: np.ndarray, J: np.ndarray, inputs: Any, outputs: Any,
             name: Any, what: str, names_checked: bool = False) -> DelayLTI:
-    """:func:`close`; ``names_checked`` when the names are systems' own tuples (see ``DelayLTI._from_parts``)."""
-    parts = close_parts(_partitions(sys), F, G, H, J, what)
-    return DelayLTI._from_parts(parts, sys.delays, sys.limits, inputs, outputs, name, names_checked=names_checked)
+    """:func:`close` of a system given as ``(parts, delays, limits)`` (:func:`_stack`); ``names_checked`` when the
+    names are systems' own tuples (see ``DelayLTI._from_parts``)."""
+    parts, delays, limits = stack
+    return DelayLTI._from_parts(close_parts(parts, F, G, H, J, what), delays, limits, inputs, outputs, name,
+                                names_checked=names_checked)
 
 
 def close_parts(parts: Sequence[np.ndarray], F: Any, G: Any, H: Any, J: Any, what: str = "the interconnection"
@@ -148,13 +153,13 @@ def blockdiag(*ms: np.ndarray) -> np.ndarray:
     >>> blockdiag(np.ones((1, 2)), np.zeros((0, 0)), 2 * np.eye(1)).tolist()
     [[1.0, 1.0, 0.0], [0.0, 0.0, 2.0]]
     """
-    rows = sum(m.shape[0] for m in ms)
-    cols = sum(m.shape[1] for m in ms)
-    out = np.zeros((rows, cols))
+    shapes = [m.shape for m in ms]
+    out = np.zeros((sum(s[0] for s in shapes), sum(s[1] for s in shapes)))
     r = c = 0
-    for m in ms:
-        out[r:r + m.shape[0], c:c + m.shape[1]] = m
-        r, c = r + m.shape[0], c + m.shape[1]
+    for m, (p, q) in zip(ms, shapes):
+        if p and q:
+            out[r:r + p, c:c + q] = m
+        r, c = r + p, c + q
     return out
 
 
@@ -176,12 +181,16 @@ def append(*systems: Any) -> DelayLTI:
     if not systems:
         raise InvalidValueError("append needs at least one system")
     ss = [as_system(s, f"system {k}") for k, s in enumerate(systems)]
-    parts = [_partitions(s) for s in ss]
-    blocks = [blockdiag(*(p[k] for p in parts)) for k in range(9)]
     ins = _distinct_or_none([x for s in ss for x in s.inputs])
     outs = _distinct_or_none([x for s in ss for x in s.outputs])
-    return DelayLTI._from_parts(blocks, tuple(t for s in ss for t in s.delays), tuple(p for s in ss for p in s.limits),
-                                ins, outs, names_checked=True)
+    return DelayLTI._from_parts(*_stack(ss), ins, outs, names_checked=True, finite=True)
+
+
+def _stack(ss: Sequence[DelayLTI]) -> _Stack:
+    """The parts, delays and limits of :func:`append`'s result, without making it a system."""
+    parts = [_partitions(s) for s in ss]
+    return (tuple(blockdiag(*(p[k] for p in parts)) for k in range(9)), tuple(t for s in ss for t in s.delays),
+            tuple(p for s in ss for p in s.limits))
 
 
 def _check_sizes(what: str, need: int, got: int, left: DelayLTI, right: DelayLTI) -> None:
@@ -204,7 +213,7 @@ def series(G: Any, H: Any) -> DelayLTI:
     if H.ninputs == 1 and H.noutputs == 1 and H.nstates == 0 and H.ndelays == 0 and G.ninputs != 1:
         H = gain(H.D11[0, 0] * np.eye(G.ninputs))
     _check_sizes("G * H needs as many outputs of H as inputs of G", H.noutputs, G.ninputs, G, H)
-    P = append(G, H)
+    P = _stack((G, H))
     ny, nu, k = G.noutputs, H.ninputs, G.ninputs
     F = np.zeros((k + nu, ny + k))
     F[:k, ny:] = np.eye(k)
@@ -229,7 +238,7 @@ def parallel(G: Any, H: Any) -> DelayLTI:
         H = gain(H.D11[0, 0] * np.eye(G.noutputs))
     _check_sizes("G + H needs the same number of inputs", G.ninputs, H.ninputs, G, H)
     _check_sizes("G + H needs the same number of outputs", G.noutputs, H.noutputs, G, H)
-    P = append(G, H)
+    P = _stack((G, H))
     ny, nu = G.noutputs, G.ninputs
     F = np.zeros((2 * nu, 2 * ny))
     Gm = np.vstack([np.eye(nu), np.eye(nu)])
@@ -290,7 +299,7 @@ def feedback(sys1: Any, sys2: Any = 1, sign: int = -1) -> DelayLTI:
                  sys1.noutputs, sys2.ninputs, sys1, sys2)
     _check_sizes("feedback needs as many outputs of the return path as inputs of the forward path",
                  sys1.ninputs, sys2.noutputs, sys1, sys2)
-    P = append(sys1, sys2)
+    P = _stack((sys1, sys2))
     ny, nu = sys1.noutputs, sys1.ninputs
     F = np.zeros((nu + ny, ny + nu))
     F[:nu, ny:] = sign * np.eye(nu)
@@ -440,4 +449,4 @@ def interconnect(blocks: Sequence[Any], inputs: Sequence[str], outputs: Sequence
         else:
             raise InvalidValueError(f"interconnect: the output {x!r} is no block's output nor an external input "
                                     f"(the signals are {sorted(set(e))})")
-    return close(append(*bl), F, G, H, J, inputs=ext_in, outputs=ext_out, name=name, what="the interconnection")
+    return _closed(_stack(bl), F, G, H, J, ext_in, ext_out, name, "the interconnection")

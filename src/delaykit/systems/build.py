@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
 from ..models.interop import require_control
 from ..models.transfer import TransferFunction, check_control_system
-from .algebra import _closed, _partitions, append, close, feedback, gain, interconnect, summing_junction
+from .algebra import _closed, _partitions, _stack, append, close, feedback, gain, interconnect, summing_junction
 from .lti import DelayLTI
 
 __all__ = ["tf", "ss", "delay", "saturation", "to_control", "from_loop", "plant_of", "to_loop"]
@@ -146,7 +146,7 @@ def _matrix_of(rows: list, where: str) -> DelayLTI:
         raise InvalidValueError(f"{where}: the rows have different lengths {[len(r) for r in rows]}")
     ny = len(rows)
     entries = [_siso(rows[i][j], f"{where}, entry [{i}][{j}]") for i in range(ny) for j in range(nu)]
-    P = append(*entries)
+    P = _stack(entries)
     k = ny * nu
     F = np.zeros((k, k))
     G = np.zeros((k, nu))
@@ -156,6 +156,24 @@ def _matrix_of(rows: list, where: str) -> DelayLTI:
             G[i * nu + j, j] = 1.0
             H[i, i * nu + j] = 1.0
     return _closed(P, F, G, H, np.zeros((ny, nu)), None, None, "", "the interconnection", names_checked=True)
+
+
+def _text_rows(rows: list) -> tuple[tuple[str | float | int, ...], ...] | None:
+    """``rows`` as a key for :func:`_matrix_of_text` when every entry is text or a plain number, else None."""
+    try:
+        key = tuple(tuple(r) for r in rows if isinstance(r, (list, tuple)))
+    except TypeError:
+        return None
+    if len(key) != len(rows) or not all(type(x) in (str, float, int) for r in key for x in r):
+        return None
+    return key
+
+
+@functools.lru_cache(maxsize=128)
+def _matrix_of_text(rows: tuple[tuple[str | float | int, ...], ...]) -> DelayLTI:
+    """:func:`_matrix_of` of rows of text and numbers, remembered as :func:`_text` remembers its texts (one plant
+    written once and connected to many controllers is realised once)."""
+    return _matrix_of(rows, "tf")
 
 
 def _from_control(obj: Any) -> DelayLTI:
@@ -215,7 +233,8 @@ def tf(spec: Any, *, inputs: Any = None, outputs: Any = None, name: str | None =
     if isinstance(spec, DelayLTI):
         sys = spec
     elif isinstance(spec, list):
-        sys = _matrix_of(spec, "tf")
+        key = _text_rows(spec)
+        sys = _matrix_of(spec, "tf") if key is None else _matrix_of_text(key)
     elif (type(spec).__module__ or "").split(".")[0] == "control":
         sys = _from_control(spec)
     else:

@@ -313,32 +313,33 @@ class DelayLTI:
     @classmethod
     def _from_parts(cls, parts: Sequence[np.ndarray], delays: tuple[float, ...],
                     limits: tuple[tuple[float, float], ...] | None = None, inputs: Any = None, outputs: Any = None,
-                    name: Any = "", *, names_checked: bool = False) -> DelayLTI:
+                    name: Any = "", *, names_checked: bool = False, finite: bool = False) -> DelayLTI:
         """A system from parts the algebra made, without the public constructor's conversions (internal).
 
         ``parts`` are the nine float matrices ``(A, B1, B2, C1, C2, D11, D12, D21, D22)`` of consistent shapes,
         ``delays`` and ``limits`` tuples already checked (``limits`` None: no limit).  Finiteness is checked (an
-        overflow in the algebra is the constructor's error), then the names as the constructor checks them, unless
-        ``names_checked`` says that ``inputs`` and ``outputs`` are a system's own tuples (or None: the default
-        names) and ``name`` is text.  A matrix that is read-only already (another system's) is shared, one the
-        caller made is frozen in place, anything else is copied as the constructor copies it: the values, and so
-        every result, are the constructor's.
+        overflow in the algebra is the constructor's error) unless ``finite`` says that the parts are copies of
+        checked ones; then the names as the constructor checks them, unless ``names_checked`` says that ``inputs``
+        and ``outputs`` are a system's own tuples (or None: the default names) and ``name`` is text.  A matrix
+        that is read-only already (another system's) is shared, one the caller made is frozen in place, anything
+        else is copied as the constructor copies it: the values, and so every result, are the constructor's.
         """
         self = object.__new__(cls)
         d = self.__dict__
+        made = []
         for key, val in zip(_PARTS, parts):
             flags = val.flags
             if flags.writeable:  # made by the caller (another system's matrices are read-only, checked already)
                 if not flags.owndata or val.dtype != np.float64:
                     val = np.array(val, dtype=float)
-                if val.size and not np.isfinite(val).all():
-                    _matrix(key, val, val.shape)  # raises the constructor's error
                 val.flags.writeable = False
+                if val.size:
+                    made.append(val)
             d[key] = val
-        n, m = d["A"].shape[0], len(delays)
-        nu, ny = d["B1"].shape[1], d["C1"].shape[0]
-        assert [d[k].shape for k in _PARTS] == [(n, n), (n, nu), (n, m), (ny, n), (m, n), (ny, nu), (ny, m),
-                                                (m, nu), (m, m)], "inconsistent parts"
+        if made and not finite and not np.isfinite(np.concatenate([v.ravel() for v in made])).all():
+            for key in _PARTS:
+                _matrix(key, d[key], d[key].shape)  # raises the constructor's error for the first bad matrix
+        m, nu, ny = len(delays), d["B1"].shape[1], d["C1"].shape[0]
         d["delays"] = delays
         d["limits"] = ((-math.inf, math.inf),) * m if limits is None else limits
         if not names_checked or inputs is None or outputs is None:
