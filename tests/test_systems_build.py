@@ -24,7 +24,7 @@ from delaykit.systems import gain
 
 control = pytest.importorskip("control")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from anchors_systems import DELAY, GAIN, KC, LAG, TAU_I, wood_berry_loop  # noqa: E402
+from anchors_systems import DELAY, GAIN, KC, LAG, TAU_I, wood_berry_loop, wood_berry_plant  # noqa: E402
 
 PARTS = ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21", "D22")
 S = np.array([0.05j, 0.3 + 0.7j, 1.1j, -0.02 + 2.5j, 0.4])  # points away from every pole used below
@@ -68,8 +68,7 @@ def test_wood_berry_loops_with_varied_gains_are_the_closed_loop_of_the_definitio
 
 def test_a_prebuilt_plant_with_many_controllers_gives_the_same_loops():
     # reference: the loop built from scratch each time (wood_berry_loop) and the definition at one point
-    G = tf([[f"{GAIN[i, j]}*exp(-{DELAY[i, j]}*s)/({LAG[i, j]}*s+1)" for j in range(2)] for i in range(2)],
-           inputs=["R", "S"], outputs=["xD", "xB"], name="Wood-Berry")
+    G = wood_berry_plant()
     rng = np.random.default_rng(5)
     for _ in range(4):
         kc = (KC[0] * rng.uniform(0.7, 1.3), KC[1] * rng.uniform(0.7, 1.3))

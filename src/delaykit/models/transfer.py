@@ -176,7 +176,7 @@ class _Reader:
     def checked(self, num: np.ndarray, den: np.ndarray, node: ast.AST, delay: float = 0.0,
                 has_exp: bool = False) -> _Val:
         num, den = _trim(num), _trim(den)
-        if not (np.all(np.isfinite(num)) and np.all(np.isfinite(den))):
+        if not (np.isfinite(num).all() and np.isfinite(den).all()):
             self.fail(f"the coefficients of '{self.seg(node)}' overflow")
         if max(num.size, den.size) - 1 > _MAX_WORK_DEGREE:
             self.fail(f"'{self.seg(node)}' has degree over {_MAX_WORK_DEGREE}")
@@ -378,7 +378,7 @@ class TransferFunction:
         gain-and-time-constant form ``K/(T s + 1)`` of a self-regulating plant, and an integrator's scale
         (``1/(s*(0.05*s+1))`` prints ``1/(0.05 s^2 + s)``, its products expanded)."""
         num, den = _trim(np.ravel(v.num).astype(float)), _trim(np.ravel(v.den).astype(float))
-        if np.all(np.isfinite(num)) and np.all(np.isfinite(den)) and den.any():
+        if np.isfinite(num).all() and np.isfinite(den).all() and den.any():
             num.flags.writeable = den.flags.writeable = False
             object.__setattr__(self, "_as_written", (num, den))
         return self

@@ -328,9 +328,8 @@ class DelayLTI:
         d = self.__dict__
         made = []
         for key, val in zip(_PARTS, parts):
-            flags = val.flags
-            if flags.writeable:  # made by the caller (another system's matrices are read-only, checked already)
-                if not flags.owndata or val.dtype != np.float64:
+            if val.flags.writeable:  # made by the caller (another system's matrices are read-only, checked already)
+                if val.base is not None or val.dtype != _FLOAT:  # a view, or not float: copied
                     val = np.array(val, dtype=float)
                 val.flags.writeable = False
                 if val.size:
@@ -704,6 +703,7 @@ class DelayLTI:
 
 _MAX_CHANNELS = 14
 _PARTS = ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21", "D22")
+_FLOAT = np.dtype(float)
 
 
 def _is_numeric(x: Any) -> bool:
