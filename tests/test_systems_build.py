@@ -134,6 +134,12 @@ def test_the_remembered_texts_are_immutable_and_errors_are_not_remembered():
     g2 = tf("12.8*exp(-s)/(16.7*s+1)")
     assert (g2.inputs, g2.outputs, g2.name) == (("u[0]",), ("y[0]",), "")  # the renaming did not leak
     assert np.array_equal(g2.A, [[-1 / 16.7]]) and g2.delays == (1.0,)
+    # a remembered transfer matrix of text and numbers against the same one with an entry as (num, den), which is
+    # not remembered: the same bytes in every matrix (signed zeros included)
+    for zero in (0.0, -0.0, 0):
+        cached = tf([["12.8*exp(-s)/(16.7*s+1)", zero], [1, "1/(s+2)"]])
+        fresh = tf([["12.8*exp(-s)/(16.7*s+1)", zero], [1, ([1.0], [1.0, 2.0])]])
+        assert all(getattr(cached, k).tobytes() == getattr(fresh, k).tobytes() for k in PARTS)
     for _ in range(2):  # the same bad text fails each time, with its message
         with pytest.raises(InvalidValueError, match="prediction"):
             tf("exp(2*s)/(s+1)")

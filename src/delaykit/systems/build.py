@@ -158,21 +158,20 @@ def _matrix_of(rows: list, where: str) -> DelayLTI:
     return _closed(P, F, G, H, np.zeros((ny, nu)), None, None, "", "the interconnection", names_checked=True)
 
 
-def _text_rows(rows: list) -> tuple[tuple[str | float | int, ...], ...] | None:
-    """``rows`` as a key for :func:`_matrix_of_text` when every entry is text or a plain number, else None."""
-    try:
-        key = tuple(tuple(r) for r in rows if isinstance(r, (list, tuple)))
-    except TypeError:
-        return None
+def _text_rows(rows: list) -> tuple[tuple[tuple[str | float | int, ...], ...], tuple[str, ...]] | None:
+    """``rows`` as the arguments of :func:`_matrix_of_text` when every entry is text or a plain number, else None:
+    the rows as tuples, and each number's spelling (``-0.0`` is not ``0.0``, whose systems differ in a zero's sign)."""
+    key = tuple(tuple(r) for r in rows if isinstance(r, (list, tuple)))
     if len(key) != len(rows) or not all(type(x) in (str, float, int) for r in key for x in r):
         return None
-    return key
+    return key, tuple(repr(x) for r in key for x in r if type(x) is not str)
 
 
 @functools.lru_cache(maxsize=128)
-def _matrix_of_text(rows: tuple[tuple[str | float | int, ...], ...]) -> DelayLTI:
+def _matrix_of_text(rows: tuple[tuple[str | float | int, ...], ...], spelling: tuple[str, ...]) -> DelayLTI:
     """:func:`_matrix_of` of rows of text and numbers, remembered as :func:`_text` remembers its texts (one plant
-    written once and connected to many controllers is realised once)."""
+    written once and connected to many controllers is realised once); ``spelling`` tells apart numbers that
+    compare equal."""
     return _matrix_of(rows, "tf")
 
 
@@ -234,7 +233,7 @@ def tf(spec: Any, *, inputs: Any = None, outputs: Any = None, name: str | None =
         sys = spec
     elif isinstance(spec, list):
         key = _text_rows(spec)
-        sys = _matrix_of(spec, "tf") if key is None else _matrix_of_text(key)
+        sys = _matrix_of(spec, "tf") if key is None else _matrix_of_text(*key)
     elif (type(spec).__module__ or "").split(".")[0] == "control":
         sys = _from_control(spec)
     else:
