@@ -19,6 +19,7 @@ Examples
 
 from __future__ import annotations
 
+import math
 import numbers
 import reprlib
 from typing import Any, Sequence
@@ -290,11 +291,15 @@ def feedback(sys1: Any, sys2: Any = 1, sign: int = -1) -> DelayLTI:
     if isinstance(sign, bool) or sign not in (1, -1):
         raise InvalidValueError(f"sign must be -1 (negative feedback) or +1, got {plain(sign)!r}")
     sys1 = as_system(sys1, "forward path")
-    sys2 = as_system(sys2, "return path")
-    if sys2.ninputs == sys2.noutputs == 1 and sys2.nstates == sys2.ndelays == 0 and sys1.noutputs != 1:
+    # feedback(L, 1): the return path's gain made once (times the identity for MIMO); other numbers as before
+    number = (type(sys2) is float and math.isfinite(sys2)) or (type(sys2) is int and abs(sys2) <= 2 ** 53)
+    sys2 = sys2 if number else as_system(sys2, "return path")
+    if sys1.noutputs != 1 and (number or (sys2.ninputs == sys2.noutputs == 1 and sys2.nstates == sys2.ndelays == 0)):
         if sys1.ninputs != sys1.noutputs:
             raise InvalidValueError(f"a scalar return path needs a square forward path, got {sys1!r}")
-        sys2 = gain(sys2.D11[0, 0] * np.eye(sys1.noutputs))
+        sys2 = gain((float(sys2) if number else sys2.D11[0, 0]) * np.eye(sys1.noutputs))
+    elif number:
+        sys2 = gain(sys2)
     _check_sizes("feedback needs as many inputs of the return path as outputs of the forward path",
                  sys1.noutputs, sys2.ninputs, sys1, sys2)
     _check_sizes("feedback needs as many outputs of the return path as inputs of the forward path",
