@@ -108,7 +108,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     table.add_row(f"building those {many} loops (wood_berry_loop, from text)", "",
                   f"{r1['build_s']:.2f} s wall, {r1['build_cpu_s']:.2f} s CPU", "", "",
                   f"{r1['build_ms_each']:.2f} ms CPU each; with the plant built once and only the controllers per "
-                  f"loop {r1['build_prebuilt_plant_cpu_s']:.2f} s CPU (the same loops: {r1['prebuilt_plant_same_loops']})")
+                  f"loop {r1['build_prebuilt_plant_cpu_s']:.2f} s CPU (the same loops: "
+                  f"{r1['prebuilt_plant_same_loops']})")
     table.add_row(f"build + responses, {many} loops", "", f"{r1['build_and_responses_s']:.2f} s wall", "", "",
                   "the user's whole wait for the sweep")
     console.print(table)

@@ -137,8 +137,8 @@ def close_parts(parts: Sequence[np.ndarray], F: Any, G: Any, H: Any, J: Any, wha
     if ne and LF.any() and np.linalg.cond(M) > _COND_LIMIT:  # M = I otherwise, whose condition number is 1
         raise InvalidValueError(f"{what} is not well posed: its algebraic loop (direct feedthroughs around a loop, "
                                 "I - D F singular) has no unique solution; add dynamics or change a gain")
-    X = np.linalg.solve(M, np.hstack([C1, D11 @ G, D12])) if ne else np.zeros((0, C1.shape[1] + G.shape[1]
-                                                                                  + D12.shape[1]))
+    X = (np.linalg.solve(M, np.concatenate([C1, D11 @ G, D12], axis=1)) if ne
+         else np.zeros((0, C1.shape[1] + G.shape[1] + D12.shape[1])))
     n, nu = A.shape[0], G.shape[1]
     Ce, Deu, Dew = X[:, :n], X[:, n:n + nu], X[:, n + nu:]
     BF, DF = B1 @ F, D21 @ F

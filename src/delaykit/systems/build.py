@@ -132,9 +132,17 @@ def _siso(spec: Any, where: str) -> DelayLTI:
         except (InvalidValueError, InvalidTypeError) as exc:
             raise type(exc)(f"{where}: {exc}") from exc
     if isinstance(spec, numbers.Real) and not isinstance(spec, bool):
-        return gain(float(spec))
+        x = float(spec)
+        return _number(x, repr(x))
     raise InvalidTypeError(f"{where}: expected text such as '2*exp(-s)/(s+1)', a pair (num, den), a number or a "
                            f"TransferFunction, got {reprlib.repr(spec)} ({type(spec).__name__})")
+
+
+@functools.lru_cache(maxsize=64)
+def _number(x: float, spelling: str) -> DelayLTI:
+    """A number as a static gain, remembered (the zeros of a diagonal controller's transfer matrix); ``spelling``
+    tells apart ``-0.0`` and ``0.0``."""
+    return gain(x)
 
 
 def _matrix_of(rows: list, where: str) -> DelayLTI:
