@@ -48,7 +48,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 __all__ = ["GAIN", "LAG", "DELAY", "KC", "TAU_I", "T_END", "TIMES", "scipy_method_of_steps", "JitcddeAnchor",
-           "wood_berry_loop"]
+           "wood_berry_plant", "wood_berry_loop"]
 
 # plant element (i, j): output i (xD, xB) from input j (R, S)
 GAIN = np.array([[12.8, -18.9], [6.6, -19.4]])
@@ -60,12 +60,19 @@ T_END = 100.0
 TIMES = np.linspace(0.0, T_END, 201)
 
 
+def wood_berry_plant():
+    """The Wood-Berry column as a delaykit system, written as text (inputs R, S; outputs xD, xB)."""
+    from delaykit import tf
+
+    return tf([[f"{GAIN[i, j]}*exp(-{DELAY[i, j]}*s)/({LAG[i, j]}*s+1)" for j in range(2)] for i in range(2)],
+              inputs=["R", "S"], outputs=["xD", "xB"], name="Wood-Berry")
+
+
 def wood_berry_loop(kc: tuple[float, float] | np.ndarray = KC):
     """The same closed loop built by delaykit's algebra (for the oracle and the kernel); ``kc`` the PI gains."""
     from delaykit import feedback, tf
 
-    G = tf([[f"{GAIN[i, j]}*exp(-{DELAY[i, j]}*s)/({LAG[i, j]}*s+1)" for j in range(2)] for i in range(2)],
-           inputs=["R", "S"], outputs=["xD", "xB"], name="Wood-Berry")
+    G = wood_berry_plant()
     K = tf([[f"{kc[0]}*(1 + 1/({TAU_I[0]}*s))", 0], [0, f"{kc[1]}*(1 + 1/({TAU_I[1]}*s))"]],
            inputs=["e1", "e2"], outputs=["R", "S"], name="BLT PI")
     return feedback(G * K, 1)

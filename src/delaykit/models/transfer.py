@@ -92,13 +92,26 @@ def _quoted(text: str, limit: int = 80) -> str:
 
 def _trim(p: np.ndarray) -> np.ndarray:
     """Strip leading zeros; the zero polynomial is ``[0.]``."""
+    if p.ndim == 1 and p.size and p[0] != 0:  # the common case, without a search
+        return p[0:]
     nz = np.flatnonzero(p)
     return p[nz[0]:] if nz.size else np.zeros(1)
 
 
 def _padd(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    n = max(p.size, q.size)
-    return _trim(np.pad(p, (n - p.size, 0)) + np.pad(q, (n - q.size, 0)))
+    if p.size < q.size:
+        p, q = q, p
+    k = p.size - q.size  # q padded with k leading zeros, as the sum p + pad(q) adds them
+    out = np.empty(p.size)
+    out[:k] = p[:k] + 0.0
+    out[k:] = p[k:] + q
+    return _trim(out)
+
+
+def _pmul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """The product of two polynomials: :func:`numpy.polymul`'s (leading zeros stripped, then convolved) without its
+    ``poly1d`` objects, which cost most of the time of reading a transfer function."""
+    return np.convolve(_trim(p), _trim(q))
 
 
 def _normalise(num: np.ndarray, den: np.ndarray, what: str, proper: bool = True) -> tuple[np.ndarray, np.ndarray]:
@@ -163,7 +176,7 @@ class _Reader:
     def checked(self, num: np.ndarray, den: np.ndarray, node: ast.AST, delay: float = 0.0,
                 has_exp: bool = False) -> _Val:
         num, den = _trim(num), _trim(den)
-        if not (np.all(np.isfinite(num)) and np.all(np.isfinite(den))):
+        if not (np.isfinite(num).all() and np.isfinite(den).all()):
             self.fail(f"the coefficients of '{self.seg(node)}' overflow")
         if max(num.size, den.size) - 1 > _MAX_WORK_DEGREE:
             self.fail(f"'{self.seg(node)}' has degree over {_MAX_WORK_DEGREE}")
@@ -191,17 +204,17 @@ class _Reader:
                     bn = b.num if isinstance(node.op, ast.Add) else -b.num
                     if np.array_equal(a.den, b.den):
                         return self.checked(_padd(a.num, bn), a.den, node)
-                    num = _padd(np.polymul(a.num, b.den), np.polymul(bn, a.den))
-                    return self.checked(num, np.polymul(a.den, b.den), node)
+                    num = _padd(_pmul(a.num, b.den), _pmul(bn, a.den))
+                    return self.checked(num, _pmul(a.den, b.den), node)
                 if isinstance(node.op, ast.Mult):
-                    return self.checked(np.polymul(a.num, b.num), np.polymul(a.den, b.den), node,
+                    return self.checked(_pmul(a.num, b.num), _pmul(a.den, b.den), node,
                                         a.delay + b.delay, a.has_exp or b.has_exp)
                 if b.has_exp:
                     self.fail(f"'{self.seg(node.right)}' puts a delay factor exp(-T*s) in a denominator (a "
                               "prediction); delays may only multiply the numerator")
                 if not b.num.any():
                     self.fail(f"division by zero: '{self.seg(node.right)}' is zero")
-                return self.checked(np.polymul(a.num, b.den), np.polymul(a.den, b.num), node, a.delay, a.has_exp)
+                return self.checked(_pmul(a.num, b.den), _pmul(a.den, b.num), node, a.delay, a.has_exp)
         if isinstance(node, ast.Call):
             return self.call(node)
         if isinstance(node, ast.BinOp):
@@ -238,7 +251,7 @@ class _Reader:
         num, den = _ONE, _ONE
         with np.errstate(all="ignore"):
             for _ in range(k):
-                num, den = np.polymul(num, base.num), np.polymul(den, base.den)
+                num, den = _pmul(num, base.num), _pmul(den, base.den)
         return self.checked(num, den, node, base.delay * k, base.has_exp and k > 0)
 
     def call(self, node: ast.Call) -> _Val:
@@ -365,7 +378,7 @@ class TransferFunction:
         gain-and-time-constant form ``K/(T s + 1)`` of a self-regulating plant, and an integrator's scale
         (``1/(s*(0.05*s+1))`` prints ``1/(0.05 s^2 + s)``, its products expanded)."""
         num, den = _trim(np.ravel(v.num).astype(float)), _trim(np.ravel(v.den).astype(float))
-        if np.all(np.isfinite(num)) and np.all(np.isfinite(den)) and den.any():
+        if np.isfinite(num).all() and np.isfinite(den).all() and den.any():
             num.flags.writeable = den.flags.writeable = False
             object.__setattr__(self, "_as_written", (num, den))
         return self
@@ -609,7 +622,7 @@ class TransferFunction:
         n = self.order
         if self.relative_degree < 0:
             raise InvalidValueError(f"{self!r} is improper and has no state-space realisation")
-        b = np.pad(self.num, (n + 1 - self.num.size, 0))
+        b = np.concatenate([np.zeros(n + 1 - self.num.size), self.num])  # padded with leading zeros
         A = np.zeros((n, n))
         if n:
             A[0] = -self.den[1:]
@@ -652,7 +665,7 @@ class TransferFunction:
         o, proper = self._operand(other)
         if o is None:
             return NotImplemented
-        return TransferFunction(np.polymul(self.num, o.num), np.polymul(self.den, o.den), proper=proper)
+        return TransferFunction(_pmul(self.num, o.num), _pmul(self.den, o.den), proper=proper)
 
     __rmul__ = __mul__
 
@@ -662,8 +675,8 @@ class TransferFunction:
             return NotImplemented
         if np.array_equal(self.den, o.den):
             return TransferFunction(_padd(self.num, o.num), self.den, proper=proper)
-        num = _padd(np.polymul(self.num, o.den), np.polymul(o.num, self.den))
-        return TransferFunction(num, np.polymul(self.den, o.den), proper=proper)
+        num = _padd(_pmul(self.num, o.den), _pmul(o.num, self.den))
+        return TransferFunction(num, _pmul(self.den, o.den), proper=proper)
 
     __radd__ = __add__
 
@@ -689,12 +702,12 @@ class TransferFunction:
         h = TransferFunction.coerce(other, name="feedback path", proper=False)
         if isinstance(sign, bool) or sign not in (1, -1):
             raise InvalidValueError(f"sign must be -1 (negative feedback) or +1, got {sign!r}")
-        den = _padd(np.polymul(self.den, h.den), -sign * np.polymul(self.num, h.num))
+        den = _padd(_pmul(self.den, h.den), -sign * _pmul(self.num, h.num))
         if not den.any():
             raise InvalidValueError(f"the closed loop of {self.to_string()} with {h.to_string()} is undefined: "
                                     "1 - sign*G*H is identically zero")
         proper = self.relative_degree >= 0 and h.relative_degree >= 0
-        return TransferFunction._make(np.polymul(self.num, h.den), den, "the closed loop", proper)
+        return TransferFunction._make(_pmul(self.num, h.den), den, "the closed loop", proper)
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, TransferFunction):

@@ -19,6 +19,7 @@ Examples
 
 from __future__ import annotations
 
+import math
 import numbers
 import reprlib
 from typing import Any, Sequence
@@ -49,7 +50,12 @@ def gain(K: Any, *, inputs: Any = None, outputs: Any = None, name: str = "") -> 
     if k.ndim > 2:
         raise InvalidValueError(f"a gain must be a number or a matrix, got shape {k.shape}")
     k = k.reshape(1, 1) if k.ndim == 0 else k.reshape(1, -1) if k.ndim == 1 else k
-    return DelayLTI(D11=k, inputs=inputs, outputs=outputs, name=name)
+    if k.size == 0:
+        return DelayLTI(D11=k, inputs=inputs, outputs=outputs, name=name)
+    ny, nu = k.shape
+    z = np.zeros
+    return DelayLTI._from_parts((z((0, 0)), z((0, nu)), z((0, 0)), z((ny, 0)), z((0, 0)), k, z((ny, 0)), z((0, nu)),
+                                 z((0, 0))), (), None, inputs, outputs, name)
 
 
 def as_system(x: Any, what: str = "operand") -> DelayLTI:
@@ -94,8 +100,19 @@ def close(sys: DelayLTI, F: np.ndarray, G: np.ndarray, H: np.ndarray, J: np.ndar
     >>> T.A.tolist()
     [[-1.0]]
     """
-    parts = close_parts(_partitions(sys), F, G, H, J, what)
-    return DelayLTI(*parts, delays=sys.delays, inputs=inputs, outputs=outputs, name=name, limits=sys.limits)
+    return _closed((_partitions(sys), sys.delays, sys.limits), F, G, H, J, inputs, outputs, name, what)
+
+
+_Stack = tuple[tuple[np.ndarray, ...], tuple[float, ...], tuple[tuple[float, float], ...]]
+
+
+def _closed(stack: _Stack, F: np.ndarray, G: np.ndarray, H: np.ndarray, J: np.ndarray, inputs: Any, outputs: Any,
+            name: Any, what: str, names_checked: bool = False) -> DelayLTI:
+    """:func:`close` of a system given as ``(parts, delays, limits)`` (:func:`_stack`); ``names_checked`` when the
+    names are systems' own tuples (see ``DelayLTI._from_parts``)."""
+    parts, delays, limits = stack
+    return DelayLTI._from_parts(close_parts(parts, F, G, H, J, what), delays, limits, inputs, outputs, name,
+                                names_checked=names_checked)
 
 
 def close_parts(parts: Sequence[np.ndarray], F: Any, G: Any, H: Any, J: Any, what: str = "the interconnection"
@@ -115,12 +132,13 @@ def close_parts(parts: Sequence[np.ndarray], F: Any, G: Any, H: Any, J: Any, wha
     A, B1, B2, C1, C2, D11, D12, D21, D22 = parts
     ne, nv = D11.shape
     F, G, H, J = (np.asarray(M, dtype=float) for M in (F, G, H, J))
-    M = np.eye(ne) - D11 @ F
-    if ne and np.linalg.cond(M) > _COND_LIMIT:
+    LF = D11 @ F  # the direct feedthrough around the loops
+    M = np.eye(ne) - LF
+    if ne and LF.any() and np.linalg.cond(M) > _COND_LIMIT:  # M = I otherwise, whose condition number is 1
         raise InvalidValueError(f"{what} is not well posed: its algebraic loop (direct feedthroughs around a loop, "
                                 "I - D F singular) has no unique solution; add dynamics or change a gain")
-    X = np.linalg.solve(M, np.hstack([C1, D11 @ G, D12])) if ne else np.zeros((0, C1.shape[1] + G.shape[1]
-                                                                                  + D12.shape[1]))
+    X = (np.linalg.solve(M, np.concatenate([C1, D11 @ G, D12], axis=1)) if ne
+         else np.zeros((0, C1.shape[1] + G.shape[1] + D12.shape[1])))
     n, nu = A.shape[0], G.shape[1]
     Ce, Deu, Dew = X[:, :n], X[:, n:n + nu], X[:, n + nu:]
     BF, DF = B1 @ F, D21 @ F
@@ -136,18 +154,18 @@ def blockdiag(*ms: np.ndarray) -> np.ndarray:
     >>> blockdiag(np.ones((1, 2)), np.zeros((0, 0)), 2 * np.eye(1)).tolist()
     [[1.0, 1.0, 0.0], [0.0, 0.0, 2.0]]
     """
-    rows = sum(m.shape[0] for m in ms)
-    cols = sum(m.shape[1] for m in ms)
-    out = np.zeros((rows, cols))
+    shapes = [m.shape for m in ms]
+    out = np.zeros((sum(s[0] for s in shapes), sum(s[1] for s in shapes)))
     r = c = 0
-    for m in ms:
-        out[r:r + m.shape[0], c:c + m.shape[1]] = m
-        r, c = r + m.shape[0], c + m.shape[1]
+    for m, (p, q) in zip(ms, shapes):
+        if p and q:
+            out[r:r + p, c:c + q] = m
+        r, c = r + p, c + q
     return out
 
 
-def _distinct_or_none(names: list[str]) -> list[str] | None:
-    return names if len(set(names)) == len(names) else None
+def _distinct_or_none(names: list[str]) -> tuple[str, ...] | None:
+    return tuple(names) if len(set(names)) == len(names) else None
 
 
 def append(*systems: Any) -> DelayLTI:
@@ -164,12 +182,16 @@ def append(*systems: Any) -> DelayLTI:
     if not systems:
         raise InvalidValueError("append needs at least one system")
     ss = [as_system(s, f"system {k}") for k, s in enumerate(systems)]
-    parts = [_partitions(s) for s in ss]
-    blocks = [blockdiag(*(p[k] for p in parts)) for k in range(9)]
     ins = _distinct_or_none([x for s in ss for x in s.inputs])
     outs = _distinct_or_none([x for s in ss for x in s.outputs])
-    return DelayLTI(*blocks, delays=[t for s in ss for t in s.delays], inputs=ins, outputs=outs,
-                    limits=[p for s in ss for p in s.limits])
+    return DelayLTI._from_parts(*_stack(ss), ins, outs, names_checked=True, finite=True)
+
+
+def _stack(ss: Sequence[DelayLTI]) -> _Stack:
+    """The parts, delays and limits of :func:`append`'s result, without making it a system."""
+    parts = [_partitions(s) for s in ss]
+    return (tuple(blockdiag(*(p[k] for p in parts)) for k in range(9)), tuple(t for s in ss for t in s.delays),
+            tuple(p for s in ss for p in s.limits))
 
 
 def _check_sizes(what: str, need: int, got: int, left: DelayLTI, right: DelayLTI) -> None:
@@ -192,13 +214,13 @@ def series(G: Any, H: Any) -> DelayLTI:
     if H.ninputs == 1 and H.noutputs == 1 and H.nstates == 0 and H.ndelays == 0 and G.ninputs != 1:
         H = gain(H.D11[0, 0] * np.eye(G.ninputs))
     _check_sizes("G * H needs as many outputs of H as inputs of G", H.noutputs, G.ninputs, G, H)
-    P = append(G, H)
+    P = _stack((G, H))
     ny, nu, k = G.noutputs, H.ninputs, G.ninputs
     F = np.zeros((k + nu, ny + k))
     F[:k, ny:] = np.eye(k)
     Gm = np.vstack([np.zeros((k, nu)), np.eye(nu)])
     Hm = np.hstack([np.eye(ny), np.zeros((ny, k))])
-    return close(P, F, Gm, Hm, np.zeros((ny, nu)), inputs=H.inputs, outputs=G.outputs, what="G * H")
+    return _closed(P, F, Gm, Hm, np.zeros((ny, nu)), H.inputs, G.outputs, "", "G * H", names_checked=True)
 
 
 def parallel(G: Any, H: Any) -> DelayLTI:
@@ -217,12 +239,12 @@ def parallel(G: Any, H: Any) -> DelayLTI:
         H = gain(H.D11[0, 0] * np.eye(G.noutputs))
     _check_sizes("G + H needs the same number of inputs", G.ninputs, H.ninputs, G, H)
     _check_sizes("G + H needs the same number of outputs", G.noutputs, H.noutputs, G, H)
-    P = append(G, H)
+    P = _stack((G, H))
     ny, nu = G.noutputs, G.ninputs
     F = np.zeros((2 * nu, 2 * ny))
     Gm = np.vstack([np.eye(nu), np.eye(nu)])
     Hm = np.hstack([np.eye(ny), np.eye(ny)])
-    return close(P, F, Gm, Hm, np.zeros((ny, nu)), inputs=G.inputs, outputs=G.outputs, what="G + H")
+    return _closed(P, F, Gm, Hm, np.zeros((ny, nu)), G.inputs, G.outputs, "", "G + H", names_checked=True)
 
 
 def negate(G: DelayLTI) -> DelayLTI:
@@ -234,8 +256,8 @@ def negate(G: DelayLTI) -> DelayLTI:
     >>> negate(tf("exp(-s)/(s+1)")).dcgain().tolist()
     [[-1.0]]
     """
-    return DelayLTI(G.A, G.B1, G.B2, -G.C1, G.C2, -G.D11, -G.D12, G.D21, G.D22, delays=G.delays, inputs=G.inputs,
-                    outputs=G.outputs, name=G.name, limits=G.limits)
+    return DelayLTI._from_parts((G.A, G.B1, G.B2, -G.C1, G.C2, -G.D11, -G.D12, G.D21, G.D22), G.delays, G.limits,
+                                G.inputs, G.outputs, G.name, names_checked=True)
 
 
 def feedback(sys1: Any, sys2: Any = 1, sign: int = -1) -> DelayLTI:
@@ -269,23 +291,28 @@ def feedback(sys1: Any, sys2: Any = 1, sign: int = -1) -> DelayLTI:
     if isinstance(sign, bool) or sign not in (1, -1):
         raise InvalidValueError(f"sign must be -1 (negative feedback) or +1, got {plain(sign)!r}")
     sys1 = as_system(sys1, "forward path")
-    sys2 = as_system(sys2, "return path")
-    if sys2.ninputs == sys2.noutputs == 1 and sys2.nstates == sys2.ndelays == 0 and sys1.noutputs != 1:
+    # feedback(L, 1): the return path's gain made once (times the identity for MIMO); other numbers as before
+    number = (type(sys2) is float and math.isfinite(sys2)) or (type(sys2) is int and abs(sys2) <= 2 ** 53)
+    sys2 = sys2 if number else as_system(sys2, "return path")
+    if sys1.noutputs != 1 and (number or (sys2.ninputs == sys2.noutputs == 1 and sys2.nstates == sys2.ndelays == 0)):
         if sys1.ninputs != sys1.noutputs:
             raise InvalidValueError(f"a scalar return path needs a square forward path, got {sys1!r}")
-        sys2 = gain(sys2.D11[0, 0] * np.eye(sys1.noutputs))
+        sys2 = gain((float(sys2) if number else sys2.D11[0, 0]) * np.eye(sys1.noutputs))
+    elif number:
+        sys2 = gain(sys2)
     _check_sizes("feedback needs as many inputs of the return path as outputs of the forward path",
                  sys1.noutputs, sys2.ninputs, sys1, sys2)
     _check_sizes("feedback needs as many outputs of the return path as inputs of the forward path",
                  sys1.ninputs, sys2.noutputs, sys1, sys2)
-    P = append(sys1, sys2)
+    P = _stack((sys1, sys2))
     ny, nu = sys1.noutputs, sys1.ninputs
     F = np.zeros((nu + ny, ny + nu))
     F[:nu, ny:] = sign * np.eye(nu)
     F[nu:, :ny] = np.eye(ny)
     Gm = np.vstack([np.eye(nu), np.zeros((ny, nu))])
     Hm = np.hstack([np.eye(ny), np.zeros((ny, nu))])
-    return close(P, F, Gm, Hm, np.zeros((ny, nu)), inputs=sys1.inputs, outputs=sys1.outputs, what="the feedback loop")
+    return _closed(P, F, Gm, Hm, np.zeros((ny, nu)), sys1.inputs, sys1.outputs, "", "the feedback loop",
+                   names_checked=True)
 
 
 def _index(key: Any, names: tuple[str, ...], what: str) -> list[int]:
@@ -326,9 +353,9 @@ def select(sys: DelayLTI, key: Any) -> DelayLTI:
         raise InvalidTypeError(f"index a system as sys[outputs, inputs], got sys[{key!r}]")
     rows = _index(key[0], sys.outputs, "output")
     cols = _index(key[1], sys.inputs, "input")
-    return DelayLTI(sys.A, sys.B1[:, cols], sys.B2, sys.C1[rows], sys.C2, sys.D11[np.ix_(rows, cols)],
-                    sys.D12[rows], sys.D21[:, cols], sys.D22, delays=sys.delays, limits=sys.limits,
-                    inputs=[sys.inputs[j] for j in cols], outputs=[sys.outputs[i] for i in rows], name=sys.name)
+    return DelayLTI._from_parts((sys.A, sys.B1[:, cols], sys.B2, sys.C1[rows], sys.C2, sys.D11[np.ix_(rows, cols)],
+                                 sys.D12[rows], sys.D21[:, cols], sys.D22), sys.delays, sys.limits,
+                                [sys.inputs[j] for j in cols], [sys.outputs[i] for i in rows], sys.name)
 
 
 def summing_junction(inputs: Sequence[str], output: str, *, name: str = "") -> DelayLTI:
@@ -427,4 +454,4 @@ def interconnect(blocks: Sequence[Any], inputs: Sequence[str], outputs: Sequence
         else:
             raise InvalidValueError(f"interconnect: the output {x!r} is no block's output nor an external input "
                                     f"(the signals are {sorted(set(e))})")
-    return close(append(*bl), F, G, H, J, inputs=ext_in, outputs=ext_out, name=name, what="the interconnection")
+    return _closed(_stack(bl), F, G, H, J, ext_in, ext_out, name, "the interconnection")

@@ -18,6 +18,7 @@ DelayLTI(2 inputs ['u[0]', 'u[1]'] -> 2 outputs ['y[0]', 'y[1]'], 4 states, dela
 
 from __future__ import annotations
 
+import functools
 import numbers
 import reprlib
 from typing import Any
@@ -27,7 +28,7 @@ import numpy as np
 from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
 from ..models.interop import require_control
 from ..models.transfer import TransferFunction, check_control_system
-from .algebra import append, close, feedback, gain, interconnect, summing_junction
+from .algebra import _closed, _partitions, _stack, append, close, feedback, gain, interconnect, summing_junction
 from .lti import DelayLTI
 
 __all__ = ["tf", "ss", "delay", "saturation", "to_control", "from_loop", "plant_of", "to_loop"]
@@ -36,10 +37,8 @@ __all__ = ["tf", "ss", "delay", "saturation", "to_control", "from_loop", "plant_
 def _rename(sys: DelayLTI, inputs: Any, outputs: Any, name: str | None) -> DelayLTI:
     if inputs is None and outputs is None and name is None:
         return sys
-    return DelayLTI(sys.A, sys.B1, sys.B2, sys.C1, sys.C2, sys.D11, sys.D12, sys.D21, sys.D22, delays=sys.delays,
-                    limits=sys.limits,
-                    inputs=sys.inputs if inputs is None else inputs,
-                    outputs=sys.outputs if outputs is None else outputs, name=sys.name if name is None else name)
+    return DelayLTI._from_parts(_partitions(sys), sys.delays, sys.limits, sys.inputs if inputs is None else inputs,
+                                sys.outputs if outputs is None else outputs, sys.name if name is None else name)
 
 
 def _rational(g: TransferFunction, T: float = 0.0) -> DelayLTI:
@@ -47,10 +46,12 @@ def _rational(g: TransferFunction, T: float = 0.0) -> DelayLTI:
     A, B, C, D = g.state_space()
     n = A.shape[0]
     B, C = B.reshape(n, 1), C.reshape(1, n)
+    z = np.zeros
     if T == 0.0:
-        return DelayLTI(A=A, B1=B, C1=C, D11=[[D]])
-    return DelayLTI(A=A, B1=np.zeros((n, 1)), B2=B, C1=C, D11=[[0.0]], D12=[[D]], C2=np.zeros((1, n)),
-                    D21=[[1.0]], D22=[[0.0]], delays=[T])
+        return DelayLTI._from_parts((A, B, z((n, 0)), C, z((0, n)), np.array([[D]]), z((1, 0)), z((0, 1)), z((0, 0))),
+                                    (), None, names_checked=True)
+    return DelayLTI._from_parts((A, z((n, 1)), B, C, z((1, n)), z((1, 1)), np.array([[D]]), np.ones((1, 1)),
+                                 z((1, 1))), (float(T),), None, names_checked=True)
 
 
 def _invert(h: DelayLTI, text: str) -> DelayLTI:
@@ -63,9 +64,13 @@ def _invert(h: DelayLTI, text: str) -> DelayLTI:
     return (1.0 / d) * feedback(1.0, (h - d) * (1.0 / d))
 
 
+@functools.lru_cache(maxsize=512)
 def _text(text: str) -> DelayLTI:
     """A transfer function as text: read whole as a rational function times delays when it is one, otherwise
-    split at its top operator (sums and quotients of delayed terms: internal delays) and combined by the algebra."""
+    split at its top operator (sums and quotients of delayed terms: internal delays) and combined by the algebra.
+
+    Remembered for the last texts read (a system is immutable, so the same text gives the same object): building
+    many loops around one plant written as text reads it once; errors are not remembered."""
     import ast
 
     try:
@@ -127,9 +132,17 @@ def _siso(spec: Any, where: str) -> DelayLTI:
         except (InvalidValueError, InvalidTypeError) as exc:
             raise type(exc)(f"{where}: {exc}") from exc
     if isinstance(spec, numbers.Real) and not isinstance(spec, bool):
-        return gain(float(spec))
+        x = float(spec)
+        return _number(x, repr(x))
     raise InvalidTypeError(f"{where}: expected text such as '2*exp(-s)/(s+1)', a pair (num, den), a number or a "
                            f"TransferFunction, got {reprlib.repr(spec)} ({type(spec).__name__})")
+
+
+@functools.lru_cache(maxsize=64)
+def _number(x: float, spelling: str) -> DelayLTI:
+    """A number as a static gain, remembered (the zeros of a diagonal controller's transfer matrix); ``spelling``
+    tells apart ``-0.0`` and ``0.0``."""
+    return gain(x)
 
 
 def _matrix_of(rows: list, where: str) -> DelayLTI:
@@ -141,7 +154,7 @@ def _matrix_of(rows: list, where: str) -> DelayLTI:
         raise InvalidValueError(f"{where}: the rows have different lengths {[len(r) for r in rows]}")
     ny = len(rows)
     entries = [_siso(rows[i][j], f"{where}, entry [{i}][{j}]") for i in range(ny) for j in range(nu)]
-    P = append(*entries)
+    P = _stack(entries)
     k = ny * nu
     F = np.zeros((k, k))
     G = np.zeros((k, nu))
@@ -150,7 +163,24 @@ def _matrix_of(rows: list, where: str) -> DelayLTI:
         for j in range(nu):
             G[i * nu + j, j] = 1.0
             H[i, i * nu + j] = 1.0
-    return close(P, F, G, H, np.zeros((ny, nu)))
+    return _closed(P, F, G, H, np.zeros((ny, nu)), None, None, "", "the interconnection", names_checked=True)
+
+
+def _text_rows(rows: list) -> tuple[tuple[tuple[str | float | int, ...], ...], tuple[str, ...]] | None:
+    """``rows`` as the arguments of :func:`_matrix_of_text` when every entry is text or a plain number, else None:
+    the rows as tuples, and each number's spelling (``-0.0`` is not ``0.0``, whose systems differ in a zero's sign)."""
+    key = tuple(tuple(r) for r in rows if isinstance(r, (list, tuple)))
+    if len(key) != len(rows) or not all(type(x) in (str, float, int) for r in key for x in r):
+        return None
+    return key, tuple(repr(x) for r in key for x in r if type(x) is not str)
+
+
+@functools.lru_cache(maxsize=128)
+def _matrix_of_text(rows: tuple[tuple[str | float | int, ...], ...], spelling: tuple[str, ...]) -> DelayLTI:
+    """:func:`_matrix_of` of rows of text and numbers, remembered as :func:`_text` remembers its texts (one plant
+    written once and connected to many controllers is realised once); ``spelling`` tells apart numbers that
+    compare equal."""
+    return _matrix_of(rows, "tf")
 
 
 def _from_control(obj: Any) -> DelayLTI:
@@ -210,7 +240,8 @@ def tf(spec: Any, *, inputs: Any = None, outputs: Any = None, name: str | None =
     if isinstance(spec, DelayLTI):
         sys = spec
     elif isinstance(spec, list):
-        sys = _matrix_of(spec, "tf")
+        key = _text_rows(spec)
+        sys = _matrix_of(spec, "tf") if key is None else _matrix_of_text(*key)
     elif (type(spec).__module__ or "").split(".")[0] == "control":
         sys = _from_control(spec)
     else:

@@ -98,6 +98,13 @@ def _names(what: str, names: Any, n: int, default: str) -> tuple[str, ...]:
     return tuple(names)
 
 
+def _check_name(name: Any) -> str:
+    """A system's label: text."""
+    if not isinstance(name, str):
+        raise InvalidTypeError(f"name must be text, got {type(name).__name__}")
+    return name
+
+
 def _check_delays(delays: Any) -> tuple[float, ...]:
     """Delays as a tuple of finite non-negative floats (an error names the bad one)."""
     try:
@@ -301,9 +308,45 @@ class DelayLTI:
         set_("limits", _check_limits(limits, m))
         set_("inputs", _names("inputs", inputs, nu, "u"))
         set_("outputs", _names("outputs", outputs, ny, "y"))
-        if not isinstance(name, str):
-            raise InvalidTypeError(f"name must be text, got {type(name).__name__}")
-        set_("name", name)
+        set_("name", _check_name(name))
+
+    @classmethod
+    def _from_parts(cls, parts: Sequence[np.ndarray], delays: tuple[float, ...],
+                    limits: tuple[tuple[float, float], ...] | None = None, inputs: Any = None, outputs: Any = None,
+                    name: Any = "", *, names_checked: bool = False, finite: bool = False) -> DelayLTI:
+        """A system from parts the algebra made, without the public constructor's conversions (internal).
+
+        ``parts`` are the nine float matrices ``(A, B1, B2, C1, C2, D11, D12, D21, D22)`` of consistent shapes,
+        ``delays`` and ``limits`` tuples already checked (``limits`` None: no limit).  Finiteness is checked (an
+        overflow in the algebra is the constructor's error) unless ``finite`` says that the parts are copies of
+        checked ones; then the names as the constructor checks them, unless ``names_checked`` says that ``inputs``
+        and ``outputs`` are a system's own tuples (or None: the default names) and ``name`` is text.  A matrix
+        that is read-only already (another system's) is shared, one the caller made is frozen in place, anything
+        else is copied as the constructor copies it: the values, and so every result, are the constructor's.
+        """
+        self = object.__new__(cls)
+        d = self.__dict__
+        made = []
+        for key, val in zip(_PARTS, parts):
+            if val.flags.writeable:  # made by the caller (another system's matrices are read-only, checked already)
+                if val.base is not None or val.dtype != _FLOAT:  # a view, or not float: copied
+                    val = np.array(val, dtype=float)
+                val.flags.writeable = False
+                if val.size:
+                    made.append(val)
+            d[key] = val
+        if made and not finite and not np.isfinite(np.concatenate([v.ravel() for v in made])).all():
+            for key in _PARTS:
+                _matrix(key, d[key], d[key].shape)  # raises the constructor's error for the first bad matrix
+        m, nu, ny = len(delays), d["B1"].shape[1], d["C1"].shape[0]
+        d["delays"] = delays
+        d["limits"] = ((-math.inf, math.inf),) * m if limits is None else limits
+        if not names_checked or inputs is None or outputs is None:
+            inputs, outputs = _names("inputs", inputs, nu, "u"), _names("outputs", outputs, ny, "y")
+        if not names_checked:
+            _check_name(name)
+        d["inputs"], d["outputs"], d["name"] = inputs, outputs, name
+        return self
 
     # -- sizes -------------------------------------------------------------------------------------------
     @property
@@ -659,6 +702,8 @@ class DelayLTI:
 
 
 _MAX_CHANNELS = 14
+_PARTS = ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21", "D22")
+_FLOAT = np.dtype(float)
 
 
 def _is_numeric(x: Any) -> bool:
