@@ -277,3 +277,13 @@ def test_the_sampled_batchs_fold_is_folded(lp):
         np.testing.assert_array_equal(k0[:n], f.k, err_msg=mode)
         assert k0[n] == f.kw, mode
     assert found
+
+
+def test_the_rows_matrices_are_packed_as_the_fold_reads_them():
+    # the kernels hand fold_into their parameter row from OFF_M: M (MAXN x MAXN), then MAXN numbers per vector
+    from delaykit.models._foldkernel import PACKED
+    from delaykit.simulate import _layout as K
+
+    assert PACKED == tuple(name for name in loop_realisation(LOOPS[0]).__dataclass_fields__ if name in PACKED)
+    for j, name in enumerate(PACKED):
+        assert getattr(K, "OFF_" + name.upper()) == K.OFF_M + K.MAXN * K.MAXN + j * K.MAXN, name

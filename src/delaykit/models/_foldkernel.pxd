@@ -2,8 +2,6 @@
 # fold_into is cpdef and nogil: the kernels of delaykit.simulate cimport it.
 cimport cython
 
-@cython.locals(i=Py_ssize_t, j=Py_ssize_t, ym=double, vm=double)
-cpdef double fold_into(const double[:] M, Py_ssize_t ldm, const double[:] bw, const double[:] bym,
-                       const double[:] bvm, const double[:] cy, const double[:] cyd, const double[:] cv, double dy,
-                       double dyd, double dvy, double dvv, Py_ssize_t n, double[:, :] A, double[:] b,
-                       double[:] k) noexcept nogil
+@cython.locals(i=Py_ssize_t, j=Py_ssize_t, v=Py_ssize_t, ym=double, vm=double)
+cpdef double fold_into(const double[:] R, Py_ssize_t o, Py_ssize_t ldm, double dy, double dyd, double dvy, double dvv,
+                       Py_ssize_t n, double[:, :] A, double[:] b, double[:] k) noexcept nogil

@@ -99,9 +99,9 @@ class LoopRealisation:
         """
         n = self.order
         A, b, k = np.empty((n, n)), np.empty(n), np.empty(n)
-        f = lambda v: np.ascontiguousarray(v, dtype=float)  # noqa: E731
-        kw = _fold_kernel().fold_into(f(self.M).reshape(-1), n, f(self.bw), f(self.bym), f(self.bvm), f(self.cy),
-                                      f(self.cyd), f(self.cv), self.dy, self.dyd, self.dvy, self.dvv, n, A, b, k)
+        fk = _fold_kernel()
+        R = np.concatenate([np.ravel(self.M)] + [getattr(self, name) for name in fk.PACKED], dtype=float)
+        kw = fk.fold_into(R, 0, n, self.dy, self.dyd, self.dvy, self.dvv, n, A, b, k)
         return Folded(A=A, b=b, br=self.br, bu=self.bu, bum=self.bum, k=k, kw=float(kw), dvr=self.dvr)
 
 
@@ -112,8 +112,9 @@ def _fold_kernel() -> ModuleType:
     if not _fold:
         from .. import _native
 
-        mode = os.environ.get("DELAYKIT_KERNELS") or ("cython" if _native.built(__package__, "_foldkernel") else "python")
-        _fold.append(_native.load(__package__, "_foldkernel", mode))
+        pkg = "delaykit.models"
+        mode = os.environ.get("DELAYKIT_KERNELS") or ("cython" if _native.built(pkg, "_foldkernel") else "python")
+        _fold.append(_native.load(pkg, "_foldkernel", mode))
     return _fold[0]
 
 

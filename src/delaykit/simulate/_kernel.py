@@ -649,8 +649,7 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
     # imaged once they are below rounding (measured at each breakpoint, see the module's notes)
     neutral = (ti_pos or to_pos) and r_wy + r_yu <= 0
     if not to_pos:  # A and G's w column with the measurement folded in (models/_foldkernel.py; the law's row, unused)
-        _fold_into(par[OFF_M:OFF_M + MAXN * MAXN], MAXN, VE[0], VE[2], VE[3], VE[5], VE[6], VE[7], d5[0], d5[1], dvy,
-                   dvv, N, A, G[0], mats[3, 6])
+        _fold_into(par, OFF_M, MAXN, d5[0], d5[1], dvy, dvv, N, A, G[0], mats[3, 6])
     zero_a = True
     for i in range(N):
         G[1, i] = VE[1, i]

@@ -73,8 +73,7 @@ import math
 
 import numpy as np
 
-from ._layout import (DEG, HEAD, MAXN, NC, NOUT, OFF_BR, OFF_BVM, OFF_BW, OFF_BYM, OFF_CV, OFF_CY, OFF_CYD,
-                      OFF_M, STATUS_OK)
+from ._layout import DEG, HEAD, MAXN, NC, NOUT, OFF_BR, OFF_CY, OFF_M, STATUS_OK
 from ._poly import MAXX as _MAXX, STACK as _STACK  # the certified root search's most roots, and its stack
 
 try:
@@ -527,9 +526,7 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
         for k in range(na):
             Z0[i, k] = 0.0
     # the measurement folded in (models/_foldkernel.py): A in Z0's first N columns, b in its column iw, k and kw in k0
-    k0[iw] = _fold_into(par[OFF_M:OFF_M + MAXN * MAXN], MAXN, par[OFF_BW:OFF_BW + MAXN], par[OFF_BYM:OFF_BYM + MAXN],
-                        par[OFF_BVM:OFF_BVM + MAXN], par[OFF_CY:OFF_CY + MAXN], par[OFF_CYD:OFF_CYD + MAXN],
-                        par[OFF_CV:OFF_CV + MAXN], dy, dyd, dvy, dvv, N, Z0, Z0[:, iw], k0)
+    k0[iw] = _fold_into(par, OFF_M, MAXN, dy, dyd, dvy, dvv, N, Z0, Z0[:, iw], k0)
     for i in range(N):
         Z0[i, ir] = par[OFF_BR + i]
         c0[i] = par[OFF_CY + i]
