@@ -22,6 +22,7 @@ KERNELS = [
     "delaykit.spectrum._rootkernel",
     "delaykit.spectrum._trackkernel",
     "delaykit.models._expmkernel",
+    "delaykit.models._foldkernel",
     "delaykit.simulate._poly",
     "delaykit.simulate._taylor",
     "delaykit.simulate._kernel",

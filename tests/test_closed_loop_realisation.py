@@ -162,3 +162,128 @@ def test_the_sampled_model_has_the_poles_of_the_discretised_loop(lp):
     # what remains are a compensator's structural eigenvalues at 1 (fixed window integrals), which poles() omits
     assert len(left) == mdl.structural
     assert np.allclose(left, 1.0, atol=1e-6)
+
+
+# -- the measurement folded in, written once (models/_foldkernel.py) -------------------------------------------------
+# Before, LoopRealisation.folded() (numpy) and the two simulator kernels' set-up blocks (loops over a parameter row)
+# each wrote this algebra; now all three call fold_into.  The kernels' work arrays are read after a short run: the
+# Taylor kernel's known-input A and G's w column (mats[2], mats[3, 0]; the law's row in mats[3, 6]) and the sampled
+# batch's event map (Z0: A in its first N columns, b in column N; k and kw in vec[1]).
+# a plant with a direct feedthrough (dy != 0) but under the PV law with the true velocity, which needs dy = 0
+FOLD_LOOPS = [Loop(PLANT if c.uses_velocity and not c.filtered else "(s+3)/(s+1)", c, delay=0.2) for c in LAWS] + [
+    Loop("2/(s+1)", Controller.pv(1.0, 0.3), delay=0.3),
+    Loop(PLANT, Compensator.smith(PLANT, 0.3, primary=Controller.pi(0.5, 0.4)), delay=0.3),
+]
+
+
+def _numpy_fold(lr):
+    """The fold as folded() wrote it before (numpy's outer products): an independent spelling of the algebra."""
+    return (lr.M + np.outer(lr.bym, lr.cy) + np.outer(lr.bvm, lr.cyd), lr.bw + lr.bym * lr.dy + lr.bvm * lr.dyd,
+            lr.cv + lr.dvy * lr.cy + lr.dvv * lr.cyd, lr.dvy * lr.dy + lr.dvv * lr.dyd)
+
+
+@pytest.mark.parametrize("lp", FOLD_LOOPS, ids=repr)
+def test_folded_is_the_substitution_of_the_measurement(lp):
+    lr = loop_realisation(lp)
+    f = lr.folded()
+    A, b, k, kw = _numpy_fold(lr)
+    # numpy sums each entry in the same order: equal to the last bit
+    np.testing.assert_array_equal(f.A, A)
+    np.testing.assert_array_equal(f.b, b)
+    np.testing.assert_array_equal(f.k, k)
+    assert f.kw == kw
+
+
+def test_folded_by_hand():
+    # (s + 3)/(s + 1) = 1 + 2/(s + 1): x' = -x + w and y = 2x + w (dy = 1; the PI law reads no velocity).
+    # PI (kp, ki) with xi' = r - ym, v = kp r - kp ym + ki xi.  Substituting ym = y = 2x + w:
+    #   x'  = -x + w,   xi' = -2x - w + r,   v = -2 kp x + ki xi - kp w + kp r
+    kp, ki = 1.5, 0.4
+    f = loop_realisation(Loop("(s+3)/(s+1)", Controller.pi(kp, ki))).folded()
+    np.testing.assert_allclose(f.A, [[-1.0, 0.0], [-2.0, 0.0]], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(f.b, [1.0, -1.0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(f.k, [-2.0 * kp, ki], rtol=0, atol=1e-15)
+    assert f.kw == pytest.approx(-kp, abs=1e-15) and f.dvr == kp
+    # 2/(s + 1) under a PV law with the true velocity: y = 2x, y' = -2x + 2w, v = r - y - 0.3 y' = r - 1.4 x - 0.6 w
+    g = loop_realisation(Loop("2/(s+1)", Controller.pv(1.0, 0.3))).folded()
+    np.testing.assert_allclose(g.k, [-1.4], rtol=0, atol=1e-15)
+    assert g.kw == pytest.approx(-0.6, abs=1e-15) and g.A.tolist() == [[-1.0]] and g.b.tolist() == [1.0]
+
+
+def _captured(mod, name, call):
+    """The arguments (by name) of the last call of ``mod.name`` while ``call()`` runs (``mod`` run by Python)."""
+    import inspect
+
+    real = getattr(mod, name)
+    seen = {}
+
+    def spy(*args):
+        seen.update(inspect.signature(real).bind(*args).arguments)
+        return real(*args)
+
+    setattr(mod, name, spy)
+    try:
+        call()
+    finally:
+        setattr(mod, name, real)
+    return seen
+
+
+@pytest.mark.parametrize("lp", FOLD_LOOPS, ids=repr)
+def test_the_taylor_kernels_fold_is_folded(lp):
+    from delaykit import _native
+    from test_kernel_modes import run
+
+    py = _native.load("delaykit.simulate", "_kernel", "python")
+    args = _captured(py, "_run", lambda: run(py, lp, None, 0.5))
+    lr = loop_matrices(lp)
+    f, n = lr.folded(), lr.order
+    modes = {"python": args["mats"]}
+    if _native.built("delaykit.simulate", "_kernel"):  # the extension, on the same arguments
+        cy = _native.load("delaykit.simulate", "_kernel", "cython")
+        again = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in args.items()}
+        again["mats"] = np.full_like(args["mats"], np.nan)
+        cy._run(*again.values())
+        modes["cython"] = again["mats"]
+    for mode, mats in modes.items():
+        np.testing.assert_array_equal(mats[2, :n, :n], f.A, err_msg=mode)
+        np.testing.assert_array_equal(mats[3, 0, :n], f.b, err_msg=mode)
+        np.testing.assert_array_equal(mats[3, 6, :n], f.k, err_msg=mode)
+
+
+@pytest.mark.parametrize("lp", FOLD_LOOPS[:4] + FOLD_LOOPS[5:9], ids=repr)
+def test_the_sampled_batchs_fold_is_folded(lp):
+    from delaykit import _native
+    from delaykit.simulate.simulation import _event_stepped, param_row
+
+    lp = lp.replace(period=0.05)
+    lr = loop_matrices(lp)
+    row = param_row(lp, lr, step=1.0, slope=0.0, norm=1.0, t_end=0.5, band=0.02, dist=None)[None, :]
+    assert _event_stepped(row).all()
+    f, n = lr.folded(), lr.order
+    found = []
+    for mode in ("python", "cython") if _native.built("delaykit.simulate", "_sampled_batch") else ("python",):
+        sb = _native.load("delaykit.simulate", "_sampled_batch", mode)
+        if mode == "python":
+            args = _captured(sb, "run_one", lambda: sb.run_batch(row, 1, 1))
+        else:
+            args = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in args.items()}
+            args["Z0"], args["vec"] = np.full_like(args["Z0"], np.nan), np.full_like(args["vec"], np.nan)
+            sb.run_one(*args.values())
+        Z0, k0 = args["Z0"], args["vec"][1]
+        found.append(mode)
+        np.testing.assert_array_equal(Z0[:n, :n], f.A, err_msg=mode)
+        np.testing.assert_array_equal(Z0[:n, n], f.b, err_msg=mode)
+        np.testing.assert_array_equal(k0[:n], f.k, err_msg=mode)
+        assert k0[n] == f.kw, mode
+    assert found
+
+
+def test_the_rows_matrices_are_packed_as_the_fold_reads_them():
+    # the kernels hand fold_into their parameter row from OFF_M: M (MAXN x MAXN), then MAXN numbers per vector
+    from delaykit.models._foldkernel import PACKED
+    from delaykit.simulate import _layout as K
+
+    assert PACKED == tuple(name for name in loop_realisation(LOOPS[0]).__dataclass_fields__ if name in PACKED)
+    for j, name in enumerate(PACKED):
+        assert getattr(K, "OFF_" + name.upper()) == K.OFF_M + K.MAXN * K.MAXN + j * K.MAXN, name

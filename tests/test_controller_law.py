@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from delaykit import Controller, Loop, simulate, simulate_many
-from delaykit.models.controllers import controller_branches, feedback_transfer, parallel
+from delaykit.models.controllers import controller_branches, feedback_response, feedback_transfer, parallel
 
 RNG = np.random.default_rng(21)
 S = np.concatenate([1j * np.logspace(-2, 2, 7), RNG.normal(size=5) + 1j * RNG.normal(size=5) * 3])
@@ -153,3 +153,31 @@ def test_the_law_is_built_once_per_controller_and_cannot_be_changed_through_it()
     num[0] = 99.0  # the polynomials are copies
     assert c.feedback_polynomials()[0][0] != 99.0
     assert c.replace(kp=3.0).realisation().dvy == -3.0 - 0.1 / 0.02  # a changed controller has its own law
+
+
+@pytest.mark.parametrize("c", CONTROLLERS, ids=repr)
+def test_the_feedback_response_is_the_law(c):
+    # Cy(s) from the branches against the closed form written from the module docstring
+    ref = np.array([closed_form(c, s)[1] for s in S])
+    np.testing.assert_allclose(feedback_response(c, S), ref, rtol=1e-12, atol=1e-12)
+    if c.kind != "tf":  # at arrays of gains: row i is the controller built with gains i
+        scale = np.array([0.5, 1.0, 1.7])
+        gains = {g: getattr(c, g) * scale for g in ("kp", "ki", "kd", "kv")}
+        many = feedback_response(c, S, **gains)
+        assert many.shape == (3, S.size)
+        for i in range(3):
+            one = c.replace(**{g: float(v[i]) for g, v in gains.items() if v[i] != 0 or g == "kp"})
+            np.testing.assert_allclose(many[i], [closed_form(one, s)[1] for s in S], rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("kind", ["p", "pv", "pi", "pd", "pid"])
+def test_the_tuners_controller_response_is_the_law(kind):
+    # design.pid_optimise.controller_response evaluates the one law; the reference is its docstring's closed form
+    from delaykit.design.pid_optimise import controller_response
+
+    kp, ki, kd, tf = np.array([1.0, 2.5]), np.array([0.5, 0.2]), np.array([0.2, 0.05]), 0.02
+    got = controller_response(kind, kp, ki, kd, tf, S)
+    kp, ki, kd = kp[:, None], ki[:, None], kd[:, None]
+    ref = kp + kd * S if kind == "pv" else (kp + 0.0 * S + (ki / S if "i" in kind else 0.0)
+                                             + (kd * S / (tf * S + 1.0) if "d" in kind else 0.0))
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=0)

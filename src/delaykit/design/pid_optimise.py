@@ -44,7 +44,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from ..errors import InvalidValueError
-from ..models.controllers import Controller
+from ..models.controllers import Controller, feedback_response
 from ..models.loop import Loop
 from ..models.transfer import TransferFunction
 
@@ -115,22 +115,20 @@ def _values(points: Sequence[PlantPoint], w: np.ndarray) -> np.ndarray:
 
 
 def controller_response(kind: str, kp: Any, ki: Any, kd: Any, tf: Any, s: np.ndarray) -> np.ndarray:
-    """``C(s)`` of the feedback part (broadcast over the gains' shapes and ``s``): ``kp + ki/s + kd s/(tf s + 1)``,
-    or ``kp + kd s`` for the PV law (``kd`` the velocity gain).
+    """``C(s)`` of the feedback part: ``kp + ki/s + kd s/(tf s + 1)``, or ``kp + kd s`` for the PV law (``kd`` the
+    velocity gain), the controller's own law (:func:`~delaykit.models.controllers.feedback_response`) for gains
+    that may be arrays of one shape (leading the result's; ``tf`` one value).
 
     Examples
     --------
     >>> round(complex(controller_response("pid", 1.0, 0.5, 0.2, 0.02, np.array(1j))).real, 6)
     1.003998
     """
-    kp, ki, kd, tf = (np.asarray(v, float)[..., None] if np.ndim(v) else float(v) for v in (kp, ki, kd, tf))
-    with np.errstate(all="ignore"):
-        if kind == "pv":
-            return kp + kd * s
-        c = kp + ki / s if kind in ("pi", "pid") else kp + 0.0 * s
-        if kind in ("pd", "pid"):
-            c = c + kd * s / (tf * s + 1.0)
-        return c
+    uses = {"ki": kind in ("pi", "pid"), "kd": kind in ("pd", "pid"), "kv": kind == "pv"}
+    c = Controller.make(kind, kp=1.0, **{g: 1.0 if used else 0.0 for g, used in uses.items()},
+                        derivative_filter=float(tf) if uses["kd"] else None)
+    return feedback_response(c, s, kp=kp, ki=ki if uses["ki"] else None, kd=kd if uses["kd"] else None,
+                             kv=kd if uses["kv"] else None)
 
 
 def peak_gains(L: np.ndarray) -> tuple[float, float]:

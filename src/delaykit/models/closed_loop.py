@@ -26,7 +26,9 @@ Examples
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 
@@ -95,11 +97,28 @@ class LoopRealisation:
         >>> f.A.tolist(), f.b.tolist(), f.k.tolist(), f.kw
         ([[0.0, 0.0], [-1.0, 0.0]], [1.0, 0.0], [-2.0, 0.5], 0.0)
         """
-        A = self.M + np.outer(self.bym, self.cy) + np.outer(self.bvm, self.cyd)
-        b = self.bw + self.bym * self.dy + self.bvm * self.dyd
-        k = self.cv + self.dvy * self.cy + self.dvv * self.cyd
-        return Folded(A=A, b=b, br=self.br, bu=self.bu, bum=self.bum, k=k, kw=self.dvy * self.dy + self.dvv * self.dyd,
-                      dvr=self.dvr)
+        n = self.order
+        A, b, k = np.empty((n, n)), np.empty(n), np.empty(n)
+        fk = _fold_kernel()
+        R = np.concatenate([np.ravel(self.M)] + [getattr(self, name) for name in fk.PACKED], dtype=float)
+        kw = fk.fold_into(R, 0, n, self.dy, self.dyd, self.dvy, self.dvv, n, A, b, k)
+        return Folded(A=A, b=b, br=self.br, bu=self.bu, bum=self.bum, k=k, kw=float(kw), dvr=self.dvr)
+
+
+def _fold_kernel() -> ModuleType:
+    """The fold's kernel (:mod:`._foldkernel`) for Python callers: the extension where it was built, else the source
+    run by the interpreter (a few hundred operations: numba's import would cost more than it saves);
+    ``DELAYKIT_KERNELS`` chooses as for every kernel."""
+    if not _fold:
+        from .. import _native
+
+        pkg = "delaykit.models"
+        mode = os.environ.get("DELAYKIT_KERNELS") or ("cython" if _native.built(pkg, "_foldkernel") else "python")
+        _fold.append(_native.load(pkg, "_foldkernel", mode))
+    return _fold[0]
+
+
+_fold: list[ModuleType] = []
 
 
 def loop_realisation(loop: Loop) -> LoopRealisation:

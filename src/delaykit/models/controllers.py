@@ -45,7 +45,7 @@ import numpy as np
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from .transfer import TransferFunction
 
-__all__ = ["Controller", "Realisation", "controller_branches", "parallel", "feedback_transfer", "input_transfer", "CONTROLLER_KINDS", "ANTIWINDUP_CHOICES", "VELOCITY_CHOICES"]
+__all__ = ["Controller", "Realisation", "controller_branches", "parallel", "feedback_transfer", "feedback_response", "input_transfer", "CONTROLLER_KINDS", "ANTIWINDUP_CHOICES", "VELOCITY_CHOICES"]
 
 CONTROLLER_KINDS = ("p", "pv", "pi", "pd", "pid", "tf")
 ANTIWINDUP_CHOICES = ("none", "clamp", "backcalc")
@@ -583,6 +583,34 @@ def feedback_transfer(r: Realisation) -> tuple[np.ndarray, np.ndarray]:
     if r.dvv != 0.0 or np.any(r.Bcv):
         num = _padd(num, -np.r_[input_transfer(r, r.Bcv, r.dvv)[0], 0.0])
     return _trim(num), den
+
+
+def feedback_response(c: Controller, s: Any, kp: Any = None, ki: Any = None, kd: Any = None,
+                      kv: Any = None) -> np.ndarray:
+    """The feedback part ``Cy(s)`` of the law ``v = ... - Cy(s) ym`` (the velocity read as ``s ym``) at the points
+    ``s``: the sum of :func:`controller_branches`' feedback parts, each ``-(dvy + dvv s) - Cc (sI - Ac)^-1 (Bcy +
+    s Bcv)``.  The gains are as there: the controller's, or arrays of one shape ``g``, which lead the result's
+    shape, ``g + s.shape``.  (A pole of the law at ``s`` (an integrator's at 0) makes ``sI - Ac`` singular: an
+    error.)
+
+    Examples
+    --------
+    >>> np.round(feedback_response(Controller.pid(1.0, 0.5, 0.2, 0.02), [1j]), 6).tolist()  # 1 + 0.5/j + 0.2j/(0.02j + 1)
+    [(1.003998-0.30008j)]
+    >>> feedback_response(Controller.p(1.0), [1j, 2j], kp=np.array([1.0, 3.0])).real.tolist()
+    [[1.0, 1.0], [3.0, 3.0]]
+    """
+    s = np.asarray(s, complex)
+    z = s.reshape(-1)
+    total: Any = 0.0
+    for b in controller_branches(c, kp, ki, kd, kv):
+        part = -(np.asarray(b.dvy, float)[..., None] + np.asarray(b.dvv, float)[..., None] * z)
+        if b.order:  # (sI - Ac)^-1 (Bcy + s Bcv) at each s: (len(z), order)
+            x = np.linalg.solve(z[:, None, None] * np.eye(b.order) - b.Ac, (b.Bcy + z[:, None] * b.Bcv)[..., None])
+            part = part - np.asarray(b.Cc, float) @ x[..., 0].T
+        total = total + part
+    total = np.asarray(total)
+    return total.reshape(total.shape[:-1] + s.shape)
 
 
 def _padd(a: np.ndarray, b: np.ndarray) -> np.ndarray:

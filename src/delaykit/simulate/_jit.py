@@ -14,9 +14,10 @@ simulation run as plain Python.  So:
   never stays slow.
 
 The modes run the same arithmetic and agree to rounding (the tests check 1e-12).  numba's cache of a compiled
-function does not notice edits of the *other* kernel modules it calls: after changing :mod:`._poly` or
-:mod:`._taylor`, remove the cached kernels (``src/delaykit/simulate/__pycache__/*.nb*``); an edited kernel's
-extension is rebuilt by ``make``.  This module is private.
+function does not notice edits of the *other* kernel modules it calls: after changing :mod:`._poly`,
+:mod:`._taylor` or :mod:`delaykit.models._foldkernel`, remove the cached kernels
+(``src/delaykit/simulate/__pycache__/*.nb*``); an edited kernel's extension is rebuilt by ``make``.  This module is
+private.
 
 Examples
 --------

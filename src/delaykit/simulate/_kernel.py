@@ -97,6 +97,7 @@ if cython.compiled:  # the polynomial helpers and the Taylor recursion, called a
     from cython.cimports.delaykit.simulate._poly import shift_scale as _shift_scale
     from cython.cimports.delaykit.simulate._taylor import recursion as _recursion
     from cython.cimports.delaykit.simulate._taylor import recursion_known as _recursion_known
+    from cython.cimports.delaykit.models._foldkernel import fold_into as _fold_into
     from cython.cimports.libc.math import INFINITY as _INF, NAN as _NAN, isnan
     from cython.parallel import prange
 else:  # the same modules run as this one is (numba's copies, or Python)
@@ -110,6 +111,7 @@ else:  # the same modules run as this one is (numba's copies, or Python)
         _p.degree)
     _t = sibling(__name__, "_taylor")
     _recursion, _recursion_known = _t.recursion, _t.recursion_known
+    _fold_into = sibling(__name__, "_foldkernel", "delaykit.models").fold_into
     if __name__.endswith("_numba"):
         from numba import prange
     else:
@@ -646,17 +648,15 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
     # a neutral loop: a jump of the command comes back, one loop delay later, as a jump again; these stop being
     # imaged once they are below rounding (measured at each breakpoint, see the module's notes)
     neutral = (ti_pos or to_pos) and r_wy + r_yu <= 0
+    if not to_pos:  # A and G's w column with the measurement folded in (models/_foldkernel.py; the law's row, unused)
+        _fold_into(par, OFF_M, MAXN, d5[0], d5[1], dvy, dvv, N, A, G[0], mats[3, 6])
     zero_a = True
     for i in range(N):
-        G[0, i] = VE[0, i]
         G[1, i] = VE[1, i]
         if to_pos:
+            G[0, i] = VE[0, i]
             G[2, i] = VE[2, i]
             G[3, i] = VE[3, i]
-        else:
-            G[0, i] += VE[2, i] * d5[0] + VE[3, i] * d5[1]
-            for k in range(N):
-                A[i, k] += VE[2, i] * VE[5, k] + VE[3, i] * VE[6, k]
         for k in range(N):
             if A[i, k] != 0.0:
                 zero_a = False

@@ -122,8 +122,7 @@ def fastest_rate(lay: LoopMatrices, dvy: float, dvv: float, cv: np.ndarray, dela
         if abs(1.0 - f.kw) < 1e-12:
             raise InvalidValueError("the loop without delay is ill-posed: the controller's direct feedthrough "
                                     "cancels the plant's (1 + C(inf) P(inf) = 0)")
-        acl = lay.M + np.outer(f.b, f.k) / (1.0 - f.kw)
-        acl += np.outer(lay.bym, lay.cy) + np.outer(lay.bvm, lay.cyd)
+        acl = f.A + np.outer(f.b, f.k) / (1.0 - f.kw)
         rate = max(rate, float(np.max(np.abs(np.linalg.eigvals(acl)))))
     return rate
 

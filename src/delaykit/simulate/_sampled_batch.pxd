@@ -4,7 +4,7 @@ cimport cython
 
 ctypedef (double, double, double, double, double) metrics5
 
-cdef Py_ssize_t DEG, MAXN, NC, NOUT, OFF_BR, OFF_BVM, OFF_BW, OFF_BYM, OFF_CV, OFF_CY, OFF_CYD, OFF_M
+cdef Py_ssize_t DEG, MAXN, NC, NOUT, OFF_BR, OFF_CY, OFF_M
 cdef double STATUS_OK, _INF, _NAN, _GMAX_BETA, _SUB_BETA, _REM, _MARGIN
 cdef Py_ssize_t _MAXX, _STACK, _NSLOT, _NA, _NQ, _SA, _SS, _GKEEP, _WMAX, _TPEAK, _T10, _T90, _TLAST
 cdef Py_ssize_t _N, _TI, _TO, _UMIN, _UMAX, _PERIOD, _OFFSET, _T_END, _BAND, _NORM, _DIST, _T_DIST, _DY, _DYD

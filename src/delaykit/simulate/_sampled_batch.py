@@ -73,8 +73,7 @@ import math
 
 import numpy as np
 
-from ._layout import (DEG, HEAD, MAXN, NC, NOUT, OFF_BR, OFF_BVM, OFF_BW, OFF_BYM, OFF_CV, OFF_CY, OFF_CYD,
-                      OFF_M, STATUS_OK)
+from ._layout import DEG, HEAD, MAXN, NC, NOUT, OFF_BR, OFF_CY, OFF_M, STATUS_OK
 from ._poly import MAXX as _MAXX, STACK as _STACK  # the certified root search's most roots, and its stack
 
 try:
@@ -87,6 +86,7 @@ except ImportError:  # plain Python without Cython installed: only ``cython.comp
 if cython.compiled:  # the certified roots and the step metrics' update (shared with the Taylor kernel), as C
     from cython.cimports.delaykit.simulate._kernel import _metrics_row, _metrics_update
     from cython.cimports.delaykit.simulate._poly import crossings as _crossings
+    from cython.cimports.delaykit.models._foldkernel import fold_into as _fold_into
     from cython.cimports.libc.math import INFINITY as _INF, NAN as _NAN, ceil, isinf, ldexp, log2
     from cython.parallel import prange
 else:  # the same modules run as this one is (numba's copies, or Python)
@@ -95,6 +95,7 @@ else:  # the same modules run as this one is (numba's copies, or Python)
     from .._native import sibling
 
     _crossings = sibling(__name__, "_poly").crossings  # certified roots (see the module's notes)
+    _fold_into = sibling(__name__, "_foldkernel", "delaykit.models").fold_into
     _k = sibling(__name__, "_kernel")
     _metrics_update, _metrics_row = _k._metrics_update, _k._metrics_row
     if __name__.endswith("_numba"):
@@ -524,18 +525,13 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
         k0[i] = 0.0
         for k in range(na):
             Z0[i, k] = 0.0
+    # the measurement folded in (models/_foldkernel.py): A in Z0's first N columns, b in its column iw, k and kw in k0
+    k0[iw] = _fold_into(par, OFF_M, MAXN, dy, dyd, dvy, dvv, N, Z0, Z0[:, iw], k0)
     for i in range(N):
-        bym = par[OFF_BYM + i]
-        bvm = par[OFF_BVM + i]
-        for k in range(N):
-            Z0[i, k] = par[OFF_M + i * MAXN + k] + bym * par[OFF_CY + k] + bvm * par[OFF_CYD + k]
-        Z0[i, iw] = par[OFF_BW + i] + bym * dy + bvm * dyd
         Z0[i, ir] = par[OFF_BR + i]
         c0[i] = par[OFF_CY + i]
-        k0[i] = par[OFF_CV + i] + dvy * par[OFF_CY + i] + dvv * par[OFF_CYD + i]
     Z0[ir, irs] = 1.0
     c0[iw] = dy
-    k0[iw] = dvy * dy + dvv * dyd
     k0[ir] = dvr
     # the part S of z the output sees (closed under "the derivative of a seen component reads it") goes first:
     # z is kept in that order, z[:ns] = S
