@@ -17,8 +17,8 @@ saturated; two such saturations never feed each other directly, checked before).
 
 Each piece's degree ``K`` (at most ``DEG``) is the least whose remainder is provably below rounding.  With
 ``e_k = max_i |X_i[k]| 2^k`` (the coefficients' size on ``[0, 2]``: a stored piece is read up to twice its length
-past its start), ``a = 2 H ||A||`` and ``||B2||`` the infinity norms bounding the states' matrix and the delayed
-channels' map to the derivative in every regime of the saturations (``|A| + |B2_S| |C2_S|`` entrywise), the
+past its start), ``a = 2 H ||A||`` and ``||B2||`` the (weighted, below) infinity norms bounding the states' matrix
+and the delayed channels' map to the derivative in every regime of the saturations (``|A| + |B2_S| |C2_S|``), the
 recursion gives ``e_{k+1} <= (a e_k + 2^(k+1) H ||B2|| max_c |W_c[k]|) / (k + 1)`` once the inputs' (linear)
 coefficients are past, and summing over ``k >= K``::
 
@@ -26,10 +26,14 @@ coefficients are past, and summing over ``k >= K``::
 
 ``K`` is the least degree (at least 2, and past the delayed channels' coefficients that sum, weighted by ``2^k``,
 to more than ``u`` of their largest) where this bound is at most ``u`` (the unit roundoff, ``2^-53``) times the
-states' largest coefficient: on ``[0, 2]`` the dropped terms of the states, channels and outputs are below the
-rounding of their own largest terms.  A piece where even ``DEG`` does not meet it is redone at half its length.
-(Wood-Berry's pieces, a minute long, take degree 11 to 16 this way, against 24 for every piece before; the
-answers did not move.)  A piece ends at:
+states' largest coefficient of degree 1 or more (the values at the start count for ``1e-6`` of theirs): a
+truncation error, unlike rounding, has the same sign from piece to piece and adds up, so it is held below the
+rounding of what changes on the piece.  The norms are weighted (``diag(v)^-1 A diag(v)``, ``v`` close to the
+Perron vector of ``|A|``, largest entry 1; ``e_k`` with ``|X_i[k]| / v_i``): any positive weights keep the bound
+rigorous, these keep ``a`` near the spectral radius of ``|A|`` where the plain norm of a companion matrix is far
+above it.  A piece where even ``DEG`` does not meet it is redone at half its length.  (Wood-Berry's pieces, a
+minute long, take degree 11 to 17 this way, against 24 for every piece before, and its responses did not move.)
+A piece ends at:
 
 * a *breakpoint image*: each channel keeps the times where its signal ``V_c`` is not analytic, with the order of
   the lowest derivative that jumps there (0: the value); ``tau_c`` later, ``W_c`` is not analytic, and every
@@ -76,7 +80,7 @@ if cython.compiled:  # C's own functions (Cython turns these imports into cimpor
 else:  # (prange and threadid: run_batch, their one user, is called in compiled mode only)
     from math import fabs, isfinite
 
-__all__ = ["run", "run_batch", "DEG", "NC", "NINFO", "STATUS_OK", "STATUS_CAPACITY", "STATUS_STALLED",
+__all__ = ["run", "run_batch", "work_sizes", "DEG", "NC", "NINFO", "STATUS_OK", "STATUS_CAPACITY", "STATUS_STALLED",
            "STATUS_OVERFLOW", "COMPILED"]
 
 COMPILED: bool = cython.compiled
@@ -108,6 +112,7 @@ _LOW = 2
 # those of its states' matrix), and the next may grow to twice its length, up to _GROW hmax, when this one needed
 # at most _NGROW coefficients
 _TRUNC = 0.5 * _EPS
+_FLOOR = 1e-6  # (the values at the start count for this much in the scale the remainder is measured against)
 _NGROW = 17
 _GROW = 4.0
 _SELF = 0.125  # a delay at most this times hmax is read from the piece being built (as the Loop kernel)
@@ -194,8 +199,8 @@ def _add_bp(bp_t, bp_o, bp_n, c, t, order, tol):
 
 
 def run(A, B1, B2, C1, C2, D11, D12, D21, D22, gp, gi, gv, hp, hi_, hv, jp, ji, jv, tau, lo, hi, ut, uvs, x0, Rw,
-        Ru, R0, tq, deriv, t_end, hmax, anorm, bw, tol, out, hist_t, hist_h, hist_n, hist_c, bp_t, bp_o, bp_n, jump_t,
-        jump_v, info):
+        Ru, R0, tq, deriv, t_end, hmax, anorm, bw, iw, tol, out, hist_t, hist_h, hist_n, hist_c, bp_t, bp_o, bp_n,
+        jump_t, jump_v, info):
     """Integrate the reduced system from 0 to ``t_end``, once for each input column ``uvs[col]`` (one call: the
     work space is shared); write ``out[col, :, k]`` (the outputs, or their derivative when ``deriv``) at the
     sorted times ``tq`` and the jumps of the outputs into ``jump_t[col]``/``jump_v[col]``.
@@ -211,17 +216,24 @@ def run(A, B1, B2, C1, C2, D11, D12, D21, D22, gp, gi, gv, hp, hi_, hv, jp, ji, 
     nu = B1.shape[1]
     m = B2.shape[1]
     ny = C1.shape[0]
-    FW = np.zeros((n + nu + 3 * m + ny, _NC))
-    F1 = np.zeros(ny + n + 3 * _NC + m)
-    I1 = np.zeros(5 * m, dtype=np.int64)
+    rows, nf, ni = work_sizes(n, nu, m, ny)
+    FW = np.zeros((rows, _NC))
+    F1 = np.zeros(nf)
+    I1 = np.zeros(ni, dtype=np.int64)
     for col in range(uvs.shape[0]):
         _core(A, B1, B2, C1, C2, D11, D12, D21, D22, gp, gi, gv, hp, hi_, hv, jp, ji, jv, tau, lo, hi, ut, uvs[col],
-              x0, Rw, Ru, R0, tq, deriv, t_end, hmax, anorm, bw, tol, out[col], hist_t, hist_h, hist_n, hist_c, bp_t,
-              bp_o, bp_n, jump_t[col], jump_v[col], info[col], FW, F1, I1)
+              x0, Rw, Ru, R0, tq, deriv, t_end, hmax, anorm, bw, iw, tol, out[col], hist_t, hist_h, hist_n, hist_c,
+              bp_t, bp_o, bp_n, jump_t[col], jump_v[col], info[col], FW, F1, I1)
+
+
+def work_sizes(n, nu, m, ny):
+    """The sizes of :func:`_core`'s work space for ``n`` states, ``nu`` inputs, ``m`` channels, ``ny`` outputs:
+    the rows of ``FW`` (of ``NC`` numbers each), the numbers of ``F1``, the integers of ``I1``."""
+    return n + nu + 3 * m + ny, ny + n + 4 * _NC + m + 1, 5 * m
 
 
 def run_batch(A, B1, B2, C1, C2, D11, D12, D21, D22, gp, gi, gv, hp, hi_, hv, jp, ji, jv, tau, lo, hi, ut, uvs, x0,
-              Rw, Ru, R0, tq, deriv, t_end, hmax, anorm, bw, tol, out, hist_t, hist_h, hist_n, hist_c, bp_t, bp_o,
+              Rw, Ru, R0, tq, deriv, t_end, hmax, anorm, bw, iw, tol, out, hist_t, hist_h, hist_n, hist_c, bp_t, bp_o,
               bp_n, jump_t, jump_v, info, FW, F1, I1):
     """Step responses of many systems of one shape in parallel threads (compiled mode only; the other modes call
     :func:`run` per job): job ``k`` is system ``k // nu``'s response to the inputs ``uvs[k % nu]``, written to
@@ -234,16 +246,16 @@ def run_batch(A, B1, B2, C1, C2, D11, D12, D21, D22, gp, gi, gv, hp, hi_, hv, jp
         sy = k // nu
         _core(A[sy], B1[sy], B2[sy], C1[sy], C2[sy], D11[sy], D12[sy], D21[sy], D22[sy], gp[sy], gi[sy], gv[sy],
               hp[sy], hi_[sy], hv[sy], jp[sy], ji[sy], jv[sy], tau[sy], lo[sy], hi[sy], ut, uvs[k % nu], x0,
-              Rw[sy], Ru[sy], R0, tq, deriv, t_end, hmax[sy], anorm[sy], bw[sy], tol, out[k], hist_t[tid],
+              Rw[sy], Ru[sy], R0, tq, deriv, t_end, hmax[sy], anorm[sy], bw[sy], iw[sy], tol, out[k], hist_t[tid],
               hist_h[tid], hist_n[tid], hist_c[tid], bp_t[tid], bp_o[tid], bp_n[tid], jump_t[tid], jump_v[tid],
               info[k], FW[tid], F1[tid], I1[tid])
 
 
 def _core(A, B1, B2, C1, C2, D11, D12, D21, D22, gp, gi, gv, hp, hi_, hv, jp, ji, jv, tau, lo, hi, ut, uv, x0, Rw,
-          Ru, R0, tq, deriv, t_end, hmax, anorm, bw, tol, out, hist_t, hist_h, hist_n, hist_c, bp_t, bp_o, bp_n,
+          Ru, R0, tq, deriv, t_end, hmax, anorm, bw, iw, tol, out, hist_t, hist_h, hist_n, hist_c, bp_t, bp_o, bp_n,
           jump_t, jump_v, info, FW, F1, I1):
-    """:func:`run`'s work, with its work space given: ``FW`` (n + nu + 3 m + ny rows of NC), ``F1`` (ny + n +
-    3 NC + m numbers), ``I1`` (5 m integers); allocates nothing (so that threads can run it without the GIL)."""
+    """:func:`run`'s work, with its work space given: ``FW``, ``F1``, ``I1`` of :func:`work_sizes`'s sizes;
+    allocates nothing (so that threads can run it without the GIL)."""
     n = A.shape[0]
     nu = B1.shape[1]
     m = B2.shape[1]
@@ -265,6 +277,7 @@ def _core(A, B1, B2, C1, C2, D11, D12, D21, D22, gp, gi, gv, hp, hi_, hv, jp, ji
     tmp = F1[ny + n + _NC:ny + n + 2 * _NC]
     work2 = F1[ny + n + 2 * _NC:ny + n + 3 * _NC]
     scale = F1[ny + n + 3 * _NC:ny + n + 3 * _NC + m]
+    wsum = F1[ny + n + 3 * _NC + m:ny + n + 4 * _NC + m + 1]
     mode = I1[0:m]
     rd = I1[m:2 * m]  # read pointer into the history, per channel
     ip = I1[2 * m:3 * m]  # next breakpoint to image, per channel
@@ -417,7 +430,7 @@ def _core(A, B1, B2, C1, C2, D11, D12, D21, D22, gp, gi, gv, hp, hi_, hv, jp, ji
         while tries < _MODE_TRIES:
             tries += 1
             nc = _recursion(gp, gi, gv, hp, hi_, hv, jp, ji, jv, n, nu, m, ny, tau, lo, hi, mode, xa, SW, Z, V, Y, H,
-                            anorm, bw)
+                            anorm, bw, iw, wsum)
             if anyself:
                 converged = False
                 for it in range(_PICARD):
@@ -437,7 +450,7 @@ def _core(A, B1, B2, C1, C2, D11, D12, D21, D22, gp, gi, gv, hp, hi_, hv, jp, ji
                             if dj > _PICARD_TOL * (big + scale[c]):
                                 diff = 1.0
                     nc = _recursion(gp, gi, gv, hp, hi_, hv, jp, ji, jv, n, nu, m, ny, tau, lo, hi, mode, xa, SW, Z,
-                                    V, Y, H, anorm, bw)
+                                    V, Y, H, anorm, bw, iw, wsum)
                     if diff == 0.0:
                         converged = True
                         break
@@ -675,7 +688,8 @@ def _cut(P, rows, xc, nc):
             b *= xc
 
 
-def _recursion(gp, gi, gv, hp, hi_, hv, jp, ji, jv, n, nu, m, ny, tau, lo, hi, mode, xa, S, Z, V, Y, H, anorm, bw):
+def _recursion(gp, gi, gv, hp, hi_, hv, jp, ji, jv, n, nu, m, ny, tau, lo, hi, mode, xa, S, Z, V, Y, H, anorm, bw, iw,
+               ws):
     """The Taylor coefficients of the states, channels and outputs on a piece of length ``H`` from the states
     ``xa`` at its start, to the least degree whose remainder is below rounding (see :func:`_core`'s bound);
     returns the number of coefficients kept, ``nc`` (the rest of each row set to 0), or ``_NC + 1`` when even
@@ -685,33 +699,27 @@ def _recursion(gp, gi, gv, hp, hi_, hv, jp, ji, jv, n, nu, m, ny, tau, lo, hi, m
     channels' (``n + nu..``: the delayed ones given, those without delay formed here, in the regimes ``mode``).
     ``[A B1 B2]``, ``[C2 D21 D22]`` and ``[C1 D11 D12]`` come as compressed rows (``gp, gi, gv`` and so on: their
     non-zero entries in increasing column order over the rows of ``S``, so that each sum is the dense one's without
-    its zero terms).  ``anorm`` bounds the infinity norm of the states' matrix in every regime of the channels
-    without delay, ``bw`` that of the map from the delayed channels to the states' derivative."""
+    its zero terms).  ``anorm`` bounds the weighted infinity norm ``||diag(iw) A diag(iw)^-1||`` of the states'
+    matrix in every regime of the channels without delay, ``bw`` that of the map from the delayed channels to the
+    states' derivative (``iw >= 1``, the inverse weights of the states); ``ws``: work space of ``_NC + 1``."""
     w0 = n + nu
-    # the delayed channels' tail: kw, the highest degree whose coefficients, with all above, sum (weighted by
-    # 2^j: on [0, 2]) to more than _TRUNC of their largest; wt, the sum above kw
+    # the delayed channels' coefficients on [0, 2]: ws[k] = sum_{j >= k} 2^j max_c |W_c[j]|
     wbig = 0.0
-    for c in range(m):
-        if tau[c] > 0.0:
-            for j in range(_NC):
-                if fabs(S[w0 + c, j]) > wbig:
-                    wbig = fabs(S[w0 + c, j])
-    wt = 0.0
-    kw = -1
+    ws[_NC] = 0.0
     p2 = 16777216.0  # 2^_DEG
     for j in range(_DEG, -1, -1):
         wn = 0.0
         for c in range(m):
             if tau[c] > 0.0 and fabs(S[w0 + c, j]) > wn:
                 wn = fabs(S[w0 + c, j])
-        if wt + wn * p2 > _TRUNC * wbig:
-            kw = j
-            break
-        wt += wn * p2
+        if j == 0:
+            wn *= _FLOOR
+        if wn > wbig:
+            wbig = wn
+        ws[j] = ws[j + 1] + wn * p2
         p2 *= 0.5
-    kmin = kw + 1 if kw + 1 > 2 else 2
     a2 = 2.0 * H * anorm
-    gt = 2.0 * H * bw * wt
+    g2 = 2.0 * H * bw
     xs = 0.0
     p2 = 1.0
     nc = _NC + 1
@@ -732,13 +740,14 @@ def _recursion(gp, gi, gv, hp, hi_, hv, jp, ji, jv, n, nu, m, ny, tau, lo, hi, m
                     S[w0 + c, k] = 0.0
         ek = 0.0
         for i in range(n):
-            if fabs(S[i, k]) > ek:
-                ek = fabs(S[i, k])
-        if ek > xs:
-            xs = ek
+            if fabs(S[i, k]) * (_FLOOR if k == 0 else 1.0) > xs:
+                xs = fabs(S[i, k]) * (_FLOOR if k == 0 else 1.0)
+            if fabs(S[i, k]) * iw[i] > ek:
+                ek = fabs(S[i, k]) * iw[i]
         ek *= p2
         p2 *= 2.0
-        if k >= kmin and k + 1.0 > a2 and a2 * ek + gt <= _TRUNC * xs * (k + 1.0 - a2):
+        if (k >= 2 and k + 1.0 > a2 and ws[k + 1] <= _TRUNC * wbig
+                and a2 * ek + g2 * ws[k] <= _TRUNC * xs * (k + 1.0 - a2)):
             nc = k + 1
             break
         if k < _DEG:

@@ -175,8 +175,9 @@ class _Reduced:
     AL: np.ndarray  # the states' matrix with every saturation linear (for R0 and the horizon)
     C2L: np.ndarray
     hmax: float
-    anorm: float  # bounds of the infinity norms of the states' matrix in any regime of the saturations without
-    bw: float     # delay, and of the map from the delayed channels to the states' derivative (the kernel's bound)
+    anorm: float  # the kernel's remainder bound (see _weights): the states' matrix's weighted infinity norm in
+    bw: float     # any regime of the saturations without delay, that of the delayed channels' map to the states'
+    iw: np.ndarray  # derivative, and the states' inverse weights
 
     @functools.cached_property
     def R0(self) -> np.ndarray:
@@ -195,6 +196,28 @@ class _Reduced:
             np.cumsum(np.bincount(rows, minlength=M.shape[0]), out=ptr[1:])
             out += [ptr, cols.astype(np.int64), np.ascontiguousarray(M[rows, cols], dtype=float)]
         return tuple(out)
+
+
+def _weights(M: np.ndarray, Bm: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The kernel's remainder bound's norms for the entrywise bounds ``M >= |A|`` and ``Bm >= |B2|`` (one system,
+    or stacks): with the states weighted by ``v`` (the Perron vector of ``M`` plus 1 % of its scale in every
+    entry, so that no weight is tiny; largest 1), ``anorm = max_i (M v)_i / v_i`` and ``bw = max_i sum_c Bm_ic /
+    v_i`` bound the infinity norms of ``diag(v)^-1 A diag(v)`` and ``diag(v)^-1 B2``; any positive ``v`` makes the
+    bound rigorous, this one makes ``anorm`` close to the spectral radius of ``M`` (a companion matrix's infinity
+    norm can be its spectral radius's square).  Returns ``anorm``, ``bw`` and ``1 / v``."""
+    n = M.shape[-1]
+    if n == 0:
+        return np.zeros(M.shape[:-2]), np.zeros(M.shape[:-2]), np.ones(M.shape[:-1])
+    big = M.max(axis=(-2, -1), keepdims=True)
+    P = M + 0.01 * np.where(big > 0.0, big, 1.0) / n
+    lam, vec = np.linalg.eig(P)
+    k = np.argmax(lam.real, axis=-1)
+    v = np.abs(np.take_along_axis(vec, k[..., None, None], axis=-1)[..., 0].real)
+    v = v / v.max(axis=-1, keepdims=True)
+    v = np.maximum(v, 1e-8)  # (rounding of a vector with positive entries)
+    anorm = ((M @ v[..., None])[..., 0] / v).max(axis=-1)
+    bw = (Bm.sum(axis=-1) / v).max(axis=-1) if Bm.shape[-1] else np.zeros(M.shape[:-2])
+    return anorm, bw, np.ascontiguousarray(1.0 / v)
 
 
 def _solve_channels(M: np.ndarray, what: str) -> np.ndarray:
@@ -268,15 +291,14 @@ def _reduce_many(systems: list[Any], deg: int) -> list[_Reduced]:
             A0 = P["A"][ok] + P["B2"][ok] @ (np.linalg.inv(M[ok]) @ P["C2"][ok])
             rate[ok] = np.maximum(rate[ok], np.max(np.abs(np.linalg.eigvals(A0)), axis=-1))
     lim = np.full(m, math.inf)
-    anorm = np.abs(P["A"]).sum(axis=2).max(axis=1, initial=0.0)
-    bw = np.abs(P["B2"]).sum(axis=2).max(axis=1, initial=0.0)
+    anorm, bw, iw = _weights(np.abs(P["A"]), np.abs(P["B2"]))
     out = []
     for k in range(ns):
         mats = {key: np.ascontiguousarray(v[k]) for key, v in P.items()}
         out.append(_Reduced(**mats, tau=np.ascontiguousarray(tau[k]), lo=-lim, hi=lim.copy(), Rw=Rw[k],
                             Ru=Ru[k], AL=mats["A"], C2L=mats["C2"],
                             hmax=1.0 / rate[k] if rate[k] > 0.0 else math.inf, anorm=float(anorm[k]),
-                            bw=float(bw[k])))
+                            bw=float(bw[k]), iw=iw[k]))
     return out
 
 
@@ -328,12 +350,11 @@ def _reduce(sys: Any, deg: int) -> _Reduced:
     if S:
         absA = absA + np.abs(Q["B2"][:, S]) @ np.abs(Q["C2"][S])
         absB = absB + np.abs(Q["B2"][:, S]) @ np.abs(Q["D22"][np.ix_(S, D)])
-    anorm = float(absA.sum(axis=1).max(initial=0.0)) if absA.size else 0.0
-    bw = float(absB.sum(axis=1).max(initial=0.0)) if absB.size else 0.0
+    anorm, bw, iw = _weights(absA, absB)
     return _Reduced(**{k: np.ascontiguousarray(v) for k, v in Q.items()}, tau=np.ascontiguousarray(tauR),
                     lo=np.ascontiguousarray(limR[:, 0] if m else np.zeros(0)),
                     hi=np.ascontiguousarray(limR[:, 1] if m else np.zeros(0)), Rw=Rw, Ru=Ru, AL=L["A"], C2L=C2L,
-                    hmax=hmax, anorm=anorm, bw=bw)
+                    hmax=hmax, anorm=float(anorm), bw=float(bw), iw=iw)
 
 
 def _check_neutral(D: np.ndarray, channels: list[int], tau: np.ndarray) -> None:
@@ -491,7 +512,7 @@ def _run(red: _Reduced, ut: np.ndarray, uvs: np.ndarray, x0: np.ndarray, tq: np.
         info = np.zeros((ncol, K.NINFO))
         K.run(red.A, red.B1, red.B2, red.C1, red.C2, red.D11, red.D12, red.D21, red.D22, *red.csr, red.tau,
               red.lo, red.hi, c_(ut), c_(uvs), c_(x0), red.Rw, red.Ru, R0, c_(tq), bool(deriv), float(t_end),
-              float(hmax), red.anorm, red.bw, float(tol), out, hist_t, hist_h, hist_n, hist_c, bp_t, bp_o, bp_n,
+              float(hmax), red.anorm, red.bw, red.iw, float(tol), out, hist_t, hist_h, hist_n, hist_c, bp_t, bp_o, bp_n,
               jump_t, jump_v, info)
         if (info[:, 0] == K.STATUS_CAPACITY).any() and cap < MAX_PIECES:
             cap *= 4
@@ -792,6 +813,7 @@ def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
         import os
 
         nth = max(1, os.cpu_count() or 1)
+        rows, nf, ni = K.work_sizes(n, nu, m, ny)
         cap = _BATCH_CAP
         csrs = [r.csr for r in reds]
         packed = []  # each system's compressed rows, the columns and values padded to the longest
@@ -805,13 +827,13 @@ def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
         K.run_batch(stack["A"], stack["B1"], stack["B2"], stack["C1"], stack["C2"], stack["D11"], stack["D12"],
                     stack["D21"], stack["D22"], *packed, stack["tau"], stack["lo"], stack["hi"], np.zeros(1), uvs,
                     np.zeros(n), stack["Rw"], stack["Ru"], R0, t, False, t_end, hmax,
-                    np.array([r.anorm for r in reds]), np.array([r.bw for r in reds]), tol, out,
+                    np.array([r.anorm for r in reds]), np.array([r.bw for r in reds]),
+                    np.stack([r.iw for r in reds]), tol, out,
                     np.zeros((nth, cap)), np.zeros((nth, cap)), np.zeros((nth, cap), dtype=np.int64),
                     np.zeros((nth, cap, m, K.NC)),
                     np.zeros((nth, m, cap)), np.zeros((nth, m, cap), dtype=np.int64),
                     np.zeros((nth, m), dtype=np.int64), np.zeros((nth, 0)), np.zeros((nth, 0, ny)), info,
-                    np.zeros((nth, n + nu + 3 * m + ny, K.NC)), np.zeros((nth, ny + n + 3 * K.NC + m)),
-                    np.zeros((nth, 5 * m), dtype=np.int64))
+                    np.zeros((nth, rows, K.NC)), np.zeros((nth, nf)), np.zeros((nth, ni), dtype=np.int64))
         redo = [k for k in range(ns * nu) if int(info[k, 0]) == K.STATUS_CAPACITY]
     else:
         redo = list(range(ns * nu))
