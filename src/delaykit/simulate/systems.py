@@ -773,7 +773,7 @@ def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
     >>> loops = [feedback(tf(f"{k}*exp(-s)/(s+1)"), 1) for k in (0.5, 1.0)]
     >>> r = step_response_many(loops, [0.0, 5.0, 20.0])
     >>> r
-    BatchTimeResponse(2 step responses: 1 output x 1 input at 3 times, 0 to 20 s, all exact, 57 pieces)
+    BatchTimeResponse(2 step responses: 1 output x 1 input at 3 times, 0 to 20 s, all exact, 94 pieces)
     >>> r.outputs[:, 0, 0, -1].round(4).tolist()     # k / (1 + k) in the end
     [0.3333, 0.5]
     """
