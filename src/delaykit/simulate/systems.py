@@ -33,8 +33,10 @@ SystemTimeResponse(step: 1 output x 1 input at 4 times, 0 to 3 s, exact, 4 piece
 
 from __future__ import annotations
 
+import functools
 import math
 import reprlib
+import weakref
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -173,7 +175,16 @@ class _Reduced:
     AL: np.ndarray  # the states' matrix with every saturation linear (for R0 and the horizon)
     C2L: np.ndarray
     hmax: float
+    anorm: float  # the kernel's remainder bound (see _weights): the states' matrix's weighted infinity norm in
+    bw: float     # any regime of the saturations without delay, that of the delayed channels' map to the states'
+    iw: np.ndarray  # derivative, and the states' inverse weights
 
+    @functools.cached_property
+    def R0(self) -> np.ndarray:
+        """The orders of the start's breakpoints from a state at rest: none (``DEG + 1``)."""
+        return np.full(len(self.tau), _kernel().DEG + 1, dtype=np.int64)
+
+    @functools.cached_property
     def csr(self) -> tuple[np.ndarray, ...]:
         """``[A B1 B2]``, ``[C2 D21 D22]``, ``[C1 D11 D12]`` as compressed rows (pointers, columns, values each),
         the kernel's form of them (its sums skip the zero terms)."""
@@ -185,6 +196,28 @@ class _Reduced:
             np.cumsum(np.bincount(rows, minlength=M.shape[0]), out=ptr[1:])
             out += [ptr, cols.astype(np.int64), np.ascontiguousarray(M[rows, cols], dtype=float)]
         return tuple(out)
+
+
+def _weights(M: np.ndarray, Bm: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The kernel's remainder bound's norms for the entrywise bounds ``M >= |A|`` and ``Bm >= |B2|`` (one system,
+    or stacks): with the states weighted by ``v`` (the Perron vector of ``M`` plus 1 % of its scale in every
+    entry, so that no weight is tiny; largest 1), ``anorm = max_i (M v)_i / v_i`` and ``bw = max_i sum_c Bm_ic /
+    v_i`` bound the infinity norms of ``diag(v)^-1 A diag(v)`` and ``diag(v)^-1 B2``; any positive ``v`` makes the
+    bound rigorous, this one makes ``anorm`` close to the spectral radius of ``M`` (a companion matrix's infinity
+    norm can be its spectral radius's square).  Returns ``anorm``, ``bw`` and ``1 / v``."""
+    n = M.shape[-1]
+    if n == 0:
+        return np.zeros(M.shape[:-2]), np.zeros(M.shape[:-2]), np.ones(M.shape[:-1])
+    big = M.max(axis=(-2, -1), keepdims=True)
+    P = M + 0.01 * np.where(big > 0.0, big, 1.0) / n
+    lam, vec = np.linalg.eig(P)
+    k = np.argmax(lam.real, axis=-1)
+    v = np.abs(np.take_along_axis(vec, k[..., None, None], axis=-1)[..., 0].real)
+    v = v / v.max(axis=-1, keepdims=True)
+    v = np.maximum(v, 1e-8)  # (rounding of a vector with positive entries)
+    anorm = ((M @ v[..., None])[..., 0] / v).max(axis=-1)
+    bw = (Bm.sum(axis=-1) / v).max(axis=-1) if Bm.shape[-1] else np.zeros(M.shape[:-2])
+    return anorm, bw, np.ascontiguousarray(1.0 / v)
 
 
 def _solve_channels(M: np.ndarray, what: str) -> np.ndarray:
@@ -258,12 +291,14 @@ def _reduce_many(systems: list[Any], deg: int) -> list[_Reduced]:
             A0 = P["A"][ok] + P["B2"][ok] @ (np.linalg.inv(M[ok]) @ P["C2"][ok])
             rate[ok] = np.maximum(rate[ok], np.max(np.abs(np.linalg.eigvals(A0)), axis=-1))
     lim = np.full(m, math.inf)
+    anorm, bw, iw = _weights(np.abs(P["A"]), np.abs(P["B2"]))
     out = []
     for k in range(ns):
         mats = {key: np.ascontiguousarray(v[k]) for key, v in P.items()}
         out.append(_Reduced(**mats, tau=np.ascontiguousarray(tau[k]), lo=-lim, hi=lim.copy(), Rw=Rw[k],
                             Ru=Ru[k], AL=mats["A"], C2L=mats["C2"],
-                            hmax=1.0 / rate[k] if rate[k] > 0.0 else math.inf))
+                            hmax=1.0 / rate[k] if rate[k] > 0.0 else math.inf, anorm=float(anorm[k]),
+                            bw=float(bw[k]), iw=iw[k]))
     return out
 
 
@@ -309,10 +344,17 @@ def _reduce(sys: Any, deg: int) -> _Reduced:
     C2L = np.zeros((m, sys.nstates))
     if D:
         C2L[D] = L["C2"]
+    # the kernel's remainder bound: |A| + |B2_S| |C2_S| bounds the states' matrix entrywise in every regime of the
+    # saturations without delay (linear: A + B2_S C2_S, D22 among them being 0; at a limit: A), and so on for B2
+    absA, absB = np.abs(Q["A"]), np.abs(Q["B2"][:, D])
+    if S:
+        absA = absA + np.abs(Q["B2"][:, S]) @ np.abs(Q["C2"][S])
+        absB = absB + np.abs(Q["B2"][:, S]) @ np.abs(Q["D22"][np.ix_(S, D)])
+    anorm, bw, iw = _weights(absA, absB)
     return _Reduced(**{k: np.ascontiguousarray(v) for k, v in Q.items()}, tau=np.ascontiguousarray(tauR),
                     lo=np.ascontiguousarray(limR[:, 0] if m else np.zeros(0)),
                     hi=np.ascontiguousarray(limR[:, 1] if m else np.zeros(0)), Rw=Rw, Ru=Ru, AL=L["A"], C2L=C2L,
-                    hmax=hmax)
+                    hmax=hmax, anorm=float(anorm), bw=float(bw), iw=iw)
 
 
 def _check_neutral(D: np.ndarray, channels: list[int], tau: np.ndarray) -> None:
@@ -437,15 +479,17 @@ def _check_horizon(red: _Reduced, t_end: float) -> None:
 _STATUS = {0: "exact", 2: "stalled", 3: "overflow"}
 
 
-def _run(red: _Reduced, ut: np.ndarray, uv: np.ndarray, x0: np.ndarray, tq: np.ndarray, t_end: float,
-         deriv: bool = False, jumps: bool = False) -> tuple[np.ndarray, str, int, float, np.ndarray, np.ndarray]:
-    """One kernel run: outputs at ``tq`` (relative to the start), status, pieces, time reached, output jumps."""
+def _run(red: _Reduced, ut: np.ndarray, uvs: np.ndarray, x0: np.ndarray, tq: np.ndarray, t_end: float,
+         deriv: bool = False, jumps: bool = False) -> list[tuple[np.ndarray, str, int, float, np.ndarray, np.ndarray]]:
+    """Kernel runs, one per input column ``uvs[k]`` (the inputs' values at the knots ``ut``), in one call: for each,
+    the outputs at ``tq`` (relative to the start), status, pieces, time reached, output jumps."""
     _check_horizon(red, t_end)
     K = _kernel()
     c_ = np.ascontiguousarray
     deg = K.DEG
-    m, ny, n = len(red.tau), red.C1.shape[0], red.A.shape[0]
-    R0 = np.full(m, deg + 1, dtype=np.int64)
+    m, ny = len(red.tau), red.C1.shape[0]
+    ncol = uvs.shape[0]
+    R0 = red.R0 if not x0.any() else np.full(m, deg + 1, dtype=np.int64)
     if x0.any() and m:
         v = x0.copy()
         for r in range(deg + 1):
@@ -457,40 +501,54 @@ def _run(red: _Reduced, ut: np.ndarray, uv: np.ndarray, x0: np.ndarray, tq: np.n
     tol = 64.0 * np.finfo(float).eps * max(1.0, t_end)
     hmax = min(red.hmax, t_end)
     cap = min(1024, MAX_PIECES)
-    csr = red.csr()
     while True:
-        out = np.full((ny, tq.size), np.nan)
-        hist_t, hist_h = np.zeros(cap), np.zeros(cap)
+        out = np.full((ncol, ny, tq.size), np.nan)
+        hist_t, hist_h, hist_n = np.zeros(cap), np.zeros(cap), np.zeros(cap, dtype=np.int64)
         hist_c = np.zeros((cap, m, K.NC))
         bp_t, bp_o = np.zeros((m, cap)), np.zeros((m, cap), dtype=np.int64)
         bp_n = np.zeros(m, dtype=np.int64)
         jcap = cap if jumps else 0
-        jump_t, jump_v = np.zeros(jcap), np.zeros((jcap, ny))
-        info = np.zeros(K.NINFO)
-        K.run(red.A, red.B1, red.B2, red.C1, red.C2, red.D11, red.D12, red.D21, red.D22, *csr, red.tau, red.lo,
-              red.hi, c_(ut), c_(uv), c_(x0), red.Rw, red.Ru, R0, c_(tq), bool(deriv), float(t_end), float(hmax),
-              float(tol), out, hist_t, hist_h, hist_c, bp_t, bp_o, bp_n, jump_t, jump_v, info)
-        status = int(info[0])
-        if status == K.STATUS_CAPACITY and cap < MAX_PIECES:
+        jump_t, jump_v = np.zeros((ncol, jcap)), np.zeros((ncol, jcap, ny))
+        info = np.zeros((ncol, K.NINFO))
+        K.run(red.A, red.B1, red.B2, red.C1, red.C2, red.D11, red.D12, red.D21, red.D22, *red.csr, red.tau,
+              red.lo, red.hi, c_(ut), c_(uvs), c_(x0), red.Rw, red.Ru, R0, c_(tq), bool(deriv), float(t_end),
+              float(hmax), red.anorm, red.bw, red.iw, float(tol), out, hist_t, hist_h, hist_n, hist_c, bp_t, bp_o, bp_n,
+              jump_t, jump_v, info)
+        if (info[:, 0] == K.STATUS_CAPACITY).any() and cap < MAX_PIECES:
             cap *= 4
             continue
-        nj = int(info[2])
-        return (out, "truncated" if status == K.STATUS_CAPACITY else _STATUS[status], int(info[1]), float(info[3]),
-                jump_t[:nj].copy(), jump_v[:nj].copy())
+        res = []
+        for k in range(ncol):
+            status, nj = int(info[k, 0]), int(info[k, 2])
+            res.append((out[k], "truncated" if status == K.STATUS_CAPACITY else _STATUS[status], int(info[k, 1]),
+                        float(info[k, 3]), jump_t[k, :nj], jump_v[k, :nj]))
+        return res
+
+
+def _plan(sys: Any) -> _Reduced:
+    """The kernel's form of ``sys`` (:func:`_reduce`), computed once per system: a :class:`DelayLTI` is frozen and
+    its arrays are read-only, so a second response of the same object (other times, another kind) starts at the
+    kernel.  Held only as long as the system is."""
+    red = _PLANS.get(sys)
+    if red is None:
+        red = _reduce(sys, _kernel().DEG)
+        _PLANS[sys] = red
+    return red
+
+
+_PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _columns(sys: Any, T: Any, deriv: bool, kind: str) -> SystemTimeResponse:
     _check_system(sys)
     t = _default_times(sys, T)
-    K = _kernel()
-    red = _reduce(sys, K.DEG)
+    red = _plan(sys)
     ny, nu = sys.noutputs, sys.ninputs
     out = np.full((ny, nu, t.size), np.nan)
     pieces, reached, statuses, impulses = 0, math.inf, [], []
-    for j in range(nu):
-        uv = np.zeros((1, nu))
-        uv[0, j] = 1.0
-        y, st, p, tr, jt, jv = _run(red, np.zeros(1), uv, np.zeros(sys.nstates), t, float(t[-1]), deriv, deriv)
+    runs = _run(red, np.zeros(1), np.eye(nu).reshape(nu, 1, nu), np.zeros(sys.nstates), t, float(t[-1]), deriv,
+                deriv)
+    for j, (y, st, p, tr, jt, jv) in enumerate(runs):
         out[:, j] = y
         pieces += p
         statuses.append(st)
@@ -592,8 +650,7 @@ def initial_response(sys: Any, T: Any = None, X0: Any = 0.0) -> SystemTimeRespon
     _check_system(sys)
     t = _default_times(sys, T)
     x0 = _initial_state(sys, X0)
-    red = _reduce(sys, _kernel().DEG)
-    y, st, p, tr, _, _ = _run(red, np.zeros(1), np.zeros((1, sys.ninputs)), x0, t, float(t[-1]))
+    y, st, p, tr, _, _ = _run(_plan(sys), np.zeros(1), np.zeros((1, 1, sys.ninputs)), x0, t, float(t[-1]))[0]
     return SystemTimeResponse(t, y, sys.outputs, sys.inputs, "initial", st, p, float(t[-1]) if st == "exact" else tr)
 
 
@@ -632,9 +689,8 @@ def forced_response(sys: Any, T: Any, U: Any, X0: Any = 0.0) -> SystemTimeRespon
     if u.shape != (nu, t.size):
         raise InvalidValueError(f"U must have shape ({nu}, {t.size}) (inputs, times), got {u.shape}")
     x0 = _initial_state(sys, X0)
-    red = _reduce(sys, _kernel().DEG)
     rel = t - t[0]
-    y, st, p, tr, _, _ = _run(red, np.ascontiguousarray(rel), np.ascontiguousarray(u.T), x0, rel, float(rel[-1]))
+    y, st, p, tr, _, _ = _run(_plan(sys), np.ascontiguousarray(rel), u.T[None], x0, rel, float(rel[-1]))[0]
     return SystemTimeResponse(t, y, sys.outputs, sys.inputs, "forced", st, p,
                               float(t[-1]) if st == "exact" else tr + float(t[0]))
 
@@ -717,7 +773,7 @@ def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
     >>> loops = [feedback(tf(f"{k}*exp(-s)/(s+1)"), 1) for k in (0.5, 1.0)]
     >>> r = step_response_many(loops, [0.0, 5.0, 20.0])
     >>> r
-    BatchTimeResponse(2 step responses: 1 output x 1 input at 3 times, 0 to 20 s, all exact, 57 pieces)
+    BatchTimeResponse(2 step responses: 1 output x 1 input at 3 times, 0 to 20 s, all exact, 94 pieces)
     >>> r.outputs[:, 0, 0, -1].round(4).tolist()     # k / (1 + k) in the end
     [0.3333, 0.5]
     """
@@ -757,8 +813,9 @@ def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
         import os
 
         nth = max(1, os.cpu_count() or 1)
+        rows, nf, ni = K.work_sizes(n, nu, m, ny)
         cap = _BATCH_CAP
-        csrs = [r.csr() for r in reds]
+        csrs = [r.csr for r in reds]
         packed = []  # each system's compressed rows, the columns and values padded to the longest
         for q in range(9):
             parts = [c[q] for c in csrs]
@@ -769,12 +826,14 @@ def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
             packed.append(arr)
         K.run_batch(stack["A"], stack["B1"], stack["B2"], stack["C1"], stack["C2"], stack["D11"], stack["D12"],
                     stack["D21"], stack["D22"], *packed, stack["tau"], stack["lo"], stack["hi"], np.zeros(1), uvs,
-                    np.zeros(n), stack["Rw"], stack["Ru"], R0, t, False, t_end, hmax, tol, out,
-                    np.zeros((nth, cap)), np.zeros((nth, cap)), np.zeros((nth, cap, m, K.NC)),
+                    np.zeros(n), stack["Rw"], stack["Ru"], R0, t, False, t_end, hmax,
+                    np.array([r.anorm for r in reds]), np.array([r.bw for r in reds]),
+                    np.stack([r.iw for r in reds]), tol, out,
+                    np.zeros((nth, cap)), np.zeros((nth, cap)), np.zeros((nth, cap), dtype=np.int64),
+                    np.zeros((nth, cap, m, K.NC)),
                     np.zeros((nth, m, cap)), np.zeros((nth, m, cap), dtype=np.int64),
                     np.zeros((nth, m), dtype=np.int64), np.zeros((nth, 0)), np.zeros((nth, 0, ny)), info,
-                    np.zeros((nth, n + nu + 3 * m + ny, K.NC)), np.zeros((nth, ny + n + 3 * K.NC + m)),
-                    np.zeros((nth, 5 * m), dtype=np.int64))
+                    np.zeros((nth, rows, K.NC)), np.zeros((nth, nf)), np.zeros((nth, ni), dtype=np.int64))
         redo = [k for k in range(ns * nu) if int(info[k, 0]) == K.STATUS_CAPACITY]
     else:
         redo = list(range(ns * nu))
@@ -783,7 +842,7 @@ def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
     for k in range(ns * nu):
         s_, j = divmod(k, nu)
         if k in redo:
-            y, st, p, _, _, _ = _run(reds[s_], np.zeros(1), uvs[j], np.zeros(n), t, t_end)
+            y, st, p, _, _, _ = _run(reds[s_], np.zeros(1), uvs[j:j + 1], np.zeros(n), t, t_end)[0]
             out[k] = y
         else:
             st, p = _STATUS[int(info[k, 0])], int(info[k, 1])
