@@ -26,7 +26,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, plain
+from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
 from .lti import DelayLTI
 
 __all__ = ["as_system", "close", "close_parts", "blockdiag", "append", "series", "parallel", "negate", "feedback",
@@ -43,19 +43,29 @@ def gain(K: Any, *, inputs: Any = None, outputs: Any = None, name: str = "") -> 
     >>> gain([[1.0, -1.0]])
     DelayLTI(2 inputs ['u[0]', 'u[1]'] -> 1 output ['y[0]'], 0 states, no delays)
     """
+    if isinstance(K, (bool, np.bool_)):
+        raise InvalidTypeError(f"a gain must be a real number or matrix, got {K!r} (a bool): write 1 or 0")
     try:
         k = np.array(K, dtype=float)
+    except OverflowError:  # an integer beyond the floats (10**400)
+        if isinstance(K, int):
+            check_real("a gain", K)  # names it by its number of digits
+        raise InvalidValueError(f"a gain must be finite: {reprlib.repr(K)} holds an integer beyond the floats"
+                                ) from None
     except (TypeError, ValueError) as exc:
         raise InvalidTypeError(f"a gain must be a real number or matrix, got {reprlib.repr(K)}") from exc
     if k.ndim > 2:
         raise InvalidValueError(f"a gain must be a number or a matrix, got shape {k.shape}")
+    if not np.isfinite(k).all():
+        bad = float(k[~np.isfinite(k)][0])
+        raise InvalidValueError(f"a gain must be finite, got {bad!r}" + ("" if k.ndim == 0 else f" in {k.tolist()}"))
     k = k.reshape(1, 1) if k.ndim == 0 else k.reshape(1, -1) if k.ndim == 1 else k
     if k.size == 0:
         return DelayLTI(D11=k, inputs=inputs, outputs=outputs, name=name)
     ny, nu = k.shape
     z = np.zeros
     return DelayLTI._from_parts((z((0, 0)), z((0, nu)), z((0, 0)), z((ny, 0)), z((0, 0)), k, z((ny, 0)), z((0, nu)),
-                                 z((0, 0))), (), None, inputs, outputs, name)
+                                 z((0, 0))), (), None, inputs, outputs, name, finite=True)
 
 
 def as_system(x: Any, what: str = "operand") -> DelayLTI:
@@ -70,9 +80,15 @@ def as_system(x: Any, what: str = "operand") -> DelayLTI:
     if isinstance(x, DelayLTI):
         return x
     if isinstance(x, (numbers.Real, np.ndarray)) and not isinstance(x, (bool, np.bool_)):
-        return gain(x)
+        try:
+            return gain(x)
+        except (InvalidValueError, InvalidTypeError) as exc:
+            raise type(exc)(f"{what}: {exc}") from None
     if isinstance(x, str):
         raise InvalidTypeError(f"{what}: text is read by tf('...'), not combined with a system directly; got {x!r}")
+    if isinstance(x, (bool, np.bool_)):  # python-control would take True as the gain 1; delaykit asks
+        raise InvalidTypeError(f"{what}: {x!r} is a bool, not a gain or a system; write the number 1 or 0, or a "
+                               "system")
     from .build import tf
 
     return tf(x)
@@ -112,7 +128,7 @@ def _closed(stack: _Stack, F: np.ndarray, G: np.ndarray, H: np.ndarray, J: np.nd
     names are systems' own tuples (see ``DelayLTI._from_parts``)."""
     parts, delays, limits = stack
     return DelayLTI._from_parts(close_parts(parts, F, G, H, J, what), delays, limits, inputs, outputs, name,
-                                names_checked=names_checked)
+                                names_checked=names_checked, finite=True)  # close_parts checked finiteness
 
 
 def close_parts(parts: Sequence[np.ndarray], F: Any, G: Any, H: Any, J: Any, what: str = "the interconnection"
@@ -120,6 +136,11 @@ def close_parts(parts: Sequence[np.ndarray], F: Any, G: Any, H: Any, J: Any, wha
     """The partitioned matrices ``(A, B1, B2, C1, C2, D11, D12, D21, D22)`` closed as :func:`close` does.
 
     Pure matrix algebra: it holds for a discrete-time system as well (``x[k+1]`` for ``x'``).
+
+    Raises
+    ------
+    InvalidValueError
+        When the algebraic loop is not well posed, or a result overflows (an entry beyond the largest float).
 
     Examples
     --------
@@ -132,18 +153,66 @@ def close_parts(parts: Sequence[np.ndarray], F: Any, G: Any, H: Any, J: Any, wha
     A, B1, B2, C1, C2, D11, D12, D21, D22 = parts
     ne, nv = D11.shape
     F, G, H, J = (np.asarray(M, dtype=float) for M in (F, G, H, J))
-    LF = D11 @ F  # the direct feedthrough around the loops
-    M = np.eye(ne) - LF
-    if ne and LF.any() and np.linalg.cond(M) > _COND_LIMIT:  # M = I otherwise, whose condition number is 1
-        raise InvalidValueError(f"{what} is not well posed: its algebraic loop (direct feedthroughs around a loop, "
-                                "I - D F singular) has no unique solution; add dynamics or change a gain")
-    X = (np.linalg.solve(M, np.concatenate([C1, D11 @ G, D12], axis=1)) if ne
-         else np.zeros((0, C1.shape[1] + G.shape[1] + D12.shape[1])))
-    n, nu = A.shape[0], G.shape[1]
-    Ce, Deu, Dew = X[:, :n], X[:, n:n + nu], X[:, n + nu:]
-    BF, DF = B1 @ F, D21 @ F
-    return (A + BF @ Ce, B1 @ G + BF @ Deu, B2 + BF @ Dew, H @ Ce, C2 + DF @ Ce, H @ Deu + J, H @ Dew,
-            D21 @ G + DF @ Deu, D22 + DF @ Dew)
+    with np.errstate(all="ignore"):  # an overflow is reported below, naming the matrix
+        LF = D11 @ F  # the direct feedthrough around the loops
+        M = np.eye(ne) - LF
+        # M = I without LF, whose condition number is 1; a large one is a singular loop, unless the feedthroughs
+        # close no loop at all (a chain: M is unit triangular, invertible whatever the gains' sizes)
+        if ne and LF.any() and not _cond(M) <= _COND_LIMIT:
+            if not np.isfinite(LF).all():
+                _overflow(what, "D11 F", "the direct feedthrough around the loops", parts)
+            if not _chain(LF):
+                raise InvalidValueError(f"{what} is not well posed: its algebraic loop (direct feedthroughs around "
+                                        "a loop, I - D F singular) has no unique solution; add dynamics or change a "
+                                        "gain")
+        X = (np.linalg.solve(M, np.concatenate([C1, D11 @ G, D12], axis=1)) if ne
+             else np.zeros((0, C1.shape[1] + G.shape[1] + D12.shape[1])))
+        n, nu = A.shape[0], G.shape[1]
+        Ce, Deu, Dew = X[:, :n], X[:, n:n + nu], X[:, n + nu:]
+        BF, DF = B1 @ F, D21 @ F
+        out = (A + BF @ Ce, B1 @ G + BF @ Deu, B2 + BF @ Dew, H @ Ce, C2 + DF @ Ce, H @ Deu + J, H @ Dew,
+               D21 @ G + DF @ Deu, D22 + DF @ Dew)
+    if not np.isfinite(np.concatenate([m.ravel() for m in out])).all():
+        k = next(k for k, m in enumerate(out) if not np.isfinite(m).all())
+        _overflow(what, _PART_NAMES[k], _PART_MEANING[k], parts)
+    return out
+
+
+_PART_NAMES = ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21", "D22")
+_PART_MEANING = ("the state matrix", "from the inputs to the states", "from the delay channels to the states",
+                 "from the states to the outputs", "from the states to the delay channels",
+                 "the direct feedthrough from the inputs to the outputs", "from the delay channels to the outputs",
+                 "from the inputs to the delay channels", "between the delay channels")
+
+
+def _overflow(what: str, name: str, meaning: str, parts: Sequence[np.ndarray]) -> None:
+    """Raise the error of a result beyond the floats: which matrix, and the largest entry it came from."""
+    big = max((float(np.abs(m).max()) for m in parts if m.size), default=0.0)
+    raise InvalidValueError(f"{what} overflows: the result's {name} ({meaning}) would have an entry beyond the "
+                            f"largest float (1.8e+308); the blocks' entries, up to {big:g}, multiply to more than "
+                            "that; rescale the signals (their units) to smaller gains")
+
+
+def _cond(M: np.ndarray) -> float:
+    """The condition number of ``M``; inf when its SVD fails (an entry that overflowed)."""
+    try:
+        return float(np.linalg.cond(M))
+    except np.linalg.LinAlgError:
+        return math.inf
+
+
+def _chain(LF: np.ndarray) -> bool:
+    """True when the nonzero entries of ``LF`` close no loop (its graph has no cycle, so ``LF`` is nilpotent and
+    ``I - LF`` has determinant 1): sources are removed until none is left."""
+    edges = LF != 0
+    alive = np.ones(edges.shape[0], bool)
+    while alive.any():
+        idx = np.flatnonzero(alive)
+        source = ~edges[np.ix_(idx, idx)].any(axis=1)  # fed by no remaining signal (row i: what feeds signal i)
+        if not source.any():
+            return False
+        alive[idx[source]] = False
+    return True
 
 
 def blockdiag(*ms: np.ndarray) -> np.ndarray:

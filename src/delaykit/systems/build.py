@@ -88,10 +88,14 @@ def _text(text: str) -> DelayLTI:
         return ast.get_source_segment(src, n) or ast.unparse(n)
 
     if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
-        return -_text(part(node.operand))
+        return -_part(text, part(node.operand), "term")
     if not isinstance(node, ast.BinOp) or not isinstance(node.op, (ast.Add, ast.Sub, ast.Mult, ast.Div)):
         raise first
-    left = _text(part(node.left))
+    if not any(isinstance(n, ast.Call) for n in ast.walk(node)):  # no delay: the reader's own error is the reason
+        raise first
+    role = ("numerator", "denominator") if isinstance(node.op, ast.Div) else ("factor", "factor") \
+        if isinstance(node.op, ast.Mult) else ("term", "term")
+    left = _part(text, part(node.left), role[0])
     if isinstance(node.op, ast.Div):
         try:  # a rational denominator: multiply by its reciprocal
             g, T = TransferFunction.parse_with_delay(part(node.right), proper=False)
@@ -99,10 +103,48 @@ def _text(text: str) -> DelayLTI:
             g, T = None, 0.0
         if g is not None and T == 0.0 and g.num.any() and g.num.size >= g.den.size:
             return left * _rational(TransferFunction(g.den, g.num))
-        return left * _invert(_text(part(node.right)), part(node.right))
-    right = _text(part(node.right))
+        den = _part(text, part(node.right), role[1])
+        try:
+            inverse = _invert(den, part(node.right))
+        except (InvalidValueError, InvalidTypeError) as exc:
+            raise _PartError.of(text, part(node.right), role[1], exc) from None
+        return left * inverse
+    right = _part(text, part(node.right), role[1])
     return left + right if isinstance(node.op, ast.Add) else left - right if isinstance(node.op, ast.Sub) \
         else left * right
+
+
+class _PartError(InvalidValueError):
+    """A part of a transfer function read part by part (:func:`_text`) that is no system of its own: the message
+    quotes the whole text the user gave and names the part of it that fails (its top-level numerator, term...)."""
+
+    def __init__(self, whole: str, part: str, role: str, reason: str) -> None:
+        super().__init__(f"cannot build {whole!r}: with a delay exp(-T*s) in a sum or in a denominator, it is built "
+                         f"from its parts as systems of their own (internal delays), and its {role} {part!r} is not one: "
+                         f"{reason}")
+        self.part, self.role, self.reason = part, role, reason
+
+    @classmethod
+    def of(cls, whole: str, part: str, role: str, exc: Exception) -> _PartError:
+        if isinstance(exc, _PartError):  # the reason found deeper, this level's part named
+            reason = exc.reason
+        else:
+            reason = str(exc)
+        try:
+            g, _ = TransferFunction.parse_with_delay(part, proper=False)
+        except (InvalidValueError, InvalidTypeError):
+            g = None
+        if g is not None and g.relative_degree < 0:
+            reason = f"it is improper (degree {g.num.size - 1} in s over {g.den.size - 1}), and every part must be proper"
+        return cls(whole, part, role, reason)
+
+
+def _part(whole: str, text: str, role: str) -> DelayLTI:
+    """:func:`_text` of a part of ``whole``; its error names ``whole`` and the part (a :class:`_PartError`)."""
+    try:
+        return _text(text)
+    except (InvalidValueError, InvalidTypeError) as exc:
+        raise _PartError.of(whole, text, role, exc) from None
 
 
 def _is_number_list(x: Any) -> bool:
@@ -122,7 +164,8 @@ def _siso(spec: Any, where: str) -> DelayLTI:
         try:
             return _text(spec)
         except (InvalidValueError, InvalidTypeError) as exc:
-            raise type(exc)(f"{where}: {exc}") from exc
+            kind = InvalidTypeError if isinstance(exc, InvalidTypeError) else InvalidValueError
+            raise kind(f"{where}: {exc}") from exc
     if isinstance(spec, TransferFunction):
         return _rational(TransferFunction.coerce(spec, name=where))
     if isinstance(spec, tuple) and len(spec) in (2, 3) and _is_number_list(spec[0]) and _is_number_list(spec[1]):
@@ -132,7 +175,7 @@ def _siso(spec: Any, where: str) -> DelayLTI:
         except (InvalidValueError, InvalidTypeError) as exc:
             raise type(exc)(f"{where}: {exc}") from exc
     if isinstance(spec, numbers.Real) and not isinstance(spec, bool):
-        x = float(spec)
+        x = check_real(f"{where}: a gain", spec)  # a finite number (10**400 and nan named)
         return _number(x, repr(x))
     raise InvalidTypeError(f"{where}: expected text such as '2*exp(-s)/(s+1)', a pair (num, den), a number or a "
                            f"TransferFunction, got {reprlib.repr(spec)} ({type(spec).__name__})")
@@ -261,21 +304,37 @@ def ss(A: Any, B: Any, C: Any, D: Any = None, *, inputs: Any = None, outputs: An
     """
     if (type(A).__module__ or "").split(".")[0] == "control":
         return tf(A, inputs=inputs, outputs=outputs, name=name or None)
+    args = (A, B, C, D)
     try:
         A = np.atleast_2d(np.array(A, dtype=float)) if np.size(A) else np.zeros((0, 0))
         n = A.shape[0]
         B = np.array(B, dtype=float).reshape(n, -1) if n else np.zeros((0, 0))
         C = np.array(C, dtype=float).reshape(-1, n) if n else np.zeros((0, 0))
+        if D is None:
+            D = np.zeros((C.shape[0], B.shape[1]))
+        D = np.atleast_2d(np.array(D, dtype=float))
+    except OverflowError:  # an integer beyond the floats (10**400)
+        bad = next(k for k, v in zip("ABCD", args) if _overflows(v))
+        raise InvalidValueError(f"ss: the entries of {bad} must be finite, got an integer beyond the floats in "
+                                f"{bad} = {reprlib.repr(args['ABCD'.index(bad)])}") from None
     except (TypeError, ValueError) as exc:
         raise InvalidValueError(f"ss: A, B, C must be real matrices of matching sizes ({exc})") from None
-    if D is None:
-        D = np.zeros((C.shape[0], B.shape[1]))
-    D = np.atleast_2d(np.array(D, dtype=float))
     if n == 0:
         return DelayLTI(D11=D, inputs=inputs, outputs=outputs, name=name)
     if D.size == 1 and (C.shape[0], B.shape[1]) != (1, 1) and not D.any():
         D = np.zeros((C.shape[0], B.shape[1]))
     return DelayLTI(A=A, B1=B, C1=C, D11=D, inputs=inputs, outputs=outputs, name=name)
+
+
+def _overflows(value: Any) -> bool:
+    """True when ``value`` holds an integer too large for a float."""
+    try:
+        np.array(value, dtype=float)
+    except OverflowError:
+        return True
+    except (TypeError, ValueError):
+        return False
+    return False
 
 
 def delay(T: float, *, inputs: Any = None, outputs: Any = None, name: str = "") -> DelayLTI:

@@ -651,7 +651,7 @@ class DelayLTI:
     def __sub__(self, other: Any) -> DelayLTI:
         from .algebra import as_system, parallel
 
-        return parallel(self, -as_system(other))
+        return parallel(self, -as_system(other, "right term"))
 
     def __rsub__(self, other: Any) -> DelayLTI:
         from .algebra import parallel
