@@ -10,9 +10,6 @@ cdef Py_ssize_t _MAXX, _STACK, _NSLOT, _NA, _NQ, _SA, _SS, _GKEEP, _WMAX, _TPEAK
 cdef Py_ssize_t _N, _TI, _TO, _UMIN, _UMAX, _PERIOD, _OFFSET, _T_END, _BAND, _NORM, _DIST, _T_DIST, _DY, _DYD
 cdef Py_ssize_t _DVR, _DVY, _DVV, _INTEG, _AW, _HMAX, _SCALE, _STEP, _SLOPE, _TM
 
-@cython.locals(j=Py_ssize_t, i=Py_ssize_t, l=Py_ssize_t, sq=Py_ssize_t)
-cpdef double _expm_into(double[:, :] A, Py_ssize_t m, double[:, :] E, double[:, :] T, double[:, :] W,
-                        unsigned char[:] nzrow) noexcept nogil
 cpdef void _poly_metrics(double[:] Wn, Py_ssize_t nW, double a, double H, double band, double[:] ms, double[:] dW,
                          double[:] xs, double[:] sr, long long[:] sd) noexcept nogil
 @cython.locals(i=Py_ssize_t, sub=Py_ssize_t, k=Py_ssize_t, j=Py_ssize_t, nsub=Py_ssize_t, nt=Py_ssize_t)
@@ -39,7 +36,7 @@ cpdef void _pair(double[:, :, :] Q, Py_ssize_t sa, Py_ssize_t sb, double tau_a, 
 cpdef double _fill_slot(double[:, :] Z, Py_ssize_t na, Py_ssize_t N, double tau, long long[:] dpos, Py_ssize_t ns,
                         double[:] cs, long long[:] rows, Py_ssize_t nrow, bint metrics, Py_ssize_t slot,
                         double[:, :, :] Q, double[:, :] G, double[:, :] A, double[:, :] E, double[:, :] T,
-                        double[:, :] W, unsigned char[:] nzrow, double[:, :] gw) noexcept nogil
+                        double[:, :] W, double[:, :] gw) noexcept nogil
 @cython.locals(i=Py_ssize_t, s=Py_ssize_t, k=Py_ssize_t, j=Py_ssize_t, d=Py_ssize_t, r=Py_ssize_t, N=Py_ssize_t,
                na=Py_ssize_t, iw=Py_ssize_t, ir=Py_ssize_t, irs=Py_ssize_t, ns=Py_ssize_t, nrow=Py_ssize_t,
                nq=Py_ssize_t, nring=Py_ssize_t, nslot=Py_ssize_t, pw=Py_ssize_t, pr=Py_ssize_t, prs=Py_ssize_t,
@@ -48,7 +45,7 @@ cpdef double _fill_slot(double[:, :] Z, Py_ssize_t na, Py_ssize_t N, double tau,
                sb=Py_ssize_t, s_new=Py_ssize_t, metrics=bint, has_dist=bint, grew=bint, small=bint, sampled=bint,
                dist_on=bint, need=bint, nz=bint, st='metrics5', c0='double[:]', k0='double[:]', c='double[:]',
                kv='double[:]', cs='double[:]', seen='unsigned char[:]', cheap='unsigned char[:]',
-               nzrow='unsigned char[:]', perm='long long[:]', pos='long long[:]', dpos='long long[:]',
+               perm='long long[:]', pos='long long[:]', dpos='long long[:]',
                rows='long long[:]', sm=double)
 cpdef Py_ssize_t run_one(double[:] par, double[:] out, double[:, :] Z, double[:, :, :] Q, double[:, :] G,
                          double[:] taus, double[:, :] A, double[:, :] E, double[:, :] T, double[:, :] W,
