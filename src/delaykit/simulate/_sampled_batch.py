@@ -768,21 +768,33 @@ def run_batch(pars, nchunks, nsets=1):
     idx = np.zeros((nsets, 4, _NA), dtype=np.int64)  # perm, pos, dpos, rows
     used = np.zeros((nsets, _NSLOT), dtype=np.int64)
     gw = np.zeros((nsets, 3, _NA))
-    _batch_sets(pars, nchunks, nsets, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs, sr,
-                sd, ms, EA, Pab, gb, Es, Rb, Rbw, zi, Z0, vec, ring, flags, idx, used, gw)
+    if nsets == 1:  # on the calling thread, with no parallel region (whose idle threads would spin beside it)
+        _set_chunks(pars, nchunks, 1, 0, out, Z[0], Q[0], G[0], taus[0], A[0], E[0], T[0], W[0], zb[0], acc[0], zs[0],
+                    Zs[0], q[0], qn[0], zsum[0], Y[0], Wn[0], dW[0], xs[0], sr[0], sd[0], ms[0], EA[0], Pab[0], gb[0],
+                    Es[0], Rb[0], Rbw[0], zi[0], Z0[0], vec[0], ring[0], flags[0], idx[0], used[0], gw[0])
+    else:
+        _batch_sets(pars, nchunks, nsets, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs,
+                    sr, sd, ms, EA, Pab, gb, Es, Rb, Rbw, zi, Z0, vec, ring, flags, idx, used, gw)
     return out
 
 
 def _batch_sets(pars, nchunks, nsets, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs, sr,
                 sd, ms, EA, Pab, gb, Es, Rb, Rbw, zi, Z0, vec, ring, flags, idx, used, gw):
-    """:func:`run_batch`'s parallel loop: work set ``s`` runs the chunks ``s, s + nsets, ...`` on its own arrays."""
-    m = pars.shape[0]
+    """:func:`run_batch`'s parallel loop: work set ``s`` runs its chunks (:func:`_set_chunks`) on its own arrays."""
     for s in prange(nsets):
-        for k in range((nchunks - 1 - s) // nsets + 1):  # (a step of nsets from s)
-            c = s + k * nsets
-            lo = c * m // nchunks
-            hi = (c + 1) * m // nchunks
-            for i in range(lo, hi):
-                run_one(pars[i], out[i], Z[s], Q[s], G[s], taus[s], A[s], E[s], T[s], W[s], zb[s], acc[s], zs[s],
-                        Zs[s], q[s], qn[s], zsum[s], Y[s], Wn[s], dW[s], xs[s], sr[s], sd[s], ms[s], EA[s], Pab[s],
-                        gb[s], Es[s], Rb[s], Rbw[s], zi[s], Z0[s], vec[s], ring[s], flags[s], idx[s], used[s], gw[s])
+        _set_chunks(pars, nchunks, nsets, s, out, Z[s], Q[s], G[s], taus[s], A[s], E[s], T[s], W[s], zb[s], acc[s],
+                    zs[s], Zs[s], q[s], qn[s], zsum[s], Y[s], Wn[s], dW[s], xs[s], sr[s], sd[s], ms[s], EA[s], Pab[s],
+                    gb[s], Es[s], Rb[s], Rbw[s], zi[s], Z0[s], vec[s], ring[s], flags[s], idx[s], used[s], gw[s])
+
+
+def _set_chunks(pars, nchunks, nsets, s, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs, sr,
+                sd, ms, EA, Pab, gb, Es, Rb, Rbw, zi, Z0, vec, ring, flags, idx, used, gw):
+    """Work set ``s``'s rows: the chunks ``s, s + nsets, ...``, on that set's arrays."""
+    m = pars.shape[0]
+    for k in range((nchunks - 1 - s) // nsets + 1):  # (a step of nsets from s)
+        c = s + k * nsets
+        lo = c * m // nchunks
+        hi = (c + 1) * m // nchunks
+        for i in range(lo, hi):
+            run_one(pars[i], out[i], Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs, sr, sd, ms,
+                    EA, Pab, gb, Es, Rb, Rbw, zi, Z0, vec, ring, flags, idx, used, gw)
