@@ -101,6 +101,11 @@ def test_the_exponential_reports_its_remainder_and_keeps_its_argument(mode):
     N = np.array([[0.0, 2.0, 1.0], [0.0, 0.0, 3.0], [0.0, 0.0, 0.0]])  # N^3 = 0: exp(N) = I + N + N^2 / 2
     assert ek.expm_into(N, E, T, W) == 0.0
     assert E.tolist() == (np.eye(3) + N + N @ N / 2).tolist()
+    # a norm beyond half the largest double (the scaling's exponent must not overflow): exp(1e308) is not finite,
+    # the zero row stays the identity's (identification's trial plants reach this: a status, not garbage)
+    with np.errstate(over="ignore", invalid="ignore"):  # (NumPy's scalars warn in Python)
+        ek.expm_into(np.array([[1e308, 0.0], [0.0, 0.0]]), E[:2, :2], T[:2, :2], W[:2, :2])
+    assert not np.isfinite(E[0, 0]) and E[1, :2].tolist() == [0.0, 1.0]
     # an infinite entry: NaN, and an infinite bound (not an endless scaling loop)
     assert ek.expm_into(np.array([[math.inf, 0.0], [0.0, 1.0]]), E[:2, :2], T[:2, :2], W[:2, :2]) == math.inf
     assert np.all(np.isnan(E[:2, :2]))

@@ -60,11 +60,14 @@ def expm_into(A, E, T, W):
             for j in range(m):
                 E[i, j] = _NAN
         return _INF
-    sq = 0
+    sq = 0  # the least s with ||A|| / 2^s <= 1/2 (log2 gives it or one off; log2(nrm / 0.5) could overflow)
     if nrm > 0.5:
-        sq = int(ceil(log2(nrm / 0.5)))
+        sq = int(ceil(log2(nrm)))  # (a C cast where compiled, then the sum)
+        sq += 1
         while ldexp(nrm, -sq) > 0.5:
             sq += 1
+        while sq > 1 and ldexp(nrm, 1 - sq) <= 0.5:
+            sq -= 1
     f = ldexp(1.0, -sq)
     b = nrm * f
     for i in range(m):
