@@ -58,7 +58,7 @@ def test_the_set_up_builds_the_kernel_and_its_interface_uses_it(package, name):
 def test_a_kernel_calls_the_exponential_of_its_own_mode():
     # numba's copy must call numba's exponential (numba code cannot call the extension), Python's Python's
     for mode in ("numba", "python"):
-        for name in ("_discretekernel", "_varyingkernel"):
+        for name in ("_discretekernel", "_varyingkernel", "_sampled_batch"):
             k = _native.load("delaykit.simulate", name, mode)
             assert k.expm_into is _native.load("delaykit.models", "_expmkernel", mode).expm_into
 
@@ -78,6 +78,37 @@ def test_the_compiled_exponential_is_scipys_in_every_mode(mode):
     close(ek.expm(np.array([[0.0, th], [-th, 0.0]])), [[math.cos(th), math.sin(th)], [-math.sin(th), math.cos(th)]],
           rtol=1e-14)
     assert ek.expm(np.array([[0.0, 1.0], [0.0, 0.0]])).tolist() == [[1.0, 1.0], [0.0, 1.0]]
+
+
+@pytest.mark.parametrize("mode", _native.MODES)
+def test_the_exponential_reports_its_remainder_and_keeps_its_argument(mode):
+    # expm_into returns the bound of its series' remainder (relative): at most 2^-56 / 0.6 where the series was
+    # cut, 0 where it ended exactly (a nilpotent matrix); it leaves its argument as it was (the sampled loops' fast
+    # path reads the bound; the kernels refill their argument anyway)
+    ek = _native.load("delaykit.models", "_expmkernel", mode)
+    rng = np.random.default_rng(21)
+    for n in (1, 2, 4, 7):
+        for scale in (1e-3, 0.4, 9.0):
+            A = rng.normal(size=(n, n)) * scale
+            A0 = A.copy()
+            E, T, W = np.empty((3, n, n))
+            rem = ek.expm_into(A, E, T, W)
+            assert np.array_equal(A, A0)
+            assert 0.0 < rem <= 2.0 ** -56 / 0.6
+            want = scipy_expm(A0)  # another method (Pade)
+            assert np.max(np.abs(E - want)) <= 1e-12 * max(1.0, np.max(np.abs(want))) * max(1.0, scale)
+    E, T, W = np.empty((3, 3, 3))
+    N = np.array([[0.0, 2.0, 1.0], [0.0, 0.0, 3.0], [0.0, 0.0, 0.0]])  # N^3 = 0: exp(N) = I + N + N^2 / 2
+    assert ek.expm_into(N, E, T, W) == 0.0
+    assert E.tolist() == (np.eye(3) + N + N @ N / 2).tolist()
+    # a norm beyond half the largest double (the scaling's exponent must not overflow): exp(1e308) is not finite,
+    # the zero row stays the identity's (identification's trial plants reach this: a status, not garbage)
+    with np.errstate(over="ignore", invalid="ignore"):  # (NumPy's scalars warn in Python)
+        ek.expm_into(np.array([[1e308, 0.0], [0.0, 0.0]]), E[:2, :2], T[:2, :2], W[:2, :2])
+    assert not np.isfinite(E[0, 0]) and E[1, :2].tolist() == [0.0, 1.0]
+    # an infinite entry: NaN, and an infinite bound (not an endless scaling loop)
+    assert ek.expm_into(np.array([[math.inf, 0.0], [0.0, 1.0]]), E[:2, :2], T[:2, :2], W[:2, :2]) == math.inf
+    assert np.all(np.isnan(E[:2, :2]))
 
 
 @pytest.mark.parametrize("plant", PLANTS)

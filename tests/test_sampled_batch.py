@@ -28,6 +28,7 @@ from strategies import plant_denominators
 from test_loop_simulation import spec_for
 
 F = _native.load("delaykit.simulate", "_sampled_batch")  # compiled (Cython, or numba without the extension)
+EK = _native.load("delaykit.models", "_expmkernel")  # the one matrix exponential, which F calls (compiled too)
 
 KEYS = ("overshoot", "peak_time", "peak", "t10", "t90", "rise_time", "settling_time", "final_error")
 CAP = 1 << 16  # pieces the Taylor kernel may use on one loop here
@@ -81,25 +82,25 @@ def assert_agree(fast, taylor, loop=None, step=1.0, t_end=8.0, dist=None, tol=1e
     assert fast[o["truncation"]] < 1e-15
 
 
-# -- the matrix exponential ------------------------------------------------------------------------------------
+# -- the matrix exponential it calls (delaykit's one, models/_expmkernel.py) ----------------------------------------
 @pytest.mark.parametrize("n", [1, 2, 4, 7, 12, 19])
 @pytest.mark.parametrize("scale", [1e-3, 0.3, 2.0, 40.0])
 def test_expm_matches_scipy(n, scale):
     rng = np.random.default_rng(n * 1000 + int(scale * 10))
     A = rng.normal(size=(n, n)) * scale / math.sqrt(n)
     ref = scipy.linalg.expm(A)
-    got = F.expm(A)
+    got = EK.expm(A)
     # relative to the result's size (scipy's own error grows like this for large norms too)
     assert np.max(np.abs(got - ref)) <= 1e-13 * max(1.0, np.max(np.abs(ref))) * max(1.0, scale), (n, scale)
 
 
 def test_expm_closed_forms():
     t = 0.7
-    rot = F.expm(np.array([[0.0, t], [-t, 0.0]]))
+    rot = EK.expm(np.array([[0.0, t], [-t, 0.0]]))
     np.testing.assert_allclose(rot, [[math.cos(t), math.sin(t)], [-math.sin(t), math.cos(t)]], rtol=0, atol=5e-16)
-    jordan = F.expm(np.array([[-3.0, 1.0], [0.0, -3.0]]) * 5.0)  # exp(-15) [[1, 5], [0, 1]]
+    jordan = EK.expm(np.array([[-3.0, 1.0], [0.0, -3.0]]) * 5.0)  # exp(-15) [[1, 5], [0, 1]]
     np.testing.assert_allclose(jordan, math.exp(-15.0) * np.array([[1.0, 5.0], [0.0, 1.0]]), rtol=1e-14, atol=0)
-    np.testing.assert_array_equal(F.expm(np.zeros((3, 3))), np.eye(3))
+    np.testing.assert_array_equal(EK.expm(np.zeros((3, 3))), np.eye(3))
 
 
 def test_expm_of_a_loops_augmented_matrix():
@@ -114,7 +115,7 @@ def test_expm_of_a_loops_augmented_matrix():
     Z[n + 1, n + 2] = 1.0
     for tau in (0.013, 0.02, 3.0):
         ref = scipy.linalg.expm(Z * tau)
-        assert np.max(np.abs(F.expm(Z * tau) - ref)) <= 1e-13 * np.max(np.abs(ref))
+        assert np.max(np.abs(EK.expm(Z * tau) - ref)) <= 1e-13 * np.max(np.abs(ref))
 
 
 # -- certified crossings ----------------------------------------------------------------------------------------

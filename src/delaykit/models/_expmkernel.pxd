@@ -1,14 +1,14 @@
 # The C types of _expmkernel.py for Cython (the .py stays the one source; see spectrum/_rootkernel.pxd).
-# expm_into and mul_into are cpdef and nogil: the kernels of delaykit.simulate cimport them.
+# expm_into is cpdef and nogil: the kernels of delaykit.simulate cimport it.
 cimport cython
 
-@cython.locals(n=Py_ssize_t, i=Py_ssize_t, j=Py_ssize_t, k=Py_ssize_t, s=double)
-cpdef void mul_into(const double[:, :] X, const double[:, :] Y, double[:, :] Z) noexcept nogil
+@cython.locals(m=Py_ssize_t, i=Py_ssize_t, j=Py_ssize_t, nrm=double, s=double)
+cdef double _norm1(const double[:, :] X) noexcept nogil
 
-@cython.locals(q=Py_ssize_t, norm=double, c=double, s=Py_ssize_t, sc=double, i=Py_ssize_t, j=Py_ssize_t,
-               k=Py_ssize_t, big=double, _=Py_ssize_t)
-cpdef void expm_into(double[:, :] X, double[:, :] E, double[:, :] T, double[:, :] W) noexcept nogil
+@cython.locals(m=Py_ssize_t, i=Py_ssize_t, j=Py_ssize_t, l=Py_ssize_t, k=Py_ssize_t, sq=Py_ssize_t, _=Py_ssize_t,
+               nrm=double, f=double, b=double, rem=double, g=double, t=double)
+cpdef double expm_into(const double[:, :] A, double[:, :] E, double[:, :] T, double[:, :] W) noexcept nogil
 
-@cython.locals(q=Py_ssize_t, i=Py_ssize_t, j=Py_ssize_t, X="double[:, ::1]", E="double[:, ::1]",
+@cython.locals(q=Py_ssize_t, i=Py_ssize_t, j=Py_ssize_t, E="double[:, ::1]", A="double[:, ::1]",
                work="double[:, :, ::1]")
 cpdef expm(const double[:, :] M)

@@ -11,8 +11,9 @@ the plant, the load's start) one linear time-invariant system with a constant in
 where ``A = M + bym cy' + bvm cyd'`` and ``b = bw + bym dy + bvm dyd`` fold the measurement (the output itself,
 no output delay) into the states.  So ``z(a + tau) = exp(Z tau) z(a)`` exactly.  Since ``Ti = m h + f``, the
 intervals have two lengths (``f`` and ``h - f``) but at the start and the end of the run and around the
-load's start: each run computes ``exp(Z tau)`` once per distinct length (:func:`expm`: scaling and squaring,
-a Taylor core, remainder below 1e-17 relative; lengths that differ only by the rounding of the event times,
+load's start: each run computes ``exp(Z tau)`` once per distinct length (delaykit's one matrix exponential,
+:func:`delaykit.models._expmkernel.expm_into`: scaling and squaring around a Taylor series whose remainder bound,
+below 2.4e-17 relative, it reports; lengths that differ only by the rounding of the event times,
 16 units in the last place of ``t_end``, share one), and steps each interval with one matrix-vector product
 (a small loop in the regular pattern, a sample then one image inside the period, goes a whole period at a time:
 one product for the states at the next sample, and the output's quantities at the image from the same start).
@@ -62,9 +63,9 @@ checking).  This module is private.
 
 Examples
 --------
->>> import numpy as np
->>> np.round(expm(np.array([[0.0, 1.0], [-1.0, 0.0]]) * np.pi / 2), 15).tolist()  # a quarter turn
-[[0.0, 1.0], [-1.0, 0.0]]
+>>> from delaykit import _native
+>>> _native.load("delaykit.simulate", "_sampled_batch", "python").NSLOT  # exponentials a run keeps at once
+6
 """
 
 from __future__ import annotations
@@ -86,15 +87,17 @@ except ImportError:  # plain Python without Cython installed: only ``cython.comp
 if cython.compiled:  # the certified roots and the step metrics' update (shared with the Taylor kernel), as C
     from cython.cimports.delaykit.simulate._kernel import _metrics_row, _metrics_update
     from cython.cimports.delaykit.simulate._poly import crossings as _crossings
+    from cython.cimports.delaykit.models._expmkernel import expm_into
     from cython.cimports.delaykit.models._foldkernel import fold_into as _fold_into
-    from cython.cimports.libc.math import INFINITY as _INF, NAN as _NAN, ceil, isinf, ldexp, log2
+    from cython.cimports.libc.math import INFINITY as _INF, NAN as _NAN, isinf
     from cython.parallel import prange
 else:  # the same modules run as this one is (numba's copies, or Python)
-    from math import ceil, inf as _INF, isinf, ldexp, log2, nan as _NAN
+    from math import inf as _INF, isinf, nan as _NAN
 
     from .._native import sibling
 
     _crossings = sibling(__name__, "_poly").crossings  # certified roots (see the module's notes)
+    expm_into = sibling(__name__, "_expmkernel", "delaykit.models").expm_into  # the one matrix exponential
     _fold_into = sibling(__name__, "_foldkernel", "delaykit.models").fold_into
     _k = sibling(__name__, "_kernel")
     _metrics_update, _metrics_row = _k._metrics_update, _k._metrics_row
@@ -103,7 +106,7 @@ else:  # the same modules run as this one is (numba's copies, or Python)
     else:
         from builtins import range as prange
 
-__all__ = ["expm", "run_one", "run_batch", "NSLOT", "COMPILED"]
+__all__ = ["run_one", "run_batch", "NSLOT", "COMPILED"]
 
 COMPILED: bool = cython.compiled
 """Whether this module is the extension module Cython built (False: this file, run by Python or numba)."""
@@ -128,111 +131,7 @@ _MARGIN = 1e-14  # rounding margin of the cheap bound, relative
 _WMAX, _TPEAK, _T10, _T90, _TLAST = range(5)  # (the kernel's order: see _kernel._WMAX ...)
 # numba's options where it compiles this file (see delaykit._native): the batch in parallel, small helpers inlined
 NUMBA_OPTIONS = {"_row4": {"inline": "always"}, "_slope_bound": {"inline": "always"},
-                 "_interval_metrics": {"inline": "always"}, "_batch_sets": {"parallel": True}, "expm": None}
-
-
-def _expm_into(A, m, E, T, W, nzrow):
-    """``E[:m, :m] = exp(A[:m, :m])`` by scaling and squaring around a Taylor series (``T``, ``W``: work space of
-    the same shape; ``nzrow``: of ``m`` flags).  Returns the bound of the series' remainder, relative to ``||exp(A / 2^s)||``.
-
-    The series runs on ``B = A / 2^s`` with ``||B||_1 <= 1/2`` until the bound of its tail, ``||T_k|| (b/(k+1)) /
-    (1 - b/(k+2))`` (``T_k = B^k / k!``, ``b = ||B||_1``), is below 2^-56 (1.4e-17); ``||exp(B)|| >= e^-b >= 0.6``.
-    """
-    nrm = 0.0
-    for j in range(m):
-        s = 0.0
-        for i in range(m):
-            s += abs(A[i, j])
-        nrm = max(nrm, s)
-    for i in range(m):
-        nzrow[i] = False
-    for i in range(m):
-        for j in range(m):
-            if A[i, j] != 0.0:
-                nzrow[i] = True
-    sq = 0
-    if nrm > 0.5:
-        sq = int(ceil(log2(nrm / 0.5)))
-        while ldexp(nrm, -sq) > 0.5:
-            sq += 1
-    f = ldexp(1.0, -sq)
-    b = nrm * f
-    for i in range(m):
-        for j in range(m):
-            T[i, j] = A[i, j] * f
-            E[i, j] = T[i, j] + (1.0 if i == j else 0.0)
-    rem = 0.0
-    k = 1
-    while True:
-        tn = 0.0
-        for j in range(m):
-            s = 0.0
-            for i in range(m):
-                s += abs(T[i, j])
-            tn = max(tn, s)
-        rem = tn * (b / (k + 1)) / (1.0 - b / (k + 2))
-        if rem <= 1.4e-17 or k >= 40:
-            break
-        k += 1
-        g = f / k
-        for i in range(m):  # T A f / k, skipping zeros (the augmented matrices are sparse)
-            for j in range(m):
-                W[i, j] = 0.0
-            for l in range(m):
-                t = T[i, l]
-                if t != 0.0 and nzrow[l]:
-                    t *= g
-                    for j in range(m):
-                        W[i, j] += t * A[l, j]
-        for i in range(m):
-            for j in range(m):
-                T[i, j] = W[i, j]
-                E[i, j] += W[i, j]
-    for _ in range(sq):
-        for i in range(m):
-            for j in range(m):
-                W[i, j] = 0.0
-            for l in range(m):
-                t = E[i, l]
-                if t != 0.0:
-                    for j in range(m):
-                        W[i, j] += t * E[l, j]
-        for i in range(m):
-            for j in range(m):
-                E[i, j] = W[i, j]
-    return rem / 0.6
-
-
-def _expm(A):
-    m = A.shape[0]
-    E = np.empty((m, m))
-    T = np.empty((m, m))
-    W = np.empty((m, m))
-    _expm_into(np.ascontiguousarray(A), m, E, T, W, np.zeros(m, dtype=np.uint8))
-    return E
-
-
-def expm(A: np.ndarray) -> np.ndarray:
-    """The matrix exponential of a small square matrix (compiled; scaling and squaring around a Taylor series
-    whose remainder is below 1e-17 relative).
-
-    Parameters
-    ----------
-    A : ndarray
-        A real square matrix.
-
-    Returns
-    -------
-    ndarray
-        ``exp(A)``.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> expm(np.array([[0.0, 1.0], [0.0, 0.0]])).tolist()  # a nilpotent matrix: I + A
-    [[1.0, 1.0], [0.0, 1.0]]
-    """
-    return _expm(np.asarray(A, dtype=float))
+                 "_interval_metrics": {"inline": "always"}, "_batch_sets": {"parallel": True}}
 
 
 def _poly_metrics(Wn, nW, a, H, band, ms, dW, xs, sr, sd):
@@ -408,16 +307,16 @@ def _pair(Q, sa, sb, tau_a, N, dpos, pw, pr, prs, ns, EA, Pab, gb, Es, Rb, Rbw):
         Rbw[m] = Q[sb, r, pw] if pw < _SS else 0.0
 
 
-def _fill_slot(Z, na, N, tau, dpos, ns, cs, rows, nrow, metrics, slot, Q, G, A, E, T, W, nzrow, gw):
+def _fill_slot(Z, na, N, tau, dpos, ns, cs, rows, nrow, metrics, slot, Q, G, A, E, T, W, gw):
     """For the interval length ``tau``: ``Q[slot]``, the map from the state at an interval's start (``z``,
     ``Z[:ns, :ns]`` being ``Z_S``) to, in its rows, the loop's states at the end (``N``, in the order of
     ``dpos``) and, with ``metrics``, the output at the start and at the end, ``Y'(0)`` and ``Z_S z`` (its
     rows ``rows``; these read ``z[:ns]`` only); and ``G[slot]``, the cheap bound's weights of those rows.
-    Returns the exponential's remainder bound.  ``nzrow``, ``gw``: work space (flags, and 3 rows of ``na``)."""
+    Returns the exponential's remainder bound.  ``gw``: work space (3 rows of ``na``)."""
     for i in range(na):
         for j in range(na):
             A[i, j] = Z[i, j] * tau
-    rem = _expm_into(A, na, E, T, W, nzrow)
+    rem = expm_into(A[:na, :na], E[:na, :na], T[:na, :na], W[:na, :na])
     for r in range(N + 3 + _SS):  # (zeros around a small loop's map, applied at fixed lengths)
         for k in range(_SA):
             Q[slot, r, k] = 0.0
@@ -518,7 +417,7 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
     # z' = Z z, z = (X, w, r, r'); y = c.z, the law's output v = kv.z (with the left limits of y and y')
     iw, ir, irs = N, N + 1, N + 2
     c0, k0, c, kv, cs = vec[0], vec[1], vec[2], vec[3], vec[4]
-    seen, cheap, nzrow = flags[0], flags[1], flags[2]
+    seen, cheap = flags[0], flags[1]
     perm, pos, dpos, rows = idx[0], idx[1], idx[2], idx[3]
     for i in range(na):
         c0[i] = 0.0
@@ -758,7 +657,7 @@ def run_one(par, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y
                             s_new = s
                 taus[s_new] = tau
                 trunc = max(trunc, _fill_slot(Z, na, N, tau, dpos, ns, cs, rows, nrow, metrics, s_new, Q, G, A, E, T,
-                                              W, nzrow, gw))
+                                              W, gw))
                 cheap[s_new] = not isinf(G[s_new, 0])
         slot_prev = slot
         slot = s_new
@@ -861,25 +760,37 @@ def run_batch(pars, nchunks, nsets=1):
     Z0 = np.zeros((nsets, _NA, _NA))
     vec = np.zeros((nsets, 5, _NA))  # c0, k0, c, kv, cs
     ring = np.empty((nsets, nring))
-    flags = np.zeros((nsets, 3, _NA), dtype=np.uint8)  # seen, cheap, the exponential's non-zero rows
+    flags = np.zeros((nsets, 2, _NA), dtype=np.uint8)  # seen, cheap
     idx = np.zeros((nsets, 4, _NA), dtype=np.int64)  # perm, pos, dpos, rows
     used = np.zeros((nsets, _NSLOT), dtype=np.int64)
     gw = np.zeros((nsets, 3, _NA))
-    _batch_sets(pars, nchunks, nsets, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs, sr,
-                sd, ms, EA, Pab, gb, Es, Rb, Rbw, zi, Z0, vec, ring, flags, idx, used, gw)
+    if nsets == 1:  # on the calling thread, with no parallel region (whose idle threads would spin beside it)
+        _set_chunks(pars, nchunks, 1, 0, out, Z[0], Q[0], G[0], taus[0], A[0], E[0], T[0], W[0], zb[0], acc[0], zs[0],
+                    Zs[0], q[0], qn[0], zsum[0], Y[0], Wn[0], dW[0], xs[0], sr[0], sd[0], ms[0], EA[0], Pab[0], gb[0],
+                    Es[0], Rb[0], Rbw[0], zi[0], Z0[0], vec[0], ring[0], flags[0], idx[0], used[0], gw[0])
+    else:
+        _batch_sets(pars, nchunks, nsets, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs,
+                    sr, sd, ms, EA, Pab, gb, Es, Rb, Rbw, zi, Z0, vec, ring, flags, idx, used, gw)
     return out
 
 
 def _batch_sets(pars, nchunks, nsets, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs, sr,
                 sd, ms, EA, Pab, gb, Es, Rb, Rbw, zi, Z0, vec, ring, flags, idx, used, gw):
-    """:func:`run_batch`'s parallel loop: work set ``s`` runs the chunks ``s, s + nsets, ...`` on its own arrays."""
-    m = pars.shape[0]
+    """:func:`run_batch`'s parallel loop: work set ``s`` runs its chunks (:func:`_set_chunks`) on its own arrays."""
     for s in prange(nsets):
-        for k in range((nchunks - 1 - s) // nsets + 1):  # (a step of nsets from s)
-            c = s + k * nsets
-            lo = c * m // nchunks
-            hi = (c + 1) * m // nchunks
-            for i in range(lo, hi):
-                run_one(pars[i], out[i], Z[s], Q[s], G[s], taus[s], A[s], E[s], T[s], W[s], zb[s], acc[s], zs[s],
-                        Zs[s], q[s], qn[s], zsum[s], Y[s], Wn[s], dW[s], xs[s], sr[s], sd[s], ms[s], EA[s], Pab[s],
-                        gb[s], Es[s], Rb[s], Rbw[s], zi[s], Z0[s], vec[s], ring[s], flags[s], idx[s], used[s], gw[s])
+        _set_chunks(pars, nchunks, nsets, s, out, Z[s], Q[s], G[s], taus[s], A[s], E[s], T[s], W[s], zb[s], acc[s],
+                    zs[s], Zs[s], q[s], qn[s], zsum[s], Y[s], Wn[s], dW[s], xs[s], sr[s], sd[s], ms[s], EA[s], Pab[s],
+                    gb[s], Es[s], Rb[s], Rbw[s], zi[s], Z0[s], vec[s], ring[s], flags[s], idx[s], used[s], gw[s])
+
+
+def _set_chunks(pars, nchunks, nsets, s, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs, sr,
+                sd, ms, EA, Pab, gb, Es, Rb, Rbw, zi, Z0, vec, ring, flags, idx, used, gw):
+    """Work set ``s``'s rows: the chunks ``s, s + nsets, ...``, on that set's arrays."""
+    m = pars.shape[0]
+    for k in range((nchunks - 1 - s) // nsets + 1):  # (a step of nsets from s)
+        c = s + k * nsets
+        lo = c * m // nchunks
+        hi = (c + 1) * m // nchunks
+        for i in range(lo, hi):
+            run_one(pars[i], out[i], Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs, sr, sd, ms,
+                    EA, Pab, gb, Es, Rb, Rbw, zi, Z0, vec, ring, flags, idx, used, gw)

@@ -646,7 +646,8 @@ def _batch(pars: np.ndarray) -> np.ndarray:
     if np.any(fast):  # sampled loops: from event to event with matrix exponentials
         sb = _native.load("delaykit.simulate", "_sampled_batch")
         sub = np.ascontiguousarray(pars) if fast.all() else np.ascontiguousarray(pars[fast])
-        out[fast] = sb.run_batch(sub, max(1, min(sub.shape[0], 8 * _threads(sb))))
+        threads = _threads(sb)  # one work set per thread (it ran on one before, whatever the machine)
+        out[fast] = sb.run_batch(sub, max(1, min(sub.shape[0], 8 * threads)), threads)
     rest = np.flatnonzero(~fast)
     if rest.size == 0:
         return out
