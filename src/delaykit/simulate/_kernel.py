@@ -70,7 +70,10 @@ The parameter row layout (``HEAD`` and the ``OFF_*`` offsets) is defined in :mod
 :mod:`delaykit.simulate.simulation`; the polynomial helpers are :mod:`._poly`.  One source, three modes (see
 :mod:`delaykit._native` and :mod:`._jit`): compiled ahead of time by Cython (the C types are in ``_kernel.pxd``;
 the piece loop runs without the GIL, and :func:`run_batch`'s loop in parallel with OpenMP), compiled by numba
-(``NUMBA_OPTIONS``) where no extension was built, or run as plain Python.  This module is private.
+(``NUMBA_OPTIONS``) where no extension was built, or run as plain Python.  Cython builds this module as one C
+module with :mod:`._poly` and :mod:`._taylor` (``FUSED`` in ``setup.py``): the cimports below become calls within
+the module, which the C compiler inlines into the piece loop as numba inlines them (a call across modules would
+copy each array view it passes, a 208-byte struct, and could not be inlined).  This module is private.
 """
 
 from __future__ import annotations
@@ -89,7 +92,8 @@ from ._layout import (DEG, HEAD, MAXN, NC, NOUT, OFF_BAW, OFF_BR, OFF_BU, OFF_BU
 from ._poly import BINOMIAL as _BIN, GRID as _GRID
 from ._taylor import HIGH as _HIGH, LIN as _LIN, LOW as _LOW
 
-if cython.compiled:  # the polynomial helpers and the Taylor recursion, called as C; C's numbers and OpenMP's loop
+if cython.compiled:  # the polynomial helpers and the Taylor recursion (compiled into this module: setup.py's FUSED),
+    # called as C; C's numbers and OpenMP's loop
     from cython.cimports.delaykit.simulate._poly import all_cross as _all_cross, bounds as _bounds
     from cython.cimports.delaykit.simulate._poly import crossings as _crossings, degree as _degree
     from cython.cimports.delaykit.simulate._poly import first_cross as _first_cross, horner as _horner
@@ -543,7 +547,7 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
     dvv = par[_DVV]
     aw = int(par[_AW])
     hmax = par[_HMAX]
-    scale = par[_SCALE]
+    yscale = par[_SCALE]  # (not `scale`: compiled by Cython, that is _poly's scale, in this module)
     sampled = per > 0.0
     cont = not sampled
     # a delay below the resolution of the run's times (64 ulp of t_end) cannot place its images: the loop runs
@@ -568,12 +572,12 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
         if dl > 0.0:
             epsd = min(epsd, 1e-3 * dl)
     epsd = max(epsd, 4.0 * 2.220446049250313e-16 * max(1.0, tend))
-    ptol = 1e-13 * max(1.0, scale)
-    tdiv = max(abs(norm), scale, 1e-300)  # the truncation's scale
+    ptol = 1e-13 * max(1.0, yscale)
+    tdiv = max(abs(norm), yscale, 1e-300)  # the truncation's scale
     # a command coefficient below rounding, relative to this, is dropped when the piece is stored
-    uref = max(abs(umax) if umax < _INF else 0.0, abs(umin) if umin > -_INF else 0.0, scale, 1.0)
-    ctol = 1e-12 * max(1.0, scale)
-    jscale = max(1.0, scale)  # the smallest scale a neutral loop's jumps are measured against  # a delayed signal's continuation past its stored piece: how far it may drift
+    uref = max(abs(umax) if umax < _INF else 0.0, abs(umin) if umin > -_INF else 0.0, yscale, 1.0)
+    ctol = 1e-12 * max(1.0, yscale)
+    jscale = max(1.0, yscale)  # the smallest scale a neutral loop's jumps are measured against  # a delayed signal's continuation past its stored piece: how far it may drift
     metrics = norm != 0.0
     nref = rt.shape[0]
 

@@ -1,7 +1,7 @@
 # The C types of _poly.py for Cython: the .py stays the one source (run by Python or numba as it is); this file
 # declares what each name is when Cython compiles it at build time, and the kernels that call these functions
-# cimport them from here (C calls).  setup.py: no bounds or negative-index checks, C division, locals' types
-# inferred (as numba does).
+# cimport them from here (C calls; the Loop kernel is compiled with this file, setup.py's FUSED).  setup.py: no
+# bounds or negative-index checks, C division, locals' types inferred (as numba does).
 cimport cython
 
 cdef Py_ssize_t _GRID, _DEPTH, _MAXX, _NC

@@ -3,7 +3,8 @@
 A polynomial is its coefficients ``c[0] + c[1] x + ... + c[n-1] x**(n-1)`` in a local variable ``x`` in
 ``[0, 1]`` (one piece of a response).  One source, three modes, as the kernels that call it (see
 :mod:`delaykit._native`): compiled ahead of time by Cython (the C types are in ``_poly.pxd``; the kernels cimport
-these functions), compiled by numba (``NUMBA_OPTIONS``: the small ones inlined), or run as plain Python.
+these functions, and the Loop kernel :mod:`._kernel` is built with this file in its own C module: ``FUSED`` in
+``setup.py``), compiled by numba (``NUMBA_OPTIONS``: the small ones inlined), or run as plain Python.
 
 Note that numba's cache of a compiled kernel does not notice edits of this file (see :mod:`._jit`).  Under
 numba, the functions that are not inlined (:func:`refine`, :func:`all_cross`) allocate nothing and are compiled

@@ -1,4 +1,4 @@
-# The C types of _taylor.py for Cython (the .py is the one source; see _poly.pxd).  The kernel cimports these.
+# The C types of _taylor.py for Cython (the .py is the one source; see _poly.pxd).  The kernel is built with them (setup.py's FUSED).
 cimport cython
 
 cdef Py_ssize_t _LIN, _HIGH, _LOW, _DEG, _NC

@@ -6,7 +6,8 @@ polynomials known before the piece or, without any delay in the loop, algebraic 
 :func:`recursion_known` is the common case, the plant's input known before the piece and the command not
 acting back on the states, with the measurement folded into the matrix once per run; :func:`recursion` is
 the general one.  One source, three modes, as the kernel (see :mod:`delaykit._native`): compiled by Cython (C
-types in ``_taylor.pxd``; the kernel cimports these functions), by numba (``NUMBA_OPTIONS``: inlined but
+types in ``_taylor.pxd``; the kernel :mod:`._kernel` is built with this file in its own C module, ``FUSED`` in
+``setup.py``), by numba (``NUMBA_OPTIONS``: inlined but
 :func:`recursion`, compiled without reference counting as the kernel's piece loop), or run as plain Python.  This
 module is private.
 
