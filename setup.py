@@ -177,10 +177,11 @@ def extension(name):
     return Extension(name, [source], extra_compile_args=flags, extra_link_args=OMP_LINK if par else [])
 
 
+# (include_path: a FUSED kernel's source, written under build/, still finds the .pxd of the other kernels it cimports)
 extensions = (cythonize([extension(n) for n in KERNELS if n not in SIMULATOR_KERNELS], compiler_directives=DIRECTIVES,
-                        quiet=True)
+                        include_path=["src"], quiet=True)
               + cythonize([extension(n) for n in KERNELS if n in SIMULATOR_KERNELS],
-                          compiler_directives={**DIRECTIVES, **SIMULATOR}, quiet=True))
+                          compiler_directives={**DIRECTIVES, **SIMULATOR}, include_path=["src"], quiet=True))
 for ext in extensions:
     ext.optional = True  # a failed C build warns and goes on (set after cythonize, which does not copy it)
 
