@@ -753,6 +753,14 @@ class BatchTimeResponse:
                 + ("all exact" if not bad else f"{bad} not exact") + f", {int(self.pieces.sum())} pieces)")
 
 
+def _thread_rows(nth: int, width: int, dtype: Any) -> np.ndarray:
+    """Zeros with a row of at least ``width`` numbers per thread (the kernel uses the first ``width``), each row on
+    cache lines of its own: in a plain ``(nth, width)`` array the small rows (``bp_n``, ``I1``, ``F1``), written on
+    every piece, shared a 64-byte line between two threads, which then took turns owning it."""
+    line = 128 // np.dtype(dtype).itemsize  # two lines of 64 bytes: also past the adjacent-line prefetcher
+    return np.zeros((nth, -(-width // line) * line + line), dtype=dtype)
+
+
 def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
     """The exact step responses of many systems of one shape (the same numbers of states, inputs, outputs and
     delay channels, and the same channels without delay: a parameter sweep), in parallel threads where the kernel
@@ -832,8 +840,8 @@ def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
                     np.zeros((nth, cap)), np.zeros((nth, cap)), np.zeros((nth, cap), dtype=np.int64),
                     np.zeros((nth, cap, m, K.NC)),
                     np.zeros((nth, m, cap)), np.zeros((nth, m, cap), dtype=np.int64),
-                    np.zeros((nth, m), dtype=np.int64), np.zeros((nth, 0)), np.zeros((nth, 0, ny)), info,
-                    np.zeros((nth, rows, K.NC)), np.zeros((nth, nf)), np.zeros((nth, ni), dtype=np.int64))
+                    _thread_rows(nth, m, np.int64), np.zeros((nth, 0)), np.zeros((nth, 0, ny)), info,
+                    np.zeros((nth, rows, K.NC)), _thread_rows(nth, nf, float), _thread_rows(nth, ni, np.int64))
         redo = [k for k in range(ns * nu) if int(info[k, 0]) == K.STATUS_CAPACITY]
     else:
         redo = list(range(ns * nu))
