@@ -19,7 +19,7 @@ Times are the least CPU time of the calling thread over ``--repeat`` runs for si
 wall time and the process's CPU time, with the load average (the machine may be shared: the ratio, taken side by
 side, is the figure to read).
 
-Run: ``python benchmarks/bench_systems.py [--repeat 5] [--many 10000] [--quick] [--json FILE]``.
+Run: ``python benchmarks/bench_systems.py [--repeat 5] [--many 10000] [--quick] [--json FILE] [--write-docs]``.
 """
 
 from __future__ import annotations
@@ -42,6 +42,7 @@ from delaykit.simulate.systems import step_response_many
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from anchors_systems import (KC, TAU_I, JitcddeAnchor, scipy_method_of_steps, wood_berry_loop,  # noqa: E402
                              wood_berry_plant)
+from _docs import write_docs  # noqa: E402
 from bench_native import best  # noqa: E402  (least CPU time of this thread over repeated calls)
 
 
@@ -52,6 +53,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--quick", action="store_true", help="200 systems in the batch, 1 SciPy run")
     ap.add_argument("--json", type=str, default=None)
     ap.add_argument("--no-jitcdde", action="store_true", help="leave out jitcdde (it compiles C code first)")
+    ap.add_argument("--write-docs", action="store_true",
+                    help="write the table into its block of docs/benchmarks.md (the rest of the page is kept)")
     args = ap.parse_args(argv)
     many = 200 if args.quick else args.many
     console = Console()
@@ -113,6 +116,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     table.add_row(f"build + responses, {many} loops", "", f"{r1['build_and_responses_s']:.2f} s wall", "", "",
                   "the user's whole wait for the sweep")
     console.print(table)
+    if args.write_docs:
+        write_docs(Path(__file__).name, table)
     result = {"rows": rows}
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
