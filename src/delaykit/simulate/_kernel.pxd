@@ -8,7 +8,7 @@ cdef double SELF, _GROW, STATUS_CAPACITY, STATUS_OK, STATUS_STALLED, _INF, _NAN
 cdef double[:, ::1] _BIN
 cdef Py_ssize_t _N, _TI, _TO, _UMIN, _UMAX, _PERIOD, _OFFSET, _T_END, _BAND, _NORM, _DIST, _T_DIST, _DY, _DYD
 cdef Py_ssize_t _DVR, _DVY, _DVV, _INTEG, _AW, _HMAX, _SCALE, _STEP, _SLOPE, _TM
-cdef Py_ssize_t _STALL, _NONE, _PICARD, _WMAX, _TPEAK, _T10, _T90, _TLAST, _WEND, _NMS, _NBUF
+cdef Py_ssize_t _STALL, _NONE, _PICARD, _WMAX, _TPEAK, _T10, _T90, _TLAST, _WEND, _NMS, _NBUF, _PAD
 cdef double _TAIL, _JUMP
 
 @cython.locals(j=Py_ssize_t)
@@ -88,15 +88,25 @@ cpdef Py_ssize_t _run(double[:] par, double[:] rt, double[:] r0, double[:] rs, P
                       bint keep_y, double[:] et, double[:] ez, double[:, :] X, double[:] buf,
                       double[:, :, :] mats) noexcept nogil
 cpdef run_batch(double[:, :] pars, Py_ssize_t cap, Py_ssize_t nchunks, Py_ssize_t nsets=*)
+cpdef run_sweep(double[:] row, long long[:] cols, double[:, :] vals, Py_ssize_t cap, Py_ssize_t nchunks,
+                Py_ssize_t nsets=*)
+@cython.locals(m=Py_ssize_t, s=Py_ssize_t)
+cpdef _runs(double[:, :] pars, long long[:] cols, double[:, :] vals, Py_ssize_t cap, Py_ssize_t nchunks,
+            Py_ssize_t nsets)
 @cython.locals(s=Py_ssize_t)
-cpdef void _batch_sets(double[:, :] pars, Py_ssize_t cap, Py_ssize_t nchunks, Py_ssize_t nsets, double[:, :] out,
-                       double[:, :] tu0, double[:, :] thu, double[:, :, :] tuc, long long[:, :] tdeg,
-                       signed char[:, :] ugen, double[:, :] ty0, double[:, :] tyh, double[:, :, :] tyc,
-                       double[:, :, :] tyd, signed char[:, :] ygen, double[:, :, :] X, double[:, :] buf,
-                       double[:, :, :, :] mats, double[:, :] ref, double[:] none) noexcept nogil
-@cython.locals(k=Py_ssize_t, i=Py_ssize_t, m=Py_ssize_t, lo=Py_ssize_t, hi=Py_ssize_t, c=Py_ssize_t)
-cpdef void _set_chunks(double[:, :] pars, Py_ssize_t cap, Py_ssize_t nchunks, Py_ssize_t nsets, Py_ssize_t s,
-                       double[:, :] out, double[:] tu0, double[:] thu, double[:, :] tuc, long long[:] tdeg,
-                       signed char[:] ugen, double[:] ty0, double[:] tyh, double[:, :] tyc, double[:, :] tyd,
-                       signed char[:] ygen, double[:, :] X, double[:] buf, double[:, :, :] mats, double[:] ref,
+cpdef void _batch_sets(double[:, :] pars, long long[:] cols, double[:, :] vals, Py_ssize_t cap, Py_ssize_t nchunks,
+                       Py_ssize_t nsets, double[:, :] out, double[:, :] tu0, double[:, :] thu, double[:, :, :] tuc,
+                       long long[:, :] tdeg, signed char[:, :] ugen, double[:, :] ty0, double[:, :] tyh,
+                       double[:, :, :] tyc, double[:, :, :] tyd, signed char[:, :] ygen, double[:, :, :] X,
+                       double[:, :] buf, double[:, :, :, :] mats, double[:, :] ref, double[:, :] row,
                        double[:] none) noexcept nogil
+@cython.locals(c=Py_ssize_t)
+cpdef (Py_ssize_t, Py_ssize_t) _chunk(Py_ssize_t m, Py_ssize_t nchunks, Py_ssize_t nsets, Py_ssize_t s,
+                                      Py_ssize_t k) noexcept nogil
+@cython.locals(k=Py_ssize_t, i=Py_ssize_t, j=Py_ssize_t, m=Py_ssize_t, nv=Py_ssize_t, lo=Py_ssize_t, hi=Py_ssize_t,
+               par='double[:]')
+cpdef void _set_chunks(double[:, :] pars, long long[:] cols, double[:, :] vals, Py_ssize_t cap, Py_ssize_t nchunks,
+                       Py_ssize_t nsets, Py_ssize_t s, double[:, :] out, double[:] tu0, double[:] thu,
+                       double[:, :] tuc, long long[:] tdeg, signed char[:] ugen, double[:] ty0, double[:] tyh,
+                       double[:, :] tyc, double[:, :] tyd, signed char[:] ygen, double[:, :] X, double[:] buf,
+                       double[:, :, :] mats, double[:] ref, double[:] row, double[:] none) noexcept nogil
