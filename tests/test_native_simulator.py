@@ -143,6 +143,16 @@ def test_the_chunks_of_the_work_sets_cover_every_row_once_in_every_mode():
             assert np.all(seen == 1), (mode, m, nchunks, nsets)
 
 
+def test_a_small_batch_runs_on_one_thread_and_a_large_one_on_every_core():
+    # waking a second thread costs more than a few runs: a batch gets a thread per _ROWS_PER_THREAD loops, up to
+    # the cores the kernel may use (OMP_NUM_THREADS, the affinity mask, or numba's threads)
+    kern = _jit.kernel(compiled=True)
+    cores = S._cores(kern)
+    assert S._threads(kern, 1) == S._threads(kern, 2 * S._ROWS_PER_THREAD - 1) == 1
+    assert S._threads(kern, 2 * S._ROWS_PER_THREAD) == min(2, cores)
+    assert S._threads(kern, 10_000) == cores >= 1
+
+
 def test_a_compact_sweep_holds_the_rows_of_each_loop_alone():
     # the sweep's rows against each variant's own row built whole (param_row of the loop with that loop's gains,
     # delay, limits and step): the same numbers, and its compact form and single rows give those same rows

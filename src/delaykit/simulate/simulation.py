@@ -47,6 +47,7 @@ _CAP_MAX = 1 << 21
 """The most polynomial pieces one run may use: some 1.3 kB each (the kernel's work arrays and the response's
 copy), so under 3 GB (the work arrays grew eightfold past the old 1 << 22, to 16.8 million pieces and 20 GB)."""
 _NO_T = np.empty(0)
+_ROWS_PER_THREAD = 8  # the fewest loops of a batch per thread (a paper P loop's run: 11 us; a PID loop's: 100 us)
 SWEEPABLE = ("kp", "ki", "kd", "kv", "delay", "output_delay", "umin", "umax", "vmax", "step", "sample_offset")
 """The parameters :func:`simulate_many` sweeps (arrays broadcast together)."""
 
@@ -704,9 +705,15 @@ def _event_stepped(sw: _Sweep | np.ndarray) -> np.ndarray:
     return np.broadcast_to(ok, (sw.m,))
 
 
-def _threads(kern: Any) -> int:
-    """The threads a batch kernel module runs on: numba's where numba compiled it, else the CPUs this process may use
-    (OpenMP's default; ``OMP_NUM_THREADS`` where set)."""
+def _threads(kern: Any, rows: int) -> int:
+    """The threads a batch kernel module runs ``rows`` loops on: numba's where numba compiled it, else the CPUs this
+    process may use (OpenMP's default; ``OMP_NUM_THREADS`` where set); fewer where a thread would get less than
+    ``_ROWS_PER_THREAD`` loops (waking a thread costs more than a few runs: 10 ms, not 0.04, for 2 loops on 2 threads
+    at load 9)."""
+    return max(1, min(_cores(kern), rows // _ROWS_PER_THREAD))
+
+
+def _cores(kern: Any) -> int:
     if kern.__name__.endswith("_numba"):
         import numba
 
@@ -729,7 +736,7 @@ def _batch(sw: _Sweep) -> np.ndarray:
     if np.any(fast):  # sampled loops: from event to event with matrix exponentials
         sb = _native.load("delaykit.simulate", "_sampled_batch")
         sub = sw.rows(fast)
-        threads = _threads(sb)  # one work set per thread (it ran on one before, whatever the machine)
+        threads = _threads(sb, sub.shape[0])  # one work set per thread (it ran on one before, whatever the machine)
         out[fast] = sb.run_batch(sub, max(1, min(sub.shape[0], 8 * threads)), threads)
     rest = np.flatnonzero(~fast)
     if rest.size == 0:
@@ -737,7 +744,7 @@ def _batch(sw: _Sweep) -> np.ndarray:
     kern = _jit.kernel(compiled=True)
     # the shared row and the columns that differ (the usual case, every loop here: no copy of the values)
     cols, vals = sw.compact(None if rest.size == m else rest)
-    threads = _threads(kern)
+    threads = _threads(kern, rest.size)
     res = kern.run_sweep(sw.row, cols, vals, _CAP0, max(1, min(rest.size, 8 * threads)), threads)
     redo = np.flatnonzero(res[:, K.OUT["status"]] != K.STATUS_OK)  # a stall raises its error from run()
     for i in redo:
