@@ -700,9 +700,13 @@ def _event_stepped(sw: _Sweep | np.ndarray) -> np.ndarray:
         sw = _Sweep.of_rows(sw)
     H = K.HEAD
     ok = (sw[H["period"]] > 0.0) & (sw[H["to"]] == 0.0) & (sw[H["aw"]] == 0.0) & (sw[H["tm"]] == 0.0)
-    for j in range(K.OFF_BU, K.OFF_BUM + K.MAXN):
-        ok = ok & (sw[j] == 0.0)
-    return np.broadcast_to(ok, (sw.m,))
+    lo, hi = K.OFF_BU, K.OFF_BUM + K.MAXN  # the command's and the delayed command's couplings: none
+    shared = sw.row[lo:hi].copy()
+    for j, c in sw.cols.items():
+        if lo <= j < hi:
+            shared[j - lo] = 0.0
+            ok = ok & (c == 0.0)
+    return np.broadcast_to(ok & (not np.any(shared != 0.0)), (sw.m,))
 
 
 def _threads(kern: Any, rows: int) -> int:
