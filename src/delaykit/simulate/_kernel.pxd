@@ -87,26 +87,28 @@ cpdef Py_ssize_t _run(double[:] par, double[:] rt, double[:] r0, double[:] rs, P
                       double[:] tyh, double[:, :] tyc, double[:, :] tyd, signed char[:] ygen, double[:] out,
                       bint keep_y, double[:] et, double[:] ez, double[:, :] X, double[:] buf,
                       double[:, :, :] mats) noexcept nogil
-cpdef run_batch(double[:, :] pars, Py_ssize_t cap, Py_ssize_t nchunks, Py_ssize_t nsets=*)
-cpdef run_sweep(double[:] row, long long[:] cols, double[:, :] vals, Py_ssize_t cap, Py_ssize_t nchunks,
+# (the batch's views are C-contiguous: _runs makes every work array, and its callers pass C-contiguous rows)
+cpdef run_batch(double[:, ::1] pars, Py_ssize_t cap, Py_ssize_t nchunks, Py_ssize_t nsets=*)
+cpdef run_sweep(double[::1] row, long long[::1] cols, double[:, ::1] vals, Py_ssize_t cap, Py_ssize_t nchunks,
                 Py_ssize_t nsets=*)
 @cython.locals(m=Py_ssize_t, s=Py_ssize_t)
-cpdef _runs(double[:, :] pars, long long[:] cols, double[:, :] vals, Py_ssize_t cap, Py_ssize_t nchunks,
+cpdef _runs(double[:, ::1] pars, long long[::1] cols, double[:, ::1] vals, Py_ssize_t cap, Py_ssize_t nchunks,
             Py_ssize_t nsets)
 @cython.locals(s=Py_ssize_t)
-cpdef void _batch_sets(double[:, :] pars, long long[:] cols, double[:, :] vals, Py_ssize_t cap, Py_ssize_t nchunks,
-                       Py_ssize_t nsets, double[:, :] out, double[:, :] tu0, double[:, :] thu, double[:, :, :] tuc,
-                       long long[:, :] tdeg, signed char[:, :] ugen, double[:, :] ty0, double[:, :] tyh,
-                       double[:, :, :] tyc, double[:, :, :] tyd, signed char[:, :] ygen, double[:, :, :] X,
-                       double[:, :] buf, double[:, :, :, :] mats, double[:, :] ref, double[:, :] row,
-                       double[:] none) noexcept nogil
+cpdef void _batch_sets(double[:, ::1] pars, long long[::1] cols, double[:, ::1] vals, Py_ssize_t cap,
+                       Py_ssize_t nchunks, Py_ssize_t nsets, double[:, ::1] out, double[:, ::1] tu0,
+                       double[:, ::1] thu, double[:, :, ::1] tuc, long long[:, ::1] tdeg, signed char[:, ::1] ugen,
+                       double[:, ::1] ty0, double[:, ::1] tyh, double[:, :, ::1] tyc, double[:, :, ::1] tyd,
+                       signed char[:, ::1] ygen, double[:, :, ::1] X, double[:, ::1] buf, double[:, :, :, ::1] mats,
+                       double[:, ::1] ref, double[:, ::1] row, double[::1] none) noexcept nogil
 @cython.locals(c=Py_ssize_t)
 cpdef (Py_ssize_t, Py_ssize_t) _chunk(Py_ssize_t m, Py_ssize_t nchunks, Py_ssize_t nsets, Py_ssize_t s,
                                       Py_ssize_t k) noexcept nogil
 @cython.locals(k=Py_ssize_t, i=Py_ssize_t, j=Py_ssize_t, m=Py_ssize_t, nv=Py_ssize_t, lo=Py_ssize_t, hi=Py_ssize_t,
-               par='double[:]')
-cpdef void _set_chunks(double[:, :] pars, long long[:] cols, double[:, :] vals, Py_ssize_t cap, Py_ssize_t nchunks,
-                       Py_ssize_t nsets, Py_ssize_t s, double[:, :] out, double[:] tu0, double[:] thu,
-                       double[:, :] tuc, long long[:] tdeg, signed char[:] ugen, double[:] ty0, double[:] tyh,
-                       double[:, :] tyc, double[:, :] tyd, signed char[:] ygen, double[:, :] X, double[:] buf,
-                       double[:, :, :] mats, double[:] ref, double[:] row, double[:] none) noexcept nogil
+               par='double[::1]')
+cpdef void _set_chunks(double[:, ::1] pars, long long[::1] cols, double[:, ::1] vals, Py_ssize_t cap,
+                       Py_ssize_t nchunks, Py_ssize_t nsets, Py_ssize_t s, double[:, ::1] out, double[::1] tu0,
+                       double[::1] thu, double[:, ::1] tuc, long long[::1] tdeg, signed char[::1] ugen,
+                       double[::1] ty0, double[::1] tyh, double[:, ::1] tyc, double[:, ::1] tyd,
+                       signed char[::1] ygen, double[:, ::1] X, double[::1] buf, double[:, :, ::1] mats,
+                       double[::1] ref, double[::1] row, double[::1] none) noexcept nogil
