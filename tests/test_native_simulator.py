@@ -77,9 +77,9 @@ def _rows(loop, **sweep):
     seen = {}
     real = S._batch
 
-    def grab(pars):
-        seen["pars"] = pars.copy()
-        return real(pars)
+    def grab(sweep):
+        seen["pars"] = sweep.rows()
+        return real(sweep)
 
     S._batch = grab
     try:
@@ -105,6 +105,75 @@ def test_a_batch_gives_numbas_numbers_in_every_mode_and_on_any_number_of_threads
         for nchunks, nsets in ((6, 2), (5, 3), (4, 8)):
             np.testing.assert_array_equal(mods["cython"].run_batch(*args, nchunks, nsets), mods["cython"].run_batch(
                 *args, 1, 1))
+
+
+def test_a_sweep_given_compactly_runs_its_rows_written_out_in_every_mode():
+    # run_sweep (the shared row and the columns that differ, what simulate_many passes) against run_batch on the
+    # same rows written out: bit for bit in each mode, on any chunking (uneven ones included) and number of sets
+    rng = np.random.default_rng(5)
+    n = 7
+    sweep = S._sweep(S.as_loop(PID), n, {"kp": rng.uniform(1.0, 3.0, n), "delay": rng.uniform(0.1, 0.5, n),
+                                         "step": np.ones(n)}, 6.0, 0.02)
+    pars = sweep.rows()
+    cols, vals = sweep.compact()
+    assert 0 < cols.size < 20  # the gains' entries and the delay, not the 440 columns of a row
+    for mode in _native.MODES:
+        k = _native.load(PKG, "_kernel", mode)
+        ref = k.run_batch(pars, 4096, 1, 1)
+        assert np.all(ref[:, _layout.OUT["status"]] == _layout.STATUS_OK), mode
+        for nchunks, nsets in ((1, 1), (3, 1), (6, 2), (4, 3)) if mode == "cython" else ((3, 1),):
+            np.testing.assert_array_equal(k.run_sweep(sweep.row, cols, vals, 4096, nchunks, nsets), ref,
+                                          err_msg=f"{mode} {nchunks} chunks {nsets} sets")
+
+
+def test_the_chunks_of_the_work_sets_cover_every_row_once_in_every_mode():
+    # the chunk bounds both batch kernels take (_kernel._chunk): over a set's k = 0 .. nchunks - 1, the sets' chunks
+    # partition the rows, in turn (chunk c to set c % nsets), including more chunks or sets than rows
+    for mode in _native.MODES:
+        chunk = _native.load(PKG, "_kernel", mode)._chunk
+        for m, nchunks, nsets in ((10, 3, 2), (7, 7, 3), (2, 5, 2), (0, 1, 1), (10_000, 16, 2), (13, 4, 4)):
+            seen = np.zeros(m, dtype=int)
+            for s in range(nsets):
+                for k in range(nchunks):
+                    lo, hi = chunk(m, nchunks, nsets, s, k)
+                    assert 0 <= lo <= hi <= m
+                    seen[lo:hi] += 1
+                    c = s + k * nsets  # the chunk: rows c m / nchunks to (c + 1) m / nchunks, rounded down
+                    assert (lo, hi) == ((c * m // nchunks, (c + 1) * m // nchunks) if c < nchunks else (m, m))
+            assert np.all(seen == 1), (mode, m, nchunks, nsets)
+
+
+def test_a_small_batch_runs_on_one_thread_and_a_large_one_on_every_core():
+    # waking a second thread costs more than a few runs: a batch gets a thread per _ROWS_PER_THREAD loops, up to
+    # the cores the kernel may use (OMP_NUM_THREADS, the affinity mask, or numba's threads)
+    kern = _jit.kernel(compiled=True)
+    cores = S._cores(kern)
+    assert S._threads(kern, 1) == S._threads(kern, 2 * S._ROWS_PER_THREAD - 1) == 1
+    assert S._threads(kern, 2 * S._ROWS_PER_THREAD) == min(2, cores)
+    assert S._threads(kern, 10_000) == cores >= 1
+
+
+def test_a_compact_sweep_holds_the_rows_of_each_loop_alone():
+    # the sweep's rows against each variant's own row built whole (param_row of the loop with that loop's gains,
+    # delay, limits and step): the same numbers, and its compact form and single rows give those same rows
+    rng = np.random.default_rng(3)
+    n = 5
+    kp, ki, td, vmax = rng.uniform(1, 3, n), rng.uniform(0.2, 1, n), rng.uniform(0.1, 0.5, n), rng.uniform(1, 3, n)
+    step = rng.uniform(0.5, 2.0, n)
+    sweep = S._sweep(S.as_loop(PID), n, {"kp": kp, "ki": ki, "delay": td, "vmax": vmax, "step": step}, 6.0, 0.02)
+    rows = sweep.rows()
+    for i in range(n):
+        loop = S.as_loop(PID.replace(controller=PID.controller.replace(kp=kp[i], ki=ki[i]), delay=td[i],
+                                     umin=-vmax[i], umax=vmax[i]))
+        alone = _layout.param_row(loop, _layout.loop_matrices(loop), step=step[i], slope=0.0, norm=step[i],
+                                  t_end=6.0, band=0.02, dist=None)
+        np.testing.assert_array_equal(rows[i], alone)
+        np.testing.assert_array_equal(sweep.one(i), rows[i])
+    cols, vals = sweep.compact()
+    again = np.repeat(sweep.row[None, :], n, axis=0)
+    again[:, cols] = vals
+    np.testing.assert_array_equal(again, rows)
+    np.testing.assert_array_equal(S._Sweep.of_rows(rows).rows(), rows)
 
 
 def _python(code: str) -> dict:

@@ -8,7 +8,7 @@ cdef double SELF, _GROW, STATUS_CAPACITY, STATUS_OK, STATUS_STALLED, _INF, _NAN
 cdef double[:, ::1] _BIN
 cdef Py_ssize_t _N, _TI, _TO, _UMIN, _UMAX, _PERIOD, _OFFSET, _T_END, _BAND, _NORM, _DIST, _T_DIST, _DY, _DYD
 cdef Py_ssize_t _DVR, _DVY, _DVV, _INTEG, _AW, _HMAX, _SCALE, _STEP, _SLOPE, _TM
-cdef Py_ssize_t _STALL, _NONE, _PICARD, _WMAX, _TPEAK, _T10, _T90, _TLAST, _WEND, _NMS, _NBUF
+cdef Py_ssize_t _STALL, _NONE, _PICARD, _WMAX, _TPEAK, _T10, _T90, _TLAST, _WEND, _NMS, _NBUF, _PAD
 cdef double _TAIL, _JUMP
 
 @cython.locals(j=Py_ssize_t)
@@ -91,16 +91,28 @@ cpdef Py_ssize_t _run(double[::1] par, double[::1] rt, double[::1] r0, double[::
                       double[::1] tyh, double[:, ::1] tyc, double[:, ::1] tyd, signed char[::1] ygen, double[::1] out,
                       bint keep_y, double[::1] et, double[::1] ez, double[:, ::1] X, double[::1] buf,
                       double[:, :, ::1] mats) noexcept nogil
+# (the batch's views are C-contiguous: _runs makes every work array, and its callers pass C-contiguous rows)
 cpdef run_batch(double[:, ::1] pars, Py_ssize_t cap, Py_ssize_t nchunks, Py_ssize_t nsets=*)
+cpdef run_sweep(double[::1] row, long long[::1] cols, double[:, ::1] vals, Py_ssize_t cap, Py_ssize_t nchunks,
+                Py_ssize_t nsets=*)
+@cython.locals(m=Py_ssize_t, s=Py_ssize_t)
+cpdef _runs(double[:, ::1] pars, long long[::1] cols, double[:, ::1] vals, Py_ssize_t cap, Py_ssize_t nchunks,
+            Py_ssize_t nsets)
 @cython.locals(s=Py_ssize_t)
-cpdef void _batch_sets(double[:, ::1] pars, Py_ssize_t cap, Py_ssize_t nchunks, Py_ssize_t nsets, double[:, ::1] out,
-                       double[:, ::1] tu0, double[:, ::1] thu, double[:, :, ::1] tuc, long long[:, ::1] tdeg,
-                       signed char[:, ::1] ugen, double[:, ::1] ty0, double[:, ::1] tyh, double[:, :, ::1] tyc,
-                       double[:, :, ::1] tyd, signed char[:, ::1] ygen, double[:, :, ::1] X, double[:, ::1] buf,
-                       double[:, :, :, ::1] mats, double[:, ::1] ref, double[::1] none) noexcept nogil
-@cython.locals(k=Py_ssize_t, i=Py_ssize_t, m=Py_ssize_t, lo=Py_ssize_t, hi=Py_ssize_t, c=Py_ssize_t)
-cpdef void _set_chunks(double[:, ::1] pars, Py_ssize_t cap, Py_ssize_t nchunks, Py_ssize_t nsets, Py_ssize_t s,
-                       double[:, ::1] out, double[::1] tu0, double[::1] thu, double[:, ::1] tuc, long long[::1] tdeg,
-                       signed char[::1] ugen, double[::1] ty0, double[::1] tyh, double[:, ::1] tyc, double[:, ::1] tyd,
+cpdef void _batch_sets(double[:, ::1] pars, long long[::1] cols, double[:, ::1] vals, Py_ssize_t cap,
+                       Py_ssize_t nchunks, Py_ssize_t nsets, double[:, ::1] out, double[:, ::1] tu0,
+                       double[:, ::1] thu, double[:, :, ::1] tuc, long long[:, ::1] tdeg, signed char[:, ::1] ugen,
+                       double[:, ::1] ty0, double[:, ::1] tyh, double[:, :, ::1] tyc, double[:, :, ::1] tyd,
+                       signed char[:, ::1] ygen, double[:, :, ::1] X, double[:, ::1] buf, double[:, :, :, ::1] mats,
+                       double[:, ::1] ref, double[:, ::1] row, double[::1] none) noexcept nogil
+@cython.locals(c=Py_ssize_t)
+cpdef (Py_ssize_t, Py_ssize_t) _chunk(Py_ssize_t m, Py_ssize_t nchunks, Py_ssize_t nsets, Py_ssize_t s,
+                                      Py_ssize_t k) noexcept nogil
+@cython.locals(k=Py_ssize_t, i=Py_ssize_t, j=Py_ssize_t, m=Py_ssize_t, nv=Py_ssize_t, lo=Py_ssize_t, hi=Py_ssize_t,
+               par='double[::1]')
+cpdef void _set_chunks(double[:, ::1] pars, long long[::1] cols, double[:, ::1] vals, Py_ssize_t cap,
+                       Py_ssize_t nchunks, Py_ssize_t nsets, Py_ssize_t s, double[:, ::1] out, double[::1] tu0,
+                       double[::1] thu, double[:, ::1] tuc, long long[::1] tdeg, signed char[::1] ugen,
+                       double[::1] ty0, double[::1] tyh, double[:, ::1] tyc, double[:, ::1] tyd,
                        signed char[::1] ygen, double[:, ::1] X, double[::1] buf, double[:, :, ::1] mats,
-                       double[::1] ref, double[::1] none) noexcept nogil
+                       double[::1] ref, double[::1] row, double[::1] none) noexcept nogil

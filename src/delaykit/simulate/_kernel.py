@@ -121,7 +121,7 @@ else:  # the same modules run as this one is (numba's copies, or Python)
     else:
         from builtins import range as prange
 
-__all__ = ["run_one", "run_batch", "COMPILED"]
+__all__ = ["run_one", "run_batch", "run_sweep", "COMPILED"]
 
 COMPILED: bool = cython.compiled
 """Whether this module is the extension module Cython built (False: this file, run by Python or numba)."""
@@ -142,7 +142,7 @@ _PICARD = 400  # fixed-point passes before a piece that reads its own delayed si
 # (with the rarely run helpers, kept out of its code) is compiled without reference counting; the batch in parallel
 NUMBA_OPTIONS = {name: {"inline": "always"} for name in (
     "_classify", "_delayed", "_ref_poly", "_tail", "_step_metrics", "_metrics_row", "_metrics_update", "_first_switch",
-    "_continues", "_on_limit", "_lead_sign", "_slide_rates", "_image", "_pending", "_read_end", "_held")}
+    "_continues", "_on_limit", "_lead_sign", "_slide_rates", "_image", "_pending", "_read_end", "_held", "_chunk")}
 NUMBA_OPTIONS.update({"_rel_degree": {"_nrt": False}, "_jump": {"_nrt": False}, "_picard": {"_nrt": False},
                       "_run": {"_nrt": False}, "_batch_sets": {"parallel": True}})
 
@@ -504,6 +504,7 @@ def _held(c, n, x, dst):
 
 
 _NBUF = 15 * NC + 2 * _GRID + 3 + MAXN + 5 + _NMS  # the signals' coefficients and the small work arrays
+_PAD = 16  # doubles (two cache lines) after each work set's small arrays in a batch: no line shared by two sets
 
 
 def run_one(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, out, keep_y, et, ez):
@@ -1126,7 +1127,23 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
 def run_batch(pars, cap, nchunks, nsets=1):
     """Metrics of many loops (one parameter row each, a step or ramp reference): ``nchunks`` chunks of rows, taken
     in turn by ``nsets`` work sets run in parallel (one per thread)."""
-    m = pars.shape[0]
+    return _runs(pars, np.empty(0, dtype=np.int64), np.empty((pars.shape[0], 0)), cap, nchunks, nsets)
+
+
+def run_sweep(row, cols, vals, cap, nchunks, nsets=1):
+    """:func:`run_batch` of ``vals.shape[0]`` loops given compactly: loop ``i``'s parameter row is ``row`` with the
+    columns ``cols`` set to ``vals[i]`` (a sweep reads the few columns its loops differ in, not its rows repeated:
+    35 MB for 10,000 loops).  Each work set writes the loop's values into its own copy of ``row`` before the run."""
+    rows = np.empty((1, row.shape[0]))
+    rows[0, :] = row
+    return _runs(rows, cols, vals, cap, nchunks, nsets)
+
+
+def _runs(pars, cols, vals, cap, nchunks, nsets):
+    """:func:`run_batch` (``cols`` empty: ``pars`` holds every loop's row) and :func:`run_sweep` (``pars`` holds
+    the one shared row): the work sets' arrays, padded so that no two sets' arrays share a cache line (each set
+    writes its ``buf`` and ``ref`` at every piece)."""
+    m = vals.shape[0]
     out = np.empty((m, NOUT))
     nsets = max(1, min(nsets, nchunks))
     tu0 = np.empty((nsets, cap))
@@ -1140,39 +1157,58 @@ def run_batch(pars, cap, nchunks, nsets=1):
     tyd = np.empty((nsets, cap, NC))
     ygen = np.empty((nsets, cap), dtype=np.int8)
     X = np.empty((nsets, MAXN, NC + 1))
-    buf = np.empty((nsets, _NBUF))
+    buf = np.empty((nsets, _NBUF + _PAD))
     mats = np.empty((nsets, 4, MAXN, MAXN))
-    ref = np.zeros((nsets, 3))  # the reference's knot, value and slope (rt, r0, rs)
+    ref = np.zeros((nsets, _PAD))  # the reference's knot, value and slope (rt, r0, rs)
+    row = np.empty((nsets, pars.shape[1] + _PAD))  # each set's copy of the shared row (run_sweep's)
+    if cols.shape[0] > 0:
+        for s in range(nsets):
+            row[s, :pars.shape[1]] = pars[0]
     none = np.empty(0)
     if nsets == 1:  # on this thread: a parallel loop of one set would keep OpenMP's other threads spinning idle
-        _set_chunks(pars, cap, nchunks, 1, 0, out, tu0[0], thu[0], tuc[0], tdeg[0], ugen[0], ty0[0], tyh[0], tyc[0],
-                    tyd[0], ygen[0], X[0], buf[0], mats[0], ref[0], none)
+        _set_chunks(pars, cols, vals, cap, nchunks, 1, 0, out, tu0[0], thu[0], tuc[0], tdeg[0], ugen[0], ty0[0],
+                    tyh[0], tyc[0], tyd[0], ygen[0], X[0], buf[0], mats[0], ref[0], row[0], none)
     else:
-        _batch_sets(pars, cap, nchunks, nsets, out, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, X, buf, mats,
-                    ref, none)
+        _batch_sets(pars, cols, vals, cap, nchunks, nsets, out, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, X,
+                    buf, mats, ref, row, none)
     return out
 
 
-def _batch_sets(pars, cap, nchunks, nsets, out, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, X, buf, mats, ref,
-                none):
-    """:func:`run_batch`'s parallel loop: work set ``s`` runs the chunks ``s, s + nsets, ...`` on its own arrays."""
+def _batch_sets(pars, cols, vals, cap, nchunks, nsets, out, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, X, buf,
+                mats, ref, row, none):
+    """:func:`_runs`' parallel loop: work set ``s`` runs the chunks ``s, s + nsets, ...`` on its own arrays."""
     for s in prange(nsets):
-        _set_chunks(pars, cap, nchunks, nsets, s, out, tu0[s], thu[s], tuc[s], tdeg[s], ugen[s], ty0[s], tyh[s], tyc[s],
-                    tyd[s], ygen[s], X[s], buf[s], mats[s], ref[s], none)
+        _set_chunks(pars, cols, vals, cap, nchunks, nsets, s, out, tu0[s], thu[s], tuc[s], tdeg[s], ugen[s], ty0[s],
+                    tyh[s], tyc[s], tyd[s], ygen[s], X[s], buf[s], mats[s], ref[s], row[s], none)
 
 
-def _set_chunks(pars, cap, nchunks, nsets, s, out, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, X, buf, mats,
-                ref, none):
-    """Work set ``s`` of :func:`run_batch`: the chunks ``s, s + nsets, ...`` on that set's arrays (``ref``: the
-    reference's knot, value and slope; ``none``: no samples of y).  The set's arrays are sliced once, here, not per
-    row (compiled by Cython, each slice kept in a variable counts a reference on the batch's shared array)."""
-    m = pars.shape[0]
-    for k in range((nchunks - 1 - s) // nsets + 1):  # (a step of nsets from s)
-        c = s + k * nsets
-        lo = c * m // nchunks
-        hi = (c + 1) * m // nchunks
+def _chunk(m, nchunks, nsets, s, k):
+    """Rows ``lo:hi`` of work set ``s``'s ``k``-th chunk: the chunk ``s + k nsets`` of ``nchunks`` near-equal chunks of
+    ``m`` rows (sets take the chunks in turn: a sweep whose cost grows along its rows is shared evenly), empty for
+    ``k`` past the set's last.  The batch loops of this module and :mod:`._sampled_batch` run ``k`` over
+    ``range(nchunks)``."""
+    c = min(s + k * nsets, nchunks)
+    return c * m // nchunks, min(c + 1, nchunks) * m // nchunks
+
+
+def _set_chunks(pars, cols, vals, cap, nchunks, nsets, s, out, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, X,
+                buf, mats, ref, row, none):
+    """Work set ``s`` of :func:`_runs`: its chunks (:func:`_chunk`) on that set's arrays (``ref``: the reference's knot,
+    value and slope; ``row``: its copy of the shared row; ``none``: no samples of y).  The set's arrays are sliced
+    once, here, not per row (compiled by Cython, each slice kept in a variable counts a reference on the batch's
+    shared array)."""
+    m = vals.shape[0]
+    nv = cols.shape[0]
+    for k in range(nchunks):
+        lo, hi = _chunk(m, nchunks, nsets, s, k)
         for i in range(lo, hi):
-            ref[1] = pars[i, _STEP]
-            ref[2] = pars[i, _SLOPE]
-            _run(pars[i], ref[0:1], ref[1:2], ref[2:3], cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, out[i],
+            if nv == 0:
+                par = pars[i]
+            else:
+                for j in range(nv):
+                    row[cols[j]] = vals[i, j]
+                par = row
+            ref[1] = par[_STEP]
+            ref[2] = par[_SLOPE]
+            _run(par, ref[0:1], ref[1:2], ref[2:3], cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, ygen, out[i],
                  False, none, none, X, buf, mats)

@@ -72,7 +72,7 @@ cpdef void _batch_sets(double[:, :] pars, Py_ssize_t nchunks, Py_ssize_t nsets, 
                        double[:, :, :] Rb, double[:, :] Rbw, double[:, :, :] zi, double[:, :, :] Z0,
                        double[:, :, :] vec, double[:, :] ring, unsigned char[:, :, :] flags, long long[:, :, :] idx,
                        long long[:, :] used, double[:, :, :] gw) noexcept nogil
-@cython.locals(k=Py_ssize_t, i=Py_ssize_t, m=Py_ssize_t, lo=Py_ssize_t, hi=Py_ssize_t, c=Py_ssize_t)
+@cython.locals(k=Py_ssize_t, i=Py_ssize_t, m=Py_ssize_t, lo=Py_ssize_t, hi=Py_ssize_t)
 cpdef void _set_chunks(double[:, :] pars, Py_ssize_t nchunks, Py_ssize_t nsets, Py_ssize_t s, double[:, ::1] out,
                        double[:, :] Z, double[:, :, :] Q, double[:, :] G, double[:] taus, double[:, :] A,
                        double[:, :] E, double[:, :] T, double[:, :] W, double[:, :] zb, double[:] acc, double[:] zs,

@@ -85,7 +85,7 @@ except ImportError:  # plain Python without Cython installed: only ``cython.comp
     cython = SimpleNamespace(compiled=False)
 
 if cython.compiled:  # the certified roots and the step metrics' update (shared with the Taylor kernel), as C
-    from cython.cimports.delaykit.simulate._kernel import _metrics_row, _metrics_update
+    from cython.cimports.delaykit.simulate._kernel import _chunk, _metrics_row, _metrics_update
     from cython.cimports.delaykit.simulate._poly import crossings as _crossings
     from cython.cimports.delaykit.models._expmkernel import expm_into
     from cython.cimports.delaykit.models._foldkernel import fold_into as _fold_into
@@ -100,7 +100,7 @@ else:  # the same modules run as this one is (numba's copies, or Python)
     expm_into = sibling(__name__, "_expmkernel", "delaykit.models").expm_into  # the one matrix exponential
     _fold_into = sibling(__name__, "_foldkernel", "delaykit.models").fold_into
     _k = sibling(__name__, "_kernel")
-    _metrics_update, _metrics_row = _k._metrics_update, _k._metrics_row
+    _metrics_update, _metrics_row, _chunk = _k._metrics_update, _k._metrics_row, _k._chunk
     if __name__.endswith("_numba"):
         from numba import prange
     else:
@@ -785,12 +785,10 @@ def _batch_sets(pars, nchunks, nsets, out, Z, Q, G, taus, A, E, T, W, zb, acc, z
 
 def _set_chunks(pars, nchunks, nsets, s, out, Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs, sr,
                 sd, ms, EA, Pab, gb, Es, Rb, Rbw, zi, Z0, vec, ring, flags, idx, used, gw):
-    """Work set ``s``'s rows: the chunks ``s, s + nsets, ...``, on that set's arrays."""
+    """Work set ``s``'s rows: the chunks ``s, s + nsets, ...`` (:func:`._kernel._chunk`), on that set's arrays."""
     m = pars.shape[0]
-    for k in range((nchunks - 1 - s) // nsets + 1):  # (a step of nsets from s)
-        c = s + k * nsets
-        lo = c * m // nchunks
-        hi = (c + 1) * m // nchunks
+    for k in range(nchunks):
+        lo, hi = _chunk(m, nchunks, nsets, s, k)
         for i in range(lo, hi):
             run_one(pars[i], out[i], Z, Q, G, taus, A, E, T, W, zb, acc, zs, Zs, q, qn, zsum, Y, Wn, dW, xs, sr, sd, ms,
                     EA, Pab, gb, Es, Rb, Rbw, zi, Z0, vec, ring, flags, idx, used, gw)

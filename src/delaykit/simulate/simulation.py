@@ -47,6 +47,7 @@ _CAP_MAX = 1 << 21
 """The most polynomial pieces one run may use: some 1.3 kB each (the kernel's work arrays and the response's
 copy), so under 3 GB (the work arrays grew eightfold past the old 1 << 22, to 16.8 million pieces and 20 GB)."""
 _NO_T = np.empty(0)
+_ROWS_PER_THREAD = 8  # the fewest loops of a batch per thread (a paper P loop's run: 11 us; a PID loop's: 100 us)
 SWEEPABLE = ("kp", "ki", "kd", "kv", "delay", "output_delay", "umin", "umax", "vmax", "step", "sample_offset")
 """The parameters :func:`simulate_many` sweeps (arrays broadcast together)."""
 
@@ -522,9 +523,10 @@ def simulate_many(loop: Any, *, t_end: float = 15.0, band: float = 0.02, **sweep
             if np.any(mask):
                 sub = {k: v[mask] for k, v in flat.items() if not (k == "kv" and base.controller.kind == "p")}
                 pars[mask] = _sweep_rows(base, int(mask.sum()), sub, t_end, band)
+        rows = _Sweep.of_rows(pars)
     else:
-        pars = _sweep_rows(gen, m, flat, t_end, band)
-    out = _batch(pars)
+        rows = _sweep(gen, m, flat, t_end, band)
+    out = _batch(rows)
     o = K.OUT
     col = lambda name: out[:, o[name]].reshape(shape)  # noqa: E731
     params = {k: np.broadcast_to(a, shape).copy() for k, a in arrays.items()}
@@ -536,52 +538,130 @@ def simulate_many(loop: Any, *, t_end: float = 15.0, band: float = 0.02, **sweep
     )
 
 
+class _Sweep:
+    """Parameter rows of ``m`` loops, compactly: one shared row and the columns that differ from loop to loop (what
+    :func:`._kernel.run_sweep` reads; 10,000 loops' rows written out are 35 MB, 7 ms of the paper's batch to write).
+
+    ``self[j]`` is column ``j``: its ``m`` values where the loops differ in it, else the shared value (a float).
+    """
+
+    def __init__(self, row: np.ndarray, m: int) -> None:
+        self.row = row
+        self.m = m
+        self.cols: dict[int, np.ndarray] = {}  # column -> its m values (the row's entry there is unused)
+
+    @classmethod
+    def of_rows(cls, pars: np.ndarray) -> _Sweep:
+        """The sweep of whole rows (those of loops whose structures differ): the columns where any row differs."""
+        sw = cls(pars[0].copy() if len(pars) else np.zeros(K.NPAR), len(pars))
+        if len(pars):
+            for j in np.flatnonzero(np.any(pars.view(np.int64) != pars[:1].view(np.int64), axis=0)):
+                sw.cols[int(j)] = pars[:, j].copy()
+        return sw
+
+    def __getitem__(self, j: int) -> Any:
+        c = self.cols.get(j)
+        return float(self.row[j]) if c is None else c
+
+    def __setitem__(self, j: int, values: Any) -> None:
+        """Column ``j`` set to ``values``: one value shared by every loop, or one per loop."""
+        v = np.asarray(values, dtype=float)
+        if v.ndim == 0:
+            self.row[j] = v
+            self.cols.pop(j, None)
+        else:
+            self.cols[j] = np.array(np.broadcast_to(v, (self.m,)))
+
+    def put(self, j: int, i: Any, values: Any) -> None:
+        """Column ``j``'s values of the loops ``i`` set to ``values``."""
+        c = self.cols.get(j)
+        if c is None:
+            c = self.cols[j] = np.full(self.m, self.row[j])
+        c[i] = values
+
+    def one(self, i: int) -> np.ndarray:
+        """Loop ``i``'s row."""
+        r = self.row.copy()
+        for j, c in self.cols.items():
+            r[j] = c[i]
+        return r
+
+    def rows(self, which: Any = slice(None)) -> np.ndarray:
+        """The rows written out (of the loops ``which``, an index or mask)."""
+        n = np.arange(self.m)[which].size
+        pars = np.repeat(self.row[None, :], n, axis=0)
+        for j, c in self.cols.items():
+            pars[:, j] = c[which]
+        return pars
+
+    def compact(self, which: Any = None) -> tuple[np.ndarray, np.ndarray]:
+        """The columns that differ and their values, ``(m, k)`` (of the loops ``which``), for
+        :func:`._kernel.run_sweep` (with :attr:`row`); a column every loop has the same bits in goes to the row."""
+        for j in [j for j, c in self.cols.items() if not np.any(c.view(np.int64) != c[:1].view(np.int64))]:
+            self.row[j] = self.cols.pop(j)[0]  # (no loops: no columns)
+        cols = np.array(sorted(self.cols), dtype=np.int64)
+        vals = np.empty((self.m, cols.size))
+        for k, j in enumerate(cols):
+            vals[:, k] = self.cols[int(j)]
+        return cols, vals if which is None else np.ascontiguousarray(vals[which])
+
+
 def _sweep_rows(gen: Loop, m: int, flat: dict[str, np.ndarray], t_end: float, band: float) -> np.ndarray:
+    """Parameter rows of ``m`` variants of a loop, written out (see :func:`_sweep`)."""
+    return _sweep(gen, m, flat, t_end, band).rows()
+
+
+def _sweep(gen: Loop, m: int, flat: dict[str, np.ndarray], t_end: float, band: float) -> _Sweep:
     """Parameter rows of ``m`` variants of a loop: its row, with the swept columns written over."""
     lay = loop_matrices(gen)
     row0 = param_row(gen, lay, step=1.0, slope=0.0, norm=1.0, t_end=t_end, band=band, dist=None)
-    pars = np.repeat(row0[None, :], m, axis=0)
     H = K.HEAD
     swept = [name for name in ("kp", "ki", "kd", "kv") if name in flat]
     lays = [lay] * m
     if swept and isinstance(gen.controller, Compensator):
         # a compensator's gains enter its realisation through the model: each variant's row is built whole
+        pars = np.repeat(row0[None, :], m, axis=0)
         for i in range(m):
             v = gen.replace(controller=_with_gains(gen.controller, {k: float(flat[k][i]) for k in swept}))
             lays[i] = loop_matrices(v)
             pars[i] = param_row(v, lays[i], step=1.0, slope=0.0, norm=1.0, t_end=t_end, band=band, dist=None)
-    elif swept:
+        sw = _Sweep.of_rows(pars)
+    else:
+        sw = _Sweep(row0, m)
+    if swept and not isinstance(gen.controller, Compensator):
         g = {name: flat.get(name, np.full(m, getattr(gen.controller, name))) for name in ("kp", "ki", "kd", "kv")}
-        _gain_columns(gen, lay, pars, g)
+        _gain_columns(gen, lay, sw, g)
     for name, col in (("delay", "ti"), ("output_delay", "to"), ("umin", "umin"), ("umax", "umax"),
                       ("sample_offset", "offset")):
         if name in flat:
-            pars[:, H[col]] = flat[name]
+            sw[H[col]] = flat[name]
     if "vmax" in flat:
-        pars[:, H["umin"]] = -flat["vmax"]
-        pars[:, H["umax"]] = flat["vmax"]
-    if np.any(pars[:, H["umin"]] >= pars[:, H["umax"]]):
-        i = int(np.flatnonzero(pars[:, H["umin"]] >= pars[:, H["umax"]])[0])
-        raise InvalidValueError(f"umin must be below umax; loop {i} has umin={pars[i, H['umin']]:g}, "
-                                f"umax={pars[i, H['umax']]:g}")
+        sw[H["umin"]] = -flat["vmax"]
+        sw[H["umax"]] = flat["vmax"]
+    umin, umax = np.broadcast_to(sw[H["umin"]], (m,)), np.broadcast_to(sw[H["umax"]], (m,))
+    if np.any(umin >= umax):
+        i = int(np.flatnonzero(umin >= umax)[0])
+        raise InvalidValueError(f"umin must be below umax; loop {i} has umin={umin[i]:g}, umax={umax[i]:g}")
     per = gen.period
-    off = pars[:, H["offset"]]
+    off = np.broadcast_to(sw[H["offset"]], (m,))
     if per is None and np.any(off != 0):
         raise InvalidValueError("sample_offset needs a sampled loop (period set)")
     if per is not None and np.any(off >= per):
         i = int(np.flatnonzero(off >= per)[0])
         raise InvalidValueError(f"sample_offset[{i}] must be less than the period {per:g} s, got {off[i]:g}")
     st = flat["step"]
-    pars[:, H["step"]] = st
-    pars[:, H["norm"]] = st
-    pars[:, H["scale"]] = np.maximum(1.0, np.maximum(np.abs(pars[:, H["dvr"]] * st), np.abs(st)))
+    sw[H["step"]] = st
+    sw[H["norm"]] = st
+    sw[H["scale"]] = np.maximum(1.0, np.maximum(np.abs(sw[H["dvr"]] * st), np.abs(st)))
     if not gen.sampled:  # short delays (0 included): the rates of the loop without them too (see step_rate)
-        delay = np.maximum(pars[:, H["ti"]], pars[:, H["to"]])
-        for i in np.flatnonzero(delay <= K.SELF * pars[:, H["hmax"]]):
-            cv = pars[i, K.OFF_CV:K.OFF_CV + lays[i].M.shape[0]]
-            rate = step_rate(lays[i], pars[i, H["dvy"]], pars[i, H["dvv"]], cv, float(delay[i]), False)
-            pars[i, H["hmax"]] = 1.0 / max(rate, 1e-9)
-    return pars
+        delay = np.broadcast_to(np.maximum(sw[H["ti"]], sw[H["to"]]), (m,))
+        short = np.flatnonzero(delay <= K.SELF * np.broadcast_to(sw[H["hmax"]], (m,)))
+        for i in short:
+            row = sw.one(i)
+            cv = row[K.OFF_CV:K.OFF_CV + lays[i].M.shape[0]]
+            rate = step_rate(lays[i], row[H["dvy"]], row[H["dvv"]], cv, float(delay[i]), False)
+            sw.put(H["hmax"], i, 1.0 / max(rate, 1e-9))
+    return sw
 
 
 def _with_gains(c: Compensator, gains: dict[str, float]) -> Compensator:
@@ -591,39 +671,53 @@ def _with_gains(c: Compensator, gains: dict[str, float]) -> Compensator:
     return c.replace(**gains)
 
 
-def _gain_columns(loop: Loop, lay: LoopMatrices, pars: np.ndarray, g: dict[str, np.ndarray]) -> None:
+def _gain_columns(loop: Loop, lay: LoopMatrices, sw: _Sweep, g: dict[str, np.ndarray]) -> None:
     """Write the controller's gain-dependent entries of many rows (the structure is the loop's): the law of
-    :func:`~delaykit.models.controllers.controller_branches` evaluated at the arrays of gains."""
+    :func:`~delaykit.models.controllers.controller_branches` evaluated at the arrays of gains; only the entries
+    that vary with them become per-loop columns."""
     c = loop.controller
     H = K.HEAD
     if c.antiwindup == "backcalc" and np.any(g["ki"] == 0):
         raise InvalidValueError("back-calculation anti-windup needs ki != 0 in every swept loop")
     rz = parallel(controller_branches(c, **g))
     npl, nc = lay.npl, rz.order
-    m = pars.shape[0]
     for name in ("dvr", "dvy", "dvv"):
-        pars[:, H[name]] = np.broadcast_to(getattr(rz, name), (m,))
-    pars[:, K.OFF_CV + npl:K.OFF_CV + npl + nc] = np.broadcast_to(rz.Cc, (m, nc))
-    pars[:, K.OFF_BAW + npl:K.OFF_BAW + npl + nc] = np.broadcast_to(rz.Baw, (m, nc))
+        sw[H[name]] = getattr(rz, name)
+    for off, mat in ((K.OFF_CV, rz.Cc), (K.OFF_BAW, rz.Baw)):
+        mat = np.asarray(mat, dtype=float)
+        for k in range(nc):
+            sw[off + npl + k] = mat[..., k]
     rate0 = float(np.max(np.abs(np.linalg.eigvals(lay.M)))) if lay.M.size else 0.0
-    pars[:, H["hmax"]] = 1.0 / np.maximum(np.maximum(rate0, np.abs(pars[:, H["dvy"]] * lay.dyd)), 1e-9)
+    sw[H["hmax"]] = 1.0 / np.maximum(np.maximum(rate0, np.abs(np.asarray(sw[H["dvy"]]) * lay.dyd)), 1e-9)
 
 
-def _event_stepped(pars: np.ndarray) -> np.ndarray:
-    """Which parameter rows :mod:`._sampled_batch` simulates (stepping exactly from sample to sample with matrix
-    exponentials): a sampled controller, no output delay, no anti-windup and no predictor (no command or
-    model-delay terms).  The batch's reference is a step or ramp and its load, if any, a step: both qualify."""
+def _event_stepped(sw: _Sweep | np.ndarray) -> np.ndarray:
+    """Which loops of a sweep (or parameter rows) :mod:`._sampled_batch` simulates (stepping exactly from sample to
+    sample with matrix exponentials): a sampled controller, no output delay, no anti-windup and no predictor (no
+    command or model-delay terms).  The batch's reference is a step or ramp and its load, if any, a step: both
+    qualify."""
+    if isinstance(sw, np.ndarray):
+        sw = _Sweep.of_rows(sw)
     H = K.HEAD
-    ok = (pars[:, H["period"]] > 0.0) & (pars[:, H["to"]] == 0.0) & (pars[:, H["aw"]] == 0.0)
-    ok &= pars[:, H["tm"]] == 0.0
-    ok &= ~np.any(pars[:, K.OFF_BU:K.OFF_BU + K.MAXN] != 0.0, axis=1)
-    ok &= ~np.any(pars[:, K.OFF_BUM:K.OFF_BUM + K.MAXN] != 0.0, axis=1)
-    return ok
+    ok = (sw[H["period"]] > 0.0) & (sw[H["to"]] == 0.0) & (sw[H["aw"]] == 0.0) & (sw[H["tm"]] == 0.0)
+    lo, hi = K.OFF_BU, K.OFF_BUM + K.MAXN  # the command's and the delayed command's couplings: none
+    shared = sw.row[lo:hi].copy()
+    for j, c in sw.cols.items():
+        if lo <= j < hi:
+            shared[j - lo] = 0.0
+            ok = ok & (c == 0.0)
+    return np.broadcast_to(ok & (not np.any(shared != 0.0)), (sw.m,))
 
 
-def _threads(kern: Any) -> int:
-    """The threads a batch kernel module runs on: numba's where numba compiled it, else the CPUs this process may use
-    (OpenMP's default; ``OMP_NUM_THREADS`` where set)."""
+def _threads(kern: Any, rows: int) -> int:
+    """The threads a batch kernel module runs ``rows`` loops on: numba's where numba compiled it, else the CPUs this
+    process may use (OpenMP's default; ``OMP_NUM_THREADS`` where set); fewer where a thread would get less than
+    ``_ROWS_PER_THREAD`` loops (waking a thread costs more than a few runs: 10 ms, not 0.04, for 2 loops on 2 threads
+    at load 9)."""
+    return max(1, min(_cores(kern), rows // _ROWS_PER_THREAD))
+
+
+def _cores(kern: Any) -> int:
     if kern.__name__.endswith("_numba"):
         import numba
 
@@ -637,29 +731,30 @@ def _threads(kern: Any) -> int:
         return os.cpu_count() or 1
 
 
-def _batch(pars: np.ndarray) -> np.ndarray:
-    m = pars.shape[0]
+def _batch(sw: _Sweep) -> np.ndarray:
+    m = sw.m
     if m == 0:
         return np.empty((0, K.NOUT))
     out = np.empty((m, K.NOUT))
-    fast = _event_stepped(pars)
+    fast = _event_stepped(sw)
     if np.any(fast):  # sampled loops: from event to event with matrix exponentials
         sb = _native.load("delaykit.simulate", "_sampled_batch")
-        sub = np.ascontiguousarray(pars) if fast.all() else np.ascontiguousarray(pars[fast])
-        threads = _threads(sb)  # one work set per thread (it ran on one before, whatever the machine)
+        sub = sw.rows(fast)
+        threads = _threads(sb, sub.shape[0])  # one work set per thread (it ran on one before, whatever the machine)
         out[fast] = sb.run_batch(sub, max(1, min(sub.shape[0], 8 * threads)), threads)
     rest = np.flatnonzero(~fast)
     if rest.size == 0:
         return out
     kern = _jit.kernel(compiled=True)
-    # every row (the usual case: one kind of loop): no copy of the rows, 35 MB for 10,000 loops
-    sub = np.ascontiguousarray(pars) if rest.size == m else np.ascontiguousarray(pars[rest])
-    threads = _threads(kern)
-    res = kern.run_batch(sub, _CAP0, max(1, min(rest.size, 8 * threads)), threads)
+    # the shared row and the columns that differ (the usual case, every loop here: no copy of the values)
+    cols, vals = sw.compact(None if rest.size == m else rest)
+    threads = _threads(kern, rest.size)
+    res = kern.run_sweep(sw.row, cols, vals, _CAP0, max(1, min(rest.size, 8 * threads)), threads)
     redo = np.flatnonzero(res[:, K.OUT["status"]] != K.STATUS_OK)  # a stall raises its error from run()
     for i in redo:
+        row = sw.one(int(rest[i]))
         ws = _Workspace(store=False)
-        ws.run(sub[i], (np.zeros(1), np.array([sub[i, K.HEAD["step"]]]), np.zeros(1)))
+        ws.run(row, (np.zeros(1), np.array([row[K.HEAD["step"]]]), np.zeros(1)))
         res[i] = ws.out
     if rest.size == m:
         return res
