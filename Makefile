@@ -18,8 +18,10 @@ $(VENV)/.installed: $(BIN)/python pyproject.toml setup.py $(KERNELS)
 	$(BIN)/pip install -q -e .
 	touch $@
 
+# the extras by the installed package's name, not `-e '.[...]'`, which would build every extension a second time
+# (the longest step of a fresh clone's set-up): pip finds delaykit installed and adds only what the extras need
 $(VENV)/.test-installed: $(VENV)/.installed
-	$(BIN)/pip install -q -e '.[test,bench,cluster,docs]'
+	$(BIN)/pip install -q 'delaykit[test,bench,cluster,docs]'
 	# Debian's chromium for the test that renders the report page (the test skips, saying why, without it)
 	command -v chromium >/dev/null 2>&1 || (timeout 900 sh -c 'apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium' >/dev/null 2>&1 || echo "chromium could not be installed; the page-rendering test will be skipped")
 	touch $@

@@ -72,26 +72,37 @@ def _eps(t: float) -> float:
     return _REL * max(1.0, abs(t))
 
 
+def _chebval(x: float, coef: np.ndarray) -> np.ndarray:
+    """The Chebyshev series ``sum_k coef[k] T_k(x)`` at one scalar ``x`` (numpy's ``chebval`` to rounding): the
+    ``T_k(x)`` by their three-term recurrence in scalars, then one dot product."""
+    T = [1.0, x]
+    for _ in range(len(coef) - 2):
+        T.append(2.0 * x * T[-1] - T[-2])
+    return np.dot(T[:len(coef)], coef)
+
+
 class _Dense:
     """DOP853's dense output of one segment (its 7th-degree interpolants, step by step), evaluated with little
     overhead per scalar time: ``y = y_old + F0 x + F1 x (1-x) + F2 x^2 (1-x) + ...`` with ``x = (t - t_old)/h``."""
 
     def __init__(self, sol: Any) -> None:
         steps = sol.interpolants
-        self.t_old = np.array([d.t_old for d in steps])
-        self.h = np.array([d.h for d in steps])
+        self.t_old = [float(d.t_old) for d in steps]  # (Python floats: bisect on them is the cheapest look-up)
+        self.h = [float(d.h) for d in steps]
         self.F = np.array([np.asarray(d.F) for d in steps])        # (steps, 7, n)
         self.y_old = np.array([np.asarray(d.y_old) for d in steps])  # (steps, n)
 
     def __call__(self, t: float) -> np.ndarray:
-        i = int(np.searchsorted(self.t_old, t, side="right")) - 1
+        i = bisect.bisect_right(self.t_old, t) - 1
         i = min(max(i, 0), len(self.h) - 1)
         x = (t - self.t_old[i]) / self.h[i]
-        F = self.F[i]
-        y = np.zeros(F.shape[1])
-        for k in range(F.shape[0] - 1, -1, -1):  # Horner with alternating factors x, (1 - x)
-            y = (y + F[k]) * (x if k % 2 == 0 else 1.0 - x)
-        return y + self.y_old[i]
+        # the same polynomial summed as  sum_k F[k] prod_{j <= k} f_j  with f_j = x (j even), 1 - x (j odd): the
+        # products in scalars, then one dot product (equal to the nested form to rounding)
+        w, p = [], 1.0
+        for k in range(self.F.shape[1]):
+            p *= x if k % 2 == 0 else 1.0 - x
+            w.append(p)
+        return np.dot(w, self.F[i]) + self.y_old[i]
 
 
 @dataclass
@@ -283,7 +294,7 @@ class LTIOracle:
         vals = np.array([self._delayed(tr, float(t), float(t)) for t in ts])  # (N, len(P))
         coef = np.polynomial.chebyshev.chebfit(nodes, vals, _CHEB - 1)
         c, h = 0.5 * (g.a + g.b), 0.5 * (g.b - g.a)
-        return lambda s, coef=coef: np.polynomial.chebyshev.chebval((s - c) / h, coef)
+        return lambda s, coef=coef: _chebval((s - c) / h, coef)
 
     # -- the run ---------------------------------------------------------------------------------------------
     def run(self, t_end: float, *, u: Callable[[float, float], np.ndarray] | None = None, X0: Any = 0.0,
@@ -588,9 +599,17 @@ class LTIOracle:
         t0 = float(T[0])
         zero = np.zeros(self.nu)
 
-        def u(t: float, sel: float) -> np.ndarray:
+        Tl = T.tolist()
+
+        def u(t: float, sel: float) -> np.ndarray:  # np.interp of every input, with one look-up of the interval
             if sel < t0:
                 return zero
-            return np.array([np.interp(t, T, U[i]) for i in range(self.nu)])
+            if t <= Tl[0]:
+                return U[:, 0].copy()
+            if t >= Tl[-1]:
+                return U[:, -1].copy()
+            k = bisect.bisect_right(Tl, t) - 1
+            f = (t - Tl[k]) / (Tl[k + 1] - Tl[k])
+            return U[:, k] + f * (U[:, k + 1] - U[:, k])
 
         return self.run(float(T[-1]), u=u, t0=t0, X0=X0, kinks=T[1:-1]).outputs(T)
