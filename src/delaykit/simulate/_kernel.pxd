@@ -17,8 +17,10 @@ cpdef Py_ssize_t _delayed(double[::1] t0, double[::1] th, double[:, ::1] tc, lon
                           double s, double H, double[::1] dst, double[::1] work) noexcept nogil
 cpdef Py_ssize_t _ref_poly(double[::1] rt, double[::1] r0, double[::1] rs, Py_ssize_t k, double a, double H,
                            double[::1] R) noexcept nogil
-@cython.locals(i=Py_ssize_t, j=Py_ssize_t)
+@cython.locals(i=Py_ssize_t)
 cpdef double _tail(double[:, ::1] X, Py_ssize_t N, double[::1] V, Py_ssize_t nt) noexcept nogil
+@cython.locals(j=Py_ssize_t)
+cpdef double _last_ratio(double[::1] c) noexcept nogil
 @cython.locals(j=Py_ssize_t)
 cpdef void _step_metrics(double[::1] Y, Py_ssize_t nY, double norm, double a, double H, double band, double[::1] ms,
                          double[::1] Wn, double[::1] dW, double[::1] xs, double[::1] fs,

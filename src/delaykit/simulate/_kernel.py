@@ -58,7 +58,8 @@ Where the plant's input is known before the piece (delayed, or held by a sampled
 does not act back on the states, the recursion runs on ``X' = A X + G (w, r, ym, vm)``, with the measurement's
 coupling folded into ``A`` once per run (:mod:`._taylor`); otherwise on the general form.
 
-Step metrics are computed on the polynomials themselves while the pieces stream past.
+Step metrics are computed on the polynomials themselves while the pieces stream past: one pass over a piece's
+output gives its bounds and its value at the piece's end (:func:`._poly.bounds`), which the advance reuses.
 
 The piece loop (``_run``) and the non-inlined helpers it calls are compiled without numba's reference counting
 (``_nrt=False``): they allocate nothing, and with it every array view bound in the loop (each inlined helper's
@@ -141,8 +142,9 @@ _PICARD = 400  # fixed-point passes before a piece that reads its own delayed si
 # numba's options where it compiles this file (see delaykit._native): the helpers inlined into the piece loop, which
 # (with the rarely run helpers, kept out of its code) is compiled without reference counting; the batch in parallel
 NUMBA_OPTIONS = {name: {"inline": "always"} for name in (
-    "_classify", "_delayed", "_ref_poly", "_tail", "_step_metrics", "_metrics_row", "_metrics_update", "_first_switch",
-    "_continues", "_on_limit", "_lead_sign", "_slide_rates", "_image", "_pending", "_read_end", "_held", "_chunk")}
+    "_classify", "_delayed", "_ref_poly", "_tail", "_last_ratio", "_step_metrics", "_metrics_row", "_metrics_update",
+    "_first_switch", "_continues", "_on_limit", "_lead_sign", "_slide_rates", "_image", "_pending", "_read_end", "_held",
+    "_chunk")}
 NUMBA_OPTIONS.update({"_rel_degree": {"_nrt": False}, "_jump": {"_nrt": False}, "_picard": {"_nrt": False},
                       "_run": {"_nrt": False}, "_batch_sets": {"parallel": True}})
 
@@ -192,17 +194,38 @@ def _tail(X, N, V, nt):
     coefficient on the piece (0 when the coefficients ended before degree DEG)."""
     if nt < NC:
         return 0.0
-    t = 0.0
-    for i in range(N + 1):
-        big = 0.0
-        for j in range(NC):
-            c = abs(X[i, j]) if i < N else abs(V[j])
-            if c > big:
-                big = c
-        if big > 0.0:
-            last = abs(X[i, DEG]) if i < N else abs(V[DEG])
-            t = max(t, last / big)
+    t = _last_ratio(V)
+    for i in range(N):
+        t = max(t, _last_ratio(X[i]))
     return t
+
+
+def _last_ratio(c):
+    """``|c[DEG]|`` relative to the largest ``|c[j]|`` (0 where all are 0): four running maxima side by side, not
+    one chain of dependent comparisons (a maximum is exact in any order)."""
+    b0 = 0.0
+    b1 = 0.0
+    b2 = 0.0
+    b3 = 0.0
+    j = 0
+    while j + 3 < NC:
+        a0 = abs(c[j])
+        a1 = abs(c[j + 1])
+        a2 = abs(c[j + 2])
+        a3 = abs(c[j + 3])
+        b0 = a0 if a0 > b0 else b0
+        b1 = a1 if a1 > b1 else b1
+        b2 = a2 if a2 > b2 else b2
+        b3 = a3 if a3 > b3 else b3
+        j += 4
+    while j < NC:
+        a0 = abs(c[j])
+        b0 = a0 if a0 > b0 else b0
+        j += 1
+    b0 = b1 if b1 > b0 else b0
+    b2 = b3 if b3 > b2 else b2
+    big = b2 if b2 > b0 else b0
+    return abs(c[DEG]) / big if big > 0.0 else 0.0
 
 
 # The step metrics' running state (a row of ``ms``): highest w so far and when, the first times w reaches
@@ -248,11 +271,12 @@ def _metrics_update(Wn, nW, a, H, band, ms, dW, xs, fs, sr, sd, certified):
 
     The kernel finds the roots on a grid (:func:`._poly.all_cross`, :func:`._poly.first_cross`; ``fs`` their
     work space), skips the derivative's root search where the derivative's bounds keep one sign, and keeps w at
-    the piece's end in ``ms[_WEND]``.  The sampled batch isolates them with certainty (:func:`._poly.crossings`;
+    the piece's end in ``ms[_WEND]`` (the sum of its coefficients, from the pass that gives its bounds: the piece
+    loop reads it back as y at the piece's end where the step is 1).  The sampled batch isolates them with certainty (:func:`._poly.crossings`;
     ``sr``, ``sd`` its stack) and has no ``_WEND`` in its ``ms``.  ``certified`` is a constant at each call:
     numba drops the other way's branches before typing them, so each caller compiles only its own."""
     end = a + H
-    lo, hi = _bounds(Wn, nW)
+    lo, hi, wend = _bounds(Wn, nW)  # (wend: w at the piece's end, the sum of its coefficients)
     if hi > ms[_WMAX]:
         big = 0.0
         for j in range(nW - 1):
@@ -263,7 +287,7 @@ def _metrics_update(Wn, nW, a, H, band, ms, dW, xs, fs, sr, sd, certified):
         else:
             # no root of the derivative where its bounds keep one sign, beyond rounding: the grid search would
             # find none
-            dlo, dhi = _bounds(dW, nW - 1)
+            dlo, dhi, _ = _bounds(dW, nW - 1)
             if dlo > 1e-13 * big or dhi < -1e-13 * big:
                 k = 0
             else:
@@ -288,7 +312,6 @@ def _metrics_update(Wn, nW, a, H, band, ms, dW, xs, fs, sr, sd, certified):
             else:
                 t = a + _first_cross(Wn, nW, level, -1.0, fs) * H  # (2.0 where there is none: past the end)
             ms[idx] = t if t <= end else _NAN
-    wend = _sum(Wn, nW)
     if not certified:
         ms[_WEND] = wend
     if hi - 1.0 >= band or lo - 1.0 <= -band:
@@ -310,7 +333,7 @@ def _first_switch(V, nv, E, ne, regime, frozen, umin, umax, aw, fs):
     """Where on the piece (x in (0, 1]) the command ``V`` first leaves its regime or, with clamping
     anti-windup while saturated, the error ``E`` (at most ``ne`` coefficients) changes sign; 2.0 if nowhere."""
     xc = 2.0
-    lo, hi = _bounds(V, nv)
+    lo, hi, _ = _bounds(V, nv)
     if regime == _LIN:
         if hi >= umax:
             xc = min(xc, _first_cross(V, nv, umax, -1.0, fs))
@@ -1057,7 +1080,7 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
             for j in range(nt):  # the sums of the states' coefficients, side by side
                 for i in range(N):
                     x0[i] += X[i, j]
-        y_end = _sum(Y, nY)
+        y_end = ms[_WEND] if metrics and norm == 1.0 else _sum(Y, nY)  # (the metrics' sum of the same Y)
         if sampled:  # what the next sample reads
             if to_pos:
                 ym_left = _sum(Ym, NC)

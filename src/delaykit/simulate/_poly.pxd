@@ -15,7 +15,7 @@ cpdef (double, double) horner_d(double[::1] c, Py_ssize_t n, double x) noexcept 
 @cython.locals(j=Py_ssize_t)
 cpdef double poly_sum(double[::1] c, Py_ssize_t n) noexcept nogil
 @cython.locals(j=Py_ssize_t)
-cpdef (double, double) bounds(double[::1] c, Py_ssize_t n) noexcept nogil
+cpdef (double, double, double) bounds(double[::1] c, Py_ssize_t n) noexcept nogil
 cpdef double refine(double[::1] c, Py_ssize_t n, double target, double lo, double hi, double slo) noexcept nogil
 @cython.locals(j=Py_ssize_t)
 cpdef void grid_values(double[::1] c, Py_ssize_t n, double target, double[::1] fs, Py_ssize_t i0) noexcept nogil

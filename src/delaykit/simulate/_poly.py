@@ -17,7 +17,7 @@ Examples
 >>> p = _native.load("delaykit.simulate", "_poly")  # compiled (Cython, or numba where not built)
 >>> c = np.array([-0.25, 0.0, 1.0])  # x**2 - 1/4
 >>> p.horner(c, 3, 0.5), p.bounds(c, 3)
-(0.0, (-0.25, 0.75))
+(0.0, (-0.25, 0.75, 0.75))
 >>> round(p.first_cross(c, 3, 0.0, -1.0, np.empty(p.GRID + 1)), 15)  # its root, refined
 0.5
 """
@@ -84,14 +84,17 @@ def poly_sum(c, n):
 
 
 def bounds(c, n):
-    """Lower and upper bounds of the polynomial on [0, 1] (x**j lies in [0, 1])."""
+    """Lower and upper bounds of the polynomial on [0, 1] (x**j lies in [0, 1]), and its value at 1 (the sum of its
+    coefficients, as :func:`poly_sum`): one pass, three independent chains of additions."""
     lo = c[0]
     hi = c[0]
+    s = 0.0 + c[0]  # (poly_sum's first addition: -0.0 becomes 0.0)
     for j in range(1, n):  # branch-free: adding 0.0 leaves a sum unchanged
         cj = c[j]
+        s += cj
         hi += cj if cj > 0.0 else 0.0
         lo += 0.0 if cj > 0.0 else cj
-    return lo, hi
+    return lo, hi, s
 
 
 def refine(c, n, target, lo, hi, slo):
