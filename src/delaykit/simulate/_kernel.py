@@ -1219,7 +1219,7 @@ def _set_chunks(pars, cols, vals, cap, nchunks, nsets, s, out, tu0, thu, tuc, td
     """Work set ``s`` of :func:`_runs`: its chunks (:func:`_chunk`) on that set's arrays (``ref``: the reference's knot,
     value and slope; ``row``: its copy of the shared row; ``none``: no samples of y).  The set's arrays are sliced
     once, here, not per row (compiled by Cython, each slice kept in a variable counts a reference on the batch's
-    shared array)."""
+    shared array: ``par``, once per row, is the one such slice left in the loop)."""
     m = vals.shape[0]
     nv = cols.shape[0]
     for k in range(nchunks):
