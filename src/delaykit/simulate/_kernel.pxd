@@ -64,7 +64,7 @@ cpdef Py_ssize_t run_one(double[:] par, double[:] rt, double[:] r0, double[:] rs
                          double[:] thu, double[:, :] tuc, long long[:] tdeg, signed char[:] ugen, double[:] ty0,
                          double[:] tyh, double[:, :] tyc, double[:, :] tyd, signed char[:] ygen, double[:] out,
                          bint keep_y, double[:] et, double[:] ez)
-@cython.locals(i=Py_ssize_t, k=Py_ssize_t, j=Py_ssize_t, epsd=double, trunc=double, tiny_h=double, dl=double,
+@cython.locals(i=Py_ssize_t, k=Py_ssize_t, j=Py_ssize_t, epsd=double, ytr=double, tiny_h=double, dl=double,
                N=Py_ssize_t, aw=Py_ssize_t, integ=Py_ssize_t, nref=Py_ssize_t, ne=Py_ssize_t, ke=Py_ssize_t,
                ksamp=Py_ssize_t, n=Py_ssize_t, nu=Py_ssize_t, ny=Py_ssize_t, qu=Py_ssize_t, qgu=Py_ssize_t,
                qy=Py_ssize_t, qgy=Py_ssize_t, qm=Py_ssize_t, qgm=Py_ssize_t, kr=Py_ssize_t, regime=Py_ssize_t,
@@ -73,7 +73,7 @@ cpdef Py_ssize_t run_one(double[:] par, double[:] rt, double[:] r0, double[:] rs
                keep_regime=Py_ssize_t, prev_regime=Py_ssize_t, side=Py_ssize_t, ns=Py_ssize_t, nv=Py_ssize_t,
                new=Py_ssize_t, nsrc=Py_ssize_t, nU=Py_ssize_t, nY=Py_ssize_t, o=Py_ssize_t, r_wy=Py_ssize_t,
                r_yu=Py_ssize_t, r_mu=Py_ssize_t, sampled=bint, cont=bint, ti_pos=bint, to_pos=bint, algebraic=bint,
-               need_yd=bint, tm_pos=bint, switches=bint, has_dist=bint, metrics=bint, has_u=bint,
+               need_yd=bint, tm_pos=bint, switches=bint, has_dist=bint, metrics=bint, has_u=bint, nz=Py_ssize_t,
                regime_matters=bint, known=bint, slide_on=bint, neutral=bint, zero_a=bint, u_img=bint, y_img=bint,
                self_ok=bint, self_u=bint, self_y=bint, self_m=bint, self_any=bint, dist_on=bint, frozen=bint,
                sliding=bint, tried=bint, failed=bint, newf=bint, changed=bint, cut=bint, u_src=bint, y_src=bint,
