@@ -36,7 +36,7 @@ def _recur(N, A, G, VE, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, n
     X[0, 0] = x0
     Y, Yd, V, E = np.zeros(NC), np.zeros(NC), np.zeros(NC), np.zeros(NC)
     nt = _T.recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, need_yd, d5, X, Y,
-                            Yd, V, E, zero_a, False, 0.0, np.zeros(NC))
+                            Yd, V, E, zero_a, False, 0.0, np.zeros(NC), NC)
     return nt, X, Y, Yd, V, E
 
 
@@ -48,6 +48,8 @@ def test_single_state_recursion_equals_the_general_loop(seed):
     g = rng.normal(size=4)
     ve = rng.normal(size=10)
     use_meas = seed % 3 == 0
+    if not use_meas:  # the measurement is then the output, folded into A and g[0]: g's ym and vm terms are zero
+        g[2:] = 0.0
     need_yd = seed % 4 < 2
     frozen = seed in (5, 7)  # the single state is the frozen integrator
     nW = int(rng.integers(1, NC + 1))
@@ -266,10 +268,10 @@ def test_known_input_recursion_equals_the_general_one(seed):
         Y, Yd, V, E, Fz = np.zeros(NC), np.zeros(NC), np.zeros(NC), np.zeros(NC), np.zeros(NC)
         if general:
             nt = _T.recursion(par, M, VE, N, H, _T.LIN, False, False, True, False, 0.0, dist, X, R, 2, Wd, nW, Ym,
-                              Vm, True, Y, Yd, V, E, True, np.zeros(NC), 1, False, False, Fz)
+                              Vm, True, Y, Yd, V, E, True, np.zeros(NC), 1, False, False, Fz, NC)
         else:
             nt = _T.recursion_known(M, G, VE, N, H, False, -1, dist, Wd, nW, R, 2, Ym, Vm, True, True, d5, X, Y,
-                                    Yd, V, E, False, False, 0.0, Fz)
+                                    Yd, V, E, False, False, 0.0, Fz, NC)
         got.append((nt, X, Y, Yd, V, E))
     (n1, *one), (n2, *two) = got
     assert n1 == n2 and n1 > 2

@@ -69,7 +69,7 @@ cpdef Py_ssize_t run_one(double[::1] par, double[::1] rt, double[::1] r0, double
                          signed char[::1] ugen, double[::1] ty0, double[::1] tyh, double[:, ::1] tyc,
                          double[:, ::1] tyd, signed char[::1] ygen, double[::1] out, bint keep_y, double[::1] et,
                          double[::1] ez)
-@cython.locals(i=Py_ssize_t, k=Py_ssize_t, j=Py_ssize_t, epsd=double, trunc=double, tiny_h=double, dl=double,
+@cython.locals(i=Py_ssize_t, k=Py_ssize_t, j=Py_ssize_t, epsd=double, ytr=double, tiny_h=double, dl=double,
                N=Py_ssize_t, aw=Py_ssize_t, integ=Py_ssize_t, nref=Py_ssize_t, ne=Py_ssize_t, ke=Py_ssize_t,
                ksamp=Py_ssize_t, n=Py_ssize_t, nu=Py_ssize_t, ny=Py_ssize_t, qu=Py_ssize_t, qgu=Py_ssize_t,
                qy=Py_ssize_t, qgy=Py_ssize_t, qm=Py_ssize_t, qgm=Py_ssize_t, kr=Py_ssize_t, regime=Py_ssize_t,
@@ -78,7 +78,8 @@ cpdef Py_ssize_t run_one(double[::1] par, double[::1] rt, double[::1] r0, double
                keep_regime=Py_ssize_t, prev_regime=Py_ssize_t, side=Py_ssize_t, ns=Py_ssize_t, nv=Py_ssize_t,
                new=Py_ssize_t, nsrc=Py_ssize_t, nU=Py_ssize_t, nY=Py_ssize_t, o=Py_ssize_t, r_wy=Py_ssize_t,
                r_yu=Py_ssize_t, r_mu=Py_ssize_t, sampled=bint, cont=bint, ti_pos=bint, to_pos=bint, algebraic=bint,
-               need_yd=bint, tm_pos=bint, switches=bint, has_dist=bint, metrics=bint, has_u=bint, regime_matters=bint,
+               need_yd=bint, tm_pos=bint, switches=bint, has_dist=bint, metrics=bint, has_u=bint, nz=Py_ssize_t,
+               regime_matters=bint,
                known=bint, slide_on=bint, neutral=bint, zero_a=bint, u_img=bint, y_img=bint, self_ok=bint, self_u=bint,
                self_y=bint, self_m=bint, self_any=bint, dist_on=bint, frozen=bint, sliding=bint, tried=bint,
                failed=bint, newf=bint, changed=bint, cut=bint, u_src=bint, y_src=bint, R='double[::1]',

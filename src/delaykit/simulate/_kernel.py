@@ -605,7 +605,9 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
     metrics = norm != 0.0
     nref = rt.shape[0]
 
-    X[:, :] = 0.0
+    for i in range(N):  # (only the first N rows are read)
+        for j in range(NC + 1):
+            X[i, j] = 0.0
     # the signals' coefficients and the small work arrays: views of one block
     buf[:] = 0.0
     R, Wd, Um, Ym, Vm, Y = buf[0:NC], buf[NC:2 * NC], buf[2 * NC:3 * NC], buf[3 * NC:4 * NC], buf[4 * NC:5 * NC], \
@@ -671,7 +673,8 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
         r_yu = 0
     if dvv != 0.0:
         r_yu = -1
-    r_yu = min(r_yu, _rel_degree(Mloc, VE, N, 7, 2, 1, rv, rw), _rel_degree(Mloc, VE, N, 7, 3, 0, rv, rw))
+    if r_yu > 0:  # (a direct term already gives the smallest: a path through the states has at least 0)
+        r_yu = min(r_yu, _rel_degree(Mloc, VE, N, 7, 2, 1, rv, rw), _rel_degree(Mloc, VE, N, 7, 3, 0, rv, rw))
     r_mu = _rel_degree(Mloc, VE, N, 7, 9, 1, rv, rw) if tm_pos else _NONE
     # a neutral loop: a jump of the command comes back, one loop delay later, as a jump again; these stop being
     # imaged once they are below rounding (measured at each breakpoint, see the module's notes)
@@ -710,7 +713,8 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
     qm = 0
     qgm = 1
     kr = 0
-    trunc = 0.0
+    ytr = 0.0  # the largest last coefficient of y (the truncation, over tdiv)
+    nz = 0  # the states' and the signals' coefficients are zero from there on (cleared here; see _taylor.recursion)
     ms[_WMAX] = -_INF
     ms[_TPEAK] = _NAN
     ms[_T10] = _NAN
@@ -865,10 +869,12 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
                 if known and (aw != 2 or regime == _LIN):
                     nt = _recursion_known(A, G, VE, N, H, frozen, integ, dcur + (0.0 if ti_pos else uhold), Wd, nW,
                                           R, nR, Ym, Vm, to_pos, need_yd, d5, X, Y, Yd, V, E, zero_a, sliding, lim,
-                                          Fz)
+                                          Fz, nz)
                 else:
                     nt = _recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dcur, X,
-                                    R, nR, Wd, nW, Ym, Vm, to_pos, Y, Yd, V, E, need_yd, Um, nUm, has_u, sliding, Fz)
+                                    R, nR, Wd, nW, Ym, Vm, to_pos, Y, Yd, V, E, need_yd, Um, nUm, has_u, sliding, Fz,
+                                    nz)
+                nz = nt  # (the coefficients are zero from there on, for the next call)
                 if not self_any:
                     break
                 change = 0.0
@@ -1060,7 +1066,7 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
                 tyc[ny, j] = Y[j]
                 tyd[ny, j] = Yd[j]
             ny += 1
-        trunc = max(trunc, abs(Y[DEG]) / tdiv)
+        ytr = max(ytr, abs(Y[DEG]))
         if metrics:
             _step_metrics(Y, nY, norm, a, H, band, ms, Wn, dW, xs, fs, tdeg)
         # the requested samples of y on this piece
@@ -1138,7 +1144,7 @@ def _run(par, rt, r0, rs, cap, tu0, thu, tuc, tdeg, ugen, ty0, tyh, tyc, tyd, yg
         ez[ke] = y_end
         ke += 1
     _metrics_row(out, metrics, ms[_WMAX], ms[_WEND], ms[_TPEAK], ms[_T10], ms[_T90], ms[_TLAST], norm, band)
-    out[8] = trunc
+    out[8] = ytr / tdiv  # (max(a, b) / t is max(a / t, b / t): division by t > 0 keeps the order)
     out[9] = n
     out[10] = status
     out[11] = nu

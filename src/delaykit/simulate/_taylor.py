@@ -22,7 +22,7 @@ Examples
 >>> A, G, VE = np.array([[-1.0]]), np.zeros((4, 1)), np.zeros((10, 1))
 >>> VE[5, 0] = 1.0  # y = x
 >>> nt = t.recursion_known(A, G, VE, 1, 1.0, False, -1, 0.0, np.zeros(NC), 1, np.zeros(NC), 1, np.zeros(NC),
-...                        np.zeros(NC), False, False, np.zeros(5), X, Y, Yd, V, E, False, False, 0.0, np.zeros(NC))
+...                        np.zeros(NC), False, False, np.zeros(5), X, Y, Yd, V, E, False, False, 0.0, np.zeros(NC), NC)
 >>> nt, [round(float(c), 6) for c in Y[:4]]
 (25, [1.0, -1.0, 0.5, -0.166667])
 """
@@ -69,17 +69,17 @@ def _vanished(X, N, j):
     return True
 
 
-def _clear_tail(X, Y, Yd, V, E, N, nt):
-    """Zero every signal's coefficients from ``nt`` on (the buffers are reused from piece to piece)."""
-    for j in range(nt, _NC):
+def _clear_tail(X, Y, Yd, V, E, N, nt, nz):
+    """Zero every signal's coefficients from ``nt`` up to ``nz``: the buffers are reused from piece to piece, and
+    the caller says from where on they are zero already (the last call's ``nt``; ``_NC`` for all).  (The states'
+    last column, ``X[:, _NC]``, is never written: it stays as the caller cleared it.)"""
+    for j in range(nt, nz):
         Y[j] = 0.0
         Yd[j] = 0.0
         V[j] = 0.0
         E[j] = 0.0
         for i in range(N):
             X[i, j] = 0.0
-    for i in range(N):
-        X[i, _NC] = 0.0
 
 
 def _hold_at_limit(X, V, VE, integ, j, lim, Fz):
@@ -135,7 +135,7 @@ def _signals(j, cy, cyd, cv, wj, rj, yd_on, law_on, vj, use_meas, Ym, Vm, dy, dy
 
 
 def _known_one(A, G, VE, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, need_yd, d5, X, Y, Yd, V, E,
-               zero_a, nf):
+               zero_a, nf, nz):
     """:func:`recursion_known` for a single state, not sliding: the same arithmetic in the same order, with
     the state's coefficient carried from one order to the next rather than read back."""
     dy, dyd, dvr, dvy, dvv = d5[0], d5[1], d5[2], d5[3], d5[4]
@@ -166,7 +166,10 @@ def _known_one(A, G, VE, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, 
             break
         f = H / (j + 1)
         if j < nf:
-            acc = g0 * wj + g1 * rj + g2 * ymj + g3 * vmj
+            acc = g0 * wj + g1 * rj
+            if use_meas:  # (the same sum, left to right; else G's rows 2 and 3 are zero, see recursion_known)
+                acc += g2 * ymj
+                acc += g3 * vmj
             if not zero_a:
                 acc += a00 * x
             x = f * acc
@@ -179,12 +182,12 @@ def _known_one(A, G, VE, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, 
         if hold:
             x = 0.0
         X[0, j + 1] = x
-    _clear_tail(X, Y, Yd, V, E, 1, nt)
+    _clear_tail(X, Y, Yd, V, E, 1, nt, nz)
     return nt
 
 
 def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, need_yd, d5, X, Y, Yd, V,
-                    E, zero_a, slide, lim, Fz):
+                    E, zero_a, slide, lim, Fz, nz):
     """:func:`recursion` where the plant's input is known before the piece (delayed or held) and the command
     does not act back on the states (no back-calculation while saturated, no predictor): ``X' = A X + G (w, r,
     ym, vm)``, with the measurement's coupling folded into ``A`` and ``G`` once per run (by the kernel's
@@ -194,7 +197,10 @@ def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, us
     direct terms ``dy, dyd, dvr, dvy, dvv``; ``zero_a`` says that ``A`` is zero (integrators driven by the input
     alone, as the paper's loop: each coefficient then follows from the input's, with no chain through the
     states).  ``slide``: the command slides on the limit ``lim`` (clamping anti-windup, see :func:`recursion`).
-    Returns the number of coefficients, as :func:`recursion`.
+    ``G``'s rows 2 and 3 (the measurement's) are read only with ``use_meas`` (a delayed measurement, known before
+    the piece); without it the measurement is the output itself, folded into ``A`` and ``G[0]``, and those rows
+    are zero: adding their terms would only chain each order's coefficients to the last order's through the
+    output.  ``nz`` and the number of coefficients returned: as :func:`recursion`.
     """
     dy, dyd, dvr, dvy, dvv = d5[0], d5[1], d5[2], d5[3], d5[4]
     nf = max(nR, nW, 1)
@@ -202,7 +208,7 @@ def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, us
         nf = max(nf, _degree(Ym, _NC), _degree(Vm, _NC))
     if N == 1 and not slide:
         return _known_one(A, G, VE, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, use_meas, need_yd, d5, X, Y, Yd, V,
-                          E, zero_a, nf)
+                          E, zero_a, nf, nz)
     nt = _NC
     for j in range(_NC):
         if j >= nf and j > 0 and _vanished(X, N, j):
@@ -220,7 +226,10 @@ def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, us
         f = H / (j + 1)
         if j < nf:
             for i in range(N):
-                acc = G[0, i] * wj + G[1, i] * rj + G[2, i] * ymj + G[3, i] * vmj
+                acc = G[0, i] * wj + G[1, i] * rj
+                if use_meas:
+                    acc += G[2, i] * ymj
+                    acc += G[3, i] * vmj
                 if not zero_a:
                     for k in range(N):
                         acc += A[i, k] * X[k, j]
@@ -236,12 +245,12 @@ def recursion_known(A, G, VE, N, H, frozen, integ, w0, Wd, nW, R, nR, Ym, Vm, us
                 X[i, j + 1] = f * acc
         if frozen and integ >= 0:
             X[integ, j + 1] = 0.0
-    _clear_tail(X, Y, Yd, V, E, N, nt)
+    _clear_tail(X, Y, Yd, V, E, N, nt, nz)
     return nt
 
 
 def recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, uhold, dist, X, R, nR,
-              Wd, nW, Ym, Vm, use_meas, Y, Yd, V, E, need_yd, Um, nUm, has_u, slide, Fz):
+              Wd, nW, Ym, Vm, use_meas, Y, Yd, V, E, need_yd, Um, nUm, has_u, slide, Fz, nz):
     """Taylor coefficients of every signal on one piece of length ``H`` with the regime fixed.
 
     ``X[:, 0]`` holds the states at the start; fills ``X[:, 1:]``, the output ``Y``, its derivative ``Yd``,
@@ -254,6 +263,10 @@ def recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, u
     back below it.  The integrator then runs at the rate that holds the command at the limit, between 0 and
     the free rate; ``Fz`` receives the free integrator's coefficients (the kernel ends the slide where the
     rate reaches either end).
+
+    ``nz``: the signals' coefficients (``X[:, 1:]``, ``Y``, ``Yd``, ``V``, ``E``) are zero on entry from ``nz`` on (the
+    last call's number of coefficients, where the caller reuses the buffers; ``NC`` where it knows nothing): only
+    those between the returned number and ``nz`` are cleared.
     """
     umin = par[_UMIN]
     umax = par[_UMAX]
@@ -334,5 +347,5 @@ def recursion(par, Mloc, VE, N, H, regime, frozen, algebraic, ti_pos, sampled, u
                 X[i, j + 1] = f * acc
         if frozen and integ >= 0:
             X[integ, j + 1] = 0.0
-    _clear_tail(X, Y, Yd, V, E, N, nt)
+    _clear_tail(X, Y, Yd, V, E, N, nt, nz)
     return nt
