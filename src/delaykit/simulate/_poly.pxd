@@ -14,7 +14,7 @@ cpdef double horner(double[::1] c, Py_ssize_t n, double x) noexcept nogil
 cpdef (double, double) horner_d(double[::1] c, Py_ssize_t n, double x) noexcept nogil
 @cython.locals(j=Py_ssize_t)
 cpdef double poly_sum(double[::1] c, Py_ssize_t n) noexcept nogil
-@cython.locals(j=Py_ssize_t)
+@cython.locals(j=Py_ssize_t, cj=double, p=double)
 cpdef (double, double, double) bounds(double[::1] c, Py_ssize_t n) noexcept nogil
 cpdef double refine(double[::1] c, Py_ssize_t n, double target, double lo, double hi, double slo) noexcept nogil
 @cython.locals(j=Py_ssize_t)

@@ -89,11 +89,14 @@ def bounds(c, n):
     lo = c[0]
     hi = c[0]
     s = 0.0 + c[0]  # (poly_sum's first addition: -0.0 becomes 0.0)
-    for j in range(1, n):  # branch-free: adding 0.0 leaves a sum unchanged
+    for j in range(1, n):
         cj = c[j]
         s += cj
-        hi += cj if cj > 0.0 else 0.0
-        lo += 0.0 if cj > 0.0 else cj
+        # branch-free (the signs of Taylor coefficients follow no pattern a branch predictor learns): p is
+        # max(cj, 0) and cj - p is min(cj, 0), exactly (signed zeros included), for |cj| below 2**1023
+        p = 0.5 * (cj + abs(cj))
+        hi += p
+        lo += cj - p
     return lo, hi, s
 
 
