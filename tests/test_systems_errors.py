@@ -93,6 +93,24 @@ def test_a_bool_is_not_a_gain(call, where):
     assert "expected text" not in msg  # not the tf() message for a call that gave no text
 
 
+@pytest.mark.parametrize("args, bad", [
+    (([[True]], [[1.0]], [[1.0]]), "A"),
+    (([[-1.0]], np.array([[True]]), [[1.0]]), "B"),
+    (([[-1.0, 0.0], [0.0, -2.0]], [[1.0], [1.0]], [[1.0, np.bool_(False)]]), "C"),
+    (([[-1.0]], [[1.0]], [[1.0]], True), "D"),
+])
+def test_ss_refuses_a_bool_entry(args, bad):
+    # numpy reads True as 1.0 (np.array([[True]], dtype=float) is [[1.0]]): the bool is named instead, as for gains
+    _raises(InvalidTypeError, lambda: ss(*args), "ss", bad, "bool")
+
+
+def test_ss_takes_numbers_and_integer_arrays_as_before():
+    # the check refuses bools only: integers and float arrays build the same system as floats
+    a = ss([[-1]], [[1]], [[2]], [[0]])
+    b = ss(np.array([[-1.0]]), np.array([[1.0]]), np.array([[2.0]]), 0.0)
+    assert np.array_equal(a.A, b.A) and np.array_equal(a.C1, b.C1) and np.array_equal(a.D11, b.D11)
+
+
 def test_ss_with_an_integer_beyond_the_floats():
     _raises(InvalidValueError, lambda: ss([[HUGE]], [[1]], [[1]]), "ss", "A", "finite")
     _raises(InvalidValueError, lambda: ss([[-1]], [[1]], [[1]], [[HUGE]]), "ss", "D", "finite")

@@ -305,6 +305,9 @@ def ss(A: Any, B: Any, C: Any, D: Any = None, *, inputs: Any = None, outputs: An
     if (type(A).__module__ or "").split(".")[0] == "control":
         return tf(A, inputs=inputs, outputs=outputs, name=name or None)
     args = (A, B, C, D)
+    for k, v in zip("ABCD", args):
+        if _holds_bool(v):  # numpy would read True as 1.0; a bool is no number (as the algebra's gains say)
+            raise InvalidTypeError(f"ss: {k} holds a bool ({reprlib.repr(v)}); write the numbers 1 or 0")
     try:
         A = np.atleast_2d(np.array(A, dtype=float)) if np.size(A) else np.zeros((0, 0))
         n = A.shape[0]
@@ -324,6 +327,17 @@ def ss(A: Any, B: Any, C: Any, D: Any = None, *, inputs: Any = None, outputs: An
     if D.size == 1 and (C.shape[0], B.shape[1]) != (1, 1) and not D.any():
         D = np.zeros((C.shape[0], B.shape[1]))
     return DelayLTI(A=A, B1=B, C1=C, D11=D, inputs=inputs, outputs=outputs, name=name)
+
+
+def _holds_bool(value: Any) -> bool:
+    """True when ``value`` is a bool, a bool array, or a (nested) list with a bool in it."""
+    if isinstance(value, (bool, np.bool_)):
+        return True
+    if isinstance(value, np.ndarray):
+        return value.dtype == bool or (value.dtype == object and any(_holds_bool(x) for x in value.ravel()))
+    if isinstance(value, (list, tuple)):
+        return any(_holds_bool(x) for x in value)
+    return False
 
 
 def _overflows(value: Any) -> bool:
