@@ -102,6 +102,11 @@ def inline_flags():
 
 OMP_COMPILE, OMP_LINK = openmp_flags() if PARALLEL else ([], [])
 INLINE = inline_flags()
+# the kernels INLINE is given to: the FUSED ones and the sampled loops' batch, whose helpers of every interval (`cdef
+# inline` in its .pxd) are then inline as in numba's copy (gcc kept _interval_metrics apart, passing its tuple of
+# running metrics in and out through memory: 0.43 s of CPU against 0.38 s for bench_general's 10,000 sampled loops,
+# results equal bit for bit)
+INLINED = set(FUSED) | {"delaykit.simulate._sampled_batch"}
 
 
 _CIMPORT = re.compile(r"^(\s*)from cython\.cimports\.([\w.]+) import (.+)$", re.M)
@@ -161,13 +166,6 @@ def fused_source(name, parts, out="build/fused"):
         if not path.exists() or path.read_text() != text:  # (rewritten only when changed: no rebuild otherwise)
             path.write_text(text)
     return str(target.with_suffix(".py"))
-
-
-# the sampled loops' batch gets the same raised limits: its helpers of every interval (`cdef inline` in its .pxd)
-# are then inline as in numba's copy (gcc kept _interval_metrics apart, passing its tuple of running metrics in and
-# out through memory: 0.43 s of CPU against 0.38 s for bench_general's 10,000 sampled loops, results equal bit for
-# bit)
-INLINED = set(FUSED) | {"delaykit.simulate._sampled_batch"}
 
 
 def extension(name):
