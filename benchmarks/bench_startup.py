@@ -23,7 +23,7 @@ an empty numba cache (``NUMBA_CACHE_DIR`` pointed at a new temporary directory, 
 used nor disturbed), then the same command once more with that cache filled (warm); the process's CPU time (user
 and system, all threads) is given beside the wall time, being far less inflated by other work on the machine. The calls: ``simulate_many``
 of the paper's 10,000 P loops (Kp = 1.31, delays uniform in [0.2, 0.5] s; import included), ``delaykit identify``
-of the heater log (tests/data/tclab), ``margins`` and ``roots`` of the paper's loop, and the Smith design of
+of the heater log (read from ../shared/data beside the project, or $DELAYKIT_DATA: tests/shared_data.py), ``margins`` and ``roots`` of the paper's loop, and the Smith design of
 ``1/s`` with delay 0.37 s. Each row gives the cold and warm wall times against the issue's targets; compiled
 (ahead-of-time) kernels need no cache, so for them cold and warm differ only by the disk cache.
 
@@ -64,7 +64,10 @@ BREAKDOWN = ("help", "simulate", "simulate-general")  # the commands whose impor
 HEAVY = ("numba", "scipy", "matplotlib", "pydantic", "rich.console")  # not needed by a short simulation
 PACKAGES = ("numpy", "typer", "rich", "pydantic", "delaykit", "numba", "scipy", "matplotlib")
 ROOT = Path(__file__).resolve().parents[1]
-HEATER = ROOT / "tests" / "data" / "tclab" / "step_test.csv"
+sys.path.insert(0, str(ROOT / "tests"))
+from shared_data import DATA, absent_reason  # noqa: E402  (where the real data is read: ../shared/data)
+
+HEATER = DATA / "tclab" / "step_test.csv"
 P_LOOPS = ("import time; t0 = time.perf_counter(); import numpy as np, delaykit as dk; "
            "td = np.random.default_rng(2024).uniform(0.2, 0.5, 10_000); "
            "b = dk.simulate_many(dk.AltitudeLoop(kp=1.31, delay=0.3), delay=td); "
@@ -183,6 +186,8 @@ def main() -> None:
         picked = list(FIRST_CALLS) if args.only is None else [n.strip() for n in args.only.split(",") if n.strip()]
         if not picked or any(n not in FIRST_CALLS for n in picked):
             ap.error(f"with --first-calls, --only takes names of {', '.join(FIRST_CALLS)}; got {args.only!r}")
+        if "identify" in picked and not HEATER.exists():
+            ap.error(f"{absent_reason(HEATER)} (leave it out: --only with the other names)")
         first_calls(picked, args.runs, args.json)
         return
     names = list(COMMANDS) if args.only is None else [n.strip() for n in args.only.split(",") if n.strip()]

@@ -23,6 +23,7 @@ from delaykit.models.transfer import TransferFunction
 from delaykit.simulate.metrics import OVERSHOOT_TOLERANCE, step_metrics
 from delaykit.simulate.simulation import simulate, simulate_many
 from delaykit.simulate.discrete import closed_loop_response, held_delay_model, held_response, held_response_at
+from shared_data import data_path
 
 
 # -- names that are both a subpackage and an exported function -------------------------------------------------
@@ -59,7 +60,7 @@ def test_shared_name_can_be_monkeypatched(monkeypatch: pytest.MonkeyPatch) -> No
 
 
 # -- logs on a real (jittery) clock -------------------------------------------------------------------------------
-HEATER = Path(__file__).parent / "data" / "tclab" / "step_test.csv"
+HEATER = ("tclab", "step_test.csv")  # read from ../shared/data (tests/shared_data.py: skipped, saying why, if absent)
 
 
 def _lattice_clock(n: int, seed: int) -> np.ndarray:
@@ -114,7 +115,7 @@ def test_a_jittered_log_of_known_parameters_is_identified_on_its_own_clock() -> 
 def test_a_jittered_copy_of_the_heater_log_fits_as_the_regular_one() -> None:
     # the TCLab heater step test, its 1 s clock replaced by intervals of 0.97 to 1.03 s (mean 1 s): the fit on
     # the jittered clock lands inside the 95 % intervals the regular log's fit states (and no longer refuses)
-    e0 = read_experiment(HEATER, outputs=["z"], input="u", u_before=0.0)
+    e0 = read_experiment(data_path(*HEATER), outputs=["z"], input="u", u_before=0.0)
     m0 = identify(e0, model="fopdt")
     tj = 0.01 * _lattice_clock(e0.t.size, seed=4)
     ej = Experiment.from_arrays(tj, {"z": e0.outputs["z"]}, u=e0.u, u_before=0.0, name="jittered")
@@ -225,7 +226,7 @@ def test_auto_selection_flags_implausible_candidates_by_status() -> None:
     # the heater step test: the integrating structures fit it only with gains of -4e11 (the hover-level column
     # cancels their ramp) and ipdt_speed with a zero of 161,000 s; each is flagged, with a reason, in the
     # candidates and their JSON; the chosen model is an ok one
-    e = read_experiment(HEATER, outputs=["z"], input="u", u_before=0.0)
+    e = read_experiment(data_path(*HEATER), outputs=["z"], input="u", u_before=0.0)
     m = identify(e, model="auto")
     status = {c.model: c.status for c in m.candidates}
     assert status == {"ipdt": "implausible", "ipdt_lag": "implausible", "ipdt_speed": "implausible",
@@ -267,7 +268,7 @@ def test_candidate_status_flips_at_the_stated_spans() -> None:
 
 
 def test_identify_table_has_units_and_the_candidates_status(tmp_path: Path) -> None:
-    res = _cli("identify", str(HEATER), "--input", "u", "--output", "z", "--u-before", "0",
+    res = _cli("identify", str(data_path(*HEATER)), "--input", "u", "--output", "z", "--u-before", "0",
                "--model", "auto")
     assert res.exit_code == 0, res.output
     assert "unit" in res.output and "z/u" in res.output and "rms (z)" in res.output

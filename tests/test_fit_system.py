@@ -4,6 +4,10 @@ interconnection of its loops.
 Reference values: the known truth of synthetic logs (made by the same interconnection, with noise added); the
 Loop kernel (``delaykit.simulate``), an independent simulator of the same loop written as plant and controller;
 closed forms for the small examples; the real flights' own hover wander (their noise floor, data README).
+
+The real flights are read from ../shared/data (tests/shared_data.py; the tests on them skip, saying why, where it is
+absent), cut at 30 s: examples/px4-vehicle.toml holds the fit of their 10-30 s part (the step at 15 s and the 15 s
+after it), and the bounds below (multiples of the hover wander) were set on that part.
 """
 
 from __future__ import annotations
@@ -17,9 +21,9 @@ import pytest
 
 from delaykit import Controller, Loop, delay, interconnect, saturation, simulate, summing_junction, tf
 from delaykit.errors import InvalidTypeError, InvalidValueError
-from delaykit.identify import Experiment, IdentificationError, fit_system, identify, read_experiment, simulate_log
+from delaykit.identify import Experiment, IdentificationError, fit_system, identify, simulate_log
+from shared_data import px4_flights
 
-PX4 = Path(__file__).parent / "data" / "px4-altitude"
 TRAIN = ["HAYDEN_01", "HAYDEN_02", "HAYDEN_03"]
 HELD_OUT = ["SANCHEZ_01", "SANCHEZ_02", "SANCHEZ_03"]
 BOUNDS = {"k": (1e-3, 50.0), "tau": (0.0, 1.0)}
@@ -44,7 +48,7 @@ def px4(k: float, tau: float, kappa: float):
 
 
 def _flights(names, outputs=("z", "vz")):
-    return [read_experiment(PX4 / f"{n}.csv", outputs=list(outputs), reference="z_ref") for n in names]
+    return px4_flights(names, outputs=outputs, reference="z_ref")  # t = 10 to 30 s of each (module docstring)
 
 
 def _synthetic(truth, seed, sigma=(0.004, 0.008), phi=0.8):

@@ -1,4 +1,8 @@
-"""Identification of a plant and its delay: synthetic truths, the real logs in tests/data, the command line.
+"""Identification of a plant and its delay: synthetic truths, real logs, the command line.
+
+The real logs (a heater step test, PX4 flights) are read from ../shared/data (tests/shared_data.py; the tests on
+them skip, saying why, where it is absent).  The PX4 flights are cut at 30 s: the bounds below (multiples of the
+hover wander, the delay's interval) were set on their 10-30 s part (the step at 15 s and the 15 s after it).
 
 Reference values come from independent computations named beside each test: the method-of-steps kernel for the
 sample-to-sample simulator, a closed-form step response fitted by SciPy for the heater, the known truth of
@@ -9,7 +13,6 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -28,10 +31,9 @@ from delaykit.models.plants import integrator_speed_loop
 from delaykit.models.transfer import TransferFunction
 from delaykit.simulate.discrete import closed_loop_response, held_delay_model, held_response
 from delaykit.simulate.simulation import simulate
+from shared_data import PX4_WINDOW, data_path, px4_flights, write_window
 
-DATA = Path(__file__).parent / "data"
-PX4 = DATA / "px4-altitude"
-HEATER = DATA / "tclab" / "step_test.csv"
+HEATER = ("tclab", "step_test.csv")
 PX4_LOOP = Loop("1/s", Controller.p(0.95), umin=-1.0, umax=3.0, period=0.02)  # the flights' outer loop (data README)
 runner = CliRunner()
 
@@ -384,7 +386,7 @@ def test_ljung_box_against_statsmodels():
 
 # -- real data: the heater -----------------------------------------------------------------------------------
 def test_heater_fopdt_equals_an_independent_fit_of_the_closed_form():
-    e = read_experiment(HEATER, outputs=["z"], input="u", u_before=0.0)
+    e = read_experiment(data_path(*HEATER), outputs=["z"], input="u", u_before=0.0)
     m = identify(e, model="fopdt")
     t, y, u = e.t, e.outputs["z"], 50.0
     y0 = y[0]
@@ -400,7 +402,7 @@ def test_heater_fopdt_equals_an_independent_fit_of_the_closed_form():
 
 
 def test_heater_prefers_the_second_order_structure():
-    e = read_experiment(HEATER, outputs=["z"], input="u", u_before=0.0)
+    e = read_experiment(data_path(*HEATER), outputs=["z"], input="u", u_before=0.0)
     m = identify(e, model="auto", candidates=["fopdt", "sopdt"])
     assert m.model == "sopdt" and m.criterion == "bic"
     fo = next(c for c in m.candidates if c.model == "fopdt")
@@ -412,7 +414,7 @@ def test_heater_prefers_the_second_order_structure():
 
 # -- real data: the PX4 flights ------------------------------------------------------------------------------
 def _px4(names, **kw):
-    return [read_experiment(PX4 / f"{n}.csv", outputs=["z"], **kw) for n in names]
+    return px4_flights(names, **kw)  # t = 10 to 30 s of each flight (module docstring)
 
 
 TRAIN = ["HAYDEN_01", "HAYDEN_02", "HAYDEN_03"]
@@ -502,7 +504,9 @@ def test_bad_input_is_refused_with_a_named_reason(tmp_path):
 
 def test_cli_identify_and_predict(tmp_path):
     model = tmp_path / "m.json"
-    logs = [str(PX4 / f"{n}.csv") for n in TRAIN[:2]]
+    heater = data_path(*HEATER)
+    cut = {n: write_window(data_path("px4-altitude", f"{n}.csv"), tmp_path, PX4_WINDOW) for n in [*TRAIN[:2], TEST[0]]}
+    logs = [str(cut[n]) for n in TRAIN[:2]]
     r = runner.invoke(app, ["identify", *logs, "--closed-loop", "--kp", "0.95", "--umin", "-1", "--umax", "3",
                             "--period", "0.02", "--fresh-only", "--model", "ipdt_speed", "--save", str(model), "--json"])
     assert r.exit_code == 0, r.output
@@ -511,23 +515,22 @@ def test_cli_identify_and_predict(tmp_path):
     assert {"stderr", "ci", "rms", "aic", "bic", "candidates", "logs", "warnings"} <= set(d)
     assert d["logs"][0]["file"] == "HAYDEN_01.csv"
     png = tmp_path / "p.png"
-    r = runner.invoke(app, ["predict", str(model), str(PX4 / "SANCHEZ_01.csv"), "--json", "--plot", str(png)])
+    r = runner.invoke(app, ["predict", str(model), str(cut[TEST[0]]), "--json", "--plot", str(png)])
     assert r.exit_code == 0, r.output
     assert json.loads(r.stdout)["rms"] < 0.05 and png.stat().st_size > 0
-    r = runner.invoke(app, ["identify", str(HEATER), "--u-before", "0", "--model", "fopdt", "--json"])
+    r = runner.invoke(app, ["identify", str(heater), "--u-before", "0", "--model", "fopdt", "--json"])
     d = json.loads(r.stdout)
     assert {"gain", "time_constant", "delay"} == set(d["params"])
 
 
-@pytest.mark.parametrize("args, needle", [
-    (["identify", str(HEATER), "--model", "nope", "--u-before", "0"], "unknown model structure"),
-    (["identify", str(HEATER), "--output", "zz"], "missing column 'zz'"),
-    (["identify", str(HEATER)], "never moves"),
-    (["identify", str(PX4 / "HAYDEN_01.csv"), "--closed-loop", "--kp", "0.95", "--umin", "-1", "--umax", "3"],
-     "period"),
-    (["identify", str(HEATER), "--kp", "2"], "--closed-loop"),
+@pytest.mark.parametrize("log, args, needle", [
+    (HEATER, ["--model", "nope", "--u-before", "0"], "unknown model structure"),
+    (HEATER, ["--output", "zz"], "missing column 'zz'"),
+    (HEATER, [], "never moves"),
+    (("px4-altitude", "HAYDEN_01.csv"), ["--closed-loop", "--kp", "0.95", "--umin", "-1", "--umax", "3"], "period"),
+    (HEATER, ["--kp", "2"], "--closed-loop"),
 ])
-def test_cli_bad_input_exits_2(args, needle):
-    r = runner.invoke(app, args)
+def test_cli_bad_input_exits_2(log, args, needle):
+    r = runner.invoke(app, ["identify", str(data_path(*log)), *args])
     assert r.exit_code == 2, r.output
     assert needle in r.output and "Traceback" not in r.output

@@ -14,7 +14,6 @@ import os
 import subprocess
 import sys
 import textwrap
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,11 +25,13 @@ from delaykit.identify import structures as S
 from delaykit.identify.identification import identify
 from delaykit.identify.iodata import read_experiment
 from delaykit.identify.structures import STRUCTURES
+from shared_data import data_path
 
 PKG = "delaykit.identify"
-DATA = Path(__file__).parent / "data"
-HEATER = DATA / "tclab" / "step_test.csv"
-PX4 = DATA / "px4-altitude" / "HAYDEN_01.csv"
+# the real logs, read from ../shared/data (tests/shared_data.py: the tests on them skip, saying why, where absent);
+# the kernels' agreement does not depend on which part of a log they see, so the PX4 flight is the full log
+HEATER = ("tclab", "step_test.csv")
+PX4 = ("px4-altitude", "HAYDEN_01.csv")
 # the PX4 flights' outer loop (data README): a sampled P law on the altitude with limits
 PX4_LAW = F._Law(0.95, 0.0, -1.0, 3.0, 0.02)
 
@@ -59,10 +60,10 @@ def _problem(case: str, name: str) -> F._Problem:
     """A fit's problem: the heater's open-loop log, or a PX4 flight in closed loop with its rate and an offset."""
     st = STRUCTURES[name]
     if case == "heater":
-        e = read_experiment(HEATER, outputs=["z"], input="u", u_before=0.0)
+        e = read_experiment(data_path(*HEATER), outputs=["z"], input="u", u_before=0.0)
         prep = F._prepare(e, ("z",), None, None, fresh_only=False)
         return F._Problem(st, [prep], None, {"z": 1.0}, False)
-    e = read_experiment(PX4, outputs=["z", "vz"], reference="z_ref")
+    e = read_experiment(data_path(*PX4), outputs=["z", "vz"], reference="z_ref")
     prep = F._prepare(e, ("z",), "vz", PX4_LAW, fresh_only=True)
     return F._Problem(st, [prep], PX4_LAW, {"z": 0.01, "vz": 0.05}, True)
 
@@ -199,7 +200,7 @@ def test_the_vector_noise_kernel_is_a_backward_solve_of_the_whitening_matrix():
 
 
 def test_identify_gives_the_same_model_with_the_kernels_compiled_by_numba(fit_kernels, monkeypatch):
-    e = read_experiment(HEATER, outputs=["z"], input="u", u_before=0.0)
+    e = read_experiment(data_path(*HEATER), outputs=["z"], input="u", u_before=0.0)
     compiled = identify(e, model="fopdt", per_log=False).to_dict()
     monkeypatch.setattr(F, "FK", fit_kernels["numba"])
     monkeypatch.setattr(S, "_FK", fit_kernels["numba"])
@@ -216,11 +217,12 @@ def test_identify_gives_the_same_model_with_the_kernels_compiled_by_numba(fit_ke
 @pytest.fixture(scope="module")
 def identify_run():
     """What a fresh process that runs the command line's library call (``identify`` of the heater log) loaded."""
+    heater = data_path(*HEATER)
     code = textwrap.dedent(f"""
         import sys
         from delaykit.identify.identification import identify
         from delaykit.identify.iodata import read_experiment
-        m = identify(read_experiment({str(HEATER)!r}, outputs=["z"], input="u", u_before=0.0), model="auto")
+        m = identify(read_experiment({str(heater)!r}, outputs=["z"], input="u", u_before=0.0), model="auto")
         print("@@", m.model, *(name in sys.modules for name in ("numba", "scipy.stats", "scipy.signal",
                                                                   "delaykit.identify.estimation")))
     """)
