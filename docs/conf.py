@@ -3,11 +3,16 @@
 The API reference is generated from the package itself at every build (``_apiref.py``): one page per public
 module, listing every name of its ``__all__``. Tutorials in ``tutorials/`` are MyST Markdown notebooks, executed
 by myst-nb at build time (cached in ``_build/.jupyter_cache``). Nothing is fetched from the network.
+
+Real measured data is not part of the project: a page that reads it says so (``<!-- reads shared data: ... -->``,
+see ``tests/shared_data.py``) and finds it where the tests do, in ``../shared/data`` beside the project or in
+``$DELAYKIT_DATA``. Where it is absent, such a tutorial is built without running, with a note saying so.
 """
 
 from __future__ import annotations
 
 import hashlib
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -18,6 +23,11 @@ sys.path.insert(0, str(HERE))
 import delaykit  # noqa: E402
 
 from _apiref import write_api_pages  # noqa: E402
+
+sys.path.insert(0, str(HERE.parent / "tests"))
+from shared_data import DATA, data_needed, missing_data  # noqa: E402  (where real data is read, for tests and docs)
+
+os.environ["DELAYKIT_DATA"] = str(DATA)  # the tutorials' kernels read the data where this build found it
 
 project = "delaykit"
 author = "the delaykit developers"
@@ -65,14 +75,39 @@ numpydoc_validation_checks: set[str] = set()
 write_api_pages(HERE / "api")
 
 
+def _pages_reading_data() -> dict[str, tuple[Path, list[Path]]]:
+    """The pages that say they read shared data: docname -> (source, the files of it that are absent)."""
+    pages = {}
+    for page in sorted(HERE.rglob("*.md")):
+        if "_build" in page.relative_to(HERE).parts:
+            continue
+        text = page.read_text(encoding="utf-8")
+        if data_needed(text):
+            pages[page.relative_to(HERE).with_suffix("").as_posix()] = (page, missing_data(text))
+    return pages
+
+
+_DATA_PAGES = _pages_reading_data()
+# a tutorial whose data is absent is built without running (its code shows, its outputs do not)
+nb_execution_excludepatterns = [page.as_posix() for page, missing in _DATA_PAGES.values() if missing]
+
+
 def _forget_stale_executions() -> None:
-    """myst-nb's cache knows a notebook's code, not the library it calls: when delaykit's source or the shipped
-    data change, the cached outputs are dropped and every tutorial runs again."""
+    """myst-nb's cache knows a notebook's code, not the library it calls: when delaykit's source or the data the
+    pages read (present or absent, and its content) change, the cached outputs are dropped and every tutorial runs
+    again."""
     root = HERE.parent
     digest = hashlib.sha256()
-    for path in sorted([*(root / "src" / "delaykit").rglob("*.py"), *(root / "tests" / "data").rglob("*")]):
-        if path.is_file():
-            digest.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes())
+    for path in sorted((root / "src" / "delaykit").rglob("*.py")):
+        digest.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes())
+    named = sorted({name for page, _ in _DATA_PAGES.values() for name in data_needed(page.read_text("utf-8"))})
+    for name in named:
+        top = DATA / name
+        files = sorted(top.rglob("*")) if top.is_dir() else [top]
+        digest.update(f"data {name} {'present' if top.exists() else 'absent'}".encode())
+        for path in files:
+            if path.is_file():
+                digest.update(str(path.relative_to(DATA)).encode() + b"\0" + path.read_bytes())
     cache, stamp = Path(nb_execution_cache_path), Path(nb_execution_cache_path + ".source")
     if cache.exists() and (not stamp.exists() or stamp.read_text() != digest.hexdigest()):
         shutil.rmtree(cache)
@@ -95,5 +130,22 @@ def _guide_pages(app, docname: str, source: list[str]) -> None:
     source[0] = text.replace("\nguide/*\n", "\n" + "".join(f"{d}\n" for d in rest))
 
 
+def _note_unrun(app, docname: str, source: list[str]) -> None:
+    """A page built without running, its data absent, says so under its title, and where the data is read."""
+    entry = _DATA_PAGES.get(docname)
+    if entry is None or not entry[1]:
+        return
+    absent = ", ".join(f"`{p}`" for p in entry[1])
+    note = (f"\n:::{{note}}\nThis page was built **without running its code**: the real data it reads ({absent}) was "
+            "absent when the documentation was built. The project holds no copy of it: it is read from "
+            "`../shared/data` beside the project's folder, or from the folder `$DELAYKIT_DATA` names. With the data "
+            "there, the build runs the page and shows its results.\n:::\n")
+    text = source[0]
+    head = text.find("\n# ")
+    end = text.find("\n", head + 1) if head >= 0 else -1
+    source[0] = text[:end + 1] + note + text[end + 1:] if end >= 0 else note + text
+
+
 def setup(app):
     app.connect("source-read", _guide_pages)
+    app.connect("source-read", _note_unrun)

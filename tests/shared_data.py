@@ -25,8 +25,8 @@ import os
 import re
 from pathlib import Path
 
-__all__ = ["DATA", "PX4_WINDOW", "absent_reason", "data_needed", "data_path", "have_data", "missing_data", "px4_flights",
-           "window", "write_window"]
+__all__ = ["DATA", "PX4_WINDOW", "absent_reason", "data_needed", "data_path", "have_data", "missing_data",
+           "px4_flights", "window", "write_window"]
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("DELAYKIT_DATA") or ROOT.parent / "shared" / "data")

@@ -505,7 +505,8 @@ def test_bad_input_is_refused_with_a_named_reason(tmp_path):
 def test_cli_identify_and_predict(tmp_path):
     model = tmp_path / "m.json"
     heater = data_path(*HEATER)
-    cut = {n: write_window(data_path("px4-altitude", f"{n}.csv"), tmp_path, PX4_WINDOW) for n in [*TRAIN[:2], TEST[0]]}
+    cut = {n: write_window(data_path("px4-altitude", f"{n}.csv"), tmp_path, PX4_WINDOW)  # t = 10 to 30 s
+           for n in [*TRAIN[:2], TEST[0]]}
     logs = [str(cut[n]) for n in TRAIN[:2]]
     r = runner.invoke(app, ["identify", *logs, "--closed-loop", "--kp", "0.95", "--umin", "-1", "--umax", "3",
                             "--period", "0.02", "--fresh-only", "--model", "ipdt_speed", "--save", str(model), "--json"])

@@ -6,11 +6,12 @@ tests/test_tune.py checks that the tables in the guide are this script's output,
   and MIGO (Ms 1.4; also robust over delays 0.30 to 0.45 s), beside the paper's P (Kp 1.31) and PV (Kp 2, Kv 0.3,
   filtered velocity) laws, each simulated exactly for a 1 m setpoint step and a 0.5 m/s load step at the plant
   input.
-* The heater: the TCLab step test's FOPDT model (``identify tests/data/tclab/step_test.csv --model fopdt``:
+* The heater: the TCLab step test's FOPDT model (``identify tclab/step_test.csv --model fopdt`` on the shared data:
   K 0.698 degC/%, tau 146.6 s, theta 16.6 s; heater command limited to +-50 % around its operating point) tuned by
   every rule and by MIGO, for a 5 degC setpoint step and a 10 % load step.
-* The PX4 vehicle: its identified model (the closed-loop ``ipdt_speed`` fit of the HAYDEN flights of
-  tests/data/px4-altitude, computed here as tests/test_system_files.py computes it; the speed command limited to
+* The PX4 vehicle: its identified model (the closed-loop ``ipdt_speed`` fit of t = 10 to 30 s of the HAYDEN
+  flights, read from ../shared/data beside the project or $DELAYKIT_DATA: the model of examples/px4-altitude.toml,
+  computed here as tests/test_system_files.py computes it; the speed command limited to
   -1/+3 m/s as in the flights) tuned by SIMC, AMIGO and Ziegler-Nichols and by MIGO, beside the PX4's own altitude P
   loop (Kp 0.95), for a 1 m setpoint step and a 0.5 m/s load step; a rule outside its plant family is listed as
   refused with delaykit's reason, and a dagger marks one outside its range of validity (a TuningWarning).
@@ -83,16 +84,27 @@ def heater_table() -> str:
 
 
 def px4_model():
-    """The PX4 vehicle's identified model: the closed-loop ``ipdt_speed`` fit of the three HAYDEN flights."""
+    """The PX4 vehicle's identified model: the closed-loop ``ipdt_speed`` fit of the three HAYDEN flights, cut at
+    30 s as for examples/px4-altitude.toml (the shared data's logs run to about 44 s)."""
+    from delaykit import Controller, Loop
+    from delaykit.identify import identify
+
+    _shared_data()
+    from shared_data import px4_flights
+
+    outer = Loop("1/s", Controller.p(0.95), umin=-1.0, umax=3.0, period=0.02)  # the flights' loop (data README)
+    runs = px4_flights([f"HAYDEN_0{i}" for i in (1, 2, 3)], reference="z_ref", t_end=30.0)
+    return identify(runs, model="ipdt_speed", loop=outer, fresh_only=True)
+
+
+def _shared_data():
+    """Make tests/shared_data.py importable: it says where the real data is read (../shared/data)."""
+    import sys
     from pathlib import Path
 
-    from delaykit import Controller, Loop
-    from delaykit.identify import identify, read_experiment
-
-    data = Path(__file__).resolve().parents[2] / "tests" / "data" / "px4-altitude"
-    outer = Loop("1/s", Controller.p(0.95), umin=-1.0, umax=3.0, period=0.02)  # the flights' loop (data README)
-    runs = [read_experiment(data / f"HAYDEN_0{i}.csv", outputs=["z"], reference="z_ref") for i in (1, 2, 3)]
-    return identify(runs, model="ipdt_speed", loop=outer, fresh_only=True)
+    tests = str(Path(__file__).resolve().parents[2] / "tests")
+    if tests not in sys.path:
+        sys.path.insert(0, tests)
 
 
 def px4_table(model=None) -> str:
@@ -128,4 +140,7 @@ if __name__ == "__main__":
     print("\n### The heater\n")
     print(heater_table())
     print("\n### The PX4 vehicle\n")
-    print(px4_table())
+    _shared_data()
+    from shared_data import DATA, absent_reason, have_data
+
+    print(px4_table() if have_data("px4-altitude") else f"(not computed: {absent_reason(DATA / 'px4-altitude')})")

@@ -54,8 +54,9 @@ _MAX_DELAY = 5.0  # the largest actuator delay (s)
 #: The vehicles the emulator flies (``EmulatorConfig.vehicle``).
 VEHICLES = ("lag", "speed_loop")
 
-# The speed loop identified from the 18 PX4 flights of tests/data/px4-altitude (docs/guide/identification.md: structure ipdt_speed,
-# gain 0.79, wn 1.53 rad/s, zeta 2.4, zero 3.9 s, delay 0.101 s).  The gain is left at 1 (see the module docstring).
+# The speed loop identified from the 18 full PX4 flights of ../shared/data (docs/guide/identification.md:
+# structure ipdt_speed, gain 0.79, wn 1.53 rad/s, zeta 2.4, zero 3.9 s, delay 0.101 s).  The gain is left at 1
+# (see the module docstring).
 PX4_SPEED_WN = 1.53
 PX4_SPEED_ZETA = 2.4
 PX4_SPEED_ZERO = 3.9
