@@ -176,6 +176,16 @@ def test_px4_fit_predicts_held_out_flights(px4_fit):
         assert p.rms["z"] < 4.0 * p.wander["z"] and p.rms["vz"] < 4.0 * p.wander["vz"], (e.name, p.rms, p.wander)
 
 
+def test_px4_full_logs_give_the_windows_fit_within_its_errors(px4_fit):
+    # the shared logs run to about 44 s (hover after the step); examples/px4-vehicle.toml says the full logs give
+    # its numbers (the 10-30 s window's fit) to within a tenth of the errors
+    full = fit_system(px4, START, px4_flights(TRAIN, outputs=("z", "vz"), reference="z_ref", t_end=None),
+                      bounds=BOUNDS, fresh_only=True)
+    assert full.status == "converged"
+    for name, value in px4_fit.params.items():
+        assert abs(full.params[name] - value) < 0.1 * full.stderr[name], (name, full.params[name], value)
+
+
 @pytest.mark.slow
 def test_px4_ground_effect_is_what_kappa_measures(px4_fit):
     # The HIGH_ALTITUDE flights step from 2.1 to 1.1 m, far from the floor (no ground effect, data README): kappa

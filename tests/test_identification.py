@@ -442,6 +442,15 @@ def test_px4_closed_loop_chooses_the_speed_loop_structure(px4_closed):
     assert m.ci["delay"][1] < 0.17
 
 
+def test_px4_full_logs_give_the_windows_model_within_its_errors(px4_closed):
+    # the shared logs run to about 44 s (hover after the step); the docs say the full logs give the model of the
+    # 10-30 s window within the fit's errors: each parameter of one within one standard error of the other's
+    full = identify(_px4(TRAIN, reference="z_ref", t_end=None), model="ipdt_speed", loop=PX4_LOOP, fresh_only=True)
+    assert full.logs[0].to_dict()["samples"] > 1.5 * px4_closed.logs[0].to_dict()["samples"]  # 34 s against 20 s
+    for name, value in px4_closed.params.items():
+        assert abs(full.params[name] - value) < full.stderr[name], (name, full.params[name], value, full.stderr[name])
+
+
 def test_px4_model_predicts_other_flights(px4_closed, tmp_path):
     path = tmp_path / "px4.json"
     px4_closed.save(path)
