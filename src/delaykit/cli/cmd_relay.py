@@ -8,7 +8,7 @@ from typing import Optional
 import typer
 
 from ..errors import check_real
-from .common import err, fmt, friendly, out, print_json, read_delay_trace
+from .common import err, fmt, friendly, out, print_json, read_delay_trace, run_until_stopped
 
 __all__ = ["relay"]
 
@@ -32,10 +32,6 @@ def relay(
 
     "up" is ground station -> vehicle (what arrives on --listen goes to --to); "down" is the replies, sent back to
     the last ground-station address seen. Each direction is first in, first out."""
-    import signal
-    import threading
-    import time as _time
-
     from ..hardware.relay import DelayRelay, parse_endpoint
 
     check_real("--duration", duration, minimum=0.0)
@@ -44,26 +40,11 @@ def relay(
     rel = DelayRelay(parse_endpoint(listen, "--listen"), parse_endpoint(to, "--to"), delay, jitter=jitter, loss=loss,
                      trace=None if trace is None else read_delay_trace(trace), direction=direction,
                      reorder=reorder, seed=seed)
-    # Ctrl-C, SIGTERM and SIGHUP end the run alike (as `delaykit emulate`): the handler only sets a flag that the loop
-    # below polls, so that it takes no lock and raises nothing mid-shutdown
-    stop_signal: list[int] = []
-    main_thread = threading.current_thread() is threading.main_thread()  # (signal handlers only go there)
-    old = ({sig: signal.signal(sig, lambda signum, _frame: stop_signal.append(signum))
-            for sig in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", signal.SIGTERM))}
-           if main_thread else {})
-    try:
+    with run_until_stopped(duration) as wait:  # Ctrl-C, SIGTERM and SIGHUP end the run alike, with the summary
         with rel:
             err.print(f"relay {rel.summary().listen} -> {rel.to}: {rel!r}. Ctrl-C stops.", highlight=False)
-            t0 = _time.monotonic()
-            try:
-                while not stop_signal and (duration == 0 or _time.monotonic() - t0 < duration):
-                    _time.sleep(0.05)
-            except KeyboardInterrupt:  # not from the handler above: only where it could not be installed
-                pass
+            wait()
         summary = rel.summary()  # after stop(): the thread is done, so the counts are final
-    finally:
-        for sig, handler in old.items():
-            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
     if as_json:
         print_json({"status": "ok", **summary.to_dict()})
         return
