@@ -19,8 +19,8 @@ as arrival), as ``delay + jitter * U + trace(t)``: ``U`` uniform in ``[0, 1)`` (
 ``delay`` may itself be any :class:`~delaykit.simulate.varying.DelayModel` (a schedule, a gamma jitter, a burst,
 their sum), evaluated at ``t``.  A packet is lost with probability ``loss`` (UDP only: a TCP stream cannot lose
 bytes).  Randomness comes from one generator per direction seeded by ``seed``: each direction draws, for its
-``k``-th packet, first whether it is lost, then its delay, whatever happens in the other direction, so a seed
-gives the same losses and jitter for the same traffic.
+``k``-th packet, first whether it is lost, then its delay (none is drawn for a constant delay), whatever happens
+in the other direction, so a seed gives the same losses and jitter for the same traffic.
 
 **Order.**  First in, first out in each direction: a packet leaves no earlier than the one ahead of it
 (``due_k = max(arrival_k + delay_k, due_{k-1})``), so a jitter larger than the spacing of the packets delays
@@ -342,6 +342,8 @@ class DelayRelay:
                 trace = DelayTrace([p[0] for p in pairs], [p[1] for p in pairs])
             model = model + trace
         self.model = model
+        lo, hi = model.bounds()
+        self._constant = lo if lo == hi else None  # no draw per packet (NumPy's call costs tens of microseconds)
         self.reorder = bool(reorder)
         if self.tcp and self.loss > 0:
             raise InvalidValueError(f"loss {self.loss:g} on TCP: a byte stream cannot lose data (use udp)")
@@ -543,7 +545,8 @@ class DelayRelay:
         due = t_arrival
         if st.delayed:
             lost = st.rng.random() < self.loss
-            delay = float(self.model.packet_delays([t_arrival - self._t0], st.rng)[0])
+            delay = (self._constant if self._constant is not None else
+                     float(self.model.packet_delays([t_arrival - self._t0], st.rng)[0]))
             if lost:
                 with self._lock:
                     st.counts["dropped"] += 1
