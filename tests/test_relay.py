@@ -319,6 +319,20 @@ def test_tcp_streams_both_ways_with_the_delay_and_closes_cleanly():
     assert s.up.forwarded == s.up.received and s.down.forwarded == s.down.received
 
 
+def test_tcp_a_vehicle_that_refuses_closes_the_ground_station_and_counts_an_error():
+    closed = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    closed.bind(("127.0.0.1", 0))  # bound, never listening: a connection is refused
+    try:
+        with DelayRelay("tcp:127.0.0.1:0", f"tcp:127.0.0.1:{_port(closed)}", 0.01) as relay:
+            c = socket.create_connection(relay.address, timeout=5.0)
+            assert c.recv(10) == b""  # closed by the relay
+            c.close()
+            _wait(lambda: relay.counts["up"]["errors"] == 1)
+            assert relay.summary().connections == 0
+    finally:
+        closed.close()
+
+
 # ------------------------------------------------------------------------------------------- real time
 @pytest.mark.realtime
 def test_the_delays_are_the_set_ones_on_loopback():

@@ -35,9 +35,10 @@ own **excess**: the time of the send minus the due time; :meth:`DelayRelay.summa
 percentiles and maximum for each direction (the benchmark ``benchmarks/bench_relay.py`` measures it from
 outside, end to end).
 
-**TCP**: the relay accepts one connection on ``listen`` at a time, connects to ``to`` and forwards both byte
-streams chunk by chunk with the delay; when one side closes, the other is shut down for writing once the data
-ahead of the close has been delivered, and the relay waits for the next connection.
+**TCP**: the relay accepts one connection on ``listen`` at a time, connects to ``to`` (waiting up to 5 s, during
+which nothing else is forwarded; a refusal closes the ground station's connection and counts an error) and
+forwards both byte streams chunk by chunk with the delay; when one side closes, the other is shut down for
+writing once the data ahead of the close has been delivered, and the relay waits for the next connection.
 
 Limits: packets waiting are held in memory (a 1 s delay at 1,000 packets/s holds 1,000 of them); at
 :meth:`DelayRelay.stop` the packets still waiting are discarded and counted (``unsent``).  The relay is a user
@@ -184,6 +185,11 @@ class DirectionStats:
     or that the system refused to send (with ``errors``); ``unsent``: still waiting when the relay stopped;
     ``bytes``: payload bytes forwarded; ``excess_p50_ms``, ``excess_p99_ms``, ``excess_max_ms``: how late the relay
     sent them after their due time (None before the first).
+
+    Examples
+    --------
+    >>> DirectionStats(received=10, forwarded=9, dropped=1, excess_p50_ms=0.2, excess_p99_ms=0.4)
+    DirectionStats(9/10 forwarded, 1 dropped, 0 unroutable, late p50 0.200 ms, p99 0.400 ms)
     """
 
     received: int = 0
