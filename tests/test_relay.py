@@ -210,6 +210,31 @@ def test_udp_both_directions_in_order_never_early():
     json.dumps(s.to_dict(), allow_nan=False)  # strict JSON
 
 
+def test_udp_jitter_keeps_the_order_on_the_wire_unless_reorder():
+    # a jitter of 40 ms on datagrams 2 ms apart: in order, none before the base delay; with reorder, some overtake
+    # (seed 1 draws an extra 34 ms larger than the next packet's: it is overtaken unless the sends are > 34 ms apart)
+    for reorder in (False, True):
+        vehicle, gcs = _udp(), _udp()
+        try:
+            with DelayRelay("udp:127.0.0.1:0", f"udp:127.0.0.1:{_port(vehicle)}", 0.02, jitter=0.04, seed=1,
+                            reorder=reorder) as relay:
+                sent = {}
+                for k in range(40):
+                    sent[k] = time.monotonic()
+                    gcs.sendto(k.to_bytes(2, "big"), relay.address)
+                    time.sleep(0.002)
+                got = []
+                for _ in range(40):
+                    data, _ = vehicle.recvfrom(64)
+                    got.append(int.from_bytes(data, "big"))
+                    assert time.monotonic() - sent[got[-1]] >= 0.02 - EPS
+        finally:
+            vehicle.close()
+            gcs.close()
+        assert sorted(got) == list(range(40))
+        assert (got == list(range(40))) is not reorder
+
+
 def test_udp_loss_counts_add_up_on_the_wire():
     vehicle, gcs = _udp(timeout=0.5), _udp()
     n = 200
