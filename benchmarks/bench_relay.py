@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import os
 import signal
 import socket
@@ -52,10 +53,10 @@ def start_relay(transport: str, to_port: int, delay: float) -> tuple[subprocess.
     proc = subprocess.Popen([sys.executable, "-m", "delaykit.cli", "relay", "--listen", f"{transport}:127.0.0.1:0",
                              "--to", f"{transport}:127.0.0.1:{to_port}", "--delay", str(delay), "--json"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-    line = proc.stderr.readline()  # "relay udp:127.0.0.1:PORT -> ...": listening
+    line = proc.stderr.readline()  # "relay running: DelayRelay(udp:127.0.0.1:PORT -> ...)"
     try:
-        return proc, int(line.split()[1].rsplit(":", 1)[1])
-    except (IndexError, ValueError):
+        return proc, int(re.search(r"\((?:udp|tcp):[^ ]*:(\d+) ->", line).group(1))
+    except (AttributeError, ValueError):  # (no match: it printed an error instead)
         proc.kill()
         raise SystemExit(f"the relay did not start: {line}{proc.stderr.read()}") from None
 

@@ -9,6 +9,7 @@ busy machine can break, are in the tests marked ``realtime``.
 from __future__ import annotations
 
 import json
+import re
 import math
 import os
 import signal
@@ -407,6 +408,16 @@ def test_cli_json_summary_after_duration():
     assert d["delay"]["kind"] == "sum" and d["jitter"] == 0.02
 
 
+def test_cli_table_after_duration():
+    from delaykit.cli.app import app
+
+    res = CliRunner().invoke(app, ["relay", "--listen", "udp:127.0.0.1:0", "--to", "udp:127.0.0.1:9", "--delay",
+                                   "0.1", "--direction", "down", "--duration", "0.1"], env={"COLUMNS": "200"})
+    assert res.exit_code == 0, res.output
+    rows = [line for line in res.stdout.splitlines() if line.strip("│ ").startswith(("up", "down"))]
+    assert len(rows) == 2 and " no " in rows[0] and " yes " in rows[1]  # only down is delayed
+
+
 def test_cli_sigterm_prints_the_summary(tmp_path):
     # a real process: SIGTERM ends it cleanly with the summary, status 0
     vehicle, gcs = _udp(), _udp()
@@ -417,8 +428,8 @@ def test_cli_sigterm_prints_the_summary(tmp_path):
                              f"udp:127.0.0.1:{_port(vehicle)}", "--delay", "0.01", "--trace", str(trace), "--json"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
-        line = proc.stderr.readline()  # "relay udp:127.0.0.1:PORT -> ...": it is running
-        port = int(line.split()[1].rsplit(":", 1)[1])
+        line = proc.stderr.readline()  # "relay running: DelayRelay(udp:127.0.0.1:PORT -> ...)"
+        port = int(re.search(r"\((?:udp|tcp):[^ ]*:(\d+) ->", line).group(1))
         gcs.sendto(b"x", ("127.0.0.1", port))
         assert vehicle.recvfrom(64)[0] == b"x"
         proc.send_signal(signal.SIGTERM)

@@ -42,7 +42,7 @@ def relay(
                      reorder=reorder, seed=seed)
     with run_until_stopped(duration) as wait:  # Ctrl-C, SIGTERM and SIGHUP end the run alike, with the summary
         with rel:
-            err.print(f"relay {rel.summary().listen} -> {rel.to}: {rel!r}. Ctrl-C stops.", highlight=False)
+            err.print(f"relay running: {rel!r}. Ctrl-C stops.", highlight=False)
             wait()
         summary = rel.summary()  # after stop(): the thread is done, so the counts are final
     if as_json:

@@ -392,7 +392,8 @@ class DelayRelay:
                 parts.append(repr(p))
         loss = f", loss {self.loss:g}" if self.loss else ""
         order = ", may reorder" if self.reorder else ""
-        return f"DelayRelay({self.listen} -> {self.to}, {self.direction}, {' + '.join(parts)}{loss}{order})"
+        listen = self.listen if self.address is None else Endpoint(self.listen.transport, *self.address[:2])
+        return f"DelayRelay({listen} -> {self.to}, {self.direction}, {' + '.join(parts)}{loss}{order})"
 
     def start(self) -> "DelayRelay":
         """Bind ``listen`` (and, for UDP, the socket towards ``to``) and start the relay's thread.
@@ -479,7 +480,7 @@ class DelayRelay:
             end = self._t_end if self._t_end is not None else time.monotonic()
             up, down = self._dirs["up"].stats(), self._dirs["down"].stats()
             return RelaySummary(listen=str(self.listen if self.address is None else
-                                           Endpoint(self.listen.transport, self.address[0], self.address[1])),
+                                           Endpoint(self.listen.transport, *self.address[:2])),
                                 to=str(self.to), direction=self.direction, delay=self.model.to_dict(),
                                 jitter=self.jitter, loss=self.loss, reorder=self.reorder,
                                 kernel_stamps=self.kernel_stamps, duration=max(end - self._t0, 0.0) if self._t0 else 0.0,
