@@ -85,6 +85,32 @@ def test_bad_settings_are_refused_naming_the_value(kwargs, error, words):
         DelayRelay("udp:127.0.0.1:0", "udp:127.0.0.1:9", **kwargs)
 
 
+@pytest.mark.parametrize("priority, error", [(0, InvalidValueError), (100, InvalidValueError),
+                                             (True, InvalidTypeError), (5.0, InvalidTypeError)])
+def test_a_bad_priority_is_refused(priority, error):
+    with pytest.raises(error, match="priority"):
+        DelayRelay("udp:127.0.0.1:0", "udp:127.0.0.1:9", priority=priority)
+
+
+def test_a_priority_is_granted_or_the_summary_says_why_not():
+    vehicle, gcs = _udp(), _udp()
+    try:
+        with DelayRelay("udp:127.0.0.1:0", f"udp:127.0.0.1:{_port(vehicle)}", 0.01, priority=5) as relay:
+            gcs.sendto(b"x", relay.address)
+            assert vehicle.recvfrom(64)[0] == b"x"  # it forwards either way
+            got = relay.scheduling
+            if got == "SCHED_FIFO 5":  # granted: the thread runs under it (read from that thread's own id)
+                assert os.sched_getscheduler(relay._thread.native_id) == os.SCHED_FIFO
+        s = relay.summary()
+    finally:
+        vehicle.close()
+        gcs.close()
+    assert got == "SCHED_FIFO 5" or got.startswith("refused (")
+    assert s.scheduling == got
+    if hasattr(os, "sched_getscheduler"):
+        assert os.sched_getscheduler(0) != os.SCHED_FIFO  # the caller's thread is left as it was
+
+
 def test_tcp_refuses_loss_and_reorder_and_transports_must_match():
     with pytest.raises(InvalidValueError, match="cannot lose"):
         DelayRelay("tcp:127.0.0.1:0", "tcp:127.0.0.1:9", loss=0.1)
@@ -416,6 +442,20 @@ def test_cli_table_after_duration():
     assert res.exit_code == 0, res.output
     rows = [line for line in res.stdout.splitlines() if line.strip("│ ").startswith(("up", "down"))]
     assert len(rows) == 2 and " no " in rows[0] and " yes " in rows[1]  # only down is delayed
+
+
+def test_cli_a_refused_priority_is_a_warning_and_in_the_summary(monkeypatch):
+    from delaykit.cli.app import app
+
+    def refuse(*args):
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(os, "sched_setscheduler", refuse, raising=False)
+    res = CliRunner().invoke(app, ["relay", "--listen", "udp:127.0.0.1:0", "--to", "udp:127.0.0.1:9", "--delay",
+                                   "0.1", "--priority", "20", "--duration", "0.1", "--json"])
+    assert res.exit_code == 0, res.output
+    assert "warning: --priority 20 refused (Operation not permitted)" in res.stderr
+    assert json.loads(res.stdout)["scheduling"] == "refused (Operation not permitted)"
 
 
 def test_cli_sigterm_prints_the_summary(tmp_path):

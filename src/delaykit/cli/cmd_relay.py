@@ -24,6 +24,7 @@ def relay(
     direction: str = typer.Option("both", "--direction", help="up (ground station -> vehicle) | down (vehicle -> ground station) | both: the directions that get the delay and the loss; the other is forwarded at once."),
     reorder: bool = typer.Option(False, "--reorder", help="Let a packet with a shorter delay overtake the ones ahead of it (UDP only)."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed (loss and jitter)."),
+    priority: Optional[int] = typer.Option(None, "--priority", help="Run the relay at this real-time priority (SCHED_FIFO, 1-99; Linux, root or CAP_SYS_NICE), so that it wakes on time on a busy machine; refused, it runs as an ordinary process and says so."),
     duration: float = typer.Option(0.0, "--duration", help="Run this long, s (0 = until Ctrl-C or SIGTERM)."),
     as_json: bool = typer.Option(False, "--json", help="Print the end-of-run summary as JSON."),
 ) -> None:
@@ -39,10 +40,13 @@ def relay(
         check_real(flag, value, minimum=0.0, maximum=top)
     rel = DelayRelay(parse_endpoint(listen, "--listen"), parse_endpoint(to, "--to"), delay, jitter=jitter, loss=loss,
                      trace=None if trace is None else read_delay_trace(trace), direction=direction,
-                     reorder=reorder, seed=seed)
+                     reorder=reorder, seed=seed, priority=priority)
     with run_until_stopped(duration) as wait:  # Ctrl-C, SIGTERM and SIGHUP end the run alike, with the summary
         with rel:
             err.print(f"relay running: {rel!r}. Ctrl-C stops.", highlight=False)
+            if rel.scheduling.startswith("refused"):
+                err.print(f"warning: --priority {priority} {rel.scheduling}: the relay runs as an ordinary thread, "
+                          "whose timer wake-ups a busy machine can delay", highlight=False, markup=False)
             wait()
         summary = rel.summary()  # after stop(): the thread is done, so the counts are final
     if as_json:

@@ -678,16 +678,21 @@ def run_until_stopped(duration: float) -> Iterator[Callable[[], None]]:
 
     The three signals end the run alike (the caller then prints its summary; exit status 0).  Their handlers,
     installed for the whole block (so that a signal while the service starts is not lost) and restored after it,
-    only set a flag that ``wait`` polls every 50 ms: a handler takes no lock (setting a ``threading.Event`` from a
-    handler can deadlock, as it may run while the main thread holds that Event's own lock) and raises nothing
-    mid-shutdown.  Outside the main thread no handler can be installed: there Ctrl-C alone ends ``wait``.
+    only set a flag: a handler takes no lock (setting a ``threading.Event`` from a handler can deadlock, as it may
+    run while the main thread holds that Event's own lock) and raises nothing mid-shutdown.  ``wait`` sleeps in
+    ``select`` on the signals' wake-up descriptor (``signal.set_wakeup_fd``) until one comes or the time is up,
+    without waking in between: a main thread that woke to poll would take the interpreter's lock from the
+    service's threads at random moments, and on a busy machine hold it for a whole scheduler tick.  Outside the
+    main thread no handler can be installed: there Ctrl-C alone ends ``wait``.
 
     Examples
     --------
     >>> with run_until_stopped(0.01) as wait:
     ...     wait()
     """
+    import select
     import signal
+    import socket
     import threading
     import time
 
@@ -698,12 +703,28 @@ def run_until_stopped(duration: float) -> Iterator[Callable[[], None]]:
            if main_thread else {})
 
     def wait() -> None:
-        t0 = time.monotonic()
+        deadline = None if duration == 0 else time.monotonic() + duration
+        rd, wr = socket.socketpair()
+        for sock in (rd, wr):
+            sock.setblocking(False)
+        old_fd = signal.set_wakeup_fd(wr.fileno()) if main_thread else None
         try:
-            while not stop_signal and (duration == 0 or time.monotonic() - t0 < duration):
-                time.sleep(0.05)
+            while not stop_signal:
+                left = None if deadline is None else deadline - time.monotonic()
+                if left is not None and left <= 0:
+                    break
+                if select.select([rd], [], [], left)[0]:  # a signal came (its handler has run)
+                    try:
+                        rd.recv(64)
+                    except OSError:
+                        pass
         except KeyboardInterrupt:  # not from the handler above: only where it could not be installed
             pass
+        finally:
+            if old_fd is not None:
+                signal.set_wakeup_fd(old_fd)
+            rd.close()
+            wr.close()
 
     try:
         yield wait

@@ -28,7 +28,12 @@ the later ones instead of reordering them.  With ``reorder=True`` each packet le
 and may overtake (UDP only).
 
 **Scheduling.**  One thread reads the sockets (``selectors``) and keeps the packets waiting in a heap of due
-times; it sleeps in ``select`` until the next due time or the next arrival, never busy-waiting.  The
+times; it sleeps in ``select`` until the next due time or the next arrival, never busy-waiting.  On a machine
+whose CPUs are busy with other work, an ordinary thread woken by its timer can wait for the scheduler's next
+tick (4 ms on a 250 Hz kernel) before it runs, while one woken by an arriving packet runs at once; ``priority``
+asks for a real-time priority (``SCHED_FIFO``), which runs it as soon as it wakes (``benchmarks/bench_relay.py``
+measures both).  The thread sleeps between packets, so the priority costs the machine nothing, but a flood of
+packets at that priority takes a CPU from everything else.  The
 :func:`select.select` call is used because its timeout has microsecond resolution (``epoll`` and ``poll`` round
 up to milliseconds, which would make every packet up to 1 ms late).  After each send the relay records its
 own **excess**: the time of the send minus the due time; :meth:`DelayRelay.summary` gives its 50th and 99th
@@ -239,6 +244,7 @@ class RelaySummary:
     down: DirectionStats
     seed: int | None = None
     connections: int = 0
+    scheduling: str = "ordinary"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready: the fields, the two directions as dicts."""
@@ -301,6 +307,10 @@ class DelayRelay:
         Let a packet overtake the ones ahead of it (UDP only); default False: first in, first out.
     seed : int, optional
         Makes the loss and the jitter reproducible.
+    priority : int, optional
+        Run the relay's thread at this real-time priority (``SCHED_FIFO``, 1 to 99; Linux, with root or
+        ``CAP_SYS_NICE``), so that it wakes on time on a busy machine (see the module docstring); refused, the
+        relay runs as an ordinary thread and :attr:`scheduling` says why.  Default None: an ordinary thread.
 
     Attributes
     ----------
@@ -316,7 +326,8 @@ class DelayRelay:
     """
 
     def __init__(self, listen: Any, to: Any, delay: Any = 0.0, *, jitter: float = 0.0, loss: float = 0.0,
-                 trace: Any = None, direction: str = "both", reorder: bool = False, seed: int | None = None) -> None:
+                 trace: Any = None, direction: str = "both", reorder: bool = False, seed: int | None = None,
+                 priority: int | None = None) -> None:
         from ..simulate.varying import DelayModel, DelayTrace, Jitter, _check_seed, as_delay_model
 
         self.listen = parse_endpoint(listen, "listen")
@@ -357,6 +368,13 @@ class DelayRelay:
             raise InvalidValueError("reorder on TCP: a byte stream is delivered in order (use udp)")
         _check_seed(seed)
         self.seed = seed
+        if priority is not None and (isinstance(priority, bool) or not isinstance(priority, int)):
+            raise InvalidTypeError(f"priority must be an integer from 1 to 99 or None, got {priority!r}")
+        if priority is not None and not 1 <= priority <= 99:
+            raise InvalidValueError(f"priority must be from 1 to 99 (SCHED_FIFO's range), got {priority}")
+        self.priority = priority
+        self.scheduling = "ordinary"  # what the thread got: "ordinary", "SCHED_FIFO N" or "refused (...)"
+        self._ready = threading.Event()
         self._dirs = {d: _Direction(direction in (d, "both"), None if seed is None else [seed, i])
                       for i, d in enumerate(("up", "down"))}
         self.address: tuple[str, int] | None = None
@@ -429,8 +447,10 @@ class DelayRelay:
         self._t0 = time.monotonic()
         self._t_end = None
         self._running = True
+        self._ready.clear()
         self._thread = threading.Thread(target=self._run, name="delaykit-relay", daemon=True)
         self._thread.start()
+        self._ready.wait(5.0)  # (its priority is set, or refused, before start returns)
         return self
 
     def stop(self) -> None:
@@ -484,7 +504,8 @@ class DelayRelay:
                                 to=str(self.to), direction=self.direction, delay=self.model.to_dict(),
                                 jitter=self.jitter, loss=self.loss, reorder=self.reorder,
                                 kernel_stamps=self.kernel_stamps, duration=max(end - self._t0, 0.0) if self._t0 else 0.0,
-                                up=up, down=down, seed=self.seed, connections=self._connections)
+                                up=up, down=down, seed=self.seed, connections=self._connections,
+                                scheduling=self.scheduling)
 
     # ------------------------------------------------------------------------------------------ sockets
     def _bind(self, ep: Endpoint) -> socket.socket:
@@ -517,7 +538,25 @@ class DelayRelay:
             self._sel = None
 
     # -------------------------------------------------------------------------------------- the thread
+    def _set_priority(self) -> None:
+        """Ask for ``SCHED_FIFO`` at :attr:`priority` for this thread (Linux applies it to the calling thread)."""
+        if self.priority is None:
+            self.scheduling = "ordinary"
+            return
+        try:
+            import os
+
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.priority))
+        except AttributeError:
+            self.scheduling = "refused (no SCHED_FIFO on this system)"
+        except OSError as exc:
+            self.scheduling = f"refused ({exc.strerror or exc})"
+        else:
+            self.scheduling = f"SCHED_FIFO {self.priority}"
+
     def _run(self) -> None:
+        self._set_priority()
+        self._ready.set()
         sel = self._sel
         assert sel is not None
         while self._running:
