@@ -482,3 +482,37 @@ def test_cli_sigterm_prints_the_summary(tmp_path):
     assert proc.returncode == 0
     d = json.loads(stdout)
     assert d["up"]["forwarded"] == 1 and d["delay"]["parts"][1]["kind"] == "trace"
+
+
+# ----------------------------------------------------------------------------- the paper's use, end to end
+@pytest.mark.slow
+@pytest.mark.realtime
+def test_a_flight_through_the_relay_estimates_the_added_delay(tmp_path):
+    # the AR.Drone emulator (actuator delay 0.20 s) flown by `delaykit fly` through two relays: the AT commands
+    # 0.08 s up, the navdata 0.04 s down; `delaykit estimate` must find 0.20 + 0.08 + 0.04 s plus the flight loop's
+    # own mean latency (as tests/test_flight.py's estimate of the emulator alone, and within its 15 ms)
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+    from delaykit.hardware.emulator import DroneEmulator, EmulatorConfig
+
+    runner = CliRunner()
+    cfg = EmulatorConfig(at_port=0, navdata_port=0, video_port=0, control_port=0, delay=0.20, vehicle="lag",
+                         lag=0.05, noise=0.004, seed=5)
+    with DroneEmulator(cfg) as emu, \
+            DelayRelay("udp:127.0.0.1:0", f"udp:127.0.0.1:{emu.ports['at']}", 0.08, direction="up") as at, \
+            DelayRelay("udp:127.0.0.1:0", f"udp:127.0.0.1:{emu.ports['navdata']}", 0.04, direction="down") as nav:
+        res = runner.invoke(app, ["fly", "--host", "127.0.0.1", "--at-port", str(at.address[1]), "--navdata-port",
+                                  str(nav.address[1]), "--kp", "1.31", "--steps", "1,-1", "--duration", "6",
+                                  "--hover", "1", "--log", str(tmp_path / "f.csv"), "--json"])
+        assert res.exit_code == 0, res.output
+        flight = json.loads(res.stdout)
+    assert at.summary().up.forwarded > 100 and nav.summary().down.forwarded > 100
+    assert at.summary().up.dropped == nav.summary().down.dropped == 0
+    res = runner.invoke(app, ["estimate", *flight["logs"], "--kp", "1.31", "--period",
+                              f"{flight['packet_interval']:.6f}", "--free", "lag", "--json"])
+    assert res.exit_code == 0, res.output
+    est = json.loads(res.stdout)["pooled"]
+    latency = np.concatenate([np.genfromtxt(f, delimiter=",", names=True)["latency_ms"] for f in flight["logs"]])
+    truth = 0.20 + 0.08 + 0.04 + float(np.nanmean(latency)) / 1e3
+    assert abs(est["delay"] - truth) < 0.015, (est, truth)
