@@ -227,7 +227,8 @@ def main() -> None:
         link = ("a thread waking at due times (anchor)" if r["transport"] == "timer" else
                 f"{r['transport'].upper()} direct (anchor)" if r["delay"] is None else
                 f"{r['transport'].upper()} through the relay, delay {r['delay']:g} s")
-        table.add_row(link, r["scheduling"], f"{r['packets']}/{r['sent']}", ms(r["p50_ms"]), ms(r["p99_ms"]), ms(r["max_ms"]),
+        table.add_row(link, r["scheduling"], f"{r['packets']}/{r['sent']}", ms(r["p50_ms"]), ms(r["p99_ms"]),
+                      ms(r["max_ms"]),
                       "–" if r["relay_p50_ms"] is None else f"{ms(r['relay_p50_ms'])} / {ms(r['relay_p99_ms'])}")
     console = Console(width=160)
     console.print(table)

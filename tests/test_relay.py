@@ -234,7 +234,8 @@ def test_udp_both_directions_in_order_never_early():
     assert (s.up.received, s.up.forwarded, s.down.received, s.down.forwarded) == (n, n, n, n)
     assert s.up.bytes == 2 * n and s.down.bytes == 3 * n and s.up.unsent == s.down.unsent == 0
     assert s.up.excess_p50_ms is not None and s.up.excess_p50_ms >= 0
-    json.dumps(s.to_dict(), allow_nan=False)  # strict JSON
+    assert isinstance(s, RelaySummary) and repr(s).startswith("RelaySummary(udp:127.0.0.1:") and "\n" not in repr(s)
+    assert s.to_dict()["up"] == s.up.to_dict() and json.dumps(s.to_dict(), allow_nan=False)  # strict JSON
 
 
 def test_udp_jitter_keeps_the_order_on_the_wire_unless_reorder():

@@ -503,7 +503,8 @@ class DelayRelay:
                                            Endpoint(self.listen.transport, *self.address[:2])),
                                 to=str(self.to), direction=self.direction, delay=self.model.to_dict(),
                                 jitter=self.jitter, loss=self.loss, reorder=self.reorder,
-                                kernel_stamps=self.kernel_stamps, duration=max(end - self._t0, 0.0) if self._t0 else 0.0,
+                                kernel_stamps=self.kernel_stamps,
+                                duration=max(end - self._t0, 0.0) if self._t0 else 0.0,
                                 up=up, down=down, seed=self.seed, connections=self._connections,
                                 scheduling=self.scheduling)
 
