@@ -161,3 +161,23 @@ def test_poles_benchmark_runs_and_its_anchor_agrees_near_the_dominant_poles(tmp_
     pade10 = {a["order"]: a for a in rows[0]["pade"]}[10]
     assert pade10["max_error"] < 1e-9 and pade10["missed"] == 0
     assert all(a["missed"] > 0 for a in rows[1]["pade"])
+
+
+@pytest.mark.slow
+@pytest.mark.realtime
+def test_relay_benchmark_small(tmp_path):
+    # every packet arrives, through the relay and directly, and none through the relay before its set delay (no
+    # speed is asserted: the p99 target depends on the machine's load)
+    out = tmp_path / "relay.json"
+    subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_relay.py"), "--seconds", "1", "--json",
+                    str(out)], check=True, capture_output=True, text=True, timeout=300)
+    rows = json.loads(out.read_text())["rows"]
+    assert [(r["transport"], r["delay"], r["priority"]) for r in rows] == [
+        ("timer", None, None), ("timer", None, 10), ("udp", None, None), ("udp", 0.0, None), ("udp", 0.2, None),
+        ("udp", 0.2, 10), ("tcp", None, None), ("tcp", 0.2, None), ("tcp", 0.2, 10)]
+    assert all(r["packets"] == r["sent"] == 50 for r in rows)
+    assert all(r["scheduling"] == "ordinary" for r in rows if r["priority"] is None)
+    assert all(r["scheduling"] == "SCHED_FIFO 10" or r["scheduling"].startswith("refused (")
+               for r in rows if r["priority"] is not None)
+    assert all(r["min_ms"] > -1.0 for r in rows if r["delay"] is not None)  # never early (1 ms: clock conversion)
+    assert all(r["relay_p99_ms"] is not None for r in rows if r["delay"] is not None)

@@ -4,9 +4,9 @@ Every command has ``--help``; those that print results have ``--json``; figures 
 ``--plot FILE`` asks.  Bad input prints one line, ``error: ...``, and exits with status 2.
 
 The Typer application is :data:`.common.app`; each ``cmd_*`` module holds one group of commands (simulate;
-roots, margins and lambert; design; estimate, identify and predict; emulate and fly; report, reproduce and demo)
-and imports the library only when a command runs, so ``delaykit --help`` stays quick.  This module registers
-them, in the order and under the headings ``delaykit --help`` shows, by module and name: a command's module
+roots, margins and lambert; design; estimate, identify and predict; emulate and fly; autotune; relay; report,
+reproduce and demo) and imports the library only when a command runs, so ``delaykit --help`` stays quick.  This
+module registers them, in the order and under the headings ``delaykit --help`` shows, by module and name: a command's module
 is imported when the command is needed (``delaykit simulate ...`` imports :mod:`.cmd_simulate` alone).
 """
 
@@ -24,7 +24,8 @@ COMMANDS = (
                                      ("cmd_spectrum", "margins"), ("cmd_spectrum", "lambert"))),
     ("Identify from logs", (("cmd_identify", "estimate"), ("cmd_identify", "identify"), ("cmd_identify", "predict"))),
     ("Design", (("cmd_design", "design"), ("cmd_tune", "tune"))),
-    ("Fly", (("cmd_hardware", "emulate"), ("cmd_hardware", "fly"), ("cmd_autotune", "autotune"))),
+    ("Fly", (("cmd_hardware", "emulate"), ("cmd_hardware", "fly"), ("cmd_autotune", "autotune"),
+             ("cmd_relay", "relay"))),
     ("The paper", (("cmd_paper", "reproduce"), ("cmd_paper", "report"), ("cmd_paper", "demo"))),
 )
 """The commands under their help headings, each as (module in this package, function)."""

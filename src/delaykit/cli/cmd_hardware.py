@@ -9,7 +9,7 @@ import typer
 
 from ..errors import InvalidValueError, check_real
 from .common import (check_output, confirm_real, err, fmt_ci, friendly, out, parse_schedule, print_error, print_json,
-                     read_delay_trace)
+                     read_delay_trace, run_until_stopped)
 
 __all__ = ["emulate", "fly"]
 
@@ -42,10 +42,6 @@ def emulate(
 ) -> None:
     """Run the built-in AR.Drone 2.0 emulator (loopback by default) until Ctrl-C, SIGTERM, SIGHUP or --duration; then
     print its summary (ports, counts, rejections) as JSON."""
-    import signal
-    import threading
-    import time as _time
-
     from ..hardware.emulator import DroneEmulator, EmulatorConfig
 
     check_real("--duration", duration, minimum=0.0)
@@ -61,29 +57,13 @@ def emulate(
                          delay_schedule=None if delay_schedule is None else parse_schedule(delay_schedule),
                          delay_trace=None if delay_trace is None else read_delay_trace(delay_trace),
                          bursts=_parse_bursts(burst or [], rate))
-    # Ctrl-C (SIGINT), SIGTERM and SIGHUP end the run alike: the same summary, exit status 0.  Their handler only
-    # sets a flag that the main loop polls: it takes no lock (setting a threading.Event from a handler can deadlock, as the
-    # handler may run while the main thread holds that Event's own lock) and raises nothing mid-shutdown.
-    stop_signal: list[int] = []
-    main_thread = threading.current_thread() is threading.main_thread()  # (signal handlers only go there)
-    old = ({sig: signal.signal(sig, lambda signum, _frame: stop_signal.append(signum))
-            for sig in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", signal.SIGTERM))}
-           if main_thread else {})
-    try:
+    with run_until_stopped(duration) as wait:  # Ctrl-C, SIGTERM and SIGHUP end the run alike, with the summary
         with DroneEmulator(cfg) as emu:
             err.print(f"emulated drone on {host}: AT {emu.ports['at']}, navdata {emu.ports['navdata']}, video "
                       f"{emu.ports['video']}, control {emu.ports['control']}; loop delay {emu.true_delay:g} s. "
                       "Ctrl-C stops.", highlight=False)
-            t0 = _time.monotonic()
-            try:
-                while not stop_signal and (duration == 0 or _time.monotonic() - t0 < duration):
-                    _time.sleep(0.05)
-            except KeyboardInterrupt:  # not from the handler above: only where it could not be installed
-                pass
+            wait()
         summary = emu.summary()  # after stop(): the threads are done, so the counts are final
-    finally:
-        for sig, handler in old.items():
-            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
     print_json(summary, indent=None)
 
 

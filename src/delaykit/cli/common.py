@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import functools
 import math
 import re
 from pathlib import Path
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Iterator, Optional
 
 import typer
 from typer.core import TyperGroup
@@ -17,7 +18,7 @@ from ..errors import DelaykitError, InvalidValueError, RangeSpecError
 __all__ = [
     "app", "check_output", "ci_list", "confirm_real", "err", "fmt", "fmt_ci", "friendly", "one_line", "out",
     "parse_delays", "parse_schedule", "print_error", "print_json", "print_rms", "progress_bar", "quick_coercion",
-    "read_delay_trace", "strict_json", "warn",
+    "read_delay_trace", "run_until_stopped", "strict_json", "warn",
 ]
 
 _MISSING = object()
@@ -668,6 +669,68 @@ def read_delay_trace(path: Path) -> Any:
         raise InvalidValueError(f"--delay-trace {str(path)!r} has no column 'delay' (s) or 'latency_ms' (a flight "
                                 f"log); its header is {','.join(header)!r}")
     return DelayTrace.from_csv(path)
+
+
+@contextlib.contextmanager
+def run_until_stopped(duration: float) -> Iterator[Callable[[], None]]:
+    """Run a service until Ctrl-C, SIGTERM, SIGHUP or ``duration`` s (0: no limit): yields ``wait()``, which
+    returns then.
+
+    The three signals end the run alike (the caller then prints its summary; exit status 0).  Their handlers,
+    installed for the whole block (so that a signal while the service starts is not lost) and restored after it,
+    only set a flag: a handler takes no lock (setting a ``threading.Event`` from a handler can deadlock, as it may
+    run while the main thread holds that Event's own lock) and raises nothing mid-shutdown.  ``wait`` sleeps in
+    ``select`` on the signals' wake-up descriptor (``signal.set_wakeup_fd``) until one comes or the time is up,
+    without waking in between: a main thread that woke to poll would take the interpreter's lock from the
+    service's threads at random moments, and on a busy machine hold it for a whole scheduler tick.  Outside the
+    main thread no handler can be installed: there Ctrl-C alone ends ``wait``.
+
+    Examples
+    --------
+    >>> with run_until_stopped(0.01) as wait:
+    ...     wait()
+    """
+    import select
+    import signal
+    import socket
+    import threading
+    import time
+
+    stop_signal: list[int] = []
+    main_thread = threading.current_thread() is threading.main_thread()  # (signal handlers only go there)
+    old = ({sig: signal.signal(sig, lambda signum, _frame: stop_signal.append(signum))
+            for sig in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", signal.SIGTERM))}
+           if main_thread else {})
+
+    def wait() -> None:
+        deadline = None if duration == 0 else time.monotonic() + duration
+        rd, wr = socket.socketpair()
+        for sock in (rd, wr):
+            sock.setblocking(False)
+        old_fd = signal.set_wakeup_fd(wr.fileno()) if main_thread else None
+        try:
+            while not stop_signal:
+                left = None if deadline is None else deadline - time.monotonic()
+                if left is not None and left <= 0:
+                    break
+                if select.select([rd], [], [], left)[0]:  # a signal came (its handler has run)
+                    try:
+                        rd.recv(64)
+                    except OSError:
+                        pass
+        except KeyboardInterrupt:  # not from the handler above: only where it could not be installed
+            pass
+        finally:
+            if old_fd is not None:
+                signal.set_wakeup_fd(old_fd)
+            rd.close()
+            wr.close()
+
+    try:
+        yield wait
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
 
 
 def confirm_real(host: str, yes: bool) -> Optional[Callable[[], bool]]:

@@ -3,8 +3,9 @@
 :mod:`.ardrone` encodes and decodes the drone's AT commands and navdata, :mod:`.emulator` is a drone on UDP
 (simulated altitude dynamics with a delay) for testing without one, :mod:`.stamps` gives datagrams the kernel's
 arrival time, :mod:`.laws` runs any controller or compensator on packets, :mod:`.autotune` flies a relay experiment and tunes from its cycle, :mod:`.monitor` re-estimates the delay
-during a flight (alarm, gain scheduling), and :mod:`.flight` is the real-time loop that flies a plan and logs what
-it saw. It sits above design and identification: its logs feed :mod:`delaykit.identify`.
+during a flight (alarm, gain scheduling), :mod:`.flight` is the real-time loop that flies a plan and logs what
+it saw, and :mod:`.relay` forwards a real link (UDP or TCP) with a set delay, jitter and loss. It sits above
+design and identification: its logs feed :mod:`delaykit.identify`.
 """
 
 from .._lazy import lazy_exports
@@ -14,6 +15,7 @@ from .ardrone import (ARITY, DEMO_SIZE, HEADER, REF_BASE, REF_EMERGENCY, REF_TAK
 from .emulator import DroneEmulator, EmulatorConfig, PortError
 from .flight import DroneLink, FlightPlan, FlightResult, LinkError, fly, land_on_signals
 from .laws import FlightLaw, Relay, RelayLaw
+from .relay import DelayRelay, DirectionStats, Endpoint, RelaySummary, parse_endpoint
 from .stamps import enable_stamps, recv_stamped
 
 # the monitor pulls in the estimator, the design and the simulator (numba): loaded on first use, so that the
@@ -30,4 +32,5 @@ __all__ = [
     "EmulatorConfig", "DroneEmulator", "PortError",
     "LinkError", "DroneLink", "FlightPlan", "FlightResult", "fly", "land_on_signals", "FlightLaw",
     "DelayMonitor", "OnlineEstimate", "stable_range", "enable_stamps", "recv_stamped", "Relay", "RelayLaw", "AutotuneResult",
+    "DelayRelay", "RelaySummary", "DirectionStats", "Endpoint", "parse_endpoint",
 ]
