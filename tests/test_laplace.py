@@ -132,6 +132,14 @@ def test_a_prediction_stays_an_expression_and_is_never_realised():
         tf(ahead)
 
 
+def test_hinfnorm_unpacks_and_indexes_as_its_pair():
+    h = hinfnorm(tf("1/(s^2+0.2*s+1)"))
+    value_, w = h
+    assert (h[0], h[1]) == (value_, w) and len(h) == 2 and h[:] == (value_, w)
+    zeta = 0.1  # the closed form of a second-order peak
+    assert abs(h[0] - 1 / (2 * zeta * np.sqrt(1 - zeta**2))) < 1e-8
+
+
 def test_improper_text_points_to_s_not_to_an_option_tf_lacks():
     # tf("s+1") once advised "pass proper=False", which tf does not take
     with pytest.raises(InvalidValueError) as e:
