@@ -61,6 +61,29 @@ nb_execution_raise_on_error = True   # a tutorial that fails to run fails the bu
 nb_execution_show_tb = True
 nb_merge_streams = True
 
+
+def _encrypted_kernels() -> None:
+    """The tutorials' kernels talk to the build over CurveZMQ-encrypted TCP, not plain text.
+
+    jupyter_client provisions Curve keys for kernels whose kernelspec declares it (ipykernel's does) when its
+    ``KernelManager.transport_encryption`` is ``"auto"``; its default is ``"disabled"``, and each kernel then printed
+    ``[IPKernelApp] WARNING | Kernel is running over TCP without encryption`` into the build's output.  myst-nb runs
+    the notebooks through nbclient, which makes its kernel managers without any configuration, so the trait's
+    default is set here, for this build's process only.  (IPC transport would also silence it, but its socket
+    files live under the working folder, and Unix socket paths are limited to about 100 characters: a deep clone
+    would fail.)
+    """
+    try:
+        import zmq
+        from jupyter_client.manager import KernelManager
+    except ImportError:  # the docs extra is not installed: nothing runs a notebook anyway
+        return
+    if zmq.has("curve"):
+        KernelManager.class_traits()["transport_encryption"].default_value = "auto"
+
+
+_encrypted_kernels()
+
 # the API reference: autodoc + numpydoc
 autodoc_member_order = "bysource"
 autodoc_typehints = "signature"

@@ -40,7 +40,7 @@ __all__ = [
     "DelaySchedule",
     "Jitter", "Burst", "DelayTrace", "jitter_margin", "stable_for",
     # delay systems as objects
-    "DelayLTI", "tf", "ss", "delay", "feedback", "append", "interconnect", "summing_junction", "from_loop", "plant_of", "to_loop", "c2d", "saturation", "load_system",
+    "DelayLTI", "tf", "ss", "exp", "LaplaceExpression", "delay", "feedback", "append", "interconnect", "summing_junction", "from_loop", "plant_of", "to_loop", "c2d", "saturation", "load_system",
     "poles", "is_stable", "hinfnorm", "nyquist_count", "loop_margins",
     "step_response", "impulse_response", "initial_response", "forced_response", "SystemTimeResponse",
     "step_response_many", "BatchTimeResponse",
@@ -79,7 +79,8 @@ _LAZY = {
     "DelaySchedule": ".simulate.varying", "Jitter": ".simulate.varying",
     "Burst": ".simulate.varying", "DelayTrace": ".simulate.varying", "jitter_margin": ".spectrum.jitter",
     "stable_for": ".spectrum.jitter",
-    "DelayLTI": ".systems.lti", "tf": ".systems.build", "ss": ".systems.build", "delay": ".systems.build",
+    "DelayLTI": ".systems.lti", "tf": ".systems.build", "exp": ".systems.laplace",
+    "LaplaceExpression": ".systems.laplace", "ss": ".systems.build", "delay": ".systems.build",
     "feedback": ".systems.algebra", "append": ".systems.algebra", "interconnect": ".systems.algebra",
     "summing_junction": ".systems.algebra", "from_loop": ".systems.build", "plant_of": ".systems.build", "to_loop": ".systems.build", "c2d": ".systems.discrete",
     "saturation": ".systems.build", "load_system": ".systems.files",

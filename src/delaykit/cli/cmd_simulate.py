@@ -27,6 +27,7 @@ def simulate(
     hold: str = typer.Option("linear", "--hold", help="Between --reference samples: linear | hold."),
     disturbance: Optional[float] = typer.Option(None, "--disturbance", help="A step load disturbance at the plant input, of this size."),
     disturbance_time: float = typer.Option(0.0, "--disturbance-time", help="When the load disturbance starts, s."),
+    disturbance_at: str = typer.Option("plant", "--disturbance-at", help="Where the load enters: plant (at the plant's input, after the input delay) | command (on the command, before the delay: the plant feels it one delay later)."),
     t_end: Optional[float] = typer.Option(None, "--t-end", help="Simulated time after the step, s (default 15; with --system the system's own horizon: 7 time constants of its slowest mode plus 3 times its longest delay)."),
     band: float = typer.Option(0.02, "--band", help="Settling band, fraction of the step."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
@@ -64,6 +65,7 @@ def simulate(
         loop_only = (("--step", step, 1.0), ("--z0", z0, 0.0), ("--ramp", ramp, None),
                      ("--reference", reference_csv, None), ("--hold", hold, "linear"),
                      ("--disturbance", disturbance, None), ("--disturbance-time", disturbance_time, 0.0),
+                     ("--disturbance-at", disturbance_at, "plant"),
                      ("--band", band, 0.02), ("--csv", csv_path, None), ("--dt", dt, 0.01),
                      ("--delay-schedule", delay_schedule, None), ("--jitter", jitter, None),
                      ("--jitter-dist", jitter_dist, None), ("--jitter-scale", jitter_scale, None),
@@ -119,7 +121,9 @@ def simulate(
             ref = Ramp(slope=ramp, size=0.0)
         elif reference_csv is not None:
             ref = _read_reference(reference_csv, hold)
-        dist = LoadStep(disturbance, disturbance_time) if disturbance is not None else None
+        if disturbance is None and disturbance_at != "plant":
+            raise InvalidValueError(f"--disturbance-at {disturbance_at} places a load: give its size, --disturbance")
+        dist = LoadStep(disturbance, disturbance_time, at=disturbance_at) if disturbance is not None else None
         def run(d: float) -> Any:
             return sim(loop.replace(delay=d), step, z0=z0, t_end=t_end, band=band, reference=ref, disturbance=dist)
 

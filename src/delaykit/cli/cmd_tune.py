@@ -36,7 +36,10 @@ def _base(opts: dict[str, Any], model: Optional[Path]) -> Any:
         raise InvalidValueError(f"--delay takes one delay for tune, got {o['delay']!r}; give a robust range with "
                                 "--delays A:B:N")
     if "delay" not in o and "loop_file" not in o:
-        raise InvalidValueError("give --delay (the plant's dead time, s), --loop FILE.toml or --model FILE.json")
+        if "plant" not in o:
+            raise InvalidValueError("give --plant (with its dead time, '2*exp(-3*s)/(10*s+1)') and --delay, "
+                                    "--loop FILE.toml or --model FILE.json")
+        o["delay"] = "0"  # the dead time written in the plant's text (exp(-T*s)) is the plant's delay
     o.setdefault("kp", 1.0)
     if "loop_file" not in o:
         o["controller"] = "p"

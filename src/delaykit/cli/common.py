@@ -17,8 +17,8 @@ from ..errors import DelaykitError, InvalidValueError, RangeSpecError
 
 __all__ = [
     "app", "check_output", "ci_list", "confirm_real", "err", "fmt", "fmt_ci", "friendly", "one_line", "out",
-    "parse_delays", "parse_schedule", "print_error", "print_json", "print_rms", "progress_bar", "quick_coercion",
-    "read_delay_trace", "run_until_stopped", "strict_json", "warn",
+    "help_text", "parse_delays", "parse_schedule", "print_error", "print_json", "print_rms", "progress_bar",
+    "quick_coercion", "read_delay_trace", "run_until_stopped", "strict_json", "warn",
 ]
 
 _MISSING = object()
@@ -182,7 +182,8 @@ class _App(typer.Typer):
         if not self._loaded:
             self._loaded = True
             for module, function, panel in self._lazy:
-                self.command(rich_help_panel=panel)(_function(module, function))
+                fn = _function(module, function)
+                self.command(help=help_text(fn), rich_help_panel=panel)(fn)
         return self._commands
 
     @registered_commands.setter
@@ -237,11 +238,46 @@ class _App(typer.Typer):
             if len(chosen) == 1:
                 module, function, panel = chosen[0]
                 scratch = typer.Typer()
-                scratch.command(rich_help_panel=panel)(_function(module, function))
+                fn = _function(module, function)
+                scratch.command(help=help_text(fn), rich_help_panel=panel)(fn)
                 one = copy.copy(self)
                 one._loaded, one._commands = True, list(scratch.registered_commands)
                 return typer.main.get_group(one)
         return typer.main.get_command(self)
+
+
+def help_text(fn: Any) -> Optional[str]:
+    """A command's help: its docstring with each paragraph's lines joined, for the terminal to wrap.
+
+    The docstrings are wrapped at 120 columns in the source; printed as they are, a terminal of 80 columns
+    breaks every line again, mid-sentence.  Lines of a list (``-``, ``*``, ``1.``) or indented ones keep their
+    breaks.
+
+    Examples
+    --------
+    >>> def f():
+    ...     \"\"\"First line.
+    ...
+    ...     A paragraph written
+    ...     on two lines.
+    ...
+    ...     - an item
+    ...     - another\"\"\"
+    >>> help_text(f)
+    'First line.\\n\\nA paragraph written on two lines.\\n\\n- an item\\n- another'
+    """
+    import inspect
+
+    doc = inspect.getdoc(fn)
+    if not doc:
+        return None
+    out = []
+    for para in doc.split("\n\n"):
+        lines = para.split("\n")
+        listed = any(ln.startswith((" ", "- ", "* ", "\u2022 ")) or ln.split(" ", 1)[0].rstrip(".").isdigit()
+                     for ln in lines)
+        out.append(para if listed else " ".join(ln.strip() for ln in lines))
+    return "\n\n".join(out)
 
 
 def _function(module: str, name: str) -> Any:

@@ -179,24 +179,47 @@ Reference = Step | Ramp | Samples
 
 @dataclass(frozen=True)
 class LoadStep:
-    """A step load disturbance of ``size`` added to the plant's input at ``time`` (s).
+    """A step load disturbance of ``size`` starting at ``time`` (s), added to the plant's input.
+
+    Where it enters, ``at``:
+
+    * ``"plant"`` (the default): at the plant's input, after the loop's input delay (the plant feels it at
+      ``time``): a load on the vehicle itself, such as a gust or a payload, with the delay being the link's;
+    * ``"command"``: on the command, before the input delay (the plant feels it at ``time`` plus the input delay):
+      an offset in the actuator command that travels through the link, as a load is drawn in textbooks that put
+      the dead time at the plant's input.
+
+    Either way it is added after the controller's limits (``umin``, ``umax``), which bound the controller's output,
+    not the load.
 
     Examples
     --------
     >>> LoadStep(0.2, time=5.0)
-    LoadStep(size=0.2, time=5.0)
+    LoadStep(size=0.2, time=5.0, at='plant')
+    >>> LoadStep(0.2, time=5.0, at="command").arrival(delay=0.3)   # when the plant feels it, s
+    5.3
     """
 
     size: float
     time: float = 0.0
+    at: Literal["plant", "command"] = "plant"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "size", check_real("disturbance size", self.size))
         object.__setattr__(self, "time", check_real("disturbance time (s)", self.time, minimum=0.0))
+        if not isinstance(self.at, str):
+            raise InvalidTypeError(f"a load step's 'at' must be 'plant' or 'command', got {type(self.at).__name__}")
+        if self.at not in ("plant", "command"):
+            raise InvalidValueError(f"a load step's 'at' must be 'plant' (after the input delay) or 'command' "
+                                    f"(before it), got {self.at!r}")
+
+    def arrival(self, delay: float) -> float:
+        """When the plant feels the load, for a loop whose input delay is ``delay`` (s)."""
+        return self.time + delay if self.at == "command" else self.time
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
-        return {"size": self.size, "time": self.time}
+        return {"size": self.size, "time": self.time, "at": self.at}
 
 
 def as_reference(ref: Any) -> Step | Ramp | Samples:

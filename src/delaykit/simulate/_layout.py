@@ -173,7 +173,7 @@ def param_row(loop: Loop, lay: LoopMatrices, *, step: float, slope: float, norm:
     p[HEAD["band"]] = band
     p[HEAD["norm"]] = norm
     p[HEAD["dist"]] = dist.size if dist is not None else 0.0
-    p[HEAD["t_dist"]] = dist.time if dist is not None else math.inf
+    p[HEAD["t_dist"]] = dist.arrival(loop.delay) if dist is not None else math.inf
     p[HEAD["dy"]] = lay.dy
     p[HEAD["dyd"]] = lay.dyd
     p[HEAD["dvr"]] = lay.dvr

@@ -306,7 +306,8 @@ def simulate(
     reference : Step, Ramp or Samples, optional
         Another reference instead of the step.
     disturbance : LoadStep, optional
-        A step load disturbance at the plant's input.
+        A step load disturbance at the plant's input: after the input delay (``LoadStep(..., at="plant")``, the
+        default) or on the command before it (``at="command"``: the plant feels it one input delay later).
 
     Returns
     -------

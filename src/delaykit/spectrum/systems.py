@@ -184,6 +184,12 @@ class HinfNorm:
     def __iter__(self):  # value, frequency = hinfnorm(sys), as python-control's tuple
         return iter((self.value, self.frequency))
 
+    def __len__(self) -> int:
+        return 2
+
+    def __getitem__(self, i: int | slice) -> Any:  # hinfnorm(sys)[0], as the tuple it unpacks as
+        return (self.value, self.frequency)[i]
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready (infinite values as null)."""
         from .frequency import _jsonable
@@ -272,7 +278,7 @@ def hinfnorm(sys: DelayLTI, *, rtol: float = 1e-10) -> HinfNorm:
     Returns
     -------
     HinfNorm
-        Unpacks as ``value, frequency``.
+        Unpacks as ``value, frequency`` and indexes as that pair (``hinfnorm(sys)[0]``), as python-control's tuple.
 
     Examples
     --------

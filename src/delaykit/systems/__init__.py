@@ -5,7 +5,7 @@ through a diagonal block of delays), :mod:`.algebra` combines systems (series, p
 interconnection) without approximating a delay, and :mod:`.build` makes them (``tf``, ``ss``, ``delay``,
 python-control objects, a :class:`~delaykit.models.Loop`) and turns them back into python-control objects with
 Padé approximations, and :mod:`.discrete` samples them exactly behind a zero-order hold; :mod:`.files` reads a system from a TOML
-file of blocks connected by name; :mod:`.difference` locates a neutral system's root chains, channel by channel.  This layer reads
+file of blocks connected by name; :mod:`.difference` locates a neutral system's root chains, channel by channel; :mod:`.laplace` is the Laplace variable ``s = tf("s")`` and its exact algebra.  This layer reads
 :mod:`delaykit.models` only; the poles, stability, H-infinity norm and margins of a system are in
 :mod:`delaykit.spectrum.systems`.
 
@@ -24,13 +24,16 @@ _SOURCES = {
     "build": ["tf", "ss", "delay", "saturation", "to_control", "from_loop", "plant_of", "to_loop"],
     "discrete": ["DiscreteLTI", "c2d"],
     "files": ["SystemFile", "read_system_file", "load_system", "system_from_dict"],
-    "difference": ["ChannelAbscissa", "channel_abscissa", "rationally_independent"],
+    "difference": ["ChannelAbscissa", "channel_abscissa", "rationally_independent",
+           "LaplaceExpression", "exp", "laplace_variable", "parse_expression"],
+    "laplace": ["LaplaceExpression", "exp", "laplace_variable", "parse_expression"],
 }
 
 __all__ = ["DelayLTI", "SystemResponse", "append", "series", "parallel", "feedback", "interconnect",
            "summing_junction", "gain", "tf", "ss", "delay", "saturation", "to_control", "from_loop", "plant_of",
            "to_loop", "DiscreteLTI", "c2d", "SystemFile", "read_system_file", "load_system", "system_from_dict",
-           "ChannelAbscissa", "channel_abscissa", "rationally_independent"]
+           "ChannelAbscissa", "channel_abscissa", "rationally_independent",
+           "LaplaceExpression", "exp", "laplace_variable", "parse_expression"]
 
 
 __getattr__, __dir__ = lazy_exports(__name__, by_module(_SOURCES), globals())

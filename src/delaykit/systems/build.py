@@ -29,6 +29,7 @@ from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
 from ..models.interop import require_control
 from ..models.transfer import TransferFunction, check_control_system
 from .algebra import _closed, _partitions, _stack, append, close, feedback, gain, interconnect, summing_junction
+from .laplace import LaplaceExpression, exp, laplace_variable, parse_expression
 from .lti import DelayLTI
 
 __all__ = ["tf", "ss", "delay", "saturation", "to_control", "from_loop", "plant_of", "to_loop"]
@@ -37,8 +38,11 @@ __all__ = ["tf", "ss", "delay", "saturation", "to_control", "from_loop", "plant_
 def _rename(sys: DelayLTI, inputs: Any, outputs: Any, name: str | None) -> DelayLTI:
     if inputs is None and outputs is None and name is None:
         return sys
-    return DelayLTI._from_parts(_partitions(sys), sys.delays, sys.limits, sys.inputs if inputs is None else inputs,
-                                sys.outputs if outputs is None else outputs, sys.name if name is None else name)
+    out = DelayLTI._from_parts(_partitions(sys), sys.delays, sys.limits, sys.inputs if inputs is None else inputs,
+                               sys.outputs if outputs is None else outputs, sys.name if name is None else name)
+    if "_expr" in sys.__dict__:  # built from s: still combined exactly with expressions of s
+        out.__dict__["_expr"] = sys.__dict__["_expr"]
+    return out
 
 
 def _rational(g: TransferFunction, T: float = 0.0) -> DelayLTI:
@@ -74,7 +78,13 @@ def _text(text: str) -> DelayLTI:
     import ast
 
     try:
-        g, T = TransferFunction.parse_with_delay(text)
+        g, T = TransferFunction.parse_with_delay(text, proper=False)
+        if g.num.any() and g.num.size > g.den.size:
+            raise InvalidValueError(
+                f"the transfer function {text!r} is improper: the numerator degree {g.num.size - 1} exceeds the "
+                f"denominator degree {g.den.size - 1}, and a system must be proper (numerator degree <= denominator "
+                "degree); an improper controller such as a PD law is built from s = tf('s') (kp + kd*s), which "
+                "stays an expression until it is combined with its plant")
         return _rational(g, T)
     except (InvalidValueError, InvalidTypeError) as exc:
         first = exc
@@ -240,7 +250,7 @@ def _from_control(obj: Any) -> DelayLTI:
     return _rename(sys, ins, outs, None)
 
 
-def tf(spec: Any, *, inputs: Any = None, outputs: Any = None, name: str | None = None) -> DelayLTI:
+def tf(spec: Any, den: Any = None, *, inputs: Any = None, outputs: Any = None, name: str | None = None) -> Any:
     """A system from a transfer function or matrix with dead times, kept exact.
 
     Parameters
@@ -251,7 +261,13 @@ def tf(spec: Any, *, inputs: Any = None, outputs: Any = None, name: str | None =
         divided (``"1/(1 + exp(-s)/(s+1))"``: internal delays, combined by the algebra); a pair ``(num, den)``
         or a triple ``(num, den, delay)``; a number; a :class:`~delaykit.models.TransferFunction`; a list of rows
         of these (a transfer matrix); a python-control ``TransferFunction`` or ``StateSpace`` (MIMO too); a
-        :class:`DelayLTI` (renamed).
+        :class:`DelayLTI` (renamed); an expression of ``s``
+        (:class:`~delaykit.systems.laplace.LaplaceExpression`).  ``tf("s")`` is the Laplace variable itself,
+        for python-control's ``s = tf("s")`` and its algebra (``2*exp(-0.5*s)/(s + 1)``; an improper
+        expression such as a PD law ``kp + kd*s`` is kept as an expression until it is combined into a proper
+        one); other improper text (``"s + 1"``) is refused, as a plant must be proper.
+    den : array_like, optional
+        With ``spec`` the numerator's coefficients: ``tf(num, den)``, as python-control's.
     inputs, outputs : list of str or str, optional
         Signal names (python-control's ``u[i]`` and ``y[i]`` by default).
     name : str, optional
@@ -279,7 +295,24 @@ def tf(spec: Any, *, inputs: Any = None, outputs: Any = None, name: str | None =
     (0.5,)
     >>> tf("(1 - exp(-2*s))/(s+1)")          # a difference of delayed paths
     DelayLTI(1 input ['u[0]'] -> 1 output ['y[0]'], 1 state, delays [2] s)
+    >>> tf([2.0], [1.0, 1.0])                 # python-control's tf(num, den)
+    DelayLTI(1 input ['u[0]'] -> 1 output ['y[0]'], 1 state, no delays)
+    >>> s = tf("s")                           # the Laplace variable
+    >>> 2 * exp(-0.5 * s) / (s + 1)
+    DelayLTI(1 input ['u[0]'] -> 1 output ['y[0]'], 1 state, delays [0.5] s)
     """
+    if den is not None:
+        if isinstance(spec, (str, DelayLTI)) or not _is_number_list(spec) or not _is_number_list(den):
+            raise InvalidTypeError(f"tf(num, den) takes two lists of coefficients (highest power first), got "
+                                   f"{reprlib.repr(spec)} and {reprlib.repr(den)}")
+        spec = (spec, den)
+    if isinstance(spec, LaplaceExpression):
+        return _rename(spec.to_system(), inputs, outputs, name)
+    if isinstance(spec, str) and spec.strip() == "s":
+        if inputs is not None or outputs is not None or name:
+            raise InvalidValueError("tf('s') is the Laplace variable, an expression of s, not a system: it takes "
+                                    "no names (name the system made from it)")
+        return laplace_variable()
     if isinstance(spec, DelayLTI):
         sys = spec
     elif isinstance(spec, list):
@@ -288,7 +321,17 @@ def tf(spec: Any, *, inputs: Any = None, outputs: Any = None, name: str | None =
     elif (type(spec).__module__ or "").split(".")[0] == "control":
         sys = _from_control(spec)
     else:
-        sys = _siso(spec, "tf")
+        try:
+            sys = _siso(spec, "tf")
+        except InvalidValueError:
+            if not isinstance(spec, str):
+                raise
+            try:  # read by the algebra of s: forms the reader refuses ("(s+1)/(s+0.5*exp(-s))"), improper text
+                sys = parse_expression(spec)
+            except (InvalidValueError, InvalidTypeError):
+                sys = None
+            if sys is None or isinstance(sys, LaplaceExpression):  # improper: the reader's reason stands
+                raise
     return _rename(sys, inputs, outputs, name)
 
 

@@ -47,7 +47,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError
+from ..errors import InvalidTypeError, InvalidValueError, check_real
 
 __all__ = ["DelayLTI", "SystemResponse", "as_frequencies"]
 
@@ -623,40 +623,94 @@ class DelayLTI:
     # -- algebra (see delaykit.systems.algebra) ------------------------------------------------------------
     __array_ufunc__ = None  # ``matrix * sys`` is the gain times the system (numpy defers to __rmul__), not per entry
 
+    def _laplace(self, other: Any, op: str, reflected: bool = False) -> Any:
+        """The exact algebra of ``s`` (:mod:`~delaykit.systems.laplace`) where it applies: ``other`` an
+        expression of ``s``, or this system built from ``s`` (it remembers its expression) and ``other`` a
+        number or another such system.  None elsewhere: the algebra of systems."""
+        if getattr(other, "_is_laplace", False):
+            return other._combine(self, op, not reflected)
+        mine = self.__dict__.get("_expr")
+        if mine is None:
+            return None
+        if isinstance(other, DelayLTI) and other.__dict__.get("_expr") is not None or (
+                isinstance(other, numbers.Real) and not isinstance(other, (bool, np.bool_))):
+            return mine._combine(other, op, reflected)
+        return None
+
     def __mul__(self, other: Any) -> DelayLTI:
+        r = self._laplace(other, "mul")
+        if r is not None:
+            return r
         from .algebra import series
 
         return series(self, other)
 
     def __rmul__(self, other: Any) -> DelayLTI:
+        r = self._laplace(other, "mul", True)
+        if r is not None:
+            return r
         from .algebra import series
 
         return series(other, self)
 
     def __add__(self, other: Any) -> DelayLTI:
+        r = self._laplace(other, "add")
+        if r is not None:
+            return r
         from .algebra import parallel
 
         return parallel(self, other)
 
     def __radd__(self, other: Any) -> DelayLTI:
+        r = self._laplace(other, "add", True)
+        if r is not None:
+            return r
         from .algebra import parallel
 
         return parallel(other, self)
 
     def __neg__(self) -> DelayLTI:
+        mine = self.__dict__.get("_expr")
+        if mine is not None:
+            return -mine
         from .algebra import negate
 
         return negate(self)
 
     def __sub__(self, other: Any) -> DelayLTI:
+        r = self._laplace(other, "sub")
+        if r is not None:
+            return r
         from .algebra import as_system, parallel
 
         return parallel(self, -as_system(other, "right term"))
 
     def __rsub__(self, other: Any) -> DelayLTI:
+        r = self._laplace(other, "sub", True)
+        if r is not None:
+            return r
         from .algebra import parallel
 
         return parallel(other, -self)
+
+    def __truediv__(self, other: Any) -> DelayLTI:
+        r = self._laplace(other, "truediv")
+        if r is not None:
+            return r
+        if isinstance(other, numbers.Real) and not isinstance(other, (bool, np.bool_)):
+            x = check_real("a divisor", other)
+            if x == 0.0:
+                raise InvalidValueError("division of a system by zero")
+            return self * (1.0 / x)
+        raise InvalidTypeError(f"a system is divided only by a number, or where both sides are built from s = "
+                               f"tf('s'); for a closed loop use feedback(), got a {type(other).__name__}")
+
+    def __rtruediv__(self, other: Any) -> DelayLTI:
+        r = self._laplace(other, "truediv", True)
+        if r is not None:
+            return r
+        raise InvalidTypeError("only a system built from s = tf('s') can be inverted by '/'; for a closed loop use "
+                               f"feedback(), got {type(other).__name__} / system")
 
     def __getitem__(self, key: Any) -> DelayLTI:
         from .algebra import select
