@@ -538,7 +538,9 @@ def _subset_terms(sys: DelayLTI, transfer: bool) -> dict[float, np.ndarray]:
     """
     n, m = sys.nstates, sys.ndelays
     eig = np.linalg.eigvals(sys.A) if n else np.zeros(0)
-    mags = np.abs(eig[eig != 0])
+    mags = np.abs(eig)
+    # an eigenvalue at 0 computed as 1e-18 is 0: counted, it would shrink the circle to the rounding level
+    mags = mags[mags > 1e-12 * mags.max()] if mags.size else mags
     radius = float(np.exp(np.mean(np.log(mags)))) if mags.size else 1.0
     pts = radius * np.exp(2j * np.pi * np.arange(n + 1) / (n + 1))
     terms: dict[float, np.ndarray] = {}
