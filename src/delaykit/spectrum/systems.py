@@ -1,6 +1,7 @@
 """What the spectrum and the frequency response of a delay system say: poles, stability, H-infinity norm, Nyquist.
 
-For a :class:`~delaykit.systems.DelayLTI` ``sys``:
+For a :class:`~delaykit.systems.DelayLTI` ``sys`` (or a :class:`~delaykit.models.Loop` / ``AltitudeLoop``, which
+stands for its closed loop :attr:`Loop.system <delaykit.models.loop.Loop.system>`):
 
 * :func:`poles` and :func:`is_stable`: the roots of its characteristic quasi-polynomial
   (:meth:`~delaykit.systems.DelayLTI.characteristic`) by the certified root finder
@@ -36,6 +37,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..systems.build import system_of
 from ..systems.difference import ChannelAbscissa, channel_abscissa
 from ..systems.lti import DelayLTI
 from .roots import Spectrum, find_roots, root_bound
@@ -49,8 +51,10 @@ _MAX_POINTS = 400_000
 
 
 def _system(sys: Any) -> DelayLTI:
+    """``sys``, or a loop's closed-loop system (:attr:`Loop.system <delaykit.models.loop.Loop.system>`)."""
+    sys = system_of(sys)
     if not isinstance(sys, DelayLTI):
-        raise InvalidTypeError(f"expected a DelayLTI (made by delaykit.tf, ss, feedback, ...), got "
+        raise InvalidTypeError(f"expected a DelayLTI (made by delaykit.tf, ss, feedback, ...) or a Loop, got "
                                f"{type(sys).__name__}")
     return sys
 

@@ -31,7 +31,7 @@ from ..models.transfer import TransferFunction, check_control_system
 from .algebra import _closed, _partitions, _stack, append, close, feedback, gain, interconnect, summing_junction
 from .lti import DelayLTI
 
-__all__ = ["tf", "ss", "delay", "saturation", "to_control", "from_loop", "plant_of", "to_loop"]
+__all__ = ["tf", "ss", "delay", "saturation", "to_control", "from_loop", "system_of", "plant_of", "to_loop"]
 
 
 def _rename(sys: DelayLTI, inputs: Any, outputs: Any, name: str | None) -> DelayLTI:
@@ -525,6 +525,24 @@ def from_loop(loop: Any, *, ignore_limits: bool = False) -> DelayLTI:
                                                            name="output delay")]
     return interconnect(blocks, inputs=["r", "d"], outputs=["y", "u"], name="loop")
 
+
+
+def system_of(x: Any) -> Any:
+    """The closed loop ``x.system`` (:func:`from_loop`, cached) of a :class:`~delaykit.models.Loop` or an
+    ``AltitudeLoop``; anything else unchanged (the caller checks it): how the system-level functions (``poles``,
+    ``is_stable``, ``hinfnorm``, ``step_response``, ...) take a loop.
+
+    Examples
+    --------
+    >>> from delaykit import AltitudeLoop, tf
+    >>> loop = AltitudeLoop(kp=1.31, delay=0.368)
+    >>> system_of(loop) is loop.system, system_of(tf("1/s")) == tf("1/s")
+    (True, True)
+    """
+    from ..models.altitude import AltitudeLoop
+    from ..models.loop import Loop
+
+    return x.system if isinstance(x, (Loop, AltitudeLoop)) else x
 
 
 def _subset_terms(sys: DelayLTI, transfer: bool) -> dict[float, np.ndarray]:
