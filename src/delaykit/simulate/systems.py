@@ -99,9 +99,11 @@ class SystemTimeResponse:
     >>> r = tf("exp(-s)/(s+1)", inputs="u", outputs="y").step([0.0, 2.0])
     >>> r
     SystemTimeResponse(step: 1 output x 1 input at 2 times, 0 to 2 s, exact, 2 pieces)
-    >>> t, y = r                       # unpacks as python-control's response
+    >>> t, y = r                       # unpacks as python-control's response (squeezed: one input, one output)
     >>> y.round(6).tolist(), r.output_labels
-    ([[[0.0, 0.632121]]], ('y',))
+    ([0.0, 0.632121], ('y',))
+    >>> r.y.shape, r.t is r.time       # python-control's aliases: y unsqueezed, t the times
+    ((1, 1, 2), True)
     """
 
     time: np.ndarray
@@ -114,8 +116,39 @@ class SystemTimeResponse:
     t_reached: float
     impulses: tuple[tuple[float, int, int, float], ...] = field(default=())
 
-    def __iter__(self):  # t, y = sys.step(), as python-control's response unpacks
-        return iter((self.time, self.outputs))
+    def __iter__(self):
+        """``t, y = response``, as python-control 0.10's ``TimeResponseData``: ``y`` squeezed for a system with one
+        input and one output (shape ``(times,)``), else :attr:`outputs` as they are."""
+        return iter((self.time, self._squeezed()))
+
+    def _squeezed(self) -> np.ndarray:
+        siso = len(self.output_labels) == 1 and len(self.input_labels) == 1
+        return self.outputs.reshape(-1) if siso else self.outputs
+
+    @property
+    def t(self) -> np.ndarray:
+        """The times (python-control's alias of :attr:`time`)."""
+        return self.time
+
+    @property
+    def y(self) -> np.ndarray:
+        """The outputs, not squeezed (python-control's alias of :attr:`outputs`)."""
+        return self.outputs
+
+    def plot(self, *, ax: Any = None, title: str | None = None) -> Any:
+        """Draw the response (:func:`~delaykit.plotting.systems.plot_system_response`, imported here: matplotlib
+        is loaded only when a figure is asked for); returns the figure.
+
+        Examples
+        --------
+        >>> from delaykit import tf
+        >>> fig = tf("exp(-s)/(s+1)").step([0.0, 1.0, 2.0]).plot(title="a lag")
+        >>> fig.get_suptitle()
+        'a lag'
+        """
+        from ..plotting.systems import plot_system_response  # the plotting layer, on demand (tests/test_layout.py)
+
+        return plot_system_response(self, ax=ax, title=title)
 
     def to_dict(self) -> dict[str, Any]:
         """Strict JSON: NaN outputs (past a stop) as ``None``.

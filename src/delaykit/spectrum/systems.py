@@ -59,8 +59,13 @@ def _system(sys: Any) -> DelayLTI:
     return sys
 
 
-def poles(sys: DelayLTI, region: Sequence[float]) -> Spectrum:
+def poles(sys: DelayLTI, region: Sequence[float] | None = None) -> Spectrum:
     """Every pole of ``sys`` in the rectangle ``region = (re_min, re_max, im_min, im_max)``, certified.
+
+    Without a region: the region that :func:`~delaykit.spectrum.stability.rightmost` finds, which provably holds
+    the rightmost poles: every pole with ``Im s >= 0`` right of its left edge (``.region[0]``; the poles below
+    the real axis are the conjugates, the coefficients being real), so ``.rightmost`` is the system's rightmost
+    pole and ``.roots`` every pole at least as far right as the region's left edge.
 
     The poles are the roots of ``det(sI - A) det(I - P22(s) Delta(s))`` (hidden modes included), found by
     :func:`~delaykit.spectrum.roots.find_roots`: ``.roots``, ``.multiplicities``, ``.certified``.  For a
@@ -74,10 +79,21 @@ def poles(sys: DelayLTI, region: Sequence[float]) -> Spectrum:
     >>> sp = poles(feedback(tf("2/(s+1)"), 1), (-5, 1, -1, 1))
     >>> sp.roots.round(12).tolist(), sp.certified
     ([(-3+0j)], True)
+    >>> r = poles(feedback(tf("exp(-0.5*s)/s"), 1)).rightmost    # no region: one that holds the rightmost
+    >>> round(r.real, 6), round(r.imag, 6)
+    (-1.588047, 1.540224)
     """
     sys = _system(sys)
     q = sys.characteristic()
-    sp = find_roots(q, region)
+    if region is not None:
+        sp = find_roots(q, region)
+    elif q.degree == 0 and len(q.polys) == 1:  # a constant: no poles at all (a static system, pure delays)
+        sp = find_roots(q, (-1.0, 1.0, 0.0, 1.0))
+    elif q.degree == 0:
+        raise InvalidValueError(f"{sys!r} has only the poles of its difference operator, infinitely many up every "
+                                "vertical line where they lie (neutral_spectrum(sys) gives the lines): give a region")
+    else:
+        sp = _rightmost(sys, q).spectrum
     if q.kind == "neutral" and q.degree > 0:
         import dataclasses
 

@@ -624,24 +624,24 @@ class DelayLTI:
     __array_ufunc__ = None  # ``matrix * sys`` is the gain times the system (numpy defers to __rmul__), not per entry
 
     def __mul__(self, other: Any) -> DelayLTI:
-        from .algebra import series
+        from .algebra import product
 
-        return series(self, other)
+        return product(self, other)
 
     def __rmul__(self, other: Any) -> DelayLTI:
-        from .algebra import series
+        from .algebra import product
 
-        return series(other, self)
+        return product(other, self)
 
     def __add__(self, other: Any) -> DelayLTI:
-        from .algebra import parallel
+        from .algebra import sum_of
 
-        return parallel(self, other)
+        return sum_of(self, other)
 
     def __radd__(self, other: Any) -> DelayLTI:
-        from .algebra import parallel
+        from .algebra import sum_of
 
-        return parallel(other, self)
+        return sum_of(other, self)
 
     def __neg__(self) -> DelayLTI:
         from .algebra import negate
@@ -649,14 +649,14 @@ class DelayLTI:
         return negate(self)
 
     def __sub__(self, other: Any) -> DelayLTI:
-        from .algebra import as_system, parallel
+        from .algebra import as_system, sum_of
 
-        return parallel(self, -as_system(other, "right term"))
+        return sum_of(self, -as_system(other, "right term"))
 
     def __rsub__(self, other: Any) -> DelayLTI:
-        from .algebra import parallel
+        from .algebra import sum_of
 
-        return parallel(other, -self)
+        return sum_of(other, -self)
 
     def __getitem__(self, key: Any) -> DelayLTI:
         from .algebra import select
