@@ -156,6 +156,15 @@ def test_small_eigenvalues_of_zero_do_not_spoil_the_rational_part():
     assert np.allclose(dk.frequency_response(sf.loops[0], w).L, direct, rtol=1e-9)
 
 
+def test_a_loop_without_phase_crossover_has_a_repr():
+    # 1/(s+1) and a static gain 2: no phase crossover (the phase never reaches -180), so GM inf; the repr once failed
+    # formatting the missing crossover frequency
+    for L, pm in ((tf("1/(s+1)"), math.inf), (tf("2"), math.inf)):
+        m = margins(L)
+        assert m.stable and m.gain_margin == math.inf and m.phase_crossover is None and m.phase_margin == pm
+        assert repr(m).startswith("Margins(GM inf, PM inf, DM inf")
+
+
 def test_bad_input_is_refused_naming_what_is_expected():
     with pytest.raises(InvalidTypeError, match="Loop, an AltitudeLoop or a DelayLTI"):
         margins("1/(s+1)")

@@ -429,9 +429,11 @@ class Margins:
         if not self.stable:
             return (f"Margins(closed loop UNSTABLE, {sum(c.kind == 'gain' for c in self.crossovers)} gain and "
                     f"{sum(c.kind == 'phase' for c in self.crossovers)} phase crossovers)")
-        at = "as w -> inf" if math.isinf(self.phase_crossover or 0.0) else f"at {self.phase_crossover:.4g} rad/s"
-        gm = "GM inf" if math.isinf(self.gain_margin) else (
-            f"GM {self.gain_margin:.4g} ({self.gain_margin_db:.4g} dB) {at}")
+        if math.isinf(self.gain_margin):  # (no phase crossover gives one: phase_crossover is None)
+            gm = "GM inf"
+        else:
+            at = "as w -> inf" if math.isinf(self.phase_crossover) else f"at {self.phase_crossover:.4g} rad/s"
+            gm = f"GM {self.gain_margin:.4g} ({self.gain_margin_db:.4g} dB) {at}"
         if math.isinf(self.phase_margin):
             pm = "PM inf, DM inf"
         else:
