@@ -15,7 +15,8 @@ import pytest
 from scipy.special import lambertw
 
 import delaykit as dk
-from delaykit import feedback, forced_response, initial_response, parallel, poles, series, ss, step_info, step_response, tf
+from delaykit import (feedback, forced_response, initial_response, parallel, poles, series, ss, step_info,
+                      step_response, tf)
 
 control = pytest.importorskip("control")
 

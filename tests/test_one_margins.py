@@ -117,6 +117,11 @@ def test_two_delays_use_the_grid_and_match_pade_and_the_certified_stability():
     assert np.allclose(r.L, L.evaluate(1j * w)[0, 0], rtol=1e-13)
     assert np.all(np.abs(np.diff(r.phase_deg)) < 90)
     assert np.allclose(np.exp(1j * np.radians(r.phase_deg)), r.L / np.abs(r.L), atol=1e-10)
+    # its default grid spans its features (poles 1, 2; delays 0.3, 1.1 s): 1/100 of the lowest to 10 x the highest
+    g = dk.frequency_grid(L, 5)
+    assert g[0] == pytest.approx(1 / 1.1 / 100) and g[-1] == pytest.approx(10 / 0.3)
+    assert dk.frequency_response(L).w.size == 500
+    assert dk.frequency_grid(L, 3, wmin=0.1, wmax=10.0).tolist() == pytest.approx([0.1, 1.0, 10.0])
 
 
 def test_mimo_loop_at_a_time_margins_one_per_channel():

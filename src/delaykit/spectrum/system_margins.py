@@ -132,7 +132,15 @@ def system_margins(L: DelayLTI) -> Any:
 
 
 def channel_margins(L: DelayLTI, channel: int) -> Any:
-    """Margins of one channel of a square ``L`` (the others closed); for :func:`~delaykit.spectrum.systems.loop_margins`."""
+    """Margins of one channel of a square ``L`` (the others closed), with the channel checked; for
+    :func:`~delaykit.spectrum.systems.loop_margins`.
+
+    Examples
+    --------
+    >>> from delaykit import tf
+    >>> channel_margins(tf([["exp(-0.2*s)/s", 0], [0, "2*exp(-0.1*s)/s"]]), 1).channel
+    1
+    """
     from .frequency import margins
 
     L = _square(L, "margins")

@@ -473,7 +473,8 @@ class LoopMargins:
 
 
 def loop_margins(L: DelayLTI, channel: int = 0) -> LoopMargins:
-    """Deprecated: use :func:`delaykit.margins` (``margins(L)`` for a SISO ``L``, ``margins(L)[channel]`` for a MIMO one).
+    """Deprecated: use :func:`delaykit.margins` (``margins(L)`` for a SISO ``L``, ``margins(L)[channel]`` for a MIMO
+    one).
 
     Loop-at-a-time margins: the loop broken at input ``channel`` of ``L``, the other channels closed, as
     :func:`~delaykit.spectrum.system_margins.channel_margins` gives them (exact for a rational loop times one
