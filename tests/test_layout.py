@@ -35,6 +35,12 @@ ALLOWED: set[tuple[str, str]] = {
     # DelayLTI.step(), .impulse(), .initial() and .lsim() (python-control's method names) call the time responses
     # of the layer above, inside the methods, as poles() does
     ("delaykit.systems.lti", "delaykit.simulate.systems"),
+    # Loop.system (a cached property) builds the closed loop as a DelayLTI with from_loop, inside the property: a
+    # Loop is a preset (named constructor) of that system (issue 32); the model itself needs nothing from layer 2
+    ("delaykit.models.loop", "delaykit.systems.build"),
+    # SystemTimeResponse.plot() (python-control's response.plot()) draws with the plotting layer, imported inside
+    # the method only, so that computing a response never loads matplotlib
+    ("delaykit.simulate.systems", "delaykit.plotting.systems"),
 }
 
 

@@ -53,7 +53,7 @@ def system_roots(path: Path, region: tuple[float, float, float, float], as_json:
 
 def system_margins(path: Path, as_json: bool) -> None:
     """Print the loop-at-a-time margins at a system file's break signals and the closed system's stability."""
-    from ..spectrum.systems import loop_margins
+    from ..spectrum.frequency import margins
     from ..systems.files import read_system_file
 
     sf = read_system_file(path)
@@ -61,7 +61,7 @@ def system_margins(path: Path, as_json: bool) -> None:
         raise InvalidValueError(f"{sf.source}: margins need the signals where the loop is opened: add "
                                 "break = [\"signal\", ...] to the file")
     stable, why = _stability(sf.system)
-    rows = [(x, loop_margins(L)) for x, L in zip(sf.breaks, sf.loops)]
+    rows = [(x, margins(L)) for x, L in zip(sf.breaks, sf.loops)]
     if as_json:
         data = {"system": repr(sf.system), "source": sf.source, "stable": stable, "stability_reason": why or None,
                 "loops": [{"at": x, **m.to_dict()} for x, m in rows]}
@@ -72,12 +72,12 @@ def system_margins(path: Path, as_json: bool) -> None:
 
     table = Table(title=Text(f"Loop-at-a-time margins of {sf.system!r}"))
     for col in ("opened at", "gain margin", "phase crossover", "phase margin (deg)", "gain crossover",
-                "delay margin"):
+                "delay margin", "method"):
         table.add_column(col, justify="right")
     f = lambda v, d=4: "none" if v is None else ("inf" if v == math.inf else f"{v:.{d}g}")  # noqa: E731
     for x, m in rows:
-        table.add_row(Text(x), f(m.gain_margin), f(m.phase_crossover), f(m.phase_margin), f(m.gain_crossover),
-                      f(m.delay_margin))
+        table.add_row(Text(x), f(m.gain_margin), f(m.phase_crossover), f(m.phase_margin), f(m.crossover),
+                      f(m.delay_margin), m.method)
     out.print(table)
     out.print("Crossovers in rad per time unit of the file, delay margins in that unit (s unless the file's "
               "blocks use another).", highlight=False, markup=False)

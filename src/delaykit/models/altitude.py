@@ -29,6 +29,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING, Any, Literal
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
@@ -165,6 +166,18 @@ class AltitudeLoop:
         d = np.array([1.0, 2 * zeta * w, w * w])
         delayed = g * np.polyadd(self.kp * d, [self.kv * w * w, 0.0])
         return QuasiPolynomial([np.polymul(plant, d), delayed], [0.0, self.delay])
+
+    @cached_property
+    def system(self) -> Any:
+        """The closed loop as a :class:`~delaykit.systems.DelayLTI` (built once): :attr:`Loop.system
+        <delaykit.models.loop.Loop.system>` of :meth:`to_loop`.
+
+        Examples
+        --------
+        >>> AltitudeLoop(kp=1.31, delay=0.368, vmax=None).system
+        DelayLTI(loop: 2 inputs ['r', 'd'] -> 2 outputs ['y', 'u'], 1 state, delays [0.368] s)
+        """
+        return self.to_loop().system
 
     def to_loop(self) -> "Loop":
         """This loop as the general :class:`~delaykit.models.loop.Loop` (the paper's loops are its presets).

@@ -35,6 +35,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -144,6 +145,28 @@ class Loop:
     def saturated(self) -> bool:
         """True when the command has a finite limit."""
         return math.isfinite(self.umin) or math.isfinite(self.umax)
+
+    @cached_property
+    def system(self) -> Any:
+        """The closed loop as a :class:`~delaykit.systems.DelayLTI`, built once (then cached) by
+        :func:`~delaykit.systems.from_loop`: inputs ``["r", "d"]`` (reference, load disturbance), outputs
+        ``["y", "u"]`` (plant output, command), the limits as a saturation channel.
+
+        A loop is a named constructor (a preset) of this system: ``poles``, ``is_stable``, ``step_response``,
+        ``forced_response`` and ``hinfnorm`` take the loop itself and analyse this system.  A sampled loop has none
+        (:class:`~delaykit.errors.InvalidValueError`).
+
+        Examples
+        --------
+        >>> loop = Loop("1/(s+1)", Controller.pi(2.0, 1.0), delay=0.1)
+        >>> loop.system
+        DelayLTI(loop: 2 inputs ['r', 'd'] -> 2 outputs ['y', 'u'], 2 states, delays [0.1] s)
+        >>> loop.system is loop.system
+        True
+        """
+        from ..systems.build import from_loop  # layer 2: the loop is a preset of the system it builds
+
+        return from_loop(self)
 
     def replace(self, **changes: Any) -> "Loop":
         """A copy with some fields changed (validated again); controller fields may be given directly.

@@ -24,8 +24,9 @@ __all__ = ["plot_system_response"]
 
 def plot_system_response(response: Any, *, ax: Any = None, path: str | Path | None = None,
                          title: str | None = None) -> Figure:
-    """A :class:`~delaykit.simulate.systems.SystemTimeResponse` of a step or an impulse: one panel per input, each
-    output a line (python-control's ``(outputs, inputs, times)`` layout), side by side.
+    """A :class:`~delaykit.simulate.systems.SystemTimeResponse`: for a step or an impulse one panel per input, each
+    output a line (python-control's ``(outputs, inputs, times)`` layout), side by side; for an initial or forced
+    response one panel, each output a line.
 
     Parameters
     ----------
@@ -45,9 +46,14 @@ def plot_system_response(response: Any, *, ax: Any = None, path: str | Path | No
     out = getattr(response, "outputs", None)
     if out is None or not hasattr(response, "time"):
         raise InvalidTypeError(f"expected a SystemTimeResponse, got {type(response).__name__}")
-    if out.ndim != 3:
-        raise InvalidValueError("plot_system_response draws a step or impulse response (outputs x inputs x times); "
-                                f"got outputs of shape {out.shape}")
+    if out.ndim == 2:  # an initial or forced response: one panel, each output a line
+        out = out[:, None, :]
+        response_inputs = ("the input",) if getattr(response, "kind", "") == "forced" else ("X0",)
+    elif out.ndim == 3:
+        response_inputs = tuple(response.input_labels)
+    else:
+        raise InvalidValueError("plot_system_response draws outputs x inputs x times (a step or impulse) or outputs x "
+                                f"times (an initial or forced response); got outputs of shape {out.shape}")
     ny, nu, _ = out.shape
     if ax is None:
         fig = Figure(figsize=(min(4.2 * max(nu, 1), 13.0), 3.6), layout="tight")
@@ -58,7 +64,7 @@ def plot_system_response(response: Any, *, ax: Any = None, path: str | Path | No
     for j, a in enumerate(axes[:nu]):
         for i in range(ny):
             a.plot(response.time, out[i, j], lw=1.3, label=response.output_labels[i])
-        a.set_title(f"{kind} of {response.input_labels[j]}")
+        a.set_title(f"{kind} of {response_inputs[j]}" if kind in ("step", "impulse") else f"{kind} response")
         a.set_xlabel("time t")
         a.grid(alpha=0.3)
         if kind == "step":

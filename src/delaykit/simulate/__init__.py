@@ -4,7 +4,8 @@
 kernel is the private :mod:`._kernel`), one loop or a batch of them; :mod:`.varying` simulates a sampled loop whose
 delay varies packet by packet (schedules, jitter, bursts, recorded traces); :mod:`.metrics` measures a step response
 (overshoot, peak, rise and settling times, a fitted second-order model, noise level); :mod:`.systems` gives the exact
-step, impulse, initial and forced responses of a :class:`~delaykit.systems.DelayLTI` (kernel :mod:`._ltikernel`). This layer reads models only;
+step, impulse, initial and forced responses of a :class:`~delaykit.systems.DelayLTI` (kernel :mod:`._ltikernel`) and
+:mod:`.step_info` python-control's ``step_info`` of any SISO system. This layer reads models only;
 it is a peer of :mod:`delaykit.spectrum` and neither imports the other.
 
 The names are imported on first use: ``from delaykit.simulate.simulation import simulate`` (what the command line
@@ -32,6 +33,7 @@ _SOURCES = {
     "montecarlo": ["MonteCarlo", "monte_carlo", "DelayDistribution"],
     "systems": ["SystemTimeResponse", "step_response", "impulse_response", "initial_response", "forced_response",
                 "step_response_many", "BatchTimeResponse"],
+    "step_info": ["step_info"],
 }
 
 __all__ = [
@@ -40,7 +42,7 @@ __all__ = [
     "DelayModel", "DelaySchedule", "Jitter", "Burst", "DelayTrace", "CombinedDelay", "as_delay_model", "arrival_plan",
     "VaryingResponse", "simulate_varying", "MonteCarlo", "monte_carlo", "DelayDistribution",
     "SystemTimeResponse", "step_response", "impulse_response", "initial_response", "forced_response",
-    "step_response_many", "BatchTimeResponse",
+    "step_response_many", "BatchTimeResponse", "step_info",
 ]
 
 

@@ -99,9 +99,11 @@ class SystemTimeResponse:
     >>> r = tf("exp(-s)/(s+1)", inputs="u", outputs="y").step([0.0, 2.0])
     >>> r
     SystemTimeResponse(step: 1 output x 1 input at 2 times, 0 to 2 s, exact, 2 pieces)
-    >>> t, y = r                       # unpacks as python-control's response
+    >>> t, y = r                       # unpacks as python-control's response (squeezed: one input, one output)
     >>> y.round(6).tolist(), r.output_labels
-    ([[[0.0, 0.632121]]], ('y',))
+    ([0.0, 0.632121], ('y',))
+    >>> r.y.shape, r.t is r.time       # python-control's aliases: y unsqueezed, t the times
+    ((1, 1, 2), True)
     """
 
     time: np.ndarray
@@ -114,8 +116,39 @@ class SystemTimeResponse:
     t_reached: float
     impulses: tuple[tuple[float, int, int, float], ...] = field(default=())
 
-    def __iter__(self):  # t, y = sys.step(), as python-control's response unpacks
-        return iter((self.time, self.outputs))
+    def __iter__(self):
+        """``t, y = response``, as python-control 0.10's ``TimeResponseData``: ``y`` squeezed for a system with one
+        input and one output (shape ``(times,)``), else :attr:`outputs` as they are."""
+        return iter((self.time, self._squeezed()))
+
+    def _squeezed(self) -> np.ndarray:
+        siso = len(self.output_labels) == 1 and len(self.input_labels) == 1
+        return self.outputs.reshape(-1) if siso else self.outputs
+
+    @property
+    def t(self) -> np.ndarray:
+        """The times (python-control's alias of :attr:`time`)."""
+        return self.time
+
+    @property
+    def y(self) -> np.ndarray:
+        """The outputs, not squeezed (python-control's alias of :attr:`outputs`)."""
+        return self.outputs
+
+    def plot(self, *, ax: Any = None, title: str | None = None) -> Any:
+        """Draw the response (:func:`~delaykit.plotting.systems.plot_system_response`, imported here: matplotlib
+        is loaded only when a figure is asked for); returns the figure.
+
+        Examples
+        --------
+        >>> from delaykit import tf
+        >>> fig = tf("exp(-s)/(s+1)").step([0.0, 1.0, 2.0]).plot(title="a lag")
+        >>> fig.get_suptitle()
+        'a lag'
+        """
+        from ..plotting.systems import plot_system_response  # the plotting layer, on demand (tests/test_layout.py)
+
+        return plot_system_response(self, ax=ax, title=title)
 
     def to_dict(self) -> dict[str, Any]:
         """Strict JSON: NaN outputs (past a stop) as ``None``.
@@ -384,12 +417,17 @@ def _check_neutral(D: np.ndarray, channels: list[int], tau: np.ndarray) -> None:
 
 # -- inputs --------------------------------------------------------------------------------------------------
 
-def _check_system(sys: Any) -> None:
+def _check_system(sys: Any) -> Any:
+    """``sys`` as a :class:`~delaykit.systems.DelayLTI` (a loop's closed-loop system, :attr:`Loop.system
+    <delaykit.models.loop.Loop.system>`), or an error."""
+    from ..systems.build import system_of
     from ..systems.lti import DelayLTI
 
+    sys = system_of(sys)
     if not isinstance(sys, DelayLTI):
-        raise InvalidTypeError(f"a DelayLTI is expected (build one with delaykit.tf or ss), got "
+        raise InvalidTypeError(f"a DelayLTI is expected (build one with delaykit.tf or ss) or a Loop, got "
                                f"{type(sys).__name__}")
+    return sys
 
 
 def _times(T: Any, name: str = "T") -> np.ndarray:
@@ -424,7 +462,7 @@ def default_horizon(sys: Any) -> float:
     >>> default_horizon(tf("exp(-2*s)/(s+1)"))     # 7 x 1 s + 3 x 2 s
     13.0
     """
-    _check_system(sys)
+    sys = _check_system(sys)
     P = {k: np.asarray(getattr(sys, k), float) for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21", "D22")}
     m = len(sys.delays)
     try:
@@ -540,7 +578,7 @@ _PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _columns(sys: Any, T: Any, deriv: bool, kind: str) -> SystemTimeResponse:
-    _check_system(sys)
+    sys = _check_system(sys)
     t = _default_times(sys, T)
     red = _plan(sys)
     ny, nu = sys.noutputs, sys.ninputs
@@ -567,8 +605,10 @@ def step_response(sys: Any, T: Any = None) -> SystemTimeResponse:
 
     Parameters
     ----------
-    sys : DelayLTI
-        The system (delays, saturation channels, neutral with a strongly stable difference operator).
+    sys : DelayLTI or Loop
+        The system (delays, saturation channels, neutral with a strongly stable difference operator); a
+        :class:`~delaykit.models.Loop` or ``AltitudeLoop`` stands for its closed loop :attr:`Loop.system
+        <delaykit.models.loop.Loop.system>` (inputs ``r``, ``d``; outputs ``y``, ``u``).
     T : array_like or float, optional
         Times (s, increasing, >= 0), or a horizon (1001 times from 0 to it); default :func:`default_horizon`.
 
@@ -628,7 +668,7 @@ def impulse_response(sys: Any, T: Any = None) -> SystemTimeResponse:
     >>> r.outputs[0, 0].round(6).tolist()       # exp(-(t - 1)) after 1 s
     [0.0, 1.0, 0.367879]
     """
-    _check_system(sys)
+    sys = _check_system(sys)
     if sys.saturations:
         raise InvalidValueError(f"{sys!r} has saturation channels {list(sys.saturations)}: an impulse through a "
                                 "saturation has no meaning; use initial_response from X0 = B1[:, j] or "
@@ -647,7 +687,7 @@ def initial_response(sys: Any, T: Any = None, X0: Any = 0.0) -> SystemTimeRespon
     >>> r.outputs.round(6).tolist()
     [[2.0, 0.735759]]
     """
-    _check_system(sys)
+    sys = _check_system(sys)
     t = _default_times(sys, T)
     x0 = _initial_state(sys, X0)
     y, st, p, tr, _, _ = _run(_plan(sys), np.zeros(1), np.zeros((1, 1, sys.ninputs)), x0, t, float(t[-1]))[0]
@@ -661,7 +701,8 @@ def forced_response(sys: Any, T: Any, U: Any, X0: Any = 0.0) -> SystemTimeRespon
 
     Parameters
     ----------
-    sys : DelayLTI
+    sys : DelayLTI or Loop
+        A loop stands for its closed loop, as in :func:`step_response`.
     T : array_like
         Times (s), strictly increasing; the system starts at ``T[0]`` (every signal 0 before it).
     U : array_like
@@ -678,7 +719,7 @@ def forced_response(sys: Any, T: Any, U: Any, X0: Any = 0.0) -> SystemTimeRespon
     >>> r.outputs.tolist()            # the integral of the input one second late
     [[0.0, 0.0, 0.5, 1.5]]
     """
-    _check_system(sys)
+    sys = _check_system(sys)
     t = _times(T)
     nu = sys.ninputs
     u = check_finite_array("U", U)

@@ -3,7 +3,8 @@
 :mod:`.lambert` gives the roots of first-order loops in closed form with Lambert W, :mod:`.roots` finds every root
 of a retarded or neutral quasi-polynomial in a rectangle (the compiled inner loops are the private
 :mod:`._rootkernel`), :mod:`.stability` turns roots into the rightmost root, delay margins and stability maps,
-:mod:`.frequency` gives the exact frequency response and the gain, phase and delay margins of continuous loops, and
+:mod:`.frequency` gives the exact frequency response and the gain, phase and delay margins of continuous loops
+(and, through :mod:`.system_margins`, of open loops given as delay systems), and
 :mod:`.sampled` gives the exact discrete-time model and poles of loops with a sampled (zero-order hold) controller
 and :mod:`.discrete_margins` their frequency response and margins, and
 :mod:`.jitter` the jitter margin: stability for a delay that varies arbitrarily fast within bounds.

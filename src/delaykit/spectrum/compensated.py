@@ -437,9 +437,10 @@ def compensated_margins(loop: Loop) -> Margins:
                 best, w_ms = d0, None
         return (1.0 / best if best > 0 else math.inf), w_ms
 
-    return _assemble(loop, crossovers, stable=_closed_loop_stable(loop), source="roots",
+    return _assemble(loop.total_delay, crossovers, stable=_closed_loop_stable(loop), source="roots",
                      open_loop_rhp_poles=p_rhp if p_rhp is not None else -1,
-                     encirclements=None if (on_curve or p_rhp is None) else ccw, cutoff=hi, peak=peak)
+                     encirclements=None if (on_curve or p_rhp is None) else ccw, cutoff=hi, peak=peak,
+                     method="grid")
 
 def compensated_jitter(loop: Loop) -> tuple[float, float, Margins]:
     """``(margin, frequency, margins)``: the Kao-Lincoln jitter margin ``inf |1 + L| / (w |L|)`` of a compensated

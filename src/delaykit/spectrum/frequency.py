@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -59,6 +59,9 @@ from ..models.budget import MAX_FREQUENCY_DECADES, check_count
 from ..models.loop import Loop
 from ._openloop import (TWO_PI, OpenLoop, PhaseScan, cutoff_frequency, dense_grid, gain_crossovers, scan_phase,
                         newton_bracketed, snap_half_turns)
+
+if TYPE_CHECKING:
+    from ..systems.lti import DelayLTI
 
 __all__ = ["FrequencyResponse", "Crossover", "Margins", "frequency_response", "frequency_grid", "margins",
            "check_frequency_range", "MAX_DELAY_PHASE"]
@@ -80,10 +83,31 @@ def _continuous(loop: Any) -> Loop:
     return loop
 
 
+def _system(x: Any) -> Any:
+    """``x`` when it is a :class:`~delaykit.systems.DelayLTI` (an open loop ``L``, closed as ``feedback(L, I)``), else
+    ``None``; anything that is neither a system nor a loop is refused naming all three."""
+    if isinstance(x, (Loop, AltitudeLoop)):
+        return None
+    from ..systems.lti import DelayLTI
+
+    if isinstance(x, DelayLTI):
+        return x
+    raise InvalidTypeError(f"expected a Loop, an AltitudeLoop or a DelayLTI open loop (made by delaykit.tf, ss, "
+                           f"series, ...: closed as feedback(L, I)), got {type(x).__name__}")
+
+
 def _compensated(loop: Loop) -> bool:
     """True for a loop whose controller reads its own command (a compensator: see
     :mod:`delaykit.spectrum.compensated`, which analyses it)."""
     return not hasattr(loop.controller, "feedback_polynomials")
+
+
+def _siso(sys: Any, what: str) -> Any:
+    """The SISO system ``sys`` (without its saturations), or an error pointing to the MIMO response."""
+    if (sys.ninputs, sys.noutputs) != (1, 1):
+        raise InvalidValueError(f"{what} takes a SISO open loop, got {sys!r}; a MIMO system's response is "
+                                "sys.frequency_response(w), its loop-at-a-time margins margins(sys)")
+    return sys.without_limits() if sys.saturations else sys
 
 
 # ------------------------------------------------------------------------------------ frequency response
@@ -140,12 +164,13 @@ class FrequencyResponse:
                 f"{mag})")
 
 
-def frequency_grid(loop: Loop | AltitudeLoop, n: int = 500, *, wmin: float | None = None,
+def frequency_grid(loop: Loop | AltitudeLoop | DelayLTI, n: int = 500, *, wmin: float | None = None,
                    wmax: float | None = None) -> np.ndarray:
     """A logarithmic frequency grid (rad/s) that covers a loop's poles, zeros, crossovers and delay.
 
     From 1/100 of the lowest to 10 times the highest of: the magnitudes of the poles and zeros of ``L``
-    (not 0), ``1/T`` and the gain crossovers; ``wmin``/``wmax`` replace either end.
+    (not 0), ``1/T`` and the gain crossovers; ``wmin``/``wmax`` replace either end.  A SISO
+    :class:`~delaykit.systems.DelayLTI` open loop is taken as in :func:`frequency_response`.
 
     Examples
     --------
@@ -154,9 +179,23 @@ def frequency_grid(loop: Loop | AltitudeLoop, n: int = 500, *, wmin: float | Non
     >>> w.round(4).tolist()
     [0.0131, 0.0884, 0.5966, 4.0265, 27.1739]
     """
-    loop = _continuous(loop)
+    sys = _system(loop)
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
         raise InvalidValueError(f"n (number of frequencies) must be an integer of at least 2, got {n!r}")
+    if sys is not None:
+        from .system_margins import as_exact_loop, system_frequency_grid
+
+        loop = as_exact_loop(_siso(sys, "frequency_grid"))
+        if loop is None:
+            w = system_frequency_grid(sys, int(n))
+            lo = w[0] if wmin is None else check_real("wmin (rad/s)", wmin, minimum=0.0, strict=True)
+            hi = w[-1] if wmax is None else check_real("wmax (rad/s)", wmax, minimum=0.0, strict=True)
+            if not hi > lo:
+                raise InvalidValueError(f"the frequency range is empty or reversed: wmin = {lo:g} rad/s must be "
+                                        f"below wmax = {hi:g} rad/s")
+            check_frequency_range(lo, hi, max(sys.delays, default=0.0))
+            return np.geomspace(lo, hi, int(n))
+    loop = _continuous(loop)
     if _compensated(loop):
         from .compensated import compensated_grid
 
@@ -204,13 +243,17 @@ def check_frequency_range(wmin: float, wmax: float, delay: float) -> None:
                                 f"no precision; give wmax at most {MAX_DELAY_PHASE / delay:.3g} rad/s")
 
 
-def frequency_response(loop: Loop | AltitudeLoop, w: Any = None) -> FrequencyResponse:
+def frequency_response(loop: Loop | AltitudeLoop | DelayLTI, w: Any = None) -> FrequencyResponse:
     """The exact loop transfer function ``L(jw) = Np Nc / (Dp Dc) (jw) exp(-jw T)`` at the frequencies ``w``.
 
     Parameters
     ----------
-    loop : Loop or AltitudeLoop
-        A continuous loop (a sampled one raises :class:`~delaykit.errors.InvalidValueError`).
+    loop : Loop, AltitudeLoop or DelayLTI
+        A continuous loop (a sampled one raises :class:`~delaykit.errors.InvalidValueError`), or a SISO open loop
+        ``L`` as a system (``C * G``), closed by unity negative feedback.  A system that is a rational function
+        times one dead time is analysed as the equivalent :class:`Loop` (the phase exact, as above); any other
+        one (several delays, a delay inside a loop) is evaluated exactly, its phase unwrapped along the sorted
+        frequencies (:mod:`delaykit.spectrum.system_margins`).
     w : array_like, optional
         Frequencies in rad/s, finite and at least 0, in any order; by default :func:`frequency_grid`.
 
@@ -229,7 +272,21 @@ def frequency_response(loop: Loop | AltitudeLoop, w: Any = None) -> FrequencyRes
     >>> r = frequency_response(AltitudeLoop(kp=1.31, delay=0.368), [1.31])
     >>> round(float(r.magnitude[0]), 12), round(float(r.phase_deg[0]), 4)   # -90 - 1.31*0.368*180/pi
     (1.0, -117.6211)
+    >>> from delaykit import tf
+    >>> r = frequency_response(tf("1.31") * tf("exp(-0.368*s)/s"), [1.31])    # the same loop as a system
+    >>> round(float(r.magnitude[0]), 12), round(float(r.phase_deg[0]), 4)
+    (1.0, -117.6211)
     """
+    sys = _system(loop)
+    if sys is not None:
+        from .system_margins import as_exact_loop, system_frequency_response
+
+        sys = _siso(sys, "frequency_response")
+        exact = as_exact_loop(sys)
+        if exact is None:
+            w = frequency_grid(sys) if w is None else _frequencies(w)
+            return system_frequency_response(sys, w)
+        loop = exact
     loop = _continuous(loop)
     w = frequency_grid(loop) if w is None else _frequencies(w)
     if _compensated(loop):
@@ -303,6 +360,13 @@ class Margins:
     All margins are ``inf`` when nothing crosses, and ``nan`` when the closed loop is already unstable
     (``stable`` False: there is no stability to lose; the crossovers are still listed).  In :meth:`to_dict`
     both are ``null``.
+
+    ``method`` says how the crossovers were found: ``"exact"`` (a rational loop times one delay: the gain
+    crossovers are polynomial roots and the phase crossovers are listed up to a cut-off past which none can give
+    a smaller margin, so :attr:`certified` is True) or ``"grid"`` (a loop with several delays, a delay inside a
+    loop, or a compensator: a grid scan refined to machine precision, which can miss crossovers closer together
+    than the grid's spacing).  Either way ``stable`` is the certified stability of the closed loop.  ``channel``
+    is the channel opened, for the loop-at-a-time margins of a MIMO system (``None`` for a SISO loop).
     """
 
     gain_margin: float
@@ -320,6 +384,13 @@ class Margins:
     cutoff: float
     crossovers: tuple[Crossover, ...]
     stability_from: str = "roots"
+    method: str = "exact"
+    channel: int | None = None
+
+    @property
+    def certified(self) -> bool:
+        """True when no crossover can have been missed (``method == "exact"``)."""
+        return self.method == "exact"
 
     @property
     def gain_margin_db(self) -> float:
@@ -338,7 +409,7 @@ class Margins:
         Keys: ``gain_margin``, ``phase_margin``, ``delay_margin``, ``critical_delay``, ``crossover``, ``ms``,
         ``crossovers`` (a list of :meth:`Crossover.to_dict`), and also ``gain_margin_db``,
         ``lower_gain_margin``, ``phase_crossover``, ``ms_frequency``, ``stable``, ``open_loop_rhp_poles``,
-        ``encirclements``, ``cutoff`` and ``stability_from``.
+        ``encirclements``, ``cutoff``, ``stability_from``, ``method``, ``certified`` and ``channel``.
         """
         return _jsonable({
             "gain_margin": self.gain_margin, "phase_margin": self.phase_margin, "delay_margin": self.delay_margin,
@@ -347,15 +418,22 @@ class Margins:
             "gain_margin_db": self.gain_margin_db, "lower_gain_margin": self.lower_gain_margin,
             "phase_crossover": self.phase_crossover, "ms_frequency": self.ms_frequency, "stable": self.stable,
             "open_loop_rhp_poles": self.open_loop_rhp_poles, "encirclements": self.encirclements,
-            "cutoff": self.cutoff, "stability_from": self.stability_from})
+            "cutoff": self.cutoff, "stability_from": self.stability_from, "method": self.method,
+            "certified": self.certified, "channel": self.channel})
 
     def __repr__(self) -> str:
+        text = self._text()
+        return text if self.channel is None else f"Margins(channel {self.channel}: {text[8:]}"
+
+    def _text(self) -> str:
         if not self.stable:
             return (f"Margins(closed loop UNSTABLE, {sum(c.kind == 'gain' for c in self.crossovers)} gain and "
                     f"{sum(c.kind == 'phase' for c in self.crossovers)} phase crossovers)")
-        at = "as w -> inf" if math.isinf(self.phase_crossover or 0.0) else f"at {self.phase_crossover:.4g} rad/s"
-        gm = "GM inf" if math.isinf(self.gain_margin) else (
-            f"GM {self.gain_margin:.4g} ({self.gain_margin_db:.4g} dB) {at}")
+        if math.isinf(self.gain_margin):  # (no phase crossover gives one: phase_crossover is None)
+            gm = "GM inf"
+        else:
+            at = "as w -> inf" if math.isinf(self.phase_crossover) else f"at {self.phase_crossover:.4g} rad/s"
+            gm = f"GM {self.gain_margin:.4g} ({self.gain_margin_db:.4g} dB) {at}"
         if math.isinf(self.phase_margin):
             pm = "PM inf, DM inf"
         else:
@@ -459,7 +537,7 @@ def _closed_loop_stable(loop: Loop) -> bool:
     return bool(rightmost(q).stable)
 
 
-def margins(loop: Loop | AltitudeLoop) -> Margins:
+def margins(loop: Loop | AltitudeLoop | DelayLTI) -> Margins | tuple[Margins, ...]:
     """Gain, phase and delay margins, peak sensitivity and every crossover of a continuous delay loop.
 
     Definitions (``L`` as in the module docstring; ``phi`` its unwrapped phase):
@@ -502,6 +580,13 @@ def margins(loop: Loop | AltitudeLoop) -> Margins:
 
     Phase crossovers are listed up to ``cutoff`` (rad/s, see the module docstring).
 
+    A :class:`~delaykit.systems.DelayLTI` is taken as the open loop ``L`` of ``feedback(L, I)`` (python-control's
+    convention): a SISO ``L`` that is a rational function times one dead time gets the margins of the equivalent
+    unity-feedback :class:`Loop` (``method == "exact"``); any other one gets margins from a refined grid scan
+    (``method == "grid"``, :attr:`Margins.certified` False), with the closed loop's stability still certified.
+    A square MIMO ``L`` gets a tuple of loop-at-a-time margins, one per channel (channel ``k`` opened, the others
+    closed).  See :mod:`delaykit.spectrum.system_margins`.
+
     Raises
     ------
     InvalidValueError
@@ -527,7 +612,17 @@ def margins(loop: Loop | AltitudeLoop) -> Margins:
     >>> m = margins(Loop("1/(s-1)", Controller.p(2.0), delay=0.1))   # open-loop unstable, stable closed loop
     >>> m.stable, m.open_loop_rhp_poles, m.encirclements, round(m.lower_gain_margin, 6)
     (True, 1, 1, 0.5)
+    >>> from delaykit import tf
+    >>> margins(tf("2") * tf("exp(-0.1*s)/(s-1)")) == m          # the same loop as a system C * G
+    True
+    >>> margins(tf("3*exp(-s)/(s-1)")).stable                  # no margins: the closed loop is unstable
+    False
     """
+    sys = _system(loop)
+    if sys is not None:
+        from .system_margins import system_margins
+
+        return system_margins(sys)
     loop = _continuous(loop)
     if _compensated(loop):
         from .compensated import compensated_margins
@@ -581,20 +676,22 @@ def margins(loop: Loop | AltitudeLoop) -> Margins:
             if ccw is None:
                 raise
             stable, source = p_rhp - ccw == 0, "nyquist"
-    return _assemble(loop, crossovers, stable=stable, source=source, open_loop_rhp_poles=p_rhp, encirclements=ccw,
-                     cutoff=w_hi, peak=lambda: _peak_sensitivity(ol, np.unique(np.concatenate(
+    return _assemble(loop.total_delay, crossovers, stable=stable, source=source, open_loop_rhp_poles=p_rhp,
+                     encirclements=ccw, cutoff=w_hi, peak=lambda: _peak_sensitivity(ol, np.unique(np.concatenate(
                          [scan.grid, gains, [c[0] for c in scan.crossings]]))))
 
 
-def _assemble(loop: Loop, crossovers: list[Crossover], *, stable: bool, source: str, open_loop_rhp_poles: int,
-              encirclements: int | None, cutoff: float, peak: Any) -> Margins:
+def _assemble(total_delay: float, crossovers: list[Crossover], *, stable: bool, source: str,
+              open_loop_rhp_poles: int, encirclements: int | None, cutoff: float, peak: Any,
+              method: str = "exact") -> Margins:
     """The :class:`Margins` from the crossovers (see :func:`margins` for the definitions); ``peak()`` gives
-    ``(Ms, where)`` and is called only for a stable loop.  Shared with :mod:`delaykit.spectrum.compensated`."""
+    ``(Ms, where)`` and is called only for a stable loop; ``total_delay`` (s) is the loop's own delay.  Shared with
+    :mod:`delaykit.spectrum.compensated` and :mod:`delaykit.spectrum.system_margins`."""
     crossovers = sorted(crossovers, key=lambda c: (c.frequency, c.kind))
     if not stable:
         nan = math.nan
         return Margins(nan, nan, nan, nan, nan, None, None, nan, None, False, open_loop_rhp_poles, encirclements,
-                       cutoff, tuple(crossovers), source)
+                       cutoff, tuple(crossovers), source, method)
     up = [c for c in crossovers if c.kind == "phase" and c.gain_margin >= 1.0]
     gm = min((c.gain_margin for c in up), default=math.inf)
     gm_c = next((c for c in up if c.gain_margin <= gm * (1 + 1e-9)), None)  # the lowest frequency of a tie
@@ -608,7 +705,7 @@ def _assemble(loop: Loop, crossovers: list[Crossover], *, stable: bool, source: 
         pm, dm, wc = math.inf, math.inf, None
     ms, ms_w = peak()
     return Margins(gain_margin=gm, lower_gain_margin=max(low, default=0.0),
-                   phase_margin=pm, delay_margin=dm, critical_delay=loop.total_delay + dm, crossover=wc,
+                   phase_margin=pm, delay_margin=dm, critical_delay=total_delay + dm, crossover=wc,
                    phase_crossover=gm_c.frequency if gm_c else None, ms=ms, ms_frequency=ms_w, stable=True,
                    open_loop_rhp_poles=open_loop_rhp_poles, encirclements=encirclements, cutoff=cutoff,
-                   crossovers=tuple(crossovers), stability_from=source)
+                   crossovers=tuple(crossovers), stability_from=source, method=method)

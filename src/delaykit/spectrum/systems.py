@@ -1,6 +1,7 @@
 """What the spectrum and the frequency response of a delay system say: poles, stability, H-infinity norm, Nyquist.
 
-For a :class:`~delaykit.systems.DelayLTI` ``sys``:
+For a :class:`~delaykit.systems.DelayLTI` ``sys`` (or a :class:`~delaykit.models.Loop` / ``AltitudeLoop``, which
+stands for its closed loop :attr:`Loop.system <delaykit.models.loop.Loop.system>`):
 
 * :func:`poles` and :func:`is_stable`: the roots of its characteristic quasi-polynomial
   (:meth:`~delaykit.systems.DelayLTI.characteristic`) by the certified root finder
@@ -14,7 +15,8 @@ For a :class:`~delaykit.systems.DelayLTI` ``sys``:
 * :func:`nyquist_count`: the closed-loop poles of ``feedback(L, I)`` in the right half-plane from the winding of
   ``det(I + L(s))`` on the imaginary axis (moved right by ``sigma`` to pass the integrators), tracked on a grid
   refined until the phase turns by less than 0.5 rad between points.
-* :func:`loop_margins`: gain, phase and delay margins of one channel of a MIMO loop, the others closed.
+* :func:`loop_margins` (deprecated: :func:`delaykit.margins` takes a system): gain, phase and delay margins of one
+  channel of a MIMO loop, the others closed.
 
 Examples
 --------
@@ -34,8 +36,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
-from ..systems.algebra import feedback, gain
+from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..systems.build import system_of
 from ..systems.difference import ChannelAbscissa, channel_abscissa
 from ..systems.lti import DelayLTI
 from .roots import Spectrum, find_roots, root_bound
@@ -49,14 +51,21 @@ _MAX_POINTS = 400_000
 
 
 def _system(sys: Any) -> DelayLTI:
+    """``sys``, or a loop's closed-loop system (:attr:`Loop.system <delaykit.models.loop.Loop.system>`)."""
+    sys = system_of(sys)
     if not isinstance(sys, DelayLTI):
-        raise InvalidTypeError(f"expected a DelayLTI (made by delaykit.tf, ss, feedback, ...), got "
+        raise InvalidTypeError(f"expected a DelayLTI (made by delaykit.tf, ss, feedback, ...) or a Loop, got "
                                f"{type(sys).__name__}")
     return sys
 
 
-def poles(sys: DelayLTI, region: Sequence[float]) -> Spectrum:
+def poles(sys: DelayLTI, region: Sequence[float] | None = None) -> Spectrum:
     """Every pole of ``sys`` in the rectangle ``region = (re_min, re_max, im_min, im_max)``, certified.
+
+    Without a region: the region that :func:`~delaykit.spectrum.stability.rightmost` finds, which provably holds
+    the rightmost poles: every pole with ``Im s >= 0`` right of its left edge (``.region[0]``; the poles below
+    the real axis are the conjugates, the coefficients being real), so ``.rightmost`` is the system's rightmost
+    pole and ``.roots`` every pole at least as far right as the region's left edge.
 
     The poles are the roots of ``det(sI - A) det(I - P22(s) Delta(s))`` (hidden modes included), found by
     :func:`~delaykit.spectrum.roots.find_roots`: ``.roots``, ``.multiplicities``, ``.certified``.  For a
@@ -70,10 +79,21 @@ def poles(sys: DelayLTI, region: Sequence[float]) -> Spectrum:
     >>> sp = poles(feedback(tf("2/(s+1)"), 1), (-5, 1, -1, 1))
     >>> sp.roots.round(12).tolist(), sp.certified
     ([(-3+0j)], True)
+    >>> r = poles(feedback(tf("exp(-0.5*s)/s"), 1)).rightmost    # no region: one that holds the rightmost
+    >>> round(r.real, 6), round(r.imag, 6)
+    (-1.588047, 1.540224)
     """
     sys = _system(sys)
     q = sys.characteristic()
-    sp = find_roots(q, region)
+    if region is not None:
+        sp = find_roots(q, region)
+    elif q.degree == 0 and len(q.polys) == 1:  # a constant: no poles at all (a static system, pure delays)
+        sp = find_roots(q, (-1.0, 1.0, 0.0, 1.0))
+    elif q.degree == 0:
+        raise InvalidValueError(f"{sys!r} has only the poles of its difference operator, infinitely many up every "
+                                "vertical line where they lie (neutral_spectrum(sys) gives the lines): give a region")
+    else:
+        sp = _rightmost(sys, q).spectrum
     if q.kind == "neutral" and q.degree > 0:
         import dataclasses
 
@@ -459,60 +479,31 @@ class LoopMargins:
 
 
 def loop_margins(L: DelayLTI, channel: int = 0) -> LoopMargins:
-    """Loop-at-a-time margins: the loop broken at input ``channel`` of ``L``, the other channels closed.
+    """Deprecated: use :func:`delaykit.margins` (``margins(L)`` for a SISO ``L``, ``margins(L)[channel]`` for a MIMO
+    one).
 
-    The SISO loop ``L_k = [feedback(L, E)]_kk`` (``E`` the identity without its ``k``-th one) is scanned on the
-    :func:`hinfnorm` grid; gain crossovers (``|L_k| = 1``) and phase crossovers (``L_k`` real and negative) are
-    refined by Brent's method.  Gain margin: the least ``1/|L_k|`` over the phase crossovers; phase margin: the
-    least ``180 + angle(L_k)`` (deg) over the gain crossovers; delay margin: the least ``phase margin / w`` over
-    the gain crossovers with a positive phase margin.  ``inf`` where there is no crossover.
+    Loop-at-a-time margins: the loop broken at input ``channel`` of ``L``, the other channels closed, as
+    :func:`~delaykit.spectrum.system_margins.channel_margins` gives them (exact for a rational loop times one
+    delay, else a refined grid scan), in the old result type: ``gain_crossover`` is the gain crossover of the
+    delay margin (``Margins.crossover``).  The margins are ``nan`` when the closed loop is unstable (certified),
+    where this function once reported the crossovers' margins of a loop that was already unstable.
 
     Examples
     --------
+    >>> import warnings
     >>> from delaykit import tf
-    >>> m = loop_margins(tf("exp(-0.5*s)/s"))
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore", DeprecationWarning)
+    ...     m = loop_margins(tf("exp(-0.5*s)/s"))
     >>> round(m.phase_margin, 4), round(m.delay_margin, 6)     # 90 deg - 0.5 rad at w = 1; pi/2 - 0.5
     (61.3521, 1.070796)
     """
-    L = _system(L)
-    if L.ninputs != L.noutputs:
-        raise InvalidValueError(f"loop margins need a square loop, got {L!r}")
-    n = L.noutputs
-    if isinstance(channel, bool) or not isinstance(channel, (int, np.integer)) or not 0 <= channel < n:
-        raise InvalidValueError(f"channel must be an integer from 0 to {n - 1}, got {plain(channel)!r}")
-    if n > 1:
-        E = np.eye(n)
-        E[channel, channel] = 0.0
-        Lk = feedback(L, gain(E))[channel, channel]
-    else:
-        Lk = L
-    from scipy.optimize import brentq
+    import warnings
 
-    lo, hi, _ = _features(Lk)
-    w = _grid(Lk, lo, hi)
-    w = w[w > 0]
-    h = Lk.frequency_response(w).response[0, 0]
+    warnings.warn("loop_margins(L, channel) is deprecated and will be removed in the next release: use "
+                  "delaykit.margins(L), a Margins for a SISO L and a tuple of them (one per channel) for a MIMO L",
+                  DeprecationWarning, stacklevel=2)
+    from .system_margins import channel_margins
 
-    def val(x: float) -> complex:
-        return complex(Lk.evaluate([1j * x])[0, 0, 0])
-
-    gm, wpc = math.inf, None
-    im = h.imag
-    for i in np.flatnonzero(np.sign(im[:-1]) * np.sign(im[1:]) < 0):
-        if not (np.isfinite(h[i]) and np.isfinite(h[i + 1])):
-            continue
-        x = brentq(lambda t: val(t).imag, w[i], w[i + 1], xtol=1e-14 * w[i])
-        v = val(x)
-        if v.real < 0 and 1.0 / abs(v) < gm:
-            gm, wpc = 1.0 / abs(v), float(x)
-    pm, wgc, dm = math.inf, None, math.inf
-    g = np.log(np.abs(h))
-    for i in np.flatnonzero(np.isfinite(g[:-1]) & np.isfinite(g[1:]) & (np.sign(g[:-1]) * np.sign(g[1:]) < 0)):
-        x = brentq(lambda t: math.log(abs(val(t))), w[i], w[i + 1], xtol=1e-14 * w[i])
-        phi = math.degrees(np.angle(val(x)))
-        p = 180.0 + phi if phi <= 0 else phi - 180.0
-        if p < pm:
-            pm, wgc = p, float(x)
-        if p > 0:
-            dm = min(dm, math.radians(p) / x)
-    return LoopMargins(int(channel), gm, wpc, pm, wgc, dm)
+    m = channel_margins(_system(L), channel)
+    return LoopMargins(int(channel), m.gain_margin, m.phase_crossover, m.phase_margin, m.crossover, m.delay_margin)

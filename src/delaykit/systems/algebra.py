@@ -29,7 +29,8 @@ import numpy as np
 from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
 from .lti import DelayLTI
 
-__all__ = ["as_system", "close", "close_parts", "blockdiag", "append", "series", "parallel", "negate", "feedback",
+__all__ = ["as_system", "close", "close_parts", "blockdiag", "append", "product", "sum_of", "series", "parallel",
+           "negate", "feedback",
            "select", "interconnect", "summing_junction", "gain"]
 
 _COND_LIMIT = 1e12  # I - D11 F with a larger condition number is taken as singular
@@ -268,13 +269,53 @@ def _check_sizes(what: str, need: int, got: int, left: DelayLTI, right: DelayLTI
         raise InvalidValueError(f"{what}: sizes do not match ({need} against {got}): {left!r} and {right!r}")
 
 
-def series(G: Any, H: Any) -> DelayLTI:
-    """``G * H``: ``H`` first, its outputs into ``G``'s inputs.
+def series(*systems: Any) -> DelayLTI:
+    """Systems in series, the first one first, as python-control's ``series``: ``series(a, b, c) = c * b * a``.
+
+    Each system's outputs feed the next one's inputs (as many of each); a number or a matrix is a gain.
 
     Examples
     --------
     >>> from delaykit import tf
     >>> series(tf("1/(s+1)"), tf("exp(-2*s)")).delays
+    (2.0,)
+    >>> T = series(tf("2"), tf("1/(s+1)"), tf("exp(-s)"))
+    >>> round(float(T.dcgain()[0, 0]), 12)
+    2.0
+    """
+    if not systems:
+        raise InvalidValueError("series needs at least one system")
+    out = as_system(systems[0], "the first system")
+    for k, nxt in enumerate(systems[1:], 2):
+        out = product(as_system(nxt, f"system {k}"), out)
+    return out
+
+
+def parallel(*systems: Any) -> DelayLTI:
+    """Systems in parallel, as python-control's ``parallel``: ``parallel(a, b, c) = a + b + c`` (the same inputs
+    into each, the outputs added; the first system names the signals).
+
+    Examples
+    --------
+    >>> from delaykit import tf
+    >>> parallel(tf("1/(s+1)"), 1, tf("exp(-s)")).dcgain().tolist()
+    [[3.0]]
+    """
+    if not systems:
+        raise InvalidValueError("parallel needs at least one system")
+    out = as_system(systems[0], "the first system")
+    for k, nxt in enumerate(systems[1:], 2):
+        out = sum_of(out, as_system(nxt, f"system {k}"))
+    return out
+
+
+def product(G: Any, H: Any) -> DelayLTI:
+    """``G * H``: ``H`` first, its outputs into ``G``'s inputs (:func:`series` with the order of the product).
+
+    Examples
+    --------
+    >>> from delaykit import tf
+    >>> product(tf("1/(s+1)"), tf("exp(-2*s)")).delays
     (2.0,)
     """
     G, H = as_system(G, "left factor"), as_system(H, "right factor")
@@ -292,7 +333,7 @@ def series(G: Any, H: Any) -> DelayLTI:
     return _closed(P, F, Gm, Hm, np.zeros((ny, nu)), H.inputs, G.outputs, "", "G * H", names_checked=True)
 
 
-def parallel(G: Any, H: Any) -> DelayLTI:
+def sum_of(G: Any, H: Any) -> DelayLTI:
     """``G + H``: the same inputs into both, the outputs added.
 
     Examples

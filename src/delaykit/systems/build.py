@@ -32,7 +32,7 @@ from .algebra import _closed, _partitions, _stack, append, close, feedback, gain
 from .laplace import LaplaceExpression, exp, laplace_variable, parse_expression
 from .lti import DelayLTI
 
-__all__ = ["tf", "ss", "delay", "saturation", "to_control", "from_loop", "plant_of", "to_loop"]
+__all__ = ["tf", "ss", "delay", "saturation", "to_control", "from_loop", "system_of", "plant_of", "to_loop"]
 
 
 def _rename(sys: DelayLTI, inputs: Any, outputs: Any, name: str | None) -> DelayLTI:
@@ -570,6 +570,24 @@ def from_loop(loop: Any, *, ignore_limits: bool = False) -> DelayLTI:
 
 
 
+def system_of(x: Any) -> Any:
+    """The closed loop ``x.system`` (:func:`from_loop`, cached) of a :class:`~delaykit.models.Loop` or an
+    ``AltitudeLoop``; anything else unchanged (the caller checks it): how the system-level functions (``poles``,
+    ``is_stable``, ``hinfnorm``, ``step_response``, ...) take a loop.
+
+    Examples
+    --------
+    >>> from delaykit import AltitudeLoop, tf
+    >>> loop = AltitudeLoop(kp=1.31, delay=0.368)
+    >>> system_of(loop) is loop.system, system_of(tf("1/s")) == tf("1/s")
+    (True, True)
+    """
+    from ..models.altitude import AltitudeLoop
+    from ..models.loop import Loop
+
+    return x.system if isinstance(x, (Loop, AltitudeLoop)) else x
+
+
 def _subset_terms(sys: DelayLTI, transfer: bool) -> dict[float, np.ndarray]:
     """The characteristic function ``det(sI - A) det(I - P22 Delta)`` (``transfer`` False) or the numerator of the
     SISO transfer function over it (True) as ``{delay: ascending polynomial coefficients}``, equal delays summed.
@@ -581,7 +599,9 @@ def _subset_terms(sys: DelayLTI, transfer: bool) -> dict[float, np.ndarray]:
     """
     n, m = sys.nstates, sys.ndelays
     eig = np.linalg.eigvals(sys.A) if n else np.zeros(0)
-    mags = np.abs(eig[eig != 0])
+    mags = np.abs(eig)
+    # an eigenvalue at 0 computed as 1e-18 is 0: counted, it would shrink the circle to the rounding level
+    mags = mags[mags > 1e-12 * mags.max()] if mags.size else mags
     radius = float(np.exp(np.mean(np.log(mags)))) if mags.size else 1.0
     pts = radius * np.exp(2j * np.pi * np.arange(n + 1) / (n + 1))
     terms: dict[float, np.ndarray] = {}

@@ -641,33 +641,33 @@ class DelayLTI:
         r = self._laplace(other, "mul")
         if r is not None:
             return r
-        from .algebra import series
+        from .algebra import product
 
-        return series(self, other)
+        return product(self, other)
 
     def __rmul__(self, other: Any) -> DelayLTI:
         r = self._laplace(other, "mul", True)
         if r is not None:
             return r
-        from .algebra import series
+        from .algebra import product
 
-        return series(other, self)
+        return product(other, self)
 
     def __add__(self, other: Any) -> DelayLTI:
         r = self._laplace(other, "add")
         if r is not None:
             return r
-        from .algebra import parallel
+        from .algebra import sum_of
 
-        return parallel(self, other)
+        return sum_of(self, other)
 
     def __radd__(self, other: Any) -> DelayLTI:
         r = self._laplace(other, "add", True)
         if r is not None:
             return r
-        from .algebra import parallel
+        from .algebra import sum_of
 
-        return parallel(other, self)
+        return sum_of(other, self)
 
     def __neg__(self) -> DelayLTI:
         mine = self.__dict__.get("_expr")
@@ -681,17 +681,17 @@ class DelayLTI:
         r = self._laplace(other, "sub")
         if r is not None:
             return r
-        from .algebra import as_system, parallel
+        from .algebra import as_system, sum_of
 
-        return parallel(self, -as_system(other, "right term"))
+        return sum_of(self, -as_system(other, "right term"))
 
     def __rsub__(self, other: Any) -> DelayLTI:
         r = self._laplace(other, "sub", True)
         if r is not None:
             return r
-        from .algebra import parallel
+        from .algebra import sum_of
 
-        return parallel(other, -self)
+        return sum_of(other, -self)
 
     def __truediv__(self, other: Any) -> DelayLTI:
         r = self._laplace(other, "truediv")
