@@ -3,7 +3,8 @@
 :mod:`.ardrone` encodes and decodes the drone's AT commands and navdata, :mod:`.emulator` is a drone on UDP
 (simulated altitude dynamics with a delay) for testing without one, :mod:`.stamps` gives datagrams the kernel's
 arrival time, :mod:`.laws` runs any controller or compensator on packets, :mod:`.autotune` flies a relay experiment and tunes from its cycle, :mod:`.monitor` re-estimates the delay
-during a flight (alarm, gain scheduling), and :mod:`.flight` is the real-time loop that flies a plan and logs what
+during a flight (alarm, gain scheduling), and :mod:`.link` is the vehicle-link interface (:mod:`.ardrone_link` the AR.Drone's, :mod:`.mavlink` PX4's and
+ArduPilot's), and :mod:`.flight` is the real-time loop that flies a plan and logs what
 it saw. It sits above design and identification: its logs feed :mod:`delaykit.identify`.
 """
 
@@ -12,7 +13,9 @@ from .ardrone import (ARITY, DEMO_SIZE, HEADER, REF_BASE, REF_EMERGENCY, REF_TAK
                       CtrlState, Demo, Navdata, NavdataError, NavState, ProtocolError, bootstrap_packet,
                       decode_navdata, encode_navdata, float_to_int, int_to_float, parse_at)
 from .emulator import DroneEmulator, EmulatorConfig, PortError
-from .flight import DroneLink, FlightPlan, FlightResult, LinkError, fly, land_on_signals
+from .ardrone_link import DroneLink
+from .flight import FlightPlan, FlightResult, fly, land_on_signals
+from .link import AltitudeSample, LinkError, VehicleLink, VehicleRefusedError
 from .laws import FlightLaw, Relay, RelayLaw
 from .stamps import enable_stamps, recv_stamped
 
@@ -28,6 +31,6 @@ __all__ = [
     "NavState", "CtrlState", "Demo", "Navdata", "encode_navdata", "decode_navdata", "bootstrap_packet", "HEADER",
     "REF_BASE", "REF_TAKEOFF", "REF_EMERGENCY", "DEMO_SIZE", "ARITY",
     "EmulatorConfig", "DroneEmulator", "PortError",
-    "LinkError", "DroneLink", "FlightPlan", "FlightResult", "fly", "land_on_signals", "FlightLaw",
+    "LinkError", "VehicleRefusedError", "VehicleLink", "AltitudeSample", "DroneLink", "FlightPlan", "FlightResult", "fly", "land_on_signals", "FlightLaw",
     "DelayMonitor", "OnlineEstimate", "stable_range", "enable_stamps", "recv_stamped", "Relay", "RelayLaw", "AutotuneResult",
 ]
