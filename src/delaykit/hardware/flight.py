@@ -243,7 +243,7 @@ def fly(
     confirm: Callable[[], bool] | None = None,
     status: Callable[[str], None] | None = None,
     monitor: DelayMonitor | None = None,
-    link: VehicleLink | None = None,
+    link: VehicleLink | Callable[[], VehicleLink] | None = None,
     ready_timeout: float = 60.0,
 ) -> FlightResult:
     """Fly the plan on a vehicle (by default the AR.Drone at ``host``) and log every altitude sample (see the
@@ -266,9 +266,10 @@ def fly(
     monitor : DelayMonitor, optional
         Re-estimate the delay after each step (the vehicle hovers meanwhile), raise the alarm, and with its
         ``schedule`` fly the re-designed law from the next step (warmed up on the last packets).
-    link : VehicleLink, optional
-        Any other vehicle (:class:`~delaykit.hardware.mavlink.MavlinkLink`...); ``host`` and the ports are then not
-        used.  :func:`fly` closes it at the end.
+    link : VehicleLink or callable, optional
+        Any other vehicle (:class:`~delaykit.hardware.mavlink.MavlinkLink`...), or a function that makes one (so
+        that a pipeline of flights, such as :func:`~delaykit.hardware.autotune.autotune`, opens a fresh link for
+        each); ``host`` and the ports are then not used.  :func:`fly` closes it at the end.
     ready_timeout : float
         How long the vehicle may take to be ready to arm (its estimator, its pre-arm checks), s.
 
@@ -283,7 +284,12 @@ def fly(
     check_real("connect_timeout (s)", connect_timeout, minimum=0.0, strict=True)
     check_real("ready_timeout (s)", ready_timeout, minimum=0.0, strict=True)
     if link is not None and not isinstance(link, VehicleLink):
-        raise InvalidTypeError(f"link must be a VehicleLink, got {type(link).__name__}")
+        if not callable(link):
+            raise InvalidTypeError(f"link must be a VehicleLink or a function that makes one, got "
+                                   f"{type(link).__name__}")
+        link = link()
+        if not isinstance(link, VehicleLink):
+            raise InvalidTypeError(f"the link function must return a VehicleLink, got {type(link).__name__}")
     if monitor is not None:
         from .monitor import DelayMonitor
         if not isinstance(monitor, DelayMonitor):
