@@ -176,7 +176,7 @@ class MavlinkEmulator(DroneEmulator):
         self._sp_live = False  # a velocity target in force (the failsafe watches it)
         # LOCAL_POSITION_NED interval (s; None: not sent): PX4 streams it unasked, ArduPilot waits to be asked
         self._lpn_interval: float | None = 0.0 if autopilot == "px4" else None
-        self._last_lpn = -math.inf
+        self._lpn_due = -math.inf  # when the next LOCAL_POSITION_NED is due (monotonic)
         self._texts: deque = deque()  # STATUSTEXTs to send (queued under the lock, sent by the MAVLink thread)
         self._peer: tuple[str, int] | None = None
         self._conn: socket.socket | None = None
@@ -212,14 +212,14 @@ class MavlinkEmulator(DroneEmulator):
             self._texts.append((4, "Guided velocity target timed out: holding"))
 
     def _snapshot(self) -> Any:
-        return self._lpn_interval, self._last_lpn
+        return self._lpn_interval, self._lpn_due
 
     def _send_sample(self, now: float, z_true: float, v: float, mode: int, snap: Any) -> None:
-        interval, last = snap
-        if interval is None or now - last < interval - 0.5 / self.config.rate:
+        interval, due = snap
+        if interval is None or now < due - 0.5 / self.config.rate:
             return
-        with self._lock:
-            self._last_lpn = now
+        with self._lock:  # the next one is due an interval after this one was (so the mean rate is the one asked)
+            self._lpn_due = due + interval if now - due < interval else now + interval
         z_meas = self._measure(z_true, mode)
         if z_meas is None:
             return
@@ -285,7 +285,10 @@ class MavlinkEmulator(DroneEmulator):
                 self._texts.clear()
             for sev, text in texts:
                 self._send_text(sev, text)
+            had = self._conn
             data = self._receive()
+            if self._conn is not None and had is None:
+                next_beat = 0.0  # a new client hears the heartbeat at once
             if data:
                 self._handle_bytes(data, time.monotonic())
         if self._conn is not None:
@@ -386,6 +389,7 @@ class MavlinkEmulator(DroneEmulator):
                     us = p[1]
                     self._lpn_interval = (None if us < 0 else
                                           (0.0 if self.autopilot == "px4" else None) if us == 0 else us / 1e6)
+                    self._lpn_due = -math.inf
                 self._send_ack(command, m.MAV_RESULT_ACCEPTED)
             else:
                 self._send_ack(command, m.MAV_RESULT_UNSUPPORTED)

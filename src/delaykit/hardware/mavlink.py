@@ -321,6 +321,15 @@ class MavlinkLink(VehicleLink):
         """``PX4``, ``ArduPilot`` or ``the vehicle``."""
         return {"px4": "PX4", "ardupilot": "ArduPilot"}.get(self.autopilot or "", "the vehicle")
 
+    def _open(self) -> None:
+        """Open pymavlink's connection (a LinkError if it cannot be opened)."""
+        try:
+            self._conn = _mavutil().mavlink_connection(self.connection, baud=self.baud, source_system=255,
+                                                       source_component=190, robust_parsing=True, retries=0,
+                                                       autoreconnect=False)
+        except (OSError, ValueError) as exc:
+            raise LinkError(f"cannot open {self.connection}: {exc}; nothing was flown") from None
+
     # ---- the vehicle-link interface ----------------------------------------------------------------------------
     def connect(self, timeout: float, *, vmax: float, z_max: float,
                 status: Callable[[str], None] | None = None) -> None:
@@ -330,12 +339,7 @@ class MavlinkLink(VehicleLink):
             raise InvalidValueError(f"takeoff_height {self.takeoff_height:g} m must be below z_max {z_max:g} m")
         mavutil = _mavutil()
         say(f"connecting to {self.connection}")
-        try:
-            self._conn = mavutil.mavlink_connection(self.connection, baud=self.baud, source_system=255,
-                                                    source_component=190, robust_parsing=True, retries=0,
-                                                    autoreconnect=False)
-        except (OSError, ValueError) as exc:
-            raise LinkError(f"cannot open {self.connection}: {exc}; nothing was flown") from None
+        self._open()
         deadline = time.monotonic() + timeout
         m = self._conn.mav
         while self.autopilot is None:
