@@ -291,11 +291,7 @@ class MavlinkEmulator(DroneEmulator):
                 next_beat = 0.0  # a new client hears the heartbeat at once
             if data:
                 self._handle_bytes(data, time.monotonic())
-        if self._conn is not None:
-            try:
-                self._conn.close()
-            except OSError:
-                pass
+        self._drop_client()
 
     def _receive(self) -> bytes:
         """Bytes from the ground station (b"" after a short wait); accepts a TCP client when none is connected."""
@@ -313,19 +309,22 @@ class MavlinkEmulator(DroneEmulator):
                 return b""
             data = self._conn.recv(65536)
             if not data:  # the client closed: serve the next one
-                self._conn.close()
-                self._conn = None
+                self._drop_client()
             return data
         except (socket.timeout, BlockingIOError):
             return b""
         except OSError:
-            if self._conn is not None:
-                try:
-                    self._conn.close()
-                except OSError:
-                    pass
-                self._conn = None
+            self._drop_client()
             return b""
+
+    def _drop_client(self) -> None:
+        """Close the TCP client's connection, if any (the next one is then served)."""
+        conn, self._conn = self._conn, None
+        if conn is not None:
+            try:
+                conn.close()
+            except OSError:
+                pass
 
     def _handle_bytes(self, data: bytes, t: float) -> None:
         try:
@@ -508,10 +507,5 @@ class MavlinkEmulator(DroneEmulator):
 
     def stop(self) -> None:
         super().stop()
-        if self._conn is not None:
-            try:
-                self._conn.close()
-            except OSError:
-                pass
-            self._conn = None
+        self._drop_client()
 
