@@ -389,3 +389,27 @@ def test_demo_flies_the_mavlink_emulator(tmp_path):
     log = _read_log(rep.p_flight.logs[0])
     assert "vehicle_time" in log.dtype.names  # flown over MAVLink
     assert abs(rep.estimate.delay - rep.true_delay) < 0.1  # (biased by the speed loop; see docs/guide/flying.md)
+
+
+@pytest.mark.realtime
+def test_sigterm_lands_the_mavlink_vehicle(tmp_path):
+    import signal
+
+    from delaykit.hardware.flight import land_on_signals
+
+    emu, conn = _ardupilot()
+
+    def status(msg: str) -> None:
+        if msg.startswith("step 1"):  # mid-flight: the process is asked to stop
+            threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGTERM)).start()
+
+    try:
+        with land_on_signals():
+            res = fly(FlightPlan(kp=2.0, steps=(0.5,), step_duration=5.0, hover_time=0.5), tmp_path / "f.csv",
+                      link=MavlinkLink(conn), status=status)
+        landed = (emu.summary()["armed"], emu.altitude)
+    finally:
+        emu.stop()
+    assert res.interrupted == "SIGTERM" and not res.completed
+    assert landed == (False, 0.0)
+    assert len(_read_log(tmp_path / "f.csv")) > 10

@@ -21,7 +21,7 @@ from .stamps import enable_stamps, recv_stamped
 
 # the monitor pulls in the estimator, the design and the simulator (numba): loaded on first use, so that the
 # emulator and the flight loop start without them
-_LAZY = {"AutotuneResult": ".autotune", "DelayMonitor": ".monitor", "OnlineEstimate": ".monitor", "stable_range": ".monitor"}
+_LAZY = {"MavlinkLink": ".mavlink", "MavlinkEmulator": ".emulator_mavlink", "AutotuneResult": ".autotune", "DelayMonitor": ".monitor", "OnlineEstimate": ".monitor", "stable_range": ".monitor"}
 
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())
@@ -33,4 +33,5 @@ __all__ = [
     "EmulatorConfig", "DroneEmulator", "PortError",
     "LinkError", "VehicleRefusedError", "VehicleLink", "AltitudeSample", "DroneLink", "FlightPlan", "FlightResult", "fly", "land_on_signals", "FlightLaw",
     "DelayMonitor", "OnlineEstimate", "stable_range", "enable_stamps", "recv_stamped", "Relay", "RelayLaw", "AutotuneResult",
+    "MavlinkLink", "MavlinkEmulator",
 ]
