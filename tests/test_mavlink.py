@@ -309,7 +309,8 @@ def test_the_emulator_ignores_garbage_and_other_systems_and_honours_the_interval
         sock.sendall(gcs.command_long_encode(1, 1, mav2.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
                                              mav2.MAVLINK_MSG_ID_LOCAL_POSITION_NED, 40000, 0, 0, 0, 0,
                                              0).pack(gcs))  # 25 Hz
-        acks, tbm = [], []
+        sock.sendall(gcs.timesync_encode(0, 123456789).pack(gcs))  # a TIMESYNC request
+        acks, tbm, sync = [], [], []
         deadline = time.monotonic() + 2.5
         while time.monotonic() < deadline:
             try:
@@ -321,12 +322,15 @@ def test_the_emulator_ignores_garbage_and_other_systems_and_honours_the_interval
                     acks.append((m.command, m.result))
                 elif m.get_type() == "LOCAL_POSITION_NED":
                     tbm.append(m.time_boot_ms)
+                elif m.get_type() == "TIMESYNC":
+                    sync.append((m.tc1, m.ts1))
         sock.close()
         stats = emu.stats
     finally:
         emu.stop()
     assert acks == [(mav2.MAV_CMD_SET_MESSAGE_INTERVAL, mav2.MAV_RESULT_ACCEPTED)]  # the one to system 9 unanswered
     assert stats["bad"] >= 1 and stats["other_system"] == 1 and emu.summary()["armed"] is False
+    assert len(sync) == 1 and sync[0][1] == 123456789 and 0 < sync[0][0] < 10e9  # its clock, ns since start
     # 40 ms asked, on the emulator's 20 ms grid: every second tick, on its own clock
     assert len(tbm) > 30 and np.median(np.diff(tbm)) == pytest.approx(40, abs=1)
 
@@ -413,3 +417,25 @@ def test_sigterm_lands_the_mavlink_vehicle(tmp_path):
     assert res.interrupted == "SIGTERM" and not res.completed
     assert landed == (False, 0.0)
     assert len(_read_log(tmp_path / "f.csv")) > 10
+
+
+def test_emulate_command_runs_the_mavlink_front_end_and_refuses_other_hosts():
+    import json
+
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+
+    res = CliRunner().invoke(app, ["emulate", "--protocol", "mavlink", "--autopilot", "ardupilot", "--listen",
+                                   "tcp:127.0.0.1:0", "--duration", "0.3", "--accel-limit", "1"])
+    assert res.exit_code == 0, res.output
+    summary = json.loads(res.stdout.strip().splitlines()[-1])
+    assert summary["protocol"] == "mavlink" and summary["autopilot"] == "ardupilot"
+    assert summary["endpoint"].startswith("tcp:127.0.0.1:") and not summary["endpoint"].endswith(":0")
+    for args, fragment in ((["--to", "udp:10.0.0.1:14540"], "loopback only"),
+                           ([], "exactly one of --to"),
+                           (["--to", "udp:127.0.0.1:14540", "--listen", "tcp:127.0.0.1:5760"], "exactly one of --to")):
+        bad = CliRunner().invoke(app, ["emulate", "--protocol", "mavlink", "--duration", "0.1", *args])
+        assert bad.exit_code == 2 and fragment in bad.output and "Traceback" not in bad.output
+    bad = CliRunner().invoke(app, ["fly", "--vehicle", "mavlink", "--kp", "1"])
+    assert bad.exit_code == 2 and "needs --connect" in bad.output

@@ -335,7 +335,12 @@ class MavlinkEmulator(DroneEmulator):
                 self._last_error = str(exc)
             return
         for msg in msgs:
-            self._handle_message(msg, t)
+            try:
+                self._handle_message(msg, t)
+            except (AttributeError, TypeError, ValueError, OverflowError) as exc:  # (never stop on a message)
+                with self._lock:
+                    self._stats["bad"] += 1
+                    self._last_error = f"{msg.get_type()}: {exc}"
 
     def _handle_message(self, msg: Any, t: float) -> None:
         m = self._m
