@@ -430,7 +430,7 @@ def test_emulate_command_runs_the_mavlink_front_end_and_refuses_other_hosts():
                                    "tcp:127.0.0.1:0", "--duration", "0.3", "--accel-limit", "1"])
     assert res.exit_code == 0, res.output
     summary = json.loads(res.stdout.strip().splitlines()[-1])
-    assert summary["protocol"] == "mavlink" and summary["autopilot"] == "ardupilot"
+    assert summary["protocol"] == "mavlink" and summary["autopilot"] == "ardupilot" and summary["accel_limit"] == 1.0
     assert summary["endpoint"].startswith("tcp:127.0.0.1:") and not summary["endpoint"].endswith(":0")
     for args, fragment in ((["--to", "udp:10.0.0.1:14540"], "loopback only"),
                            ([], "exactly one of --to"),

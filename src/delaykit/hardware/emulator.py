@@ -68,6 +68,16 @@ with ``extra`` between 0 and ``1 / rate - 1 / config.rate`` (a sample-and-hold, 
 
 Every datagram that fails to parse is counted (``stats["bad"]``) and ignored; the emulator never stops on one.
 
+**An acceleration limit**: ``accel_limit`` (m/s^2, 0 for none) ramps the speed command before the vehicle's
+speed loop, as autopilots limit the vertical acceleration (ArduCopter's ``WPNAV_ACCEL_Z``, 1 m/s^2 by default),
+held over each step of at most 2 ms.
+
+**One physics, several protocol front ends.**  The protocol lives in a few methods that a front end overrides:
+``_bind_ports`` and ``_loops`` (its sockets and threads), ``_tick`` (its watchdog or failsafe, each wake-up),
+``_snapshot`` and ``_send_sample`` (a sample of the state going out: navdata here); it drives the physics with
+``_cmd_takeoff``, ``_cmd_land``, ``_cmd_emergency`` and ``_cmd_speed``.  The AR.Drone's is this class;
+:class:`~delaykit.hardware.emulator_mavlink.MavlinkEmulator` is MAVLink's (PX4, ArduPilot).
+
 **Threads and shared state.**  Four threads (AT commands, navdata-port datagrams, navdata sending, TCP) share the
 emulator's state; one lock, ``_lock``, guards all of it: the physics, the counters, the configuration, the
 navdata client, and the control connection (``_control_conn``, None until a client connects).  Sockets are
@@ -199,7 +209,8 @@ class DroneEmulator:
             return {"ports": dict(self.ports), "stats": dict(self._stats), "last_error": self._last_error,
                     "true_delay": self.true_delay,
                     "delay_schedule": [list(p) for p in c.delay_schedule or ()],
-                    "delay_trace": trace, "bursts": [list(b) for b in c.bursts], "vehicle": vehicle}
+                    "delay_trace": trace, "bursts": [list(b) for b in c.bursts], "vehicle": vehicle,
+                    "accel_limit": c.accel_limit}
 
     @property
     def true_delay(self) -> float:
