@@ -439,3 +439,22 @@ def test_emulate_command_runs_the_mavlink_front_end_and_refuses_other_hosts():
         assert bad.exit_code == 2 and fragment in bad.output and "Traceback" not in bad.output
     bad = CliRunner().invoke(app, ["fly", "--vehicle", "mavlink", "--kp", "1"])
     assert bad.exit_code == 2 and "needs --connect" in bad.output
+
+
+@pytest.mark.realtime
+def test_a_smith_predictor_and_the_delay_monitor_fly_the_mavlink_link(tmp_path):
+    # the exact vehicle's loop delay is the emulator's 0.1 s plus the loop's own latency (received to sent, in the
+    # result): each step's online estimate must find it, and no alarm (the predictor is designed for 0.1 s)
+    from delaykit.hardware.monitor import DelayMonitor
+    from delaykit.models import Compensator
+
+    emu, conn = _ardupilot()
+    law = Compensator.smith("1/s", 0.1, closed_loop_time=0.3)
+    try:
+        res = fly(FlightPlan(kp=0.0, controller=law, steps=(0.5, -0.5), step_duration=3.0, hover_time=0.5),
+                  tmp_path / "f.csv", link=MavlinkLink(conn), monitor=DelayMonitor(law))
+    finally:
+        emu.stop()
+    assert res.completed and len(res.online) == 2 and res.alarms == 0
+    truth = emu.true_delay + 1e-3 * res.latency_median_ms
+    assert [o.delay for o in res.online] == pytest.approx([truth, truth], abs=0.005)
