@@ -458,3 +458,21 @@ def test_a_smith_predictor_and_the_delay_monitor_fly_the_mavlink_link(tmp_path):
     assert res.completed and len(res.online) == 2 and res.alarms == 0
     truth = emu.true_delay + 1e-3 * res.latency_median_ms
     assert [o.delay for o in res.online] == pytest.approx([truth, truth], abs=0.005)
+
+
+@pytest.mark.realtime
+def test_readiness_waits_for_the_prearm_checks_with_progress():
+    # the emulated vehicle refuses arming as "not yet" for its first 1.5 s (an estimator converging): the link
+    # waits, says so, and is ready once the vehicle's SYS_STATUS pre-arm bit turns healthy
+    emu, conn = _ardupilot(ready_after=1.5)
+    said: list[str] = []
+    try:
+        link = MavlinkLink(conn)
+        link.connect(3.0, vmax=1.0, z_max=3.5)
+        link.ready(5.0, status=said.append)
+        ready_at = emu.elapsed
+        link.close()
+    finally:
+        emu.stop()
+    assert ready_at >= 1.5 and link.prearm_ok is True
+    assert any("waiting for ArduPilot's pre-arm checks" in m for m in said) and said[-1] == "ArduPilot ready to arm"
