@@ -31,7 +31,7 @@ __all__ = [
     "sampled_spectrum", "sampled_margins", "compare_sampling", "sampled_frequency_response",
     # every exception class of the package (all derive from DelaykitError)
     "DelaykitError", "InvalidTypeError", "InvalidValueError", "RangeSpecError", "PortError", "PortNumberError",
-    "FlightError", "FlightInterruptedError", "MissingDependencyError", "ProtocolError", "ATError", "NavdataError", "LinkError", "EstimationError", "LogError",
+    "FlightError", "FlightInterruptedError", "MissingDependencyError", "ProtocolError", "ATError", "NavdataError", "LinkError", "VehicleRefusedError", "EstimationError", "LogError",
     "IdentificationError",
     # identification
     "Experiment", "read_experiment", "identify", "predict", "load_model", "IdentifiedModel", "fit_system", "SystemFit",
@@ -68,7 +68,7 @@ _LAZY = {
     "compare_sampling": ".spectrum.sampled", "sampled_frequency_response": ".spectrum.sampled",
     # exception classes defined beside the code that raises them (also re-exported by delaykit.errors)
     "ProtocolError": ".hardware.ardrone", "ATError": ".hardware.ardrone", "NavdataError": ".hardware.ardrone",
-    "LinkError": ".hardware.flight", "EstimationError": ".identify.estimation", "LogError": ".identify.flightlog",
+    "LinkError": ".hardware.link", "VehicleRefusedError": ".hardware.link", "EstimationError": ".identify.estimation", "LogError": ".identify.flightlog",
     "IdentificationError": ".identify.identification",
     "Experiment": ".identify.iodata", "read_experiment": ".identify.iodata", "identify": ".identify.identification",
     "predict": ".identify.identification", "load_model": ".identify.identification",

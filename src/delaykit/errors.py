@@ -8,7 +8,7 @@ Every exception class of the package derives from :class:`DelaykitError` and is 
 The ones of general use are defined here; those that belong to one layer are defined next to the code that raises
 them (this module is the lowest layer and imports nothing of the package) and are loaded on first use by
 ``delaykit``: ``ProtocolError``, ``ATError`` and ``NavdataError`` (:mod:`delaykit.hardware.ardrone`),
-``LinkError`` (:mod:`delaykit.hardware.flight`), ``EstimationError`` (:mod:`delaykit.identify.estimation`),
+``LinkError`` and ``VehicleRefusedError`` (:mod:`delaykit.hardware.link`), ``EstimationError`` (:mod:`delaykit.identify.estimation`),
 ``LogError`` (:mod:`delaykit.identify.flightlog`) and ``IdentificationError``
 (:mod:`delaykit.identify.identification`).
 
@@ -24,7 +24,8 @@ Hierarchy::
     │   └── PortNumberError (also PortError): a port number out of range
     ├── InvalidTypeError (also TypeError): a value of the wrong type
     ├── PortError (also OSError): a port that cannot be bound (already in use, ...)
-    ├── LinkError (also RuntimeError): the drone does not answer
+    ├── LinkError (also RuntimeError): the vehicle does not answer
+    │   └── VehicleRefusedError: the vehicle refuses a mode, arming or take-off (its reason in the message)
     ├── FlightError (also RuntimeError): a flight produced nothing to work with
     │   └── FlightInterruptedError: the user stopped a pipeline of flights (Ctrl-C, SIGTERM, SIGHUP)
     └── MissingDependencyError (also ImportError): an optional package (python-control) is not installed

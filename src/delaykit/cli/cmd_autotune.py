@@ -20,6 +20,9 @@ def autotune(
     host: str = typer.Option("192.168.1.1", "--host", help="The drone (the emulator: 127.0.0.1)."),
     at_port: int = typer.Option(5556, "--at-port", help="The drone's AT command port."),
     navdata_port: int = typer.Option(5554, "--navdata-port", help="The drone's navdata port."),
+    vehicle: str = typer.Option("ardrone", "--vehicle", help="ardrone (--host and its ports; the default) | mavlink (PX4 or ArduPilot: --connect)."),
+    connect: Optional[str] = typer.Option(None, "--connect", help="With --vehicle mavlink: pymavlink's connection string, e.g. tcp:127.0.0.1:5760."),
+    mav_rate: float = typer.Option(50.0, "--mavlink-rate", help="With --vehicle mavlink: the LOCAL_POSITION_NED rate asked for, Hz."),
     vmax: float = typer.Option(1.0, "--vmax", help="Command limit, m/s (at most 2)."),
     shape: str = typer.Option("1/s", "--shape", help="The vehicle's form up to gain and delay, e.g. 1/s or 1/(s*(0.05*s+1))."),
     rule: str = typer.Option("simc", "--rule", help="simc | amigo | imc | lambda | zn | tyreus-luyben."),
@@ -48,6 +51,14 @@ def autotune(
         raise InvalidValueError(f"--relay {relay:g} is beyond the actuator's limit --vmax {vmax:g} m/s")
     check_real("--step-duration (s)", step_duration, minimum=0.0)
     check_output("--log", log)
+    from .vehicle_opts import connection_is_loopback, link_factory
+
+    make_link = link_factory(vehicle, connect, rate=mav_rate)
+    if make_link is None:
+        fly_kw = dict(host=host, at_port=at_port, navdata_port=navdata_port, confirm=confirm_real(host, yes))
+    else:
+        fly_kw = dict(link=make_link, confirm=confirm_real(
+            "127.0.0.1" if connection_is_loopback(connect or "") else str(connect), yes))
     import warnings
 
     from ..design.pid_rules import TuningWarning
@@ -57,7 +68,7 @@ def autotune(
         res = run(Relay(relay, hysteresis), log, shape=shape, rule=rule, controller=controller, tau_c=tau_c,
                   offset=offset, relay_duration=duration, skip=skip, step=step if step_duration > 0 else None,
                   step_duration=step_duration if step_duration > 0 else 1.0, hover_time=hover, vmax=vmax,
-                  fly_kw=dict(host=host, at_port=at_port, navdata_port=navdata_port, confirm=confirm_real(host, yes)),
+                  fly_kw=fly_kw,
                   status=lambda m: err.print(m, highlight=False, markup=False))
     if as_json:
         print_json(res.to_dict())

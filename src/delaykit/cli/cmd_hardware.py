@@ -1,4 +1,4 @@
-"""``delaykit emulate`` and ``fly``: the AR.Drone emulator on loopback, and flights."""
+"""``delaykit emulate`` and ``fly``: the emulator on loopback (AR.Drone or MAVLink front end), and flights."""
 
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ def emulate(
     wander_time: Optional[float] = typer.Option(None, "--wander-time", help="The wander's correlation time, s (default 2)."),
     link_delay: float = typer.Option(0.0, "--link-delay", help="Extra one-way link delay, s."),
     noise: float = typer.Option(0.005, "--noise", help="Ultrasonic altitude noise (standard deviation), m."),
-    rate: float = typer.Option(15.0, "--rate", help="Navdata rate, Hz."),
+    rate: Optional[float] = typer.Option(None, "--rate", help="Navdata rate, Hz (default 15); with --protocol mavlink the sampling grid, the fastest LOCAL_POSITION_NED rate (default 50)."),
     loss: float = typer.Option(0.0, "--loss", help="Navdata packet loss, fraction."),
     jitter: float = typer.Option(0.0, "--jitter", help="Navdata send jitter, s."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed."),
@@ -39,12 +39,34 @@ def emulate(
     delay_trace: Optional[Path] = typer.Option(None, "--delay-trace", help="Replay a recorded delay, added to --delay (as `simulate --delay-trace`): a CSV with a header t,delay (s), or a flight log of `delaykit fly` (its latency_ms column); each record held until the next, from the first at start. Give --delay 0 for a trace of whole delays. Not with --delay-schedule."),
     burst: Optional[list[str]] = typer.Option(None, "--burst", help="The navdata rate falls (a Wi-Fi scan): START:DURATION[:RATE] (s since start, s, Hz below --rate; RATE 0 by default: no navdata). Repeat it, or separate several by commas."),
     duration: float = typer.Option(0.0, "--duration", help="Run this long, s (0 = until Ctrl-C)."),
+    protocol: str = typer.Option("ardrone", "--protocol", help="ardrone (AT commands and navdata, the default) | mavlink (as PX4's or ArduPilot's simulator: --autopilot, --to or --listen)."),
+    autopilot: str = typer.Option("px4", "--autopilot", help="With --protocol mavlink: px4 | ardupilot (whose modes, sequence and failsafe)."),
+    to: Optional[str] = typer.Option(None, "--to", help="With --protocol mavlink: send to a ground station listening at udp:127.0.0.1:PORT (as PX4's simulator does, e.g. udp:127.0.0.1:14540)."),
+    listen: Optional[str] = typer.Option(None, "--listen", help="With --protocol mavlink: serve one ground station at tcp:127.0.0.1:PORT (as ArduPilot's simulator does, e.g. tcp:127.0.0.1:5760; port 0: any free one)."),
+    accel_limit: float = typer.Option(0.0, "--accel-limit", help="Vertical acceleration limit of the speed command, m/s^2 (0: none; ArduPilot's default is 1): a speed step becomes a ramp."),
+    refuse_arming: Optional[str] = typer.Option(None, "--refuse-arming", help="With --protocol mavlink: refuse every arming with this pre-arm reason."),
+    ready_after: float = typer.Option(0.0, "--ready-after", help="With --protocol mavlink: seconds after start before arming is accepted (an estimator converging)."),
 ) -> None:
-    """Run the built-in AR.Drone 2.0 emulator (loopback by default) until Ctrl-C, SIGTERM, SIGHUP or --duration; then
-    print its summary (ports, counts, rejections) as JSON."""
+    """Run the built-in emulator (loopback) until Ctrl-C, SIGTERM, SIGHUP or --duration; then print its summary
+    (ports, counts, rejections) as JSON.
+
+    One emulated vehicle (its physics, delays, jitter, loss, bursts and delay traces), two protocol front ends:
+    the AR.Drone 2.0's (the default) and MAVLink (--protocol mavlink), which behaves as PX4 or ArduPilot and is
+    reached as their simulators are (--to udp:127.0.0.1:14540 or --listen tcp:127.0.0.1:5760)."""
+    from dataclasses import replace
+
     from ..hardware.emulator import DroneEmulator, EmulatorConfig
 
     check_real("--duration", duration, minimum=0.0)
+    kind = protocol.lower()
+    if kind not in ("ardrone", "mavlink"):
+        raise InvalidValueError(f"--protocol must be ardrone or mavlink, got {protocol!r}")
+    if kind == "ardrone" and (to is not None or listen is not None or refuse_arming is not None or ready_after):
+        raise InvalidValueError("--to, --listen, --refuse-arming and --ready-after are for --protocol mavlink")
+    if kind == "mavlink" and (to is None) == (listen is None):
+        raise InvalidValueError("--protocol mavlink needs exactly one of --to udp:127.0.0.1:PORT (a ground station "
+                                "listening there) and --listen tcp:127.0.0.1:PORT (serve one)")
+    rate = rate if rate is not None else (50.0 if kind == "mavlink" else 15.0)
     if delay_schedule is not None and delay_trace is not None:
         raise InvalidValueError("give --delay-schedule or --delay-trace, not both: the schedule replaces --delay and "
                                 "the trace is added to it")
@@ -56,12 +78,25 @@ def emulate(
                          rate=rate, loss=loss, jitter=jitter, seed=seed,
                          delay_schedule=None if delay_schedule is None else parse_schedule(delay_schedule),
                          delay_trace=None if delay_trace is None else read_delay_trace(delay_trace),
-                         bursts=_parse_bursts(burst or [], rate))
+                         bursts=_parse_bursts(burst or [], rate), accel_limit=accel_limit)
+    if kind == "mavlink":
+        from ..hardware.emulator_mavlink import MavlinkEmulator
+
+        emulator = MavlinkEmulator(replace(cfg, host="127.0.0.1"), autopilot=autopilot.lower(), to=to, listen=listen,
+                                   refuse_arming=refuse_arming, ready_after=ready_after)
+    else:
+        emulator = DroneEmulator(cfg)
     with run_until_stopped(duration) as wait:  # Ctrl-C, SIGTERM and SIGHUP end the run alike, with the summary
-        with DroneEmulator(cfg) as emu:
-            err.print(f"emulated drone on {host}: AT {emu.ports['at']}, navdata {emu.ports['navdata']}, video "
-                      f"{emu.ports['video']}, control {emu.ports['control']}; loop delay {emu.true_delay:g} s. "
-                      "Ctrl-C stops.", highlight=False)
+        with emulator as emu:
+            if kind == "mavlink":
+                where = (f"sending to {to}" if to is not None else
+                         f"serving tcp:{emu.endpoint[1]}:{emu.ports['mavlink']}")
+                err.print(f"emulated {autopilot} vehicle (MAVLink) {where}; loop delay {emu.true_delay:g} s. "
+                          "Ctrl-C stops.", highlight=False)
+            else:
+                err.print(f"emulated drone on {host}: AT {emu.ports['at']}, navdata {emu.ports['navdata']}, video "
+                          f"{emu.ports['video']}, control {emu.ports['control']}; loop delay {emu.true_delay:g} s. "
+                          "Ctrl-C stops.", highlight=False)
             wait()
         summary = emu.summary()  # after stop(): the threads are done, so the counts are final
     print_json(summary, indent=None)
@@ -117,6 +152,11 @@ def fly(
     host: str = typer.Option("192.168.1.1", "--host", help="The drone (the emulator: 127.0.0.1)."),
     at_port: int = typer.Option(5556, "--at-port", help="The drone's AT command port."),
     navdata_port: int = typer.Option(5554, "--navdata-port", help="The drone's navdata port."),
+    vehicle: str = typer.Option("ardrone", "--vehicle", help="ardrone (AT commands and navdata: --host and its ports; the default) | mavlink (PX4 or ArduPilot through pymavlink: --connect)."),
+    connect: Optional[str] = typer.Option(None, "--connect", help="With --vehicle mavlink: pymavlink's connection string, e.g. tcp:127.0.0.1:5760, udpin:0.0.0.0:14550 or a serial device."),
+    mav_rate: float = typer.Option(50.0, "--mavlink-rate", help="With --vehicle mavlink: the LOCAL_POSITION_NED rate asked for (the loop's), Hz."),
+    takeoff_height: float = typer.Option(1.0, "--takeoff-height", help="With --vehicle mavlink: the hover height after take-off, m."),
+    ready_timeout: float = typer.Option(60.0, "--ready-timeout", help="How long the vehicle may take to pass its pre-arm checks, s."),
     controller: str = typer.Option("p", "--controller", help="p | pv (the paper's laws, --kp/--kv) | smith | filtered-smith | predictor (designed for --model-delay)."),
     kp: Optional[float] = typer.Option(None, "--kp", help="Proportional gain (p, pv)."),
     kv: float = typer.Option(0.0, "--kv", help="Velocity gain (pv)."),
@@ -145,13 +185,19 @@ def fly(
     fraction of a second it takes) and compared with the law's design range; --schedule re-designs the law
     when the alarm goes off.
 
-    Exits with status 1 (saying why) if the flight did not complete: a navdata gap, an altitude out of
-    bounds, Ctrl-C, or a declined take-off."""
+    The vehicle is an AR.Drone 2.0 (--host) or, with --vehicle mavlink, a PX4 or ArduPilot autopilot (--connect):
+    PX4 flies in OFFBOARD, ArduPilot in GUIDED, both by vertical-velocity setpoints.
+
+    Exits with status 1 (saying why) if the flight did not complete: a gap in the altitude samples (the link
+    lost: the vehicle's own failsafe takes over), an altitude out of bounds, Ctrl-C, or a declined take-off; with
+    status 2 and one line when the vehicle refuses a mode or arming, naming its reason."""
     from ..hardware.flight import FlightPlan, land_on_signals
     from ..hardware.flight import fly as run
     from ..models.compensators import COMPENSATOR_KINDS
+    from .vehicle_opts import connection_is_loopback, link_factory
 
     check_output("--log", log)
+    make_link = link_factory(vehicle, connect, rate=mav_rate, takeoff_height=takeoff_height)
     kind = controller.lower().replace("_", "-")
     law = None
     if kind in COMPENSATOR_KINDS:
@@ -190,8 +236,10 @@ def fly(
                            delay_uncertainty=delay_uncertainty)
     try:
         with land_on_signals():  # SIGTERM and SIGHUP land the drone as Ctrl-C does, and the result says so
-            res = run(plan, log, host=host, at_port=at_port, navdata_port=navdata_port,
-                      confirm=confirm_real(host, yes), status=lambda m: err.print(m), monitor=mon)
+            confirm = (confirm_real(host, yes) if make_link is None else
+                       confirm_real("127.0.0.1" if connection_is_loopback(connect or "") else str(connect), yes))
+            res = run(plan, log, host=host, at_port=at_port, navdata_port=navdata_port, link=make_link,
+                      ready_timeout=ready_timeout, confirm=confirm, status=lambda m: err.print(m), monitor=mon)
     except KeyboardInterrupt as exc:  # before the flight began: nothing was flown
         print_error(f"interrupted ({getattr(exc, 'signal_name', 'Ctrl-C')}) before the flight started; nothing was "
                     "flown")
@@ -205,7 +253,7 @@ def fly(
     out.print(f"{'Flight completed' if res.completed else 'Flight ended early: ' + res.reason}; "
               f"{res.packets} packets, {res.rejected} rejected.", highlight=False)
     if res.latency_median_ms is not None:
-        out.print(f"Loop latency (navdata received to command sent): median {res.latency_median_ms:.3f} ms, "
+        out.print(f"Loop latency (sample received to command sent): median {res.latency_median_ms:.3f} ms, "
                   f"99th percentile {res.latency_p99_ms:.3f} ms.", highlight=False)
     if res.online:
         from rich.table import Table

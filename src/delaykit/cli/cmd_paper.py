@@ -73,6 +73,9 @@ def demo(
     delay_jump: float = typer.Option(0.15, "--delay-jump", help="Emulator only: how much that flight's delay grows, s."),
     vehicle: str = typer.Option("speed_loop", "--vehicle", help="Emulator only: speed_loop (the PX4's speed loop and hover wander, not the estimator's model) | lag."),
     identify_plant: bool = typer.Option(True, "--identify/--no-identify", help="Identify the plant from the P flights and predict the PV flight with it."),
+    protocol: str = typer.Option("ardrone", "--protocol", help="Emulator only: how it is flown, ardrone (navdata, 15 Hz) | mavlink (its MAVLink front end, 50 Hz: --autopilot)."),
+    autopilot: str = typer.Option("ardupilot", "--autopilot", help="Emulator only, with --protocol mavlink: ardupilot | px4."),
+    connect: Optional[str] = typer.Option(None, "--connect", help="A real MAVLink vehicle (PX4 or ArduPilot): pymavlink's connection string (instead of --host)."),
     yes: bool = typer.Option(False, "--yes", help="Do not ask before taking off a real drone."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as JSON."),
 ) -> None:
@@ -86,15 +89,25 @@ def demo(
     if varying_steps < 0:
         raise InvalidValueError(f"--varying-steps must be at least 0, got {varying_steps}")
     check_real("--delay-jump (s)", delay_jump, minimum=0.0, maximum=2.0)
+    if protocol not in ("ardrone", "mavlink") or autopilot not in ("ardupilot", "px4"):
+        raise InvalidValueError(f"--protocol must be ardrone or mavlink and --autopilot ardupilot or px4, got "
+                                f"{protocol!r} and {autopilot!r}")
+    if host is not None and connect is not None:
+        raise InvalidValueError("give --host (an AR.Drone) or --connect (a MAVLink vehicle), not both")
     from ..hardware.flight import land_on_signals
+    from .vehicle_opts import connection_is_loopback, link_factory
+
+    link = link_factory("mavlink", connect) if connect is not None else None
+    real = host or (None if connect is None or connection_is_loopback(connect) else connect)
 
     try:
         # SIGTERM and SIGHUP land a flight as Ctrl-C does; an interrupted flight stops the demo (no next take-off)
         with land_on_signals(), err.status("starting") as st:
             rep = run_demo(out_dir, host=host, seed=seed, p_steps=p_steps, step_duration=step_duration,
                            compensate=compensate, varying_steps=varying_steps, delay_jump=delay_jump,
-                           vehicle=vehicle, identify_plant=identify_plant,
-                           confirm=confirm_real(host, yes) if host else None, status=lambda m: st.update(m))
+                           vehicle=vehicle, identify_plant=identify_plant, protocol=protocol,
+                           autopilot=autopilot, link=link,
+                           confirm=confirm_real(real, yes) if real else None, status=lambda m: st.update(m))
     except FlightInterruptedError as exc:
         print_error(str(exc))
         raise typer.Exit(1) from None

@@ -68,6 +68,16 @@ with ``extra`` between 0 and ``1 / rate - 1 / config.rate`` (a sample-and-hold, 
 
 Every datagram that fails to parse is counted (``stats["bad"]``) and ignored; the emulator never stops on one.
 
+**An acceleration limit**: ``accel_limit`` (m/s^2, 0 for none) ramps the speed command before the vehicle's
+speed loop, as autopilots limit the vertical acceleration (ArduCopter's ``WPNAV_ACCEL_Z``, 1 m/s^2 by default),
+held over each step of at most 2 ms.
+
+**One physics, several protocol front ends.**  The protocol lives in a few methods that a front end overrides:
+``_bind_ports`` and ``_loops`` (its sockets and threads), ``_tick`` (its watchdog or failsafe, each wake-up),
+``_snapshot`` and ``_send_sample`` (a sample of the state going out: navdata here); it drives the physics with
+``_cmd_takeoff``, ``_cmd_land``, ``_cmd_emergency`` and ``_cmd_speed``.  The AR.Drone's is this class;
+:class:`~delaykit.hardware.emulator_mavlink.MavlinkEmulator` is MAVLink's (PX4, ArduPilot).
+
 **Threads and shared state.**  Four threads (AT commands, navdata-port datagrams, navdata sending, TCP) share the
 emulator's state; one lock, ``_lock``, guards all of it: the physics, the counters, the configuration, the
 navdata client, and the control connection (``_control_conn``, None until a client connects).  Sockets are
@@ -116,6 +126,7 @@ class _Physics:
     history: deque = field(default_factory=lambda: deque(maxlen=4096))  # (t, z, v) every 2 ms
     x1: float = 0.0  # the speed loop's states (v = wn^2 (x1 + Tz x2), x1' = x2)
     x2: float = 0.0
+    u: float = 0.0  # the speed command after the acceleration limit (m/s)
     w: float = 0.0  # the hover wander (m)
     wk: int = 0  # the wander's grid point (ticks since start)
 
@@ -170,6 +181,7 @@ class DroneEmulator:
         self._config_kv: dict[str, str] = {"control:control_vz_max": "700", "control:altitude_max": "3000",
                                            "general:navdata_demo": "FALSE"}
         self._pending_config_send = False
+        self._takeoff_alt = self.config.takeoff_altitude
 
     # ---------------------------------------------------------------------------------------------------
     @property
@@ -197,7 +209,8 @@ class DroneEmulator:
             return {"ports": dict(self.ports), "stats": dict(self._stats), "last_error": self._last_error,
                     "true_delay": self.true_delay,
                     "delay_schedule": [list(p) for p in c.delay_schedule or ()],
-                    "delay_trace": trace, "bursts": [list(b) for b in c.bursts], "vehicle": vehicle}
+                    "delay_trace": trace, "bursts": [list(b) for b in c.bursts], "vehicle": vehicle,
+                    "accel_limit": c.accel_limit}
 
     @property
     def true_delay(self) -> float:
@@ -267,28 +280,117 @@ class DroneEmulator:
 
     def start(self) -> "DroneEmulator":
         """Bind the ports and start the threads."""
-        c = self.config
         try:
-            self._at = self._bind(socket.SOCK_DGRAM, c.at_port, "at")
-            self._nav = self._bind(socket.SOCK_DGRAM, c.navdata_port, "navdata")
-            self._video = self._bind(socket.SOCK_STREAM, c.video_port, "video")
-            self._control = self._bind(socket.SOCK_STREAM, c.control_port, "control")
+            self._bind_ports()
         except PortError:
             self.stop()
             raise
+        self._phys.t = time.monotonic()
+        self._last_cmd = time.monotonic()
+        self._t0 = self._phys.t
+        for target in self._loops():
+            th = threading.Thread(target=target, daemon=True, name=f"emulator-{target.__name__}")
+            th.start()
+            self._threads.append(th)
+        return self
+
+    # ---- the protocol front end: what a front end of another protocol overrides -----------------------------
+    def _bind_ports(self) -> None:
+        """Bind the AR.Drone's ports (AT and navdata on UDP, video and control on TCP)."""
+        c = self.config
+        self._at = self._bind(socket.SOCK_DGRAM, c.at_port, "at")
+        self._nav = self._bind(socket.SOCK_DGRAM, c.navdata_port, "navdata")
+        self._video = self._bind(socket.SOCK_STREAM, c.video_port, "video")
+        self._control = self._bind(socket.SOCK_STREAM, c.control_port, "control")
         for s in (self._at, self._nav):
             s.settimeout(0.05)
         self.kernel_stamps = enable_stamps(self._at)  # a command's arrival is when the kernel got it
         for s in (self._video, self._control):
             s.settimeout(0.1)
-        self._phys.t = time.monotonic()
-        self._last_cmd = time.monotonic()
-        self._t0 = self._phys.t
-        for target in (self._at_loop, self._wake_loop, self._nav_loop, self._tcp_loop):
-            th = threading.Thread(target=target, daemon=True, name=f"emulator-{target.__name__}")
-            th.start()
-            self._threads.append(th)
-        return self
+
+    def _loops(self) -> list:
+        """The threads' targets: the physics and sampling loop first, then the front end's own."""
+        return [self._at_loop, self._wake_loop, self._nav_loop, self._tcp_loop]
+
+    def _tick(self, now: float) -> None:
+        """Each wake-up of the sampling loop, under the lock, before the physics advances: the watchdog."""
+        if now - self._last_cmd > self.config.watchdog:
+            self._watchdog = True
+
+    def _measure(self, z_true: float, mode: int) -> float | None:
+        """The measured altitude of a sample about to go out (ultrasonic noise while airborne), or None when the
+        link loses it (counted in ``stats["navdata_dropped"]``).  Draws from :attr:`rng`; outside the lock."""
+        c = self.config
+        if c.loss and self.rng.random() < c.loss:
+            with self._lock:
+                self._stats["navdata_dropped"] += 1
+            return None
+        return z_true + (self.rng.gauss(0.0, c.noise) if c.noise and mode != CtrlState.LANDED else 0.0)
+
+    def _snapshot(self) -> Any:
+        """The front end's state a sample needs, read under the lock (the AR.Drone's: state bits, client, demo)."""
+        return self._state_bits(), self._client, self._demo
+
+    def _send_sample(self, now: float, z_true: float, v: float, mode: int, snap: Any) -> None:
+        """Send one sample (a navdata packet) of the state at ``now``; outside the lock."""
+        state, client, demo_on = snap
+        self._seq += 1
+        if client is None:
+            return
+        z_meas = self._measure(z_true, mode)
+        if z_meas is None:
+            return
+        if demo_on:
+            demo = Demo(ctrl_state=int(mode) << 16, battery=87, altitude_mm=int(round(1000 * max(z_meas, 0.0))),
+                        vz=float(1000 * v))
+            pkt = encode_navdata(state, self._seq, demo=demo)
+        else:
+            pkt = encode_navdata(state, self._seq)
+        try:
+            self._nav.sendto(pkt, client)
+        except OSError:
+            return
+        with self._lock:
+            self._stats["navdata_sent"] += 1
+
+    # ---- the physics' commands (under the lock) ------------------------------------------------------------
+    def _cmd_takeoff(self, altitude: float | None = None) -> bool:
+        """Take off (to ``altitude``, m, or the configured one) if landed; True if it began."""
+        p = self._phys
+        if p.mode != CtrlState.LANDED:
+            return False
+        if altitude is not None:
+            self._takeoff_alt = altitude
+        p.mode = CtrlState.TAKING_OFF
+        return True
+
+    def _cmd_land(self) -> None:
+        """Begin landing (from flight, hover or take-off)."""
+        p = self._phys
+        if p.mode in (CtrlState.FLYING, CtrlState.HOVERING, CtrlState.TAKING_OFF):
+            p.mode = CtrlState.LANDING
+            p.pending.clear()
+
+    def _cmd_emergency(self) -> None:
+        """Motors off: on the ground at once."""
+        p = self._phys
+        if p.mode not in (CtrlState.LANDED,):
+            p.mode, p.z, p.v_in = CtrlState.LANDED, 0.0, 0.0
+            self._rest()
+            p.pending.clear()
+
+    def _cmd_speed(self, v: float, t: float) -> None:
+        """A vertical speed command ``v`` (m/s, up) sent at ``t``: it takes effect after the link and actuator
+        delays in force when it arrives; older commands it overtakes are dropped as stale."""
+        p, c = self._phys, self.config
+        if p.mode not in (CtrlState.FLYING, CtrlState.HOVERING):
+            return
+        arrive = t + c.link_delay
+        ta = arrive + self.actuator_delay(arrive)
+        while p.pending and p.pending[-1][0] >= ta:  # older, now stale: the newest wins
+            p.pending.pop()
+            self._stats["stale"] += 1
+        p.pending.append((ta, v))
 
     def stop(self) -> None:
         """Stop the threads and close the sockets."""
@@ -317,7 +419,7 @@ class DroneEmulator:
     def _rest(self) -> None:
         """The vehicle stops: speed and the speed loop's states to 0."""
         p = self._phys
-        p.v = p.x1 = p.x2 = 0.0
+        p.v = p.x1 = p.x2 = p.u = 0.0
 
     def _speed_step(self, dt: float) -> tuple[tuple[tuple[float, ...], ...], tuple[float, ...]]:
         """The exact step over ``dt`` of (z, x1, x2) under a held speed command u: ``s' = Phi s + Gamma u``.
@@ -372,9 +474,9 @@ class DroneEmulator:
         if dt <= 0:
             return
         if p.mode == CtrlState.TAKING_OFF:
-            p.z = min(c.takeoff_altitude, p.z + c.takeoff_speed * dt)
+            p.z = min(self._takeoff_alt, p.z + c.takeoff_speed * dt)
             p.v = c.takeoff_speed
-            if p.z >= c.takeoff_altitude:
+            if p.z >= self._takeoff_alt:
                 p.mode, p.v_in = CtrlState.HOVERING, 0.0
                 self._rest()
                 p.pending.clear()
@@ -387,6 +489,10 @@ class DroneEmulator:
                 self._rest()
         elif p.mode in (CtrlState.FLYING, CtrlState.HOVERING):
             u = 0.0 if self._watchdog else p.v_in
+            if c.accel_limit > 0:  # a ramp of the command, held over each (at most 2 ms) step
+                du = c.accel_limit * dt
+                u = p.u + min(max(u - p.u, -du), du)
+            p.u = u
             if c.vehicle == "speed_loop":
                 (a, b, d), g = self._speed_step(dt)
                 z, x1, x2 = p.z, p.x1, p.x2
@@ -466,37 +572,24 @@ class DroneEmulator:
                 self._stats["bad"] += 1
                 self._last_error = str(exc)
             return
-        c = self.config
         with self._lock:
             self._stats["datagrams"] += 1
             self._advance(max(t, self._phys.t))  # t is the kernel's arrival stamp: the physics may be past it
             self._last_cmd = t
             for cmd in cmds:
                 self._stats["commands"] += 1
-                p = self._phys
                 if cmd.name == "REF":
                     bits = cmd.args[0]
-                    if bits & REF_EMERGENCY and p.mode not in (CtrlState.LANDED,):
-                        p.mode, p.z, p.v_in = CtrlState.LANDED, 0.0, 0.0
-                        self._rest()
-                        p.pending.clear()
+                    if bits & REF_EMERGENCY:
+                        self._cmd_emergency()
                     elif bits & REF_TAKEOFF:
-                        if p.mode == CtrlState.LANDED:
-                            p.mode = CtrlState.TAKING_OFF
-                    elif p.mode in (CtrlState.FLYING, CtrlState.HOVERING, CtrlState.TAKING_OFF):
-                        p.mode = CtrlState.LANDING
-                        p.pending.clear()
+                        self._cmd_takeoff()
+                    else:
+                        self._cmd_land()
                 elif cmd.name in ("PCMD", "PCMD_MAG"):
-                    if p.mode in (CtrlState.FLYING, CtrlState.HOVERING):
-                        flag = cmd.args[0]
-                        gaz = cmd.floats(3, 4)[0]
-                        v = gaz * self._vz_max if flag & 1 else 0.0
-                        arrive = t + c.link_delay
-                        ta = arrive + self.actuator_delay(arrive)
-                        while p.pending and p.pending[-1][0] >= ta:  # older, now stale: the newest wins
-                            p.pending.pop()
-                            self._stats["stale"] += 1
-                        p.pending.append((ta, v))
+                    flag = cmd.args[0]
+                    gaz = cmd.floats(3, 4)[0]
+                    self._cmd_speed(gaz * self._vz_max if flag & 1 else 0.0, t)
                 elif cmd.name == "COMWDG":
                     self._watchdog = False
                 elif cmd.name == "CONFIG":
@@ -577,35 +670,14 @@ class DroneEmulator:
                 time.sleep(delay)
             with self._lock:
                 now = time.monotonic()  # (read under the lock: the state sent is the state at this time)
-                if now - self._last_cmd > c.watchdog:
-                    self._watchdog = True
+                self._tick(now)
                 self._advance(now)
                 if not send:
                     continue
                 z_true, v = self._state_at(now - c.link_delay) if c.link_delay else (self._true_z(), self._phys.v)
                 mode = self._phys.mode
-                state = self._state_bits()
-                client, demo_on = self._client, self._demo
-            self._seq += 1
-            if client is None:
-                continue
-            if c.loss and self.rng.random() < c.loss:
-                with self._lock:
-                    self._stats["navdata_dropped"] += 1
-                continue
-            if demo_on:
-                z_meas = z_true + (self.rng.gauss(0.0, c.noise) if c.noise and mode != CtrlState.LANDED else 0.0)
-                demo = Demo(ctrl_state=int(mode) << 16, battery=87, altitude_mm=int(round(1000 * max(z_meas, 0.0))),
-                            vz=float(1000 * v))
-                pkt = encode_navdata(state, self._seq, demo=demo)
-            else:
-                pkt = encode_navdata(state, self._seq)
-            try:
-                self._nav.sendto(pkt, client)
-            except OSError:
-                continue
-            with self._lock:
-                self._stats["navdata_sent"] += 1
+                snap = self._snapshot()
+            self._send_sample(now, z_true, v, mode, snap)
 
     def _tcp_loop(self) -> None:
         conns: list[socket.socket] = []

@@ -261,6 +261,10 @@ class EmulatorConfig:
     loop (measured on the PX4 logs, see ``PX4_WANDER`` in the source) and 0 for the lag vehicle
     (:attr:`wander_rms` resolves it).  ``wander_time``: its correlation time (s, default 2).
 
+    ``accel_limit``: the vertical acceleration limit of the speed command, m/s^2 (0, the default: none), as real
+    autopilots have (ArduCopter's ``WPNAV_ACCEL_Z`` is 1 m/s^2 by default): a commanded speed step becomes a ramp
+    of that slope before the vehicle's speed loop.
+
     Examples
     --------
     >>> EmulatorConfig().vehicle, EmulatorConfig().wander_rms, EmulatorConfig(vehicle="lag").wander_rms
@@ -299,6 +303,7 @@ class EmulatorConfig:
     speed_zero: float = PX4_SPEED_ZERO
     wander: float | None = None
     wander_time: float = PX4_WANDER_TIME
+    accel_limit: float = 0.0
 
     def __post_init__(self) -> None:
         _check_ipv4("host", self.host)
@@ -332,6 +337,7 @@ class EmulatorConfig:
         if self.wander is not None:
             check_real("wander (m)", self.wander, minimum=0.0, maximum=1.0)
         check_real("wander_time (s)", self.wander_time, minimum=0.0, maximum=1000.0, strict=True)
+        check_real("accel_limit (m/s^2)", self.accel_limit, minimum=0.0, maximum=100.0)
 
     @property
     def wander_rms(self) -> float:

@@ -1,35 +1,34 @@
-"""Flying an AR.Drone 2.0 (or the built-in emulator): the link, and the real-time altitude loop.
+"""Flying a vehicle (an AR.Drone 2.0, a PX4 or ArduPilot autopilot, or the built-in emulator): the real-time
+altitude loop, on any :class:`~delaykit.hardware.link.VehicleLink`.
 
 :func:`fly` does what the paper's Simulink set-up did:
 
-1. navdata start-up: wake the navdata stream, ask for demo packets, acknowledge, set
-   ``control:control_vz_max`` so that ``gaz`` is the command in m/s;
-2. flat trim, take-off, and a steady hover (its mean altitude is the first reference);
-3. the steps in ``z_ref``; for each navdata packet the command is computed and sent at once as a progressive
-   PCMD: the paper's ``u = sat(Kp (z_ref - z) - Kv w, vmax)`` (``w`` the navdata vertical speed, or the
+1. reach the vehicle and wait until it is ready (:meth:`~delaykit.hardware.link.VehicleLink.connect`,
+   :meth:`~delaykit.hardware.link.VehicleLink.ready`; for the AR.Drone, the navdata start-up of
+   :class:`~delaykit.hardware.ardrone_link.DroneLink`);
+2. take-off, and a steady hover (its mean altitude is the first reference);
+3. the steps in ``z_ref``; for each altitude sample the command is computed and sent at once as a vertical
+   velocity: the paper's ``u = sat(Kp (z_ref - z) - Kv w, vmax)`` (``w`` the vehicle's vertical speed, or the
    derivative filter of the altitude), or any controller or compensator of delaykit
-   (:class:`~delaykit.hardware.laws.FlightLaw`: exact between packets, whatever their spacing); a watchdog
-   reset goes out every 0.5 s;
+   (:class:`~delaykit.hardware.laws.FlightLaw`: exact between samples, whatever their spacing);
 4. with a :class:`~delaykit.hardware.monitor.DelayMonitor`, after each step: hover, re-estimate the delay from
-   the step's packets and commands, raise the alarm when it left the controller's design range, and with
+   the step's samples and commands, raise the alarm when it left the controller's design range, and with
    scheduling fly the re-designed law from the next step;
 5. hover and land.
 
-Each step is logged to its own CSV (``t, z, z_ref, u, vz, seq, recv_time, latency_ms``; from one second
-before the step), flushed every line so a crash loses nothing; ``delaykit estimate`` reads them as they are.
-Arrival times are the kernel's (:mod:`~delaykit.hardware.stamps`).  Packets that arrive while the loop hovers
+Each step is logged to its own CSV (``t, z, z_ref, u, vz, seq, recv_time, latency_ms``, and ``vehicle_time``
+when the link has the vehicle's clock, as MAVLink does; from one second before the step), flushed every line so
+a crash loses nothing; ``delaykit estimate`` reads them as they are.  Arrival times are the link's (the
+kernel's on the AR.Drone link: :mod:`~delaykit.hardware.stamps`).  Samples that arrive while the loop hovers
 to estimate are logged with the hover's command and ``latency_ms`` nan (they were not answered).
-Ctrl-C (or SIGTERM or SIGHUP, within :func:`land_on_signals`), a navdata gap longer than ``gap_timeout``, or an
-altitude outside ``[z_min, z_max]`` makes it hover and land at once, and the result says why.  The command never leaves ``±vmax``.  The loop's own latency (packet
-received to command sent) is measured and reported (median and 99th percentile).
-
-The link binds to an ephemeral local port and talks to ``host``; for the emulator that is 127.0.0.1.
+Ctrl-C (or SIGTERM or SIGHUP, within :func:`land_on_signals`), a gap in the samples longer than ``gap_timeout``
+(the link lost: on a MAVLink vehicle its own failsafe takes over), or an altitude outside ``[z_min, z_max]``
+makes it hover and land at once, and the result says why.  The command never leaves ``±vmax``.  The loop's own
+latency (sample received to command sent) is measured and reported (median and 99th percentile).
 """
 
 from __future__ import annotations
 
-import ipaddress
-import socket
 import time
 from collections import deque
 from contextlib import contextmanager
@@ -39,24 +38,17 @@ from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 import numpy as np
 
-from ..errors import DelaykitError, InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.compensators import Compensator
 from ..models.controllers import Controller
-from .ardrone import ATEncoder, CtrlState, Navdata, NavState, ProtocolError, decode_navdata
-from .emulator_config import _check_ipv4, _check_port
+from .ardrone_link import VZ_MAX_LIMIT, DroneLink
 from .laws import FlightLaw, Relay
-from .stamps import enable_stamps, recv_stamped
+from .link import AltitudeSample, LinkError, VehicleLink
 
 if TYPE_CHECKING:  # (the monitor pulls in the estimator and the design: imported when a flight uses one)
     from .monitor import DelayMonitor, OnlineEstimate
 
 __all__ = ["LinkError", "DroneLink", "FlightPlan", "FlightResult", "fly", "land_on_signals"]
-
-VZ_MAX_LIMIT = 2.0  # m/s: control:control_vz_max accepts at most 2000 mm/s
-
-
-class LinkError(DelaykitError, RuntimeError):
-    """The drone does not answer (no navdata), so nothing flies."""
 
 
 class _SignalInterrupt(KeyboardInterrupt):
@@ -112,67 +104,6 @@ def land_on_signals(names: tuple[str, ...] = ("SIGTERM", "SIGHUP")) -> Iterator[
     finally:
         for sig, handler in old.items():
             signal.signal(sig, signal.SIG_DFL if handler is None else handler)
-
-
-class DroneLink:
-    """UDP sockets to a drone: AT commands out, navdata in (decoded; malformed packets counted and logged)."""
-
-    def __init__(self, host: str, at_port: int = 5556, navdata_port: int = 5554) -> None:
-        _check_ipv4("host", host)
-        try:
-            ipaddress.ip_address(host)
-        except ValueError:
-            try:
-                host = socket.gethostbyname(host)
-            except OSError:
-                raise InvalidValueError(f"host {host!r} is not an address and cannot be resolved") from None
-        self.host = host
-        self.at_port = _check_port("at_port", at_port)
-        self.navdata_port = _check_port("navdata_port", navdata_port)
-        if at_port == 0 or navdata_port == 0:
-            raise InvalidValueError("the drone's ports must be given (not 0)")
-        self.at = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.nav = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.nav.bind(("127.0.0.1" if ipaddress.ip_address(host).is_loopback else "0.0.0.0", 0))
-        # a packet's time is its arrival in the kernel, not when this thread woke to read it
-        self.kernel_stamps = enable_stamps(self.nav)
-        self.enc = ATEncoder()
-        self.rejected = 0
-        self.rejections: list[str] = []
-
-    def send(self, *cmds: bytes) -> float:
-        """Send commands in one datagram; returns the time (monotonic) it went out."""
-        self.at.sendto(b"".join(cmds), (self.host, self.at_port))
-        return time.monotonic()
-
-    def wake(self) -> None:
-        """Ask the drone to stream navdata to this socket."""
-        self.nav.sendto(b"\x01\x00\x00\x00", (self.host, self.navdata_port))
-
-    def recv(self, timeout: float) -> tuple[Navdata, float] | None:
-        """The next valid navdata packet from the drone and its arrival time, or None on timeout."""
-        deadline = time.monotonic() + timeout
-        while True:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                return None
-            self.nav.settimeout(left)
-            try:
-                data, addr, t = recv_stamped(self.nav, 4096)
-            except socket.timeout:
-                return None
-            if addr[0] != self.host:
-                continue
-            try:
-                return decode_navdata(data), t
-            except ProtocolError as exc:
-                self.rejected += 1
-                if len(self.rejections) < 100:
-                    self.rejections.append(str(exc))
-
-    def close(self) -> None:
-        self.at.close()
-        self.nav.close()
 
 
 @dataclass(frozen=True)
@@ -312,8 +243,11 @@ def fly(
     confirm: Callable[[], bool] | None = None,
     status: Callable[[str], None] | None = None,
     monitor: DelayMonitor | None = None,
+    link: VehicleLink | Callable[[], VehicleLink] | None = None,
+    ready_timeout: float = 60.0,
 ) -> FlightResult:
-    """Fly the plan against the drone at ``host`` and log every navdata packet (see the module docstring).
+    """Fly the plan on a vehicle (by default the AR.Drone at ``host``) and log every altitude sample (see the
+    module docstring).
 
     Parameters
     ----------
@@ -322,9 +256,9 @@ def fly(
     log : str or Path
         The log's path (``name-1.csv``, ``name-2.csv``... with several steps).
     host, at_port, navdata_port : str, int, int
-        The drone (or the emulator).
+        The AR.Drone (or its emulator), when no ``link`` is given.
     connect_timeout : float
-        How long to wait for navdata before giving up (s).
+        How long to wait for the vehicle to answer before giving up (s).
     confirm : callable, optional
         Asked once the link works, before the take-off; False: nothing flies.
     status : callable, optional
@@ -332,14 +266,30 @@ def fly(
     monitor : DelayMonitor, optional
         Re-estimate the delay after each step (the vehicle hovers meanwhile), raise the alarm, and with its
         ``schedule`` fly the re-designed law from the next step (warmed up on the last packets).
+    link : VehicleLink or callable, optional
+        Any other vehicle (:class:`~delaykit.hardware.mavlink.MavlinkLink`...), or a function that makes one (so
+        that a pipeline of flights, such as :func:`~delaykit.hardware.autotune.autotune`, opens a fresh link for
+        each); ``host`` and the ports are then not used.  :func:`fly` closes it at the end.
+    ready_timeout : float
+        How long the vehicle may take to be ready to arm (its estimator, its pre-arm checks), s.
 
     Raises
     ------
     LinkError
-        No navdata within ``connect_timeout`` seconds (nothing is flown).
+        The vehicle did not answer within ``connect_timeout`` seconds (nothing is flown).
+    VehicleRefusedError
+        The vehicle refused a mode, arming or the take-off, or was not ready in time (its reason in the message).
     """
     say = status or (lambda _m: None)
     check_real("connect_timeout (s)", connect_timeout, minimum=0.0, strict=True)
+    check_real("ready_timeout (s)", ready_timeout, minimum=0.0, strict=True)
+    if link is not None and not isinstance(link, VehicleLink):
+        if not callable(link):
+            raise InvalidTypeError(f"link must be a VehicleLink or a function that makes one, got "
+                                   f"{type(link).__name__}")
+        link = link()
+        if not isinstance(link, VehicleLink):
+            raise InvalidTypeError(f"the link function must return a VehicleLink, got {type(link).__name__}")
     if monitor is not None:
         from .monitor import DelayMonitor
         if not isinstance(monitor, DelayMonitor):
@@ -361,8 +311,15 @@ def fly(
     cmd_u: list[float] = []
     base = Path(log)
     base.parent.mkdir(parents=True, exist_ok=True)
-    link = DroneLink(host, at_port, navdata_port)
-    enc = link.enc
+    if link is None:
+        link = DroneLink(host, at_port, navdata_port)
+    columns = _COLUMNS + (("vehicle_time",) if link.has_vehicle_time else ())
+
+    def row_of(s: AltitudeSample, z_ref: float, u: float, lat: float) -> str:
+        vt = "" if not link.has_vehicle_time else (",nan" if s.vehicle_time is None else f",{s.vehicle_time:.6f}")
+        return (f"{s.recv_time - t_start:.6f},{s.z:.3f},{z_ref:.9f},{u:.9f},{s.vz:.6f},{s.seq},{s.recv_time:.9f},"
+                f"{lat:.4f}{vt}\n")
+
     events: list[str] = []
     logs: list[Path] = []
     latencies: list[float] = []
@@ -372,66 +329,37 @@ def fly(
     interrupted: str | None = None
     airborne = False
     try:
-        # 1. navdata start-up
-        say(f"waking navdata from {host}:{navdata_port}")
-        got = None
-        deadline = time.monotonic() + connect_timeout
-        while got is None and time.monotonic() < deadline:
-            link.wake()
-            got = link.recv(0.3)
-        if got is None:
-            raise LinkError(f"no navdata from {host}:{navdata_port} within {connect_timeout:g} s: is the drone (or "
-                            "`delaykit emulate`) there, on those ports? Nothing was flown")
-        vz_max = max(plan.vmax, 1.0)
-        deadline = time.monotonic() + connect_timeout
-        nd = got[0]
-        while not nd.has(NavState.NAVDATA_DEMO) or nd.demo is None:
-            if time.monotonic() > deadline:
-                raise LinkError(f"{host} does not switch to demo navdata; nothing was flown")
-            link.send(enc.config("general:navdata_demo", "TRUE"), enc.ctrl(5, 0))
-            r = link.recv(0.3)
-            if r:
-                nd = r[0]
-        link.send(enc.config("control:control_vz_max", str(int(round(1000 * vz_max)))))
-        link.send(enc.config("control:altitude_max", str(int(round(1000 * max(plan.z_max + 0.5, 3.0))))),
-                  enc.ctrl(5, 0))
+        # 1. reach the vehicle, wait until it is ready
+        link.connect(connect_timeout, vmax=plan.vmax, z_max=plan.z_max, status=say)
+        link.ready(ready_timeout, status=say)
         if confirm is not None and not confirm():
-            return FlightResult((), "not confirmed: no take-off", False, 0, link.rejected, None, None, None, tuple(events))
+            return FlightResult((), "not confirmed: no take-off", False, 0, link.rejected, None, None, None,
+                                tuple(events))
         # 2. take-off and hover
         say("take-off")
-        link.send(enc.ftrim())
         airborne = True
-        deadline = time.monotonic() + 15.0
-        nd = None
-        while True:
-            link.send(enc.ref(takeoff=True), enc.comwdg())
-            r = link.recv(0.25)
-            if r:
-                nd = r[0]
-                if nd.demo and nd.demo.major in (CtrlState.HOVERING, CtrlState.FLYING):
-                    break
-            if time.monotonic() > deadline:
-                raise LinkError(f"{host} did not reach a hover within 15 s of take-off")
+        link.takeoff(15.0, status=say)
         say("hovering")
-        hover: list[tuple[float, float, float, int]] = []
+        hover: list[AltitudeSample] = []
         t_start = time.monotonic()
+        last: AltitudeSample | None = None
         while time.monotonic() - t_start < plan.hover_time:
-            link.send(enc.pcmd(progressive=False), enc.comwdg())
-            r = link.recv(plan.gap_timeout)
-            if r and r[0].demo:
-                hover.append((r[1], r[0].demo.altitude_mm / 1000.0, r[0].demo.vz / 1000.0, r[0].sequence))
-        half = [z for t, z, _, _ in hover if t >= t_start + plan.hover_time / 2] or [z for _, z, _, _ in hover]
-        z_ref = float(np.mean(half)) if half else (nd.demo.altitude_mm / 1000.0 if nd and nd.demo else 0.8)
+            link.hold()
+            s = link.recv(plan.gap_timeout)
+            if s is not None:
+                hover.append(s)
+                last = s
+        half = [s.z for s in hover if s.recv_time >= t_start + plan.hover_time / 2] or [s.z for s in hover]
+        z_ref = float(np.mean(half)) if half else (last.z if last is not None else 0.8)
         # 3. the steps; the log of each starts a second before its step (the hover, for the first)
         # (arrival time, row) of the last second, for the next log's start
-        recent: deque = deque((t, f"{t - t_start:.6f},{z:.3f},{z_ref:.9f},0.000000,{vz:.6f},{sq},{t:.9f},0.0000\n")
-                              for t, z, vz, sq in hover if t >= hover[-1][0] - 1.0) if hover else deque()
-        last_wdg = 0.0
+        recent: deque = deque((s.recv_time, row_of(s, z_ref, 0.0, 0.0)) for s in hover
+                              if s.recv_time >= hover[-1].recv_time - 1.0) if hover else deque()
         for k, step in enumerate(plan.steps):
             path = _log_path(base, k, len(plan.steps))
             logs.append(path)
             fh = open(path, "w", buffering=1)
-            fh.write(",".join(_COLUMNS) + "\n")
+            fh.write(",".join(columns) + "\n")
             for _, row in recent:  # the second before the step
                 fh.write(row)
             fh.flush()
@@ -440,22 +368,14 @@ def fly(
             t_step = time.monotonic()
             try:
                 while time.monotonic() - t_step < plan.step_duration:
-                    r = link.recv(plan.gap_timeout)
-                    if r is None:
-                        raise _Abort(f"navdata gap longer than {plan.gap_timeout:g} s")
-                    nd, t_recv = r
-                    if nd.demo is None:
-                        continue
-                    z = nd.demo.altitude_mm / 1000.0
+                    s = link.recv(plan.gap_timeout)
+                    if s is None:
+                        raise _Abort(f"{link.sample_name} gap longer than {plan.gap_timeout:g} s")
+                    z, vz, t_recv = s.z, s.vz, s.recv_time
                     if not plan.z_min <= z <= plan.z_max:
                         raise _Abort(f"altitude {z:.3f} m outside the bounds [{plan.z_min:g}, {plan.z_max:g}] m")
-                    vz = nd.demo.vz / 1000.0
                     u = law.update(t_recv, r=z_ref, y=z, vm=vz)
-                    cmds = [enc.pcmd(gaz=u / vz_max)]
-                    if t_recv - last_wdg > 0.5:
-                        cmds.append(enc.comwdg())
-                        last_wdg = t_recv
-                    t_sent = link.send(*cmds)
+                    t_sent = link.send_velocity(u)
                     lat = 1e3 * (t_sent - t_recv)
                     latencies.append(lat)
                     arrivals.append(t_recv)
@@ -463,8 +383,7 @@ def fly(
                     pk.append((t_recv, z, z_ref, vz, u))
                     cmd_t.append(t_sent)
                     cmd_u.append(u)
-                    row = (f"{t_recv - t_start:.6f},{z:.3f},{z_ref:.9f},{u:.9f},{vz:.6f},"
-                           f"{nd.sequence},{t_recv:.9f},{lat:.4f}\n")
+                    row = row_of(s, z_ref, u, lat)
                     fh.write(row)
                     recent.append((t_recv, row))
                     while recent and t_recv - recent[0][0] > 1.0:
@@ -473,15 +392,10 @@ def fly(
                     law = _watch(monitor, law, link, k, t_step, t_start, pk, holds, cmd_t, cmd_u, online, events,
                                  say)
                     # the packets that queued up meanwhile (answered by the hover): logged, not answered late
-                    while (r := link.recv(0.005)) is not None:
-                        nd, t_recv = r
-                        if nd.demo is None:
-                            continue
-                        z, vz = nd.demo.altitude_mm / 1000.0, nd.demo.vz / 1000.0
-                        row = (f"{t_recv - t_start:.6f},{z:.3f},{z_ref:.9f},0.000000,{vz:.6f},{nd.sequence},"
-                               f"{t_recv:.9f},nan\n")
+                    while (s := link.recv(0.005)) is not None:
+                        row = row_of(s, z_ref, 0.0, float("nan"))
                         fh.write(row)
-                        recent.append((t_recv, row))
+                        recent.append((s.recv_time, row))
             finally:
                 fh.close()
     except _Abort as exc:
@@ -496,13 +410,9 @@ def fly(
         # 4. hover and land, whatever happened (if a take-off was begun)
         try:
             say("landing" if airborne else "no take-off")
-            t_land = time.monotonic()
-            while airborne and time.monotonic() - t_land < 8.0:
-                link.send(enc.pcmd(progressive=False), enc.ref(takeoff=False), enc.comwdg())
-                r = link.recv(0.2)
-                if r and r[0].demo and r[0].demo.major == CtrlState.LANDED:
-                    break
-        except OSError:
+            if airborne and not link.land(8.0) and not completed:
+                events.append(f"no landing confirmed by {link.name}: its own failsafe is in charge")
+        except (OSError, LinkError):
             pass
         link.close()
     lat = np.array(latencies)
@@ -513,11 +423,11 @@ def fly(
                         flown, tuple(online), interrupted)
 
 
-def _watch(monitor: DelayMonitor, law: FlightLaw, link: DroneLink, k: int, t_step: float, t_start: float,
+def _watch(monitor: DelayMonitor, law: FlightLaw, link: VehicleLink, k: int, t_step: float, t_start: float,
            pk: list, holds: list, cmd_t: list, cmd_u: list, online: list, events: list,
            say: Callable[[str], None]) -> FlightLaw:
     """After step ``k``: hover, estimate the delay on the step's packets, judge it, maybe switch laws."""
-    t_hover = link.send(link.enc.pcmd(progressive=False), link.enc.comwdg())  # hold still while computing
+    t_hover = link.hold()  # hold still while computing
     cmd_t.append(t_hover)
     cmd_u.append(0.0)
     holds.append((t_hover, 0.0))

@@ -146,6 +146,9 @@ def run_demo(
     status: Callable[[str], None] | None = None,
     vehicle: str = "speed_loop",
     identify_plant: bool = True,
+    protocol: str = "ardrone",
+    autopilot: str = "ardupilot",
+    link: Callable[[], Any] | None = None,
 ) -> DemoReport:
     """Run the pipeline and write ``demo.md``, ``demo.json`` and the figures into ``out``.
 
@@ -156,6 +159,11 @@ def run_demo(
     With ``compensate``, the best of the three compensators for the estimated delay flies the PV flight's steps;
     on the emulator, ``varying_steps`` steps of ``varying_duration`` seconds then fly it again while the
     emulator's delay grows by ``delay_jump`` after about half of them (0: no such flight).
+
+    ``protocol`` is how the emulator is flown: ``"ardrone"`` (AT commands and navdata at 15 Hz) or ``"mavlink"``
+    (its MAVLink front end behaving as ``autopilot``, ``"ardupilot"`` or ``"px4"``, flown by
+    :class:`~delaykit.hardware.mavlink.MavlinkLink` at 50 Hz).  A real vehicle is ``host`` (an AR.Drone) or
+    ``link``, a function making a :class:`~delaykit.hardware.link.VehicleLink` for each flight.
 
     ``vehicle`` is the emulator's (:data:`~delaykit.hardware.emulator.VEHICLES`; not used with ``host``).  With
     ``identify_plant`` the P flights are identified and the identified model and the paper model predict the PV
@@ -176,20 +184,25 @@ def run_demo(
     out.mkdir(parents=True, exist_ok=True)
     emu = None
     truth = None
-    if host is None:
+    if protocol not in ("ardrone", "mavlink"):
+        raise InvalidValueError(f"protocol must be ardrone or mavlink, got {protocol!r}")
+    if host is not None and link is not None:
+        raise InvalidValueError("give host (an AR.Drone) or link (another vehicle), not both")
+    fly_kw: dict[str, Any] = ({"link": link} if link is not None else
+                              {"host": host, "at_port": at_port, "navdata_port": navdata_port})
+    if host is None and link is None:
         rng = random.Random(seed)
         cfg = EmulatorConfig(at_port=0, navdata_port=0, video_port=0, control_port=0,
                              delay=round(rng.uniform(0.22, 0.42), 4), lag=0.05, noise=0.004, seed=seed,
-                             vehicle=vehicle)
-        emu = DroneEmulator(cfg).start()
+                             vehicle=vehicle, rate=15.0 if protocol == "ardrone" else 50.0)
+        emu, fly_kw = _start_emulator(cfg, protocol, autopilot)
         truth = emu.true_delay
-        host, at_port, navdata_port = "127.0.0.1", emu.ports["at"], emu.ports["navdata"]
         say("emulator started on 127.0.0.1 with a delay the pipeline is not told")
     try:
         say(f"P flight: {p_steps} step tests at Kp = {P_KP:g}")
         steps = tuple((P_STEPS * 3)[:p_steps])
         p = fly(FlightPlan(kp=P_KP, steps=steps, step_duration=step_duration, hover_time=1.5), out / "p_flight.csv",
-                host=host, at_port=at_port, navdata_port=navdata_port, confirm=confirm, status=say)
+                confirm=confirm, status=say, **fly_kw)
         _stop_if_interrupted(p, "the P flight")
         if not p.logs:
             raise FlightError(f"the P flight did not fly: {p.reason}")
@@ -208,8 +221,7 @@ def run_demo(
             say(f"no PV design: {d.reason}; flying the paper's Kv = {kv:g} instead")
         say(f"PV flight: Kp = {PV_KP:g}, Kv = {kv:g}")
         pv = fly(FlightPlan(kp=PV_KP, kv=kv, steps=tuple((P_STEPS * 2)[:pv_steps]), step_duration=step_duration,
-                            hover_time=1.5), out / "pv_flight.csv", host=host, at_port=at_port,
-                 navdata_port=navdata_port, confirm=confirm, status=say)
+                            hover_time=1.5), out / "pv_flight.csv", confirm=confirm, status=say, **fly_kw)
         _stop_if_interrupted(pv, "the PV flight")
         comp = cf = None
         if compensate:
@@ -222,8 +234,8 @@ def run_demo(
                                     "delay_ratio_range": list(v.delay_ratio_range)} for k, v in designs.items()}}
             say(f"{best} flight (the soonest-settling design)")
             cf = fly(FlightPlan(kp=0.0, controller=designs[best].compensator, steps=tuple((P_STEPS * 2)[:pv_steps]),
-                                step_duration=step_duration, hover_time=1.5), out / "comp_flight.csv", host=host,
-                     at_port=at_port, navdata_port=navdata_port, confirm=confirm, status=say)
+                                step_duration=step_duration, hover_time=1.5), out / "comp_flight.csv",
+                     confirm=confirm, status=say, **fly_kw)
             _stop_if_interrupted(cf, f"the {best} flight")
     finally:
         if emu is not None:
@@ -231,7 +243,7 @@ def run_demo(
     vf = vtruth = None
     if comp is not None and emu is not None and varying_steps > 0 and delay_jump != 0:
         vf, vtruth = _varying_flight(out, emu.config, designs[comp["chosen"]].compensator, varying_steps,
-                                     varying_duration, delay_jump, say)
+                                     varying_duration, delay_jump, say, protocol, autopilot)
     ident = None
     if identify_plant:
         say("identifying the plant from the P flights")
@@ -461,24 +473,37 @@ def _settling(design: Any) -> float:
     return math.inf if m is None or m.settling_time is None else float(m.settling_time)
 
 
+def _start_emulator(cfg: EmulatorConfig, protocol: str, autopilot: str) -> tuple[Any, dict[str, Any]]:
+    """Start the emulator behind the ``protocol``'s front end; return it and :func:`fly`'s keywords to reach it."""
+    if protocol == "ardrone":
+        emu = DroneEmulator(cfg).start()
+        return emu, {"host": "127.0.0.1", "at_port": emu.ports["at"], "navdata_port": emu.ports["navdata"]}
+    from ..hardware.emulator_mavlink import MavlinkEmulator
+    from ..hardware.mavlink import MavlinkLink
+
+    emu = MavlinkEmulator(cfg, autopilot=autopilot, listen="tcp:127.0.0.1:0").start()
+    conn = f"tcp:127.0.0.1:{emu.ports['mavlink']}"
+    return emu, {"link": lambda: MavlinkLink(conn, rate=cfg.rate, takeoff_height=0.8)}
+
+
 def _varying_flight(out: Path, cfg: EmulatorConfig, law: Any, n: int, duration: float, jump: float,
-                    say: Callable[[str], None]) -> tuple[FlightResult, dict]:
+                    say: Callable[[str], None], protocol: str = "ardrone",
+                    autopilot: str = "ardupilot") -> tuple[FlightResult, dict]:
     """The compensator on the same emulated vehicle, its delay growing by ``jump`` after about half the steps."""
     from ..hardware.monitor import DelayMonitor
 
-    # take-off (~1.2 s) and the hover (1.5 s), then the steps (each followed by a fraction of a second of
-    # estimation): the change falls in the middle of the step after half of them
-    change = 2.7 + (n // 2) * (duration + 0.2) + duration / 2
+    # take-off (~1.2 s; about a second more to reach a MAVLink vehicle) and the hover (1.5 s), then the steps (each
+    # followed by a fraction of a second of estimation): the change falls in the middle of the step after half
+    change = 2.7 + (1.0 if protocol == "mavlink" else 0.0) + (n // 2) * (duration + 0.2) + duration / 2
     vcfg = replace(cfg, delay_schedule=((change, cfg.delay + jump),))
-    emu = DroneEmulator(vcfg).start()
+    emu, fly_kw = _start_emulator(vcfg, protocol, autopilot)
     truth = {"before": emu.true_delay, "after": emu.true_delay + jump, "change_time": change}
     say(f"a delay that moves: {emu.true_delay:.3f} s, then {emu.true_delay + jump:.3f} s from {change:.1f} s")
     try:
         mon = DelayMonitor(law, schedule=True)
         steps = tuple((1.0, -1.0) * n)[:n]
         vf = fly(FlightPlan(kp=0.0, controller=law, steps=steps, step_duration=duration, hover_time=1.5),
-                 out / "varying_flight.csv", host="127.0.0.1", at_port=emu.ports["at"],
-                 navdata_port=emu.ports["navdata"], status=say, monitor=mon)
+                 out / "varying_flight.csv", status=say, monitor=mon, **fly_kw)
         truth["t0"] = emu.start_time
     finally:
         emu.stop()
