@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
-from typing import Optional
+from typing import Any, Optional
 
 import typer
 
@@ -102,6 +103,27 @@ def emulate(
     print_json(summary, indent=None)
 
 
+def _loop_law(path: Path, vmax: float) -> tuple[Any, float]:
+    """The controller of a loop file and the command limit it flies with.
+
+    The file's plant is the model the law was designed on, not what flies (the vehicle is); its delay and sampling
+    are what the design assumed, not imposed on the flight (the flight law runs exactly between the vehicle's
+    samples, whatever their spacing).  Its limits become the flight's command limit: symmetric limits are flown as
+    they are, none keep ``--vmax``; asymmetric ones are refused, as the flight limits the command symmetrically.
+    """
+    from ..models.altitude import as_loop
+    from ..models.loop import load_loop
+
+    loop = as_loop(load_loop(path))
+    lo, hi = loop.umin, loop.umax
+    if math.isinf(lo) and math.isinf(hi):
+        return loop.controller, vmax
+    if lo != -hi:
+        raise InvalidValueError(f"the loop file {str(path)!r} limits the command to [{lo:g}, {hi:g}]; a flight limits "
+                                "it symmetrically (--vmax): write the file with umin = -umax, or none")
+    return loop.controller, hi
+
+
 def _parse_bursts(specs: list[str], rate: float) -> tuple[tuple[float, float, float], ...]:
     """``--burst`` values (``START:DURATION[:RATE]``, repeated or comma-separated) as checked bursts; an error names
     the item.
@@ -158,6 +180,7 @@ def fly(
     takeoff_height: float = typer.Option(1.0, "--takeoff-height", help="With --vehicle mavlink: the hover height after take-off, m."),
     ready_timeout: float = typer.Option(60.0, "--ready-timeout", help="How long the vehicle may take to pass its pre-arm checks, s."),
     controller: str = typer.Option("p", "--controller", help="p | pv (the paper's laws, --kp/--kv) | smith | filtered-smith | predictor (designed for --model-delay)."),
+    loop_file: Optional[Path] = typer.Option(None, "--loop", help="Fly the controller (any law: P, PI, PID, a transfer function, a compensator) and the command limits of a loop file, such as `tune --save` or `design --save` writes; not with --controller, --kp or --kv."),
     kp: Optional[float] = typer.Option(None, "--kp", help="Proportional gain (p, pv)."),
     kv: float = typer.Option(0.0, "--kv", help="Velocity gain (pv)."),
     velocity: str = typer.Option("true", "--velocity", help="true (navdata vz) | filtered (derivative filter)."),
@@ -180,8 +203,9 @@ def fly(
 ) -> None:
     """Fly step tests: navdata start-up, take-off, hover, the steps, land; log every packet.
 
-    The law is the paper's P or PV (--kp, --kv) or a delay compensator designed for --model-delay on the
-    integrator model 1/s.  With --monitor the delay is re-estimated after each step (the drone hovers for the
+    The law is the paper's P or PV (--kp, --kv), a delay compensator designed for --model-delay on the
+    integrator model 1/s, or the controller of a loop file (--loop tuned.toml, as `tune --save` writes it: PI,
+    PID, any transfer function or compensator, with the file's command limits).  With --monitor the delay is re-estimated after each step (the drone hovers for the
     fraction of a second it takes) and compared with the law's design range; --schedule re-designs the law
     when the alarm goes off.
 
@@ -200,7 +224,12 @@ def fly(
     make_link = link_factory(vehicle, connect, rate=mav_rate, takeoff_height=takeoff_height)
     kind = controller.lower().replace("_", "-")
     law = None
-    if kind in COMPENSATOR_KINDS:
+    if loop_file is not None:
+        if kind != "p" or kp is not None or kv or model_delay is not None or closed_loop_time is not None:
+            raise InvalidValueError("--loop flies the file's controller: give no --controller, --kp, --kv, "
+                                    "--model-delay or --closed-loop-time with it")
+        law, vmax = _loop_law(loop_file, vmax)
+    elif kind in COMPENSATOR_KINDS:
         if model_delay is None:
             raise InvalidValueError(f"--controller {kind} needs --model-delay (the delay it is designed for, s)")
         if kp is not None or kv:
