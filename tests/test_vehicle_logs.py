@@ -1,0 +1,263 @@
+"""Vehicle flight logs (ULog, DataFlash, tlog) read into delaykit's experiments and flight logs.
+
+The real logs are read from ../shared/data (tests/shared_data.py), never copied; each check compares delaykit's read
+with the same file read directly by pyulog or pymavlink (the independent readers), or with a property of the flight
+the data README states.  The tlog is written here by pymavlink itself with a known signal and delay.
+"""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import pytest
+
+from delaykit.identify.flightlog import LogError
+from delaykit.identify.iodata import read_experiment
+from delaykit.identify.vehiclelogs import (Spec, align_signals, list_log, ned_to_up, read_log_experiment,
+                                           read_log_flight, read_signals)
+
+from shared_data import data_path
+
+SITL = ("px4-ulog", "sitl_takeoff_setpoints.ulg")
+HOP = ("px4-ulog", "vtol_hop.ulg")
+COPTER = ("ardupilot-dataflash", "copter_3.6.4_takeoff_land.bin")
+
+
+# -- the tlog: written by pymavlink with a known delay ------------------------------------------------------------
+
+TLOG_DELAY = 0.3  # s: the vehicle's vertical speed follows the setpoint this late, through a lag of TLOG_TAU
+TLOG_TAU = 0.4
+TLOG_STEPS = ((2.0, 1.0), (6.0, -1.5), (10.0, 0.5))  # (time, change of the commanded climb rate, m/s)
+
+
+def tlog_truth(t: np.ndarray) -> np.ndarray:
+    """The climb rate (up, m/s) at ``t``: each setpoint change, delayed by TLOG_DELAY, through the lag (closed form)."""
+    v = np.zeros_like(t)
+    for ts, dv in TLOG_STEPS:
+        s = t - ts - TLOG_DELAY
+        v += np.where(s > 0, dv * (1.0 - np.exp(-np.clip(s, 0, None) / TLOG_TAU)), 0.0)
+    return v
+
+
+def setpoint(t: np.ndarray) -> np.ndarray:
+    return sum(np.where(t >= ts, dv, 0.0) for ts, dv in TLOG_STEPS)
+
+
+def write_tlog(path, t_end: float = 14.0) -> None:
+    """A tlog as a ground station writes one: (8-byte big-endian µs since the epoch, one MAVLink 2 packet) records.
+
+    The vehicle's echo of the velocity target (POSITION_TARGET_LOCAL_NED, 10 Hz) and its LOCAL_POSITION_NED
+    (20 Hz, on another phase of the clock), both NED (vz down) and stamped with the vehicle's time_boot_ms."""
+    from pymavlink.dialects.v20 import common as mav
+
+    link = mav.MAVLink(None, srcSystem=1, srcComponent=1)
+    epoch = 1.7e9
+    records = []
+    for k in range(int(t_end / 0.1)):
+        t = 0.1 * k + 0.013
+        msg = mav.MAVLink_position_target_local_ned_message(
+            int(round(t * 1000)), mav.MAV_FRAME_LOCAL_NED, 0b110111000111, 0, 0, 0, 0, 0,
+            -float(setpoint(np.array([t]))[0]), 0, 0, 0, 0, 0)
+        records.append((t, msg))
+    for k in range(int(t_end / 0.05)):
+        t = 0.05 * k + 0.031
+        vz_up = float(tlog_truth(np.array([t]))[0])
+        records.append((t, mav.MAVLink_local_position_ned_message(int(round(t * 1000)), 0, 0, 0, 0, 0, -vz_up)))
+    records.sort(key=lambda r: r[0])
+    with open(path, "wb") as fh:
+        for t, msg in records:
+            fh.write(struct.pack(">Q", int((epoch + t + 0.002) * 1e6)) + msg.pack(link))
+
+
+def test_tlog_read_back(tmp_path):
+    p = tmp_path / "flight.tlog"
+    write_tlog(p)
+    sig = read_signals(p, ["-LOCAL_POSITION_NED.vz", "-POSITION_TARGET_LOCAL_NED.vz"])
+    vz = sig["-LOCAL_POSITION_NED.vz"]
+    # the vehicle's clock (time_boot_ms), not the tlog's receive stamps: the times written above, to the ms
+    assert vz.clock == "time_boot_ms"
+    np.testing.assert_allclose(vz.t[:3], [0.031, 0.081, 0.131], atol=1e-9)
+    # float32 fields: the truth to float32 precision; the sign flipped to up
+    np.testing.assert_allclose(vz.values, tlog_truth(vz.t), atol=1e-6)
+    assert vz.unit == "m/s"
+    e = read_experiment(p, outputs=["-LOCAL_POSITION_NED.vz"], input="-POSITION_TARGET_LOCAL_NED.vz")
+    # the input held (zero-order hold) on the output's clock: the setpoint in force at each output sample
+    sp_t = 0.1 * np.floor((e.t - 0.013) / 0.1 + 1e-9) + 0.013
+    np.testing.assert_allclose(e.u, setpoint(sp_t), atol=1e-6)
+
+
+def test_tlog_known_delay_identified(tmp_path):
+    from delaykit.identify.identification import identify
+
+    p = tmp_path / "flight.tlog"
+    write_tlog(p)
+    e = read_experiment(p, outputs=["-LOCAL_POSITION_NED.vz"], input="-POSITION_TARGET_LOCAL_NED.vz")
+    m = identify(e, model="fopdt")
+    # the truth written into the file: 0.3 s and 0.4 s; the setpoint is seen at 10 Hz, so its changes are known to
+    # 0.1 s only (the setpoint changes at a 10 Hz sample; the written truth uses the change's true time)
+    assert abs(m.params["delay"] - TLOG_DELAY) < 0.06
+    assert abs(m.params["time_constant"] - TLOG_TAU) < 0.06
+    assert abs(m.params["gain"] - 1.0) < 0.02
+
+
+def test_tlog_window_and_listing(tmp_path):
+    p = tmp_path / "flight.tlog"
+    write_tlog(p)
+    e = read_experiment(p, outputs=["-LOCAL_POSITION_NED.vz"], input="-POSITION_TARGET_LOCAL_NED.vz",
+                        window=(5.0, 9.0))
+    assert e.t[0] >= 5.0 and e.t[-1] <= 9.0 and e.t.size == 80
+    listing = list_log(p)
+    names = {t.name: t for t in listing.topics}
+    assert set(names) == {"LOCAL_POSITION_NED", "POSITION_TARGET_LOCAL_NED"}
+    assert names["LOCAL_POSITION_NED"].samples == 280 and abs(names["LOCAL_POSITION_NED"].rate_hz - 20) < 1e-6
+    assert abs(names["POSITION_TARGET_LOCAL_NED"].rate_hz - 10) < 1e-6
+    with pytest.raises(LogError, match="not within"):
+        read_experiment(p, outputs=["-LOCAL_POSITION_NED.vz"], input="-POSITION_TARGET_LOCAL_NED.vz",
+                        window=(5.0, 90.0))
+    with pytest.raises(LogError, match="no field 'vzz'.*fields: time_boot_ms"):
+        read_signals(p, ["LOCAL_POSITION_NED.vzz"])
+    with pytest.raises(LogError, match="no ATTITUDE message"):
+        read_signals(p, ["ATTITUDE.roll"])
+
+
+# -- specs --------------------------------------------------------------------------------------------------------
+
+def test_specs():
+    s = Spec.parse("-vehicle_local_position[1].z*0.5")
+    assert (s.topic, s.instance, s.field, s.sign, s.scale) == ("vehicle_local_position", 1, "z", -1, 0.5)
+    assert Spec.parse("trajectory_setpoint.velocity[2]").field == "velocity[2]"
+    assert ned_to_up("-a.z") == "a.z" and ned_to_up("a.z") == "-a.z"
+    for bad in ("z", "a.", ".z", "a.z*", "a.z*0", "a b.z"):
+        with pytest.raises(LogError, match="not a log signal|scale"):
+            Spec.parse(bad)
+
+
+def test_align_holds_the_drive_and_interpolates_outputs():
+    from delaykit.identify.vehiclelogs import Signal
+
+    y = Signal(Spec.parse("a.y"), np.arange(10.0), np.arange(10.0) ** 2, None, "timestamp")
+    y2 = Signal(Spec.parse("c.y"), np.arange(10.0) + 0.5, np.arange(10.0) + 0.5, None, "timestamp")
+    u = Signal(Spec.parse("b.u"), np.array([0.7, 4.2]), np.array([1.0, 3.0]), None, "timestamp")
+    t, v = align_signals("f.ulg", {"a.y": y, "c.y": y2, "b.u": u}, "a.y", held=["b.u"], window=(1.0, 8.0))
+    np.testing.assert_array_equal(t, np.arange(1.0, 9.0))
+    np.testing.assert_array_equal(v["b.u"], [1, 1, 1, 1, 3, 3, 3, 3])  # held, not interpolated
+    np.testing.assert_allclose(v["c.y"], t)  # interpolated (linear data: exact)
+    with pytest.raises(LogError, match="before b.u's first sample"):
+        align_signals("f.ulg", {"a.y": y, "b.u": u}, "a.y", held=["b.u"], window=(0.0, 8.0))
+    nan = Signal(Spec.parse("b.u"), np.arange(10.0), np.where(np.arange(10) < 4, np.nan, 1.0), None, "timestamp")
+    with pytest.raises(LogError, match=r"not set \(NaN\) at 4 of .* set from 4 to 9 s"):
+        align_signals("f.ulg", {"a.y": y, "b.u": nan}, "a.y", held=["b.u"])
+
+
+# -- the shared real logs -----------------------------------------------------------------------------------------
+
+def _pyulog(path, topic):
+    from pyulog import ULog
+
+    return next(d for d in ULog(str(path), [topic]).data_list if d.name == topic).data
+
+
+def test_sitl_ulog_setpoint_and_position_aligned_up_positive():
+    path = data_path(*SITL)
+    pos = _pyulog(path, "vehicle_local_position")
+    sp = _pyulog(path, "trajectory_setpoint")
+    # where the position setpoint is set (PX4 logs unused fields as NaN): the climb and the descent
+    set_ = np.isfinite(sp["position[2]"])
+    t_sp = sp["timestamp"][set_] * 1e-6
+    window = (float(t_sp[0]) + 0.5, float(t_sp[-1]))
+    log = read_log_flight(path, z="-vehicle_local_position.z", z_ref="-trajectory_setpoint.position[2]",
+                          window=window)
+    # the output's own clock and values, sign flipped (NED down -> up), straight from pyulog
+    keep = (pos["timestamp"] * 1e-6 >= window[0]) & (pos["timestamp"] * 1e-6 <= window[1])
+    np.testing.assert_array_equal(log.t, pos["timestamp"][keep] * 1e-6)
+    np.testing.assert_array_equal(log.z, -pos["z"][keep])
+    # the reference held: the last setpoint at or before each sample (computed here by a plain loop)
+    for i in range(0, log.t.size, 7):
+        j = max(k for k in range(sp["timestamp"].size) if sp["timestamp"][k] * 1e-6 <= log.t[i])
+        assert log.z_ref[i] == -sp["position[2]"][j]
+    # up is positive: the take-off climbs above 1.5 m and follows the setpoint: typically within 0.15 m, and the
+    # height peaks within half a second of the setpoint (the landing's setpoint runs below the ground: not compared)
+    assert log.z.max() > 1.5 and log.z_ref.max() > 1.5
+    assert np.median(np.abs(log.z - log.z_ref)) < 0.15
+    assert abs(log.t[np.argmax(log.z)] - log.t[np.argmax(log.z_ref)]) < 0.5
+
+
+def test_sitl_ulog_nan_setpoint_is_a_clear_error():
+    path = data_path(*SITL)
+    with pytest.raises(LogError, match=r"trajectory_setpoint.position\[2\] is not set \(NaN\).*choose a window"):
+        read_log_experiment(path, outputs=["-vehicle_local_position.z"], input="-trajectory_setpoint.position[2]")
+
+
+def test_vtol_hop_height():
+    path = data_path(*HOP)
+    sig = read_signals(path, ["-vehicle_local_position.z"])["-vehicle_local_position.z"]
+    raw = _pyulog(path, "vehicle_local_position")
+    np.testing.assert_array_equal(sig.values, -raw["z"])
+    np.testing.assert_array_equal(sig.t, raw["timestamp"] * 1e-6)
+    # the data README: a manual hop to about 1.1 m, vehicle_local_position at about 98 Hz (the log starts near the
+    # hop's top, 1.17 m up, and ends on the ground near 0.13 m: its span is the hop's height)
+    assert sig.values[0] > sig.values[-1]  # up is positive: the vehicle comes down
+    hop = sig.values.max() - sig.values.min()
+    assert 0.9 < hop < 1.3
+    assert 90 < sig.rate < 110
+    with pytest.raises(LogError, match="no topic 'trajectory_setpoint'"):
+        read_signals(path, ["trajectory_setpoint.velocity[2]"])
+    with pytest.raises(LogError, match="has no instance 1"):
+        read_signals(path, ["vehicle_local_position[1].z"])
+
+
+def _pymavlink_ctun(path):
+    from pymavlink import mavutil
+
+    conn = mavutil.mavlink_connection(str(path))
+    rows = []
+    while (m := conn.recv_match(type="CTUN")) is not None:
+        rows.append((m.TimeUS, m.DCRt, m.CRt))
+    return np.array(rows, dtype=float)
+
+
+def test_dataflash_ctun_units_and_cross_correlation_delay():
+    path = data_path(*COPTER)
+    raw = _pymavlink_ctun(path)
+    sig = read_signals(path, ["CTUN.DCRt", "CTUN.CRt"])
+    # the log declares cm/s (FMTU): converted to m/s; time from TimeUS
+    assert sig["CTUN.CRt"].unit == "m/s"
+    np.testing.assert_allclose(sig["CTUN.CRt"].values, raw[:, 2] * 0.01)
+    np.testing.assert_allclose(sig["CTUN.DCRt"].t, raw[:, 0] * 1e-6)
+    # the take-off and climb (the first armed stretch; 10 Hz without gaps), via delaykit's window
+    e = read_experiment(path, outputs=["CTUN.CRt"], input="CTUN.DCRt", window=(214.0, 251.0))
+    assert e.uniform and abs(e.period - 0.1) < 1e-3
+    # an independent plain numpy cross-correlation of pymavlink's own arrays, in cm/s
+    t = raw[:, 0] * 1e-6
+    k = (t >= 214.0) & (t <= 251.0)
+    d, c = raw[k, 1] - raw[k, 1].mean(), raw[k, 2] - raw[k, 2].mean()
+    lags = np.arange(0, 8)
+    xc = [np.dot(d[: d.size - L], c[L:]) for L in lags]
+    lag_np = 0.1 * lags[int(np.argmax(xc))]
+    ours = [np.dot((e.u - e.u.mean())[: e.u.size - L], (e.outputs["CTUN.CRt"] - e.outputs["CTUN.CRt"].mean())[L:])
+            for L in lags]
+    assert 0.1 * lags[int(np.argmax(ours))] == lag_np
+    # the data README: the cross-correlation of DCRt with CRt peaks near 0.2 s
+    assert 0.1 <= lag_np <= 0.3
+
+
+def test_dataflash_missing_message_and_field():
+    path = data_path(*COPTER)
+    with pytest.raises(LogError, match="no field 'Nope'.*DCRt"):
+        read_signals(path, ["CTUN.Nope"])
+    with pytest.raises(LogError, match="no message 'XYZW'"):
+        read_signals(path, ["XYZW.a"])
+
+
+def test_listing_of_the_real_logs():
+    listing = list_log(data_path(*COPTER))
+    ctun = next(t for t in listing.topics if t.name == "CTUN")
+    assert ctun.samples == _pymavlink_ctun(data_path(*COPTER)).shape[0]
+    assert "CRt" in ctun.fields and ctun.units[ctun.fields.index("CRt")] == "cm/s"
+    assert abs(ctun.rate_hz - 10.0) < 0.1
+    u = list_log(data_path(*SITL))
+    lp = next(t for t in u.topics if t.name == "vehicle_local_position")
+    assert lp.samples == _pyulog(data_path(*SITL), "vehicle_local_position")["timestamp"].size
+    assert "z" in lp.fields and 9 < lp.rate_hz < 11
+    assert u.to_dict()["topics"][0]["name"] == u.topics[0].name
