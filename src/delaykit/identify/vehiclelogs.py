@@ -62,7 +62,7 @@ import numpy as np
 from ..errors import InvalidTypeError, InvalidValueError
 from .flightlog import FlightLog, LogError
 
-__all__ = ["FORMATS", "Spec", "Signal", "LogTopic", "LogListing", "log_format", "ned_to_up", "read_signals",
+__all__ = ["FORMATS", "parse_window", "Spec", "Signal", "LogTopic", "LogListing", "log_format", "ned_to_up", "read_signals",
            "align_signals", "read_log_experiment", "read_log_flight", "list_log"]
 
 FORMATS = {".ulg": "ulog", ".bin": "dataflash", ".log": "dataflash", ".tlog": "tlog"}
@@ -86,6 +86,30 @@ def log_format(path: str | Path) -> str | None:
     ('tlog', 'dataflash')
     """
     return FORMATS.get(Path(path).suffix.lower())
+
+
+def parse_window(text: str) -> tuple[float, float]:
+    """A window ``T0:T1`` (seconds, the log's own clock) as ``(t0, t1)``: finite, ``t0 < t1``.
+
+    Examples
+    --------
+    >>> parse_window("120:180")
+    (120.0, 180.0)
+    >>> parse_window("180:120")
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.InvalidValueError: window '180:120': expected T0:T1 in seconds with T0 < T1
+    """
+    from ..models.ranges import parse_number
+
+    parts = str(text).split(":")
+    try:
+        t0, t1 = (parse_number(p.strip(), "window") for p in parts) if len(parts) == 2 else (math.nan, math.nan)
+    except ValueError:
+        t0 = t1 = math.nan
+    if not (math.isfinite(t0) and math.isfinite(t1) and t0 < t1):
+        raise InvalidValueError(f"window {text!r}: expected T0:T1 in seconds with T0 < T1")
+    return t0, t1
 
 
 def ned_to_up(spec: str) -> str:
