@@ -85,7 +85,7 @@ def estimate(
                         window=window, allow_truncated=allow_truncated, **kw) for f in flights]
     if steps not in ("all", "first"):
         raise InvalidValueError(f"--steps must be all or first; got {steps!r}")
-    if steps == "all":
+    if steps == "all" and step_time is None:  # (a step time given says where the one step is)
         from ..identify.steps import split_steps
 
         logs = [piece for log in logs for piece in split_steps(log)]

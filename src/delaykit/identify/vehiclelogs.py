@@ -32,11 +32,13 @@ for DataFlash).  A tlog is scanned whole (every packet is decoded to find the on
 
 Damaged files raise :class:`~delaykit.identify.flightlog.LogError` naming the file and the problem: empty, not of
 the format its suffix says, a ULog that pyulog finds corrupt, a tlog with undecodable packets, a ULog or tlog that
-ends inside a message (cut short: refused unless ``allow_truncated=True``), a topic or field that is not
+ends inside a message (cut short: refused unless ``allow_truncated=True``), a DataFlash log whose messages do not
+tile the file (DataFlash has no checksums: bytes that are not messages in its middle are damage, at its end a log
+cut short, refused unless ``allow_truncated=True``), a topic or field that is not
 there (the message lists what is), a window outside the log, NaN samples inside the window (PX4 logs unused
-setpoint fields as NaN; the message says where the field is set).  A DataFlash log may end with a partial write
-block (ArduPilot's logs usually do, and its tools ignore it): that tail is ignored, and a DataFlash log cut short
-reads as the shorter log it is.
+setpoint fields as NaN; the message says where the field is set).  Damage that keeps the framing intact (a changed
+value inside a ULog or DataFlash message, which have no checksums) cannot be seen; a tlog's packets carry
+MAVLink's checksums.
 
 Examples
 --------
@@ -319,7 +321,7 @@ def _read_ulog(path: Path, specs: Sequence[Spec], allow_truncated: bool) -> dict
 
     topics = sorted({s.topic for s in specs})
     try:
-        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        with _quiet():
             ulog = ULog(str(path), message_name_filter_list=topics)
     except Exception as exc:  # a third-party parser on arbitrary bytes: any failure is a damaged file
         raise LogError(f"{path}: not a readable ULog ({type(exc).__name__}: {exc})") from None
@@ -353,9 +355,62 @@ def _read_ulog(path: Path, specs: Sequence[Spec], allow_truncated: bool) -> dict
 
 @contextlib.contextmanager
 def _quiet() -> Iterator[None]:
-    """pymavlink prints what it skips: keep it off the user's terminal."""
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-        yield
+    """pymavlink prints what it skips, from Python and from its compiled indexer (to the file descriptors 1 and 2
+    themselves): keep it off the user's terminal.  (What the damage means is said by a LogError instead.)"""
+    import os
+    import sys
+
+    saved: list[tuple[int, int]] = []
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        try:
+            for fd in (1, 2):
+                saved.append((fd, os.dup(fd)))
+                os.dup2(null, fd)
+        finally:
+            os.close(null)
+    except OSError:  # no such descriptor (a daemon): nothing to silence there
+        pass
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            yield
+    finally:
+        for fd, copy in saved:
+            os.dup2(copy, fd)
+            os.close(copy)
+
+
+def _df_damage(path: Path, reader: Any, allow_truncated: bool) -> None:
+    """Refuse a DataFlash log with bytes that are not messages: in its middle (damage, which pymavlink skips
+    silently), or at its end (cut short, unless ``allow_truncated``).
+
+    DataFlash has no checksums: the check is that the messages pymavlink indexed, each of its format's length,
+    tile the file."""
+    n = int(reader.data_len)
+    starts, ends = [np.zeros(1, np.int64)], [np.zeros(1, np.int64)]
+    for kind, offsets in enumerate(getattr(reader, "offsets", []) or []):
+        if not offsets or kind not in reader.formats:
+            continue
+        length = int(reader.formats[kind].len)
+        o = np.asarray(offsets, dtype=np.int64)
+        o = o[o + length <= n]
+        starts.append(o)
+        ends.append(o + length)
+    start, end = np.concatenate(starts), np.concatenate(ends)
+    order = np.argsort(start, kind="stable")
+    start, end = start[order], end[order]
+    gap = np.flatnonzero(start[1:] != end[:-1])
+    last = int(end[-1])
+    if gap.size:
+        k = int(gap[0])
+        raise LogError(f"{path}: the DataFlash log is damaged: the bytes from {int(end[k])} to {int(start[k + 1])} "
+                       f"are not messages ({int(np.sum(start[1:] - end[:-1]))} such bytes before byte {last})")
+    if last < n and not allow_truncated:
+        raise LogError(f"{path}: the DataFlash log is cut short: it ends inside a message after byte {last} of {n} "
+                       "(pass allow_truncated=True, --allow-truncated, to read it up to there)")
 
 
 def _df_time(fmt: Any) -> tuple[str, float]:
@@ -367,7 +422,7 @@ def _df_time(fmt: Any) -> tuple[str, float]:
     raise LogError(f"message {fmt.name} has no time field (TimeUS or TimeMS)")
 
 
-def _read_dataflash(path: Path, specs: Sequence[Spec], si: bool) -> dict[str, Signal]:
+def _read_dataflash(path: Path, specs: Sequence[Spec], si: bool, allow_truncated: bool) -> dict[str, Signal]:
     _check_file(path, "dataflash")
     from pymavlink import DFReader
 
@@ -376,6 +431,7 @@ def _read_dataflash(path: Path, specs: Sequence[Spec], si: bool) -> dict[str, Si
     try:
         with _quiet():
             reader = DFReader.DFReader_binary(str(path), zero_time_base=False)
+            _df_damage(path, reader, allow_truncated)
             while True:
                 msg = reader.recv_match(type=types)
                 if msg is None:
@@ -457,12 +513,12 @@ def _tlog_end(path: Path) -> tuple[int | None, bool]:
     return None, False
 
 
-def _tlog_messages(path: Path, types: set[str] | None, allow_truncated: bool = False) -> Iterator[tuple[float, Any]]:
+def _tlog_messages(path: Path, types: set[str] | None, allow_truncated: bool = False) -> list[tuple[float, Any]]:
     """(tlog stamp in s, message) for each packet of the types asked (all for None); a LogError on damage.
 
     A tlog is a sequence of records: an 8-byte big-endian time stamp (microseconds since the Unix epoch) and one
-    MAVLink packet.  pymavlink decodes the packets; a packet it cannot decode, or a file that ends inside a record,
-    is damage."""
+    MAVLink packet.  The records are walked by their framing first (a file cut inside one is cut short); pymavlink
+    decodes the packets, checking their checksums (a packet it cannot decode is damage)."""
     from pymavlink import mavutil
 
     end, garbage = _tlog_end(path)
@@ -472,29 +528,30 @@ def _tlog_messages(path: Path, types: set[str] | None, allow_truncated: bool = F
     if end is not None and not allow_truncated:
         raise LogError(f"{path}: the tlog is cut short: it ends inside a record after byte {end} of "
                        f"{path.stat().st_size} (pass allow_truncated=True, --allow-truncated, to read it up to there)")
+    out = []
+    conn = None
     try:
         with _quiet():
             conn = mavutil.mavlink_connection(str(path), notimestamps=False, robust_parsing=True)
-    except Exception as exc:
+            while True:
+                msg = conn.recv_msg()
+                if msg is None:
+                    break
+                kind = msg.get_type()
+                if kind == "BAD_DATA":
+                    raise LogError(f"{path}: not a readable tlog: undecodable bytes near byte {conn.f.tell()} "
+                                   "(a damaged file, or not a MAVLink telemetry log)")
+                if types is None or kind in types:
+                    out.append((float(getattr(msg, "_timestamp", 0.0)), msg))
+    except LogError:
+        raise
+    except Exception as exc:  # a third-party parser on arbitrary bytes
         raise LogError(f"{path}: not a readable tlog ({type(exc).__name__}: {exc})") from None
-    try:
-        while True:
-            try:
-                with _quiet():
-                    msg = conn.recv_msg()
-            except Exception as exc:
-                raise LogError(f"{path}: not a readable tlog ({type(exc).__name__}: {exc})") from None
-            if msg is None:
-                break
-            kind = msg.get_type()
-            if kind == "BAD_DATA":
-                raise LogError(f"{path}: not a readable tlog: undecodable bytes near byte {conn.f.tell()} "
-                               "(a damaged file, or not a MAVLink telemetry log)")
-            if types is None or kind in types:
-                yield float(getattr(msg, "_timestamp", 0.0)), msg
     finally:
-        with contextlib.suppress(Exception):
-            conn.close()
+        if conn is not None:
+            with contextlib.suppress(Exception):
+                conn.close()
+    return out
 
 
 def _read_tlog(path: Path, specs: Sequence[Spec], si: bool, allow_truncated: bool) -> dict[str, Signal]:
@@ -540,8 +597,7 @@ def read_signals(path: str | Path, specs: Sequence[str], *, si: bool = True,
     si : bool
         Convert fields the log declares in centimetres or millimetres to metres.
     allow_truncated : bool
-        Read a ULog or tlog that ends inside a message up to its last complete one (otherwise a
-        :class:`LogError`).
+        Read a log that ends inside a message up to its last complete one (otherwise a :class:`LogError`).
 
     Returns
     -------
@@ -572,7 +628,7 @@ def read_signals(path: str | Path, specs: Sequence[str], *, si: bool = True,
     if fmt == "ulog":
         return _read_ulog(path, parsed, allow_truncated)
     if fmt == "dataflash":
-        return _read_dataflash(path, parsed, si)
+        return _read_dataflash(path, parsed, si, allow_truncated)
     return _read_tlog(path, parsed, si, allow_truncated)
 
 
@@ -801,6 +857,7 @@ def list_log(path: str | Path, *, allow_truncated: bool = False) -> LogListing:
         try:
             with _quiet():
                 reader = DFReader.DFReader_binary(str(path), zero_time_base=False)
+                _df_damage(path, reader, allow_truncated)
                 formats = {f.name: f for f in reader.formats.values()}
                 while True:
                     msg = reader.recv_msg()
@@ -815,6 +872,8 @@ def list_log(path: str | Path, *, allow_truncated: bool = False) -> LogListing:
                     if tn is not None:
                         times.setdefault(kind, []).append(getattr(msg, tn) * (1e-6 if tn == "TimeUS" else 1e-3))
                 formats = {f.name: f for f in reader.formats.values()}
+        except LogError:
+            raise
         except Exception as exc:
             raise LogError(f"{path}: not a readable DataFlash log ({type(exc).__name__}: {exc})") from None
         for kind in sorted(times):
