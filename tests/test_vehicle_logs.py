@@ -14,8 +14,8 @@ import pytest
 
 from delaykit.identify.flightlog import LogError
 from delaykit.identify.iodata import read_experiment
-from delaykit.identify.vehiclelogs import (Spec, align_signals, list_log, ned_to_up, read_log_experiment,
-                                           read_log_flight, read_signals)
+from delaykit.identify.logalign import align_signals, read_log_experiment, read_log_flight
+from delaykit.identify.vehiclelogs import Spec, list_log, ned_to_up, read_signals
 
 from shared_data import data_path
 

@@ -146,7 +146,8 @@ def _flight_log(path: Path, *, skip_bad: bool, output: Optional[str], reference:
                 input_col: Optional[str], window: Optional[str], allow_truncated: bool, **kw: Any) -> Any:
     """A FlightLog from a CSV file or a vehicle log (its signals named by --output, --reference, --input)."""
     from ..identify.flightlog import FlightLog
-    from ..identify.vehiclelogs import log_format, parse_window, read_log_flight
+    from ..identify.logalign import parse_window, read_log_flight
+    from ..identify.vehiclelogs import log_format
 
     win = parse_window(window) if window is not None else None
     if log_format(path) is None:
@@ -231,7 +232,7 @@ def identify(
     cols = [output] + ([rate] if rate else []) + ([command] if command else [])
     win = None
     if window is not None:
-        from ..identify.vehiclelogs import parse_window
+        from ..identify.logalign import parse_window
 
         win = parse_window(window)
     with err.status(f"reading {len(logs)} log(s)…"):  # (a log of millions of rows takes seconds)

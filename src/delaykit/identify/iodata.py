@@ -255,7 +255,7 @@ def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input:
                     allow_truncated: bool = False) -> Experiment:
     """Read one log: a CSV file with a header row, or a vehicle log (``.ulg``, ``.bin``/``.log``, ``.tlog``).
 
-    A vehicle log is read by :func:`~delaykit.identify.vehiclelogs.read_log_experiment`: ``outputs``, ``input``
+    A vehicle log is read by :func:`~delaykit.identify.logalign.read_log_experiment`: ``outputs``, ``input``
     and ``reference`` are then specs such as ``-vehicle_local_position.z`` or ``CTUN.CRt``, on the log's own
     clock (``time`` is not used).
 
@@ -295,7 +295,8 @@ def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input:
     >>> read_experiment(p, outputs=["y"], input="u")
     Experiment('step.csv': 12 samples every 1 s, input u, output y, moves at 1 s)
     """
-    from .vehiclelogs import log_format, read_log_experiment
+    from .logalign import read_log_experiment
+    from .vehiclelogs import log_format
 
     path = Path(path)
     name = path.name

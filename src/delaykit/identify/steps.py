@@ -72,8 +72,8 @@ def find_steps(t: Any, z_ref: Any, *, min_gap: int = 10) -> list[int]:
     if close.size:
         k = int(close[0])
         raise LogError(f"the reference is not a sequence of steps: it changes at {len(idx)} of its {r.size} samples, "
-                       f"twice within {int(gaps[k + 1])} samples at t = {t[idx[k]]:.3f} and {t[idx[k + 1]]:.3f} s (fewer "
-                       f"than {min_gap}: a ramp or a smoothed reference; fit such a log with `identify`)")
+                       f"twice within {int(gaps[k + 1])} samples at t = {t[idx[k]]:.3f} and {t[idx[k + 1]]:.3f} s "
+                       f"(fewer than {min_gap}: a ramp or a smoothed reference; fit such a log with `identify`)")
     return idx
 
 
