@@ -303,6 +303,9 @@ def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input:
     if isinstance(outputs, str):
         outputs = [outputs]
     if log_format(path) is not None:
+        if time != "t":
+            raise LogError(f"{path}: a flight log's time is its own (its microsecond stamps): time={time!r} does not "
+                           "apply")
         return read_log_experiment(path, outputs=outputs, input=input, reference=reference, window=window,
                                    u_before=u_before, resample=resample, allow_truncated=allow_truncated)
     header, records = iter_csv_rows(path)  # one row at a time: the numbers go into packed arrays

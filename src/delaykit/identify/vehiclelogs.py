@@ -193,7 +193,7 @@ class Signal:
                 "end": float(self.t[-1]) if self.t.size else None}
 
     def __repr__(self) -> str:
-        span = f"{self.t[0]:.6g} to {self.t[-1]:.6g} s" if self.t.size else "empty"
+        span = f"{self.t[0]:.3f} to {self.t[-1]:.3f} s" if self.t.size else "empty"
         unit = f" {self.unit}" if self.unit else ""
         return f"Signal({self.spec.text!r}{unit}: {self.t.size} samples at {self.rate:.3g} Hz, {span} ({self.clock}))"
 
