@@ -173,3 +173,19 @@ def test_the_command_line_says_one_line(logs, tmp_path):
         assert r.output.startswith("error: ") and r.output.count("\n") == 1 and "cut short" in r.output
     r = runner.invoke(app, ["log", str(p), "--allow-truncated", "--json"])
     assert r.exit_code == 0, r.output
+
+
+@SETTINGS
+@given(spec=st.one_of(st.text(max_size=40),
+                      st.from_regex(r"-?[A-Za-z_]{1,25}(\[[0-9]{1,2}\])?\.[A-Za-z_]{1,12}(\[[0-9]{1,2}\])?(\*[0-9.e-]{1,6})?",
+                                    fullmatch=True)))
+def test_any_signal_name(logs, spec, tmp_path_factory):
+    data, suffix, _, _ = logs["tlog"]
+    p = tmp_path_factory.mktemp("spec") / "flight.tlog"
+    p.write_bytes(data)
+    try:
+        sig = read_signals(p, [spec])
+    except LogError as exc:
+        assert "\n" not in str(exc)
+    else:
+        assert np.all(np.diff(sig[spec].t) > 0)

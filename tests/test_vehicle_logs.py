@@ -248,6 +248,10 @@ def test_dataflash_missing_message_and_field():
         read_signals(path, ["CTUN.Nope"])
     with pytest.raises(LogError, match="no message 'XYZW'"):
         read_signals(path, ["XYZW.a"])
+    with pytest.raises(LogError, match="MSG.Message is not numeric .*ArduCopter V3.6.4"):
+        read_signals(path, ["MSG.Message"])
+    with pytest.raises(LogError, match=r"CTUN.CRt\[1\]: the field is not an array"):
+        read_signals(path, ["CTUN.CRt[1]"])
 
 
 def test_listing_of_the_real_logs():

@@ -440,12 +440,20 @@ def _read_dataflash(path: Path, specs: Sequence[Spec], si: bool, allow_truncated
                            "the log (defined, but never written; or the file is cut short)")
         tname, tscale = _df_time(fmt)
         t = np.array([getattr(m, tname) for m in msgs], dtype=float) * tscale
-        v = np.array([_element(getattr(m, base), index, s, path) for m in msgs], dtype=float)
+        v = _numbers([_element(getattr(m, base), index, s, path) for m in msgs], s, path)
         units = list(getattr(fmt, "units", None) or [])
         unit = units[fmt.colhash[base]] if fmt.colhash.get(base, len(units)) < len(units) else None
         unit, k = _si(unit, si)
         out[s.text] = Signal(spec=s, t=t, values=s.sign * s.scale * k * v, unit=unit, clock=tname)
     return out
+
+
+def _numbers(values: list[Any], spec: Spec, path: Path) -> np.ndarray:
+    """A field's values as floats; a LogError for a text field (a message's name, a flight mode's)."""
+    try:
+        return np.array(values, dtype=float)
+    except (TypeError, ValueError):
+        raise LogError(f"{path}: {spec.source} is not numeric (it holds {str(values[0])[:30]!r})") from None
 
 
 def _split_index(field: str) -> tuple[str, int | None]:
@@ -552,7 +560,7 @@ def _read_tlog(path: Path, specs: Sequence[Spec], si: bool, allow_truncated: boo
             t = np.array([m.time_boot_ms for _, m in msgs], dtype=float) * 1e-3
         else:
             t = np.array([st for st, _ in msgs], dtype=float)
-        v = np.array([_element(getattr(m, base), index, s, path) for _, m in msgs], dtype=float)
+        v = _numbers([_element(getattr(m, base), index, s, path) for _, m in msgs], s, path)
         unit, k = _si(getattr(msgs[0][1], "fieldunits_by_name", {}).get(base), si)
         out[s.text] = Signal(spec=s, t=t, values=s.sign * s.scale * k * v, unit=unit,
                              clock="time_boot_ms" if boot else "tlog")
