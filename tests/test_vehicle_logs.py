@@ -274,19 +274,28 @@ STEP_TIMES = (0.0, 385 * DT, 724 * DT)  # at the log's samples, as a controller 
 LEVELS = (1.0, 0.0, 1.5)  # the reference above the start altitude after each step (m): up 1, down 1, up 1.5
 
 
-def three_step_flight(noise: float = 0.003, seed: int = 1):
+def reference(t, shift=0.0):
+    """The three-step reference (m) at the times ``t`` (s, the simulation's clock), its steps ``shift`` s late."""
+    return 1.0 + np.select([t >= s + shift - 1e-9 for s in STEP_TIMES[::-1]], LEVELS[::-1], 0.0)
+
+
+def three_step_flight(noise: float = 0.003, seed: int = 1, shift: float = 0.0):
     """A 70 s flight of three reference steps, made by delaykit's exact simulator of the paper's loop (the
-    reference as samples held between them), sampled every 65 ms, with noise and millimetre rounding."""
+    reference as samples held between them), sampled every 65 ms, with noise and millimetre rounding; the steps
+    ``shift`` s after a sample (0: at the samples)."""
     from delaykit import AltitudeLoop
     from delaykit.models.signals import Samples
     from delaykit.simulate.simulation import simulate
 
-    resp = simulate(AltitudeLoop(kp=KP, delay=TRUE_DELAY), z0=1.0,
-                    reference=Samples(STEP_TIMES, LEVELS, hold="hold"), t_end=68.0)
+    # (Samples holds its first value from t = 0: a first step later than 0 needs the level before it, 0, at 0)
+    times, levels = np.array(STEP_TIMES) + shift, LEVELS
+    if shift > 0:
+        times, levels = np.r_[0.0, times], (0.0, *LEVELS)
+    resp = simulate(AltitudeLoop(kp=KP, delay=TRUE_DELAY), z0=1.0, reference=Samples(times, levels, hold="hold"),
+                    t_end=68.0)
     t = DT * np.arange(-30, 1046)
     z = np.round(resp.altitude(t) + noise * np.random.default_rng(seed).standard_normal(t.size), 3)
-    z_ref = 1.0 + np.select([t >= s - 1e-9 for s in STEP_TIMES[::-1]], LEVELS[::-1], 0.0)
-    return t + 100.0, z, z_ref
+    return t + 100.0, z, reference(t, shift)
 
 
 def test_split_steps_finds_the_three_steps():
@@ -333,20 +342,24 @@ def test_a_ramp_reference_is_not_steps():
 
 # -- the command line ---------------------------------------------------------------------------------------------
 
-def write_altitude_tlog(path) -> None:
-    """The three-step flight as a tlog: POSITION_TARGET_LOCAL_NED.z (the reference) and LOCAL_POSITION_NED.z (the
-    altitude), both NED (down), at each sample, stamped with the vehicle's time_boot_ms."""
+def write_altitude_tlog(path, shift: float = 0.0) -> None:
+    """The three-step flight as a tlog: LOCAL_POSITION_NED.z (the altitude) at each sample and
+    POSITION_TARGET_LOCAL_NED.z (the reference) at 10 Hz and at each change (as a vehicle echoes a setpoint when it
+    arrives), both NED (down), stamped with the vehicle's time_boot_ms (whole milliseconds)."""
     from pymavlink.dialects.v20 import common as mav
 
     link = mav.MAVLink(None, srcSystem=1, srcComponent=1)
-    t, z, z_ref = three_step_flight()
+    t, z, _ = three_step_flight(shift=shift)
+    ts = np.round(np.union1d(np.arange(t[0], t[-1], 0.1), 100.0 + np.array(STEP_TIMES) + shift), 3)
+    records = [(ti, mav.MAVLink_local_position_ned_message(int(round(ti * 1000)), 0, 0, -zi, 0, 0, 0))
+               for ti, zi in zip(t, z)]
+    records += [(ti, mav.MAVLink_position_target_local_ned_message(int(round(ti * 1000)), 1, 0b110111111000, 0, 0,
+                                                                   -float(reference(np.array([ti - 100.0]), shift)[0]),
+                                                                   0, 0, 0, 0, 0, 0, 0, 0)) for ti in ts]
+    records.sort(key=lambda r: r[0])
     with open(path, "wb") as fh:
-        for ti, zi, ri in zip(t, z, z_ref):
-            ms = int(round(ti * 1000))
-            for msg in (mav.MAVLink_position_target_local_ned_message(ms, 1, 0b110111111000, 0, 0, -ri, 0, 0, 0,
-                                                                      0, 0, 0, 0, 0),
-                        mav.MAVLink_local_position_ned_message(ms, 0, 0, -zi, 0, 0, 0)):
-                fh.write(struct.pack(">Q", int((1.7e9 + ti) * 1e6)) + msg.pack(link))
+        for ti, msg in records:
+            fh.write(struct.pack(">Q", int((1.7e9 + ti) * 1e6)) + msg.pack(link))
 
 
 def _cli(args):
@@ -410,3 +423,25 @@ def test_cli_identify_on_the_dataflash_log():
     assert 0.1 < total < 0.35
     r = _cli(["identify", path, "--input", "CTUN.DCRt", "--output", "CTUN.CRt", "--window", "251:214"])
     assert r.exit_code == 2 and "T0 < T1" in r.output
+
+
+def test_steps_between_samples_timed_by_the_references_own_stamps(tmp_path):
+    # the steps 30 ms after an altitude sample: on the altitude's clock the reference changes 35 ms late; the
+    # setpoint's own time stamps say when it changed
+    from delaykit.identify.estimation import estimate_flights
+    from delaykit.identify.flightlog import FlightLog
+    from delaykit.identify.logalign import read_log_flight
+
+    p = tmp_path / "shifted.tlog"
+    write_altitude_tlog(p, shift=0.03)
+    log = read_log_flight(p, z="-LOCAL_POSITION_NED.z", z_ref="-POSITION_TARGET_LOCAL_NED.z")
+    np.testing.assert_allclose(log.extra["z_ref_changes"], 100.0 + np.array(STEP_TIMES) + 0.03, atol=1e-6)
+    assert abs(log.step_time - 100.03) < 1e-6  # (the first step, not the sample at 100.065 s that first shows it)
+    pooled, each = estimate_flights([log], KP)
+    np.testing.assert_allclose([e.delay for e in each], TRUE_DELAY, atol=0.005)
+    assert abs(pooled.delay - TRUE_DELAY) < 0.003
+    # without the reference's own stamps the steps are taken at the next sample, 35 ms late, and the delay comes out
+    # short by about that much (25 ms here: the fitted offsets and scales take up part of it)
+    blind = FlightLog.from_arrays(log.t, log.z, log.z_ref, name="blind")
+    off, _ = estimate_flights([blind], KP)
+    assert 0.015 < TRUE_DELAY - off.delay < 0.045

@@ -7,8 +7,10 @@ output (its own sample times): other outputs are interpolated linearly onto it, 
 received).  Instants before the drive's first sample are dropped.
 
 ``window=(t0, t1)`` keeps that part of the log, in the log's own seconds (:func:`parse_window` reads ``T0:T1``).
-A reference logged on its own clock changes, on the output's clock, at the first output sample after it changed:
-the step time is known to one output interval.
+A reference logged on its own clock changes, on the output's clock, at the first output sample after it changed;
+:func:`read_log_flight` keeps the reference's own change times (``extra["z_ref_changes"]``), and the step times of
+the log and of :func:`~delaykit.identify.steps.split_steps` are taken from them: exact to the reference's time
+stamp, not rounded to the next output sample.
 
 Examples
 --------
@@ -28,7 +30,12 @@ from ..errors import InvalidValueError
 from .flightlog import FlightLog, LogError
 from .vehiclelogs import Signal, Spec, read_signals
 
-__all__ = ["parse_window", "align_signals", "read_log_experiment", "read_log_flight"]
+__all__ = ["parse_window", "align_signals", "read_log_experiment", "read_log_flight", "change_time",
+           "REFERENCE_CHANGES"]
+
+REFERENCE_CHANGES = "z_ref_changes"
+"""The key, in a :class:`~delaykit.identify.flightlog.FlightLog`'s ``extra``, of the times (s) at which its
+reference changed on the reference's own clock (a flight log's setpoint topic)."""
 
 
 def parse_window(text: str) -> tuple[float, float]:
@@ -214,5 +221,32 @@ def read_log_flight(path: str | Path, *, z: str, z_ref: str | None = None, u: st
     wanted = list(dict.fromkeys([z, *held]))
     sigs = read_signals(path, wanted, si=si, allow_truncated=allow_truncated)
     t, vals = align_signals(path, sigs, z, held=held, window=window)
+    extra: dict[str, Any] = {}
+    if z_ref is not None:
+        r = sigs[z_ref]
+        with np.errstate(invalid="ignore"):
+            moved = np.flatnonzero(np.diff(r.values) != 0) + 1
+        extra[REFERENCE_CHANGES] = r.t[moved]
+        if "step_time" not in kwargs:
+            # the first step at the reference's own time stamp, not at the output sample that first shows it
+            ref = vals[z_ref]
+            first = np.flatnonzero(ref != ref[0])
+            if first.size:
+                kwargs["step_time"] = change_time(t, int(first[0]), extra[REFERENCE_CHANGES])
     return FlightLog.from_arrays(t, vals[z], None if z_ref is None else vals[z_ref], None if u is None else vals[u],
-                                 name=Path(path).name, **kwargs)
+                                 name=Path(path).name, extra=extra, **kwargs)
+
+
+def change_time(t: np.ndarray, i: int, changes: np.ndarray) -> float:
+    """When a held signal that first shows its new value at sample ``i`` of ``t`` changed: its last logged change
+    after sample ``i - 1`` and at or before sample ``i`` (``changes``: the times of its changes, on its own
+    clock), or ``t[i]`` when none is known.
+
+    Examples
+    --------
+    >>> change_time(np.array([0.0, 0.1, 0.2]), 2, np.array([0.13]))
+    0.13
+    """
+    lo = t[i - 1] if i > 0 else -np.inf
+    c = changes[(changes > lo) & (changes <= t[i])]
+    return float(c[-1]) if c.size else float(t[i])

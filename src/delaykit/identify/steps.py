@@ -32,6 +32,7 @@ import numpy as np
 
 from ..errors import check_real
 from .flightlog import FlightLog, LogError
+from .logalign import change_time
 
 __all__ = ["find_steps", "split_steps"]
 
@@ -94,7 +95,10 @@ def split_steps(log: FlightLog, *, before: float = 1.0, min_after: int = 10) -> 
     -------
     list of FlightLog
         Named ``"<name> step k of n"``; each with its step time, size (the reference after it minus before it),
-        start altitude, and the samples from ``before`` ahead of its step to the next step.
+        start altitude, and the samples from ``before`` ahead of its step to the next step.  The step time is the
+        first sample showing the new reference, or, where the log keeps its reference's own change times
+        (``extra["z_ref_changes"]``, as :func:`~delaykit.identify.logalign.read_log_flight` does), the change
+        between that sample and the one before.
 
     Raises
     ------
@@ -114,8 +118,9 @@ def split_steps(log: FlightLog, *, before: float = 1.0, min_after: int = 10) -> 
         return [log]
     out = []
     n = len(idx)
+    changes = log.extra.get("z_ref_changes")  # the reference's own change times (a flight log's setpoint stamps)
     for k, i in enumerate(idx):
-        ts = float(log.t[i])
+        ts = float(log.t[i]) if changes is None else change_time(log.t, i, np.asarray(changes, dtype=float))
         prev = float(log.t[idx[k - 1]]) if k else float(log.t[0])
         start = ts - min(before, 0.5 * (ts - prev)) if k else float(log.t[0])
         end = idx[k + 1] if k + 1 < n else log.t.size
@@ -129,5 +134,6 @@ def split_steps(log: FlightLog, *, before: float = 1.0, min_after: int = 10) -> 
         z0 = float(np.mean(log.z[pre])) if pre.size else float(log.z[i - 1])
         u = None if log.u is None else log.u[sel]
         out.append(FlightLog.from_arrays(log.t[sel], log.z[sel], log.z_ref[sel], u, name=f"{log.name} step {k + 1} "
-                                         f"of {n}", step_time=ts, step=step, z0=z0, min_after=min_after))
+                                         f"of {n}", step_time=ts, step=step, z0=z0, min_after=min_after,
+                                         extra={} if changes is None else {"z_ref_changes": changes}))
     return out
