@@ -445,3 +445,19 @@ def test_steps_between_samples_timed_by_the_references_own_stamps(tmp_path):
     blind = FlightLog.from_arrays(log.t, log.z, log.z_ref, name="blind")
     off, _ = estimate_flights([blind], KP)
     assert 0.015 < TRUE_DELAY - off.delay < 0.045
+
+
+def test_ulog_multi_instance_topic():
+    from pyulog import ULog
+
+    path = data_path(*SITL)
+    # sensor_baro has two instances in this log: [1] is pyulog's multi_id 1, no index is instance 0
+    ref = {d.multi_id: d.data for d in ULog(str(path), ["sensor_baro"]).data_list}
+    sig = read_signals(path, ["sensor_baro[1].pressure", "sensor_baro.pressure"])
+    np.testing.assert_array_equal(sig["sensor_baro[1].pressure"].values, ref[1]["pressure"])
+    np.testing.assert_array_equal(sig["sensor_baro[1].pressure"].t, ref[1]["timestamp"] * 1e-6)
+    np.testing.assert_array_equal(sig["sensor_baro.pressure"].values, ref[0]["pressure"])
+    listing = {(t.name, t.instance) for t in list_log(path).topics}
+    assert {("sensor_baro", 0), ("sensor_baro", 1), ("vehicle_local_position", None)} <= listing
+    with pytest.raises(LogError, match="no instance 2 .*instances: 0, 1"):
+        read_signals(path, ["sensor_baro[2].pressure"])
