@@ -34,7 +34,7 @@ def estimate(
     input_col: Optional[str] = typer.Option(None, "--input", help="A flight log's commanded climb rate (optional)."),
     window: Optional[str] = typer.Option(None, "--window", help="T0:T1, the part of the logs used, in the log's own seconds (since boot, as `delaykit log` shows)."),
     steps: str = typer.Option("all", "--steps", help="all: each step of the reference is fitted (jointly, one delay) | first: each log as one step."),
-    allow_truncated: bool = typer.Option(False, "--allow-truncated", help="Read a ULog or tlog cut short up to its last whole message."),
+    allow_truncated: bool = typer.Option(False, "--allow-truncated", help="Read a flight log cut short up to its last whole message."),
     overshoot: Optional[float] = typer.Option(None, "--overshoot", help="Measured overshoot, % (no files needed)."),
     peak_time: Optional[float] = typer.Option(None, "--peak-time", help="Measured peak time, s."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
@@ -197,7 +197,7 @@ def identify(
     resample: Optional[float] = typer.Option(None, "--resample", help="Put the logs on this uniform period first, s (the drive held, the outputs interpolated; timing then known to this period). Optional: logs are fitted on their own clock, even an irregular one; only a closed loop sampled at the log's samples needs a uniform clock."),
     fresh_only: bool = typer.Option(False, "--fresh-only", help="Count only output samples that changed (a sensor slower than the log repeats its values)."),
     window: Optional[str] = typer.Option(None, "--window", help="T0:T1, the part of the logs used, in the log's own seconds (a flight log: since boot, as `delaykit log` shows)."),
-    allow_truncated: bool = typer.Option(False, "--allow-truncated", help="Read a ULog or tlog cut short up to its last whole message."),
+    allow_truncated: bool = typer.Option(False, "--allow-truncated", help="Read a flight log cut short up to its last whole message."),
     save: Optional[Path] = typer.Option(None, "--save", help="Write the model here (JSON), for `delaykit predict`."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Overlay each log and the model's free-run prediction here."),
@@ -299,6 +299,8 @@ def predict(
     u0: Optional[float] = typer.Option(None, "--u0", help="A closed-loop model: the absolute command at rest before the logs (see identify --u0)."),
     command: Optional[str] = typer.Option(None, "--command", help="A closed-loop model: the logs' command column; its value at rest is --u0."),
     resample: Optional[float] = typer.Option(None, "--resample", help="Put the logs on this uniform period first, s (the drive held, the outputs interpolated; timing then known to this period). Optional: logs are fitted on their own clock, even an irregular one; only a closed loop sampled at the log's samples needs a uniform clock."),
+    window: Optional[str] = typer.Option(None, "--window", help="T0:T1, the part of the logs predicted, in the log's own seconds (a flight log: since boot, as `delaykit log` shows)."),
+    allow_truncated: bool = typer.Option(False, "--allow-truncated", help="Read a flight log cut short up to its last whole message."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Overlay each log and the prediction here."),
 ) -> None:
@@ -314,8 +316,14 @@ def predict(
     outs = list(m.outputs) + ([m.rate] if m.rate else []) + ([command] if command else [])
     drive = ({"reference": m.drive_column} if m.closed_loop is not None
              else {"input": m.drive_column, "u_before": u_before})
+    win = None
+    if window is not None:
+        from ..identify.logalign import parse_window
+
+        win = parse_window(window)
     with err.status(f"reading and predicting {len(logs)} log(s)…"):
-        exps = [read_experiment(f, outputs=outs, time=time_col, resample=resample, **drive) for f in logs]
+        exps = [read_experiment(f, outputs=outs, time=time_col, resample=resample, window=win,
+                                allow_truncated=allow_truncated, **drive) for f in logs]
         preds = [run_predict(m, e, u0=u0, command=command) for e in exps]
     if plot is not None:
         from ..plotting.identification import plot_predictions
@@ -331,7 +339,7 @@ def predict(
 @friendly
 def log(
     file: Path = typer.Argument(..., help="A flight log: PX4 .ulg, ArduPilot .bin/.log or MAVLink .tlog."),
-    allow_truncated: bool = typer.Option(False, "--allow-truncated", help="Read a ULog or tlog cut short up to its last whole message."),
+    allow_truncated: bool = typer.Option(False, "--allow-truncated", help="Read a flight log cut short up to its last whole message."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
 ) -> None:
     """List a flight log's topics (ULog) or messages (DataFlash, tlog): fields, samples, rates and time spans.
