@@ -479,3 +479,20 @@ def test_cli_predict_a_flight_log_window(tmp_path):
     # the last step (at 10 s) was not fitted: the free-run prediction of the written truth is close (the truth's
     # steps fall between the 10 Hz setpoint samples: up to 0.1 s of timing, a few cm/s on this 0.5 m/s step)
     assert json.loads(r.output)["rms"] < 0.05
+
+
+def test_tlog_units_declared_in_centimetres(tmp_path):
+    # GLOBAL_POSITION_INT's vz is declared in cm/s by MAVLink (pymavlink's field units): read in m/s unless si=False
+    from pymavlink.dialects.v20 import common as mav
+
+    link = mav.MAVLink(None, srcSystem=1, srcComponent=1)
+    p = tmp_path / "g.tlog"
+    with open(p, "wb") as fh:
+        for k in range(5):
+            msg = mav.MAVLink_global_position_int_message(100 * k, 0, 0, 0, 0, 0, 0, -150, 0)
+            fh.write(struct.pack(">Q", int((1.7e9 + 0.1 * k) * 1e6)) + msg.pack(link))
+    up = read_signals(p, ["-GLOBAL_POSITION_INT.vz"])["-GLOBAL_POSITION_INT.vz"]
+    assert up.unit == "m/s" and np.all(up.values == 1.5)
+    raw = read_signals(p, ["GLOBAL_POSITION_INT.vz"], si=False)["GLOBAL_POSITION_INT.vz"]
+    assert raw.unit == "cm/s" and np.all(raw.values == -150)
+    assert np.all(read_signals(p, ["GLOBAL_POSITION_INT.vz*0.5"], si=False)["GLOBAL_POSITION_INT.vz*0.5"].values == -75)

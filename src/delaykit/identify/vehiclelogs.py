@@ -26,14 +26,12 @@ Only the topics or messages asked for are parsed (pyulog's ``message_name_filter
 for DataFlash).  A tlog is scanned whole (every packet is decoded to find the ones asked for).
 
 Damaged files raise :class:`~delaykit.identify.flightlog.LogError` naming the file and the problem: empty, not of
-the format its suffix says, a ULog that pyulog finds corrupt, a tlog with undecodable packets, a ULog or tlog that
-ends inside a message (cut short: refused unless ``allow_truncated=True``), a DataFlash log whose messages do not
-tile the file (DataFlash has no checksums: bytes that are not messages in its middle are damage, at its end a log
-cut short, refused unless ``allow_truncated=True``), a topic or field that is not
-there (the message lists what is), a window outside the log, NaN samples inside the window (PX4 logs unused
-setpoint fields as NaN; the message says where the field is set).  Damage that keeps the framing intact (a changed
-value inside a ULog or DataFlash message, which have no checksums) cannot be seen; a tlog's packets carry
-MAVLink's checksums.
+the format its suffix says, a ULog that pyulog finds corrupt, a DataFlash log with bytes between its messages that
+are not messages, a tlog packet that fails MAVLink's checksum, a topic, field or instance that is not there (the
+message lists what is), a text field named as a signal.  A log that ends inside a message (cut short: a vehicle that
+lost power, a copy interrupted) is refused too, unless ``allow_truncated=True``: it is then read up to its last
+whole message.  Damage that keeps the framing intact (a changed value inside a ULog or DataFlash message: those
+formats have no checksums) cannot be seen.
 
 Examples
 --------
