@@ -496,3 +496,19 @@ def test_tlog_units_declared_in_centimetres(tmp_path):
     raw = read_signals(p, ["GLOBAL_POSITION_INT.vz"], si=False)["GLOBAL_POSITION_INT.vz"]
     assert raw.unit == "cm/s" and np.all(raw.values == -150)
     assert np.all(read_signals(p, ["GLOBAL_POSITION_INT.vz*0.5"], si=False)["GLOBAL_POSITION_INT.vz*0.5"].values == -75)
+
+
+def test_only_the_topics_asked_for_are_parsed(monkeypatch):
+    import pyulog
+
+    asked = []
+    real = pyulog.ULog
+
+    def spy(path, message_name_filter_list=None, *args, **kwargs):
+        asked.append(message_name_filter_list)
+        return real(path, message_name_filter_list, *args, **kwargs)
+
+    monkeypatch.setattr(pyulog, "ULog", spy)
+    read_signals(data_path(*SITL), ["-vehicle_local_position.z", "-trajectory_setpoint.velocity[2]",
+                                    "vehicle_local_position.vz"])
+    assert asked == [["trajectory_setpoint", "vehicle_local_position"]]

@@ -43,6 +43,9 @@ def estimate(
 ) -> None:
     """Estimate the loop delay from flight logs, or from a measured overshoot and peak time.
 
+    A log whose reference holds several steps is cut into one log per step, fitted jointly (--steps first: the
+    log as one step). A flight log (.ulg, .bin, .log, .tlog) names its altitude and reference with --output and
+    --reference; its steps are timed by the reference's own time stamps.
     The loop the flights used comes from the loop options (--kp, --kv, --vmax, --period, or --loop FILE.toml).
     It must be the paper's: the plant gain/s or gain/(s (lag s + 1)), P or PV control, symmetric limits.
     `delaykit identify` fits any other plant.  A delay in the loop file is ignored: it is what is estimated."""
