@@ -22,7 +22,8 @@ __all__ = ["app", "main", "parse_delays", "parse_schedule"]
 COMMANDS = (
     ("Simulate and analyse a loop", (("cmd_simulate", "simulate"), ("cmd_spectrum", "roots"),
                                      ("cmd_spectrum", "margins"), ("cmd_spectrum", "lambert"))),
-    ("Identify from logs", (("cmd_identify", "estimate"), ("cmd_identify", "identify"), ("cmd_identify", "predict"))),
+    ("Identify from logs", (("cmd_identify", "estimate"), ("cmd_identify", "identify"), ("cmd_identify", "predict"),
+                            ("cmd_identify", "log"))),
     ("Design", (("cmd_design", "design"), ("cmd_tune", "tune"))),
     ("Fly", (("cmd_hardware", "emulate"), ("cmd_hardware", "fly"), ("cmd_autotune", "autotune"),
              ("cmd_relay", "relay"))),

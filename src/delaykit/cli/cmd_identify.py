@@ -1,4 +1,5 @@
-"""``delaykit estimate``, ``identify`` and ``predict``: the delay and the plant from logs, and free-run prediction."""
+"""``delaykit estimate``, ``identify``, ``predict`` and ``log``: the delay and the plant from logs (CSV, or PX4 ULog,
+ArduPilot DataFlash and MAVLink tlog flight logs), free-run prediction, and what a flight log holds."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from .common import (check_output, ci_list, err, fmt, fmt_ci, friendly, out, par
                      progress_bar, warn)
 from .loopopts import build_loop, with_loop
 
-__all__ = ["estimate", "identify", "predict"]
+__all__ = ["estimate", "identify", "predict", "log"]
 
 # the loop options `estimate` leaves out: the delay is what it finds, the controller runs at the logs' samples
 _ESTIMATE_OMITS = ("delay", "model_delay", "closed_loop_time", "sample_offset")
@@ -22,12 +23,18 @@ _ESTIMATE_OMITS = ("delay", "model_delay", "closed_loop_time", "sample_offset")
 @friendly
 @with_loop(omit=_ESTIMATE_OMITS)
 def estimate(
-    flights: Optional[list[Path]] = typer.Argument(None, help="Flight logs (CSV: t, z, z_ref[, u])."),
+    flights: Optional[list[Path]] = typer.Argument(None, help="Flight logs: CSV (t, z, z_ref[, u]), or PX4 .ulg, ArduPilot .bin/.log, MAVLink .tlog with --output and --reference."),
     method: str = typer.Option("trajectory", "--method", help="trajectory | overshoot | lambert."),
     variant: str = typer.Option("paper", "--variant", help="For lambert: paper | damping."),
     free: str = typer.Option("", "--free", help="Extra fitted parameters for trajectory: gain,lag."),
     step_time: Optional[float] = typer.Option(None, "--step-time", help="Step time in the logs' clock, if not at a sample."),
     skip_bad: bool = typer.Option(False, "--skip-bad", help="Skip (and count) unreadable rows instead of failing."),
+    output: Optional[str] = typer.Option(None, "--output", help="A flight log's altitude, up positive (e.g. -vehicle_local_position.z: NED z is down)."),
+    reference: Optional[str] = typer.Option(None, "--reference", help="A flight log's altitude reference, up positive (e.g. -trajectory_setpoint.position[2])."),
+    input_col: Optional[str] = typer.Option(None, "--input", help="A flight log's commanded climb rate (optional)."),
+    window: Optional[str] = typer.Option(None, "--window", help="T0:T1, the part of the logs used, in the log's own seconds (since boot, as `delaykit log` shows)."),
+    steps: str = typer.Option("all", "--steps", help="all: each step of the reference is fitted (jointly, one delay) | first: each log as one step."),
+    allow_truncated: bool = typer.Option(False, "--allow-truncated", help="Read a flight log cut short up to its last whole message."),
     overshoot: Optional[float] = typer.Option(None, "--overshoot", help="Measured overshoot, % (no files needed)."),
     peak_time: Optional[float] = typer.Option(None, "--peak-time", help="Measured peak time, s."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
@@ -36,6 +43,9 @@ def estimate(
 ) -> None:
     """Estimate the loop delay from flight logs, or from a measured overshoot and peak time.
 
+    A log whose reference holds several steps is cut into one log per step, fitted jointly (--steps first: the
+    log as one step). A flight log (.ulg, .bin, .log, .tlog) names its altitude and reference with --output and
+    --reference; its steps are timed by the reference's own time stamps.
     The loop the flights used comes from the loop options (--kp, --kv, --vmax, --period, or --loop FILE.toml).
     It must be the paper's: the plant gain/s or gain/(s (lag s + 1)), P or PV control, symmetric limits.
     `delaykit identify` fits any other plant.  A delay in the loop file is ignored: it is what is estimated."""
@@ -74,10 +84,17 @@ def estimate(
             warn(w)
         return
     kw = {"step_time": step_time} if step_time is not None else {}
-    logs = [FlightLog.from_csv(f, skip_bad=skip_bad, **kw) for f in flights]
+    logs = [_flight_log(f, skip_bad=skip_bad, output=output, reference=reference, input_col=input_col,
+                        window=window, allow_truncated=allow_truncated, **kw) for f in flights]
+    if steps not in ("all", "first"):
+        raise InvalidValueError(f"--steps must be all or first; got {steps!r}")
+    if steps == "all" and step_time is None:  # (a step time given says where the one step is)
+        from ..identify.steps import split_steps
+
+        logs = [piece for log in logs for piece in split_steps(log)]
     if method == "trajectory":
         with err.status(f"fitting {len(logs)} flight(s)…"):
-            pooled, each = E.estimate_flights(logs, base, free=free_t)
+            pooled, each = E.estimate_flights(logs, base, free=free_t, steps="first")
     else:
         each = []
         for log in logs:
@@ -128,6 +145,39 @@ def estimate(
         warn(w)
 
 
+def _flight_log(path: Path, *, skip_bad: bool, output: Optional[str], reference: Optional[str],
+                input_col: Optional[str], window: Optional[str], allow_truncated: bool, **kw: Any) -> Any:
+    """A FlightLog from a CSV file or a vehicle log (its signals named by --output, --reference, --input)."""
+    from ..identify.flightlog import FlightLog
+    from ..identify.logalign import parse_window, read_log_flight
+    from ..identify.vehiclelogs import log_format
+
+    win = parse_window(window) if window is not None else None
+    if log_format(path) is None:
+        if output is not None or reference is not None or input_col is not None or allow_truncated:
+            raise InvalidValueError(f"{path}: --output, --reference, --input and --allow-truncated name a flight "
+                                    "log's signals (.ulg, .bin, .log, .tlog); a CSV log has the columns t, z, z_ref, u")
+        log = FlightLog.from_csv(path, skip_bad=skip_bad, **kw)
+        return log if win is None else _window_log(log, win, **kw)
+    if output is None or (reference is None and "step_time" not in kw):
+        raise InvalidValueError(f"{path}: a flight log needs --output (the altitude, up positive, e.g. "
+                                "-vehicle_local_position.z) and --reference (its setpoint); `delaykit log FILE` "
+                                "lists the signals")
+    return read_log_flight(path, z=output, z_ref=reference, u=input_col, window=win,
+                           allow_truncated=allow_truncated, **kw)
+
+
+def _window_log(log: Any, win: tuple[float, float], **kw: Any) -> Any:
+    from ..identify.flightlog import FlightLog, LogError
+
+    if win[0] < log.t[0] or win[1] > log.t[-1]:
+        raise LogError(f"{log.name}: the window {win[0]:g}:{win[1]:g} s is not within the log ({log.t[0]:g} to "
+                       f"{log.t[-1]:g} s)")
+    k = (log.t >= win[0]) & (log.t <= win[1])
+    return FlightLog.from_arrays(log.t[k], log.z[k], log.z_ref[k], None if log.u is None else log.u[k],
+                                 name=log.name, **kw)
+
+
 # the loop options `identify` leaves out: the plant and its delay are what it finds, a compensator is refused
 _IDENTIFY_OMITS = ("plant", "delay", "output_delay", "model_delay", "closed_loop_time")
 
@@ -135,7 +185,7 @@ _IDENTIFY_OMITS = ("plant", "delay", "output_delay", "model_delay", "closed_loop
 @friendly
 @with_loop(omit=_IDENTIFY_OMITS)
 def identify(
-    logs: list[Path] = typer.Argument(..., help="Logs (CSV with a header: time, the input or reference, outputs)."),
+    logs: list[Path] = typer.Argument(..., help="Logs: CSV with a header (time, the input or reference, outputs), or PX4 .ulg, ArduPilot .bin/.log, MAVLink .tlog (columns then named topic.field, e.g. --input trajectory_setpoint.velocity[2] --output -vehicle_local_position.vz; a leading - flips NED down to up)."),
     closed_loop: bool = typer.Option(False, "--closed-loop", help="Closed-loop fit from the reference through the controller given by the loop options (--controller p | pv | pi | pd | pid | a transfer function, its gains, --umin/--umax, --antiwindup, --period = the log's; pi, pd, pid and tf may be continuous: no --period; p and pv must be sampled)."),
     input_col: str = typer.Option("u", "--input", help="The plant's command column (open-loop fit)."),
     reference: str = typer.Option("z_ref", "--reference", help="The reference column (with --closed-loop)."),
@@ -149,6 +199,8 @@ def identify(
     command: Optional[str] = typer.Option(None, "--command", help="With --closed-loop: the logs' command column; its value at rest is --u0."),
     resample: Optional[float] = typer.Option(None, "--resample", help="Put the logs on this uniform period first, s (the drive held, the outputs interpolated; timing then known to this period). Optional: logs are fitted on their own clock, even an irregular one; only a closed loop sampled at the log's samples needs a uniform clock."),
     fresh_only: bool = typer.Option(False, "--fresh-only", help="Count only output samples that changed (a sensor slower than the log repeats its values)."),
+    window: Optional[str] = typer.Option(None, "--window", help="T0:T1, the part of the logs used, in the log's own seconds (a flight log: since boot, as `delaykit log` shows)."),
+    allow_truncated: bool = typer.Option(False, "--allow-truncated", help="Read a flight log cut short up to its last whole message."),
     save: Optional[Path] = typer.Option(None, "--save", help="Write the model here (JSON), for `delaykit predict`."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Overlay each log and the model's free-run prediction here."),
@@ -181,8 +233,14 @@ def identify(
         raise InvalidValueError("--u0 and --command give the command at rest of a closed-loop fit: add --closed-loop")
     drive = {"reference": reference} if closed_loop else {"input": input_col, "u_before": u_before}
     cols = [output] + ([rate] if rate else []) + ([command] if command else [])
+    win = None
+    if window is not None:
+        from ..identify.logalign import parse_window
+
+        win = parse_window(window)
     with err.status(f"reading {len(logs)} log(s)…"):  # (a log of millions of rows takes seconds)
-        exps = [read_experiment(f, outputs=cols, time=time_col, resample=resample, **drive) for f in logs]
+        exps = [read_experiment(f, outputs=cols, time=time_col, resample=resample, window=win,
+                                allow_truncated=allow_truncated, **drive) for f in logs]
     with progress_bar(spinner=True) as bar:
         task = bar.add_task("identifying…", total=None)
         m = run_identify(exps, model=model, loop=loop, outputs=[output], rate=rate,
@@ -244,6 +302,8 @@ def predict(
     u0: Optional[float] = typer.Option(None, "--u0", help="A closed-loop model: the absolute command at rest before the logs (see identify --u0)."),
     command: Optional[str] = typer.Option(None, "--command", help="A closed-loop model: the logs' command column; its value at rest is --u0."),
     resample: Optional[float] = typer.Option(None, "--resample", help="Put the logs on this uniform period first, s (the drive held, the outputs interpolated; timing then known to this period). Optional: logs are fitted on their own clock, even an irregular one; only a closed loop sampled at the log's samples needs a uniform clock."),
+    window: Optional[str] = typer.Option(None, "--window", help="T0:T1, the part of the logs predicted, in the log's own seconds (a flight log: since boot, as `delaykit log` shows)."),
+    allow_truncated: bool = typer.Option(False, "--allow-truncated", help="Read a flight log cut short up to its last whole message."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Overlay each log and the prediction here."),
 ) -> None:
@@ -259,8 +319,14 @@ def predict(
     outs = list(m.outputs) + ([m.rate] if m.rate else []) + ([command] if command else [])
     drive = ({"reference": m.drive_column} if m.closed_loop is not None
              else {"input": m.drive_column, "u_before": u_before})
+    win = None
+    if window is not None:
+        from ..identify.logalign import parse_window
+
+        win = parse_window(window)
     with err.status(f"reading and predicting {len(logs)} log(s)…"):
-        exps = [read_experiment(f, outputs=outs, time=time_col, resample=resample, **drive) for f in logs]
+        exps = [read_experiment(f, outputs=outs, time=time_col, resample=resample, window=win,
+                                allow_truncated=allow_truncated, **drive) for f in logs]
         preds = [run_predict(m, e, u0=u0, command=command) for e in exps]
     if plot is not None:
         from ..plotting.identification import plot_predictions
@@ -271,3 +337,30 @@ def predict(
         print_json(rows[0] if len(rows) == 1 else {"logs": rows})
         return
     print_rms(f"free-run prediction by {m!r}", [(r["file"], r["rms"], r["wander"][m.outputs[0]]) for r in rows])
+
+
+@friendly
+def log(
+    file: Path = typer.Argument(..., help="A flight log: PX4 .ulg, ArduPilot .bin/.log or MAVLink .tlog."),
+    allow_truncated: bool = typer.Option(False, "--allow-truncated", help="Read a flight log cut short up to its last whole message."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+) -> None:
+    """List a flight log's topics (ULog) or messages (DataFlash, tlog): fields, samples, rates and time spans.
+
+    Times are the log's own, in seconds (PX4's timestamp and ArduPilot's TimeUS: since the vehicle booted; a tlog's
+    time_boot_ms where a message has it, else its receive stamps). Name a signal for identify and estimate as
+    topic.field (topic[1].field for instance 1, field[2] for an array's element; a leading - flips its sign)."""
+    from ..identify.vehiclelogs import list_log
+
+    listing = list_log(file, allow_truncated=allow_truncated)
+    if as_json:
+        print_json(listing.to_dict())
+        return
+    out.print(f"{listing.name}: {listing.format}, {len(listing.topics)} topics; time in seconds: {listing.clock}",
+              highlight=False, markup=False)
+    for t in listing.topics:
+        span = "no samples" if t.start is None else f"{t.start:.3f} to {t.end:.3f} s"
+        out.print(f"{t.name}{'' if t.instance is None else f'[{t.instance}]'}: {t.samples} samples at "
+                  f"{t.rate_hz:.3g} Hz, {span}", highlight=False, markup=False)
+        fields = [f if not t.units or not t.units[i] else f"{f} ({t.units[i]})" for i, f in enumerate(t.fields)]
+        out.print("    " + ", ".join(fields), highlight=False, markup=False)

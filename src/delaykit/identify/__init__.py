@@ -5,7 +5,9 @@ the paper's loop delay from them: from the overshoot, with the paper's Lambert-W
 trajectory.  :mod:`.iodata` reads any log (input or reference, outputs), :mod:`.structures` names the plant families,
 :mod:`.identify.identification` fits them open or closed loop with honest errors and chooses among them, :mod:`.noise` models
 coloured residuals, :mod:`.experiment` predicts the errors of a planned test, and :mod:`.online` re-estimates the
-delay on a window of a flight from the commands sent (whatever the controller).  It uses the models, simulations
+delay on a window of a flight from the commands sent (whatever the controller); :mod:`.vehiclelogs` reads PX4,
+ArduPilot and MAVLink flight logs, :mod:`.logalign` puts their signals on one clock, and :mod:`.steps` cuts a log of
+several reference steps into one log per step.  It uses the models, simulations
 and spectra of the layers below.
 
 Note that ``delaykit.identify`` as an attribute of the package root is the :func:`identify` function; import this
@@ -37,6 +39,9 @@ _SOURCES = {
     "online": ["WindowEstimate", "estimate_window"],
     "structures": ["STRUCTURES", "Structure", "structure"],
     "system_fit": ["SystemFit", "SystemLogFit", "fit_system", "simulate_log"],
+    "logalign": ["read_log_experiment", "read_log_flight"],
+    "steps": ["find_steps", "split_steps"],
+    "vehiclelogs": ["LogListing", "list_log", "read_signals"],
 }
 
 __all__ = [
@@ -48,6 +53,7 @@ __all__ = [
     "simulate_experiment", "load_model", "ARNoise", "VARNoise", "fit_ar", "fit_var", "ljung_box",
     "ExpectedErrors", "expected_errors", "planned_signal", "SIGNALS", "WindowEstimate", "estimate_window",
     "SystemFit", "SystemLogFit", "fit_system", "simulate_log",
+    "LogListing", "list_log", "read_log_experiment", "read_log_flight", "read_signals", "find_steps", "split_steps",
 ]
 
 

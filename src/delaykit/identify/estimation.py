@@ -43,6 +43,7 @@ from ..simulate.simulation import Sampler, simulate
 from ..spectrum.lambert import delay_for_damping, lambert_w
 from .flightlog import FlightLog
 from .noise import ljung_box
+from .steps import split_steps
 
 __all__ = ["DelayEstimate", "EstimateParams", "Diagnostics", "FlightFit", "EstimationError", "estimate_overshoot", "estimate_lambert", "estimate_trajectory",
            "estimate_flights", "fitted_altitude", "lambert_paper_iterations"]
@@ -770,9 +771,14 @@ def estimate_trajectory(
                          residual_rms=float(math.sqrt(rss / n)), params=params, diagnostics=diag)
 
 
-def estimate_flights(logs: Sequence[FlightLog], kp: float | Loop | AltitudeLoop,
+def estimate_flights(logs: Sequence[FlightLog], kp: float | Loop | AltitudeLoop, *, steps: str = "all",
                      **kwargs: Any) -> tuple[DelayEstimate, list[DelayEstimate]]:
     """Each flight's delay, and the pooled delay of all of them, with the spread between flights.
+
+    With ``steps="all"`` (the default) a log whose reference holds several steps is first cut into one log per
+    step (:func:`~.steps.split_steps`), and each step counts as a flight: fitting such a log as one step would
+    take the net change of its reference for the step and its largest excursion for the peak.
+    ``steps="first"`` fits each log as it is, one step from its reference's first change.
 
     The pooled fit shares the delay and keeps per-flight nuisance parameters (offset, scale, and the free
     gain or lag).  If the flights disagree more than their standard errors allow (a chi-squared
@@ -785,12 +791,15 @@ def estimate_flights(logs: Sequence[FlightLog], kp: float | Loop | AltitudeLoop,
         The flights.
     kp : float or Loop or AltitudeLoop
         The proportional gain the flights used, or the whole loop (see :func:`estimate_trajectory`).
+    steps : {"all", "first"}
+        Cut each log into its reference's steps, or fit it as one step.
     **kwargs
         The other arguments of :func:`estimate_trajectory`.
 
     Returns
     -------
     (pooled, per_flight)
+        ``per_flight`` has one estimate per flight, or per step with ``steps="all"`` (in the logs' order).
 
     Examples
     --------
@@ -801,9 +810,13 @@ def estimate_flights(logs: Sequence[FlightLog], kp: float | Loop | AltitudeLoop,
     >>> pooled.flights, len(each), abs(pooled.delay - 0.37) < 0.003
     (3, 3, True)
     """
-    logs = list(logs)
+    logs = [logs] if isinstance(logs, FlightLog) else list(logs)
     if not logs:
         raise InvalidValueError("no flights given")
+    if steps == "all":
+        logs = [piece for log in logs for piece in split_steps(log)]
+    elif steps != "first":
+        raise InvalidValueError(f"steps must be 'all' or 'first', got {steps!r}")
     each = [estimate_trajectory(log, kp, **kwargs) for log in logs]
     if len(logs) == 1:
         return each[0], each

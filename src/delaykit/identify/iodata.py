@@ -251,8 +251,13 @@ def _array(name: str, col: str, values: Any, n: int | None = None) -> np.ndarray
 
 def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input: str | None = None,  # noqa: A002
                     reference: str | None = None, time: str = "t", u_before: float | None = None,
-                    resample: float | None = None) -> Experiment:
-    """Read one log from a CSV file with a header row.
+                    resample: float | None = None, window: tuple[float, float] | None = None,
+                    allow_truncated: bool = False) -> Experiment:
+    """Read one log: a CSV file with a header row, or a vehicle log (``.ulg``, ``.bin``/``.log``, ``.tlog``).
+
+    A vehicle log is read by :func:`~delaykit.identify.logalign.read_log_experiment`: ``outputs``, ``input``
+    and ``reference`` are then specs such as ``-vehicle_local_position.z`` or ``CTUN.CRt``, on the log's own
+    clock (``time`` is not used).
 
     Parameters
     ----------
@@ -270,6 +275,11 @@ def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input:
         The command before the log, when the log starts with the move (default 0).
     resample : float, optional
         A uniform period (s) to put a log with an irregular clock on (see :meth:`Experiment.from_arrays`).
+    window : (float, float), optional
+        Keep the samples from ``t0`` to ``t1`` (s, the log's own clock).
+    allow_truncated : bool
+        A vehicle log cut short is read up to its last complete message (see
+        :mod:`~delaykit.identify.vehiclelogs`).
 
     Raises
     ------
@@ -285,10 +295,19 @@ def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input:
     >>> read_experiment(p, outputs=["y"], input="u")
     Experiment('step.csv': 12 samples every 1 s, input u, output y, moves at 1 s)
     """
+    from .logalign import read_log_experiment
+    from .vehiclelogs import log_format
+
     path = Path(path)
     name = path.name
     if isinstance(outputs, str):
         outputs = [outputs]
+    if log_format(path) is not None:
+        if time != "t":
+            raise LogError(f"{path}: a flight log's time is its own (its microsecond stamps): time={time!r} does not "
+                           "apply")
+        return read_log_experiment(path, outputs=outputs, input=input, reference=reference, window=window,
+                                   u_before=u_before, resample=resample, allow_truncated=allow_truncated)
     header, records = iter_csv_rows(path)  # one row at a time: the numbers go into packed arrays
     wanted = [time, *outputs] + ([input] if input else []) + ([reference] if reference else [])
     for col in wanted:
@@ -310,6 +329,16 @@ def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input:
                 raise LogError(f"{path}: row {line}: {c} is {cell[:40]!r}, not a finite number")
             cols[c].append(v)
     arr = {c: np.frombuffer(a, dtype=float) for c, a in cols.items()}
+    if window is not None:
+        t0, t1 = (float(w) for w in window)
+        if not (math.isfinite(t0) and math.isfinite(t1) and t0 < t1):
+            raise LogError(f"the window {t0:g}:{t1:g} s must be two finite times, the first before the second")
+        tt = arr[time]
+        if tt.size == 0 or t0 < tt[0] or t1 > tt[-1]:
+            raise LogError(f"{path}: the window {t0:g}:{t1:g} s is not within the log "
+                           f"({f'{tt[0]:g} to {tt[-1]:g} s' if tt.size else 'no rows'})")
+        keep = (tt >= t0) & (tt <= t1)
+        arr = {c: a[keep] for c, a in arr.items()}
     try:
         return Experiment.from_arrays(arr[time], {o: arr[o] for o in outputs},
                                       u=arr[input] if input else None, r=arr[reference] if reference else None,
