@@ -1,0 +1,182 @@
+"""The exact root locus (spectrum/locus.py): crossings against closed forms, roots against python-control at zero
+delay and against Lambert W, stability switches over the delay, bad input."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from scipy.special import lambertw
+
+import delaykit
+from delaykit import AltitudeLoop, InvalidTypeError, InvalidValueError, LocusCrossing, RootLocus, root_locus
+from delaykit.spectrum.locus import _check, open_loop_parts
+
+
+def _flat(intervals):
+    return [x for iv in intervals for x in iv]
+
+
+def test_integrator_delay_crossings_closed_form():
+    # k e^{-tau s}/s: s = jw, jw + k e^{-j w tau} = 0  =>  w = k and w tau = pi/2 + 2 pi n (by hand), every
+    # crossing a pair moving right (Re ds/dk > 0): the count of unstable roots is 2 per crossing passed
+    tau = 0.5
+    gains = np.linspace(0.1, 30.0, 300)
+    loc = root_locus(([1.0], [1.0, 0.0], tau), gains=gains)
+    want = [(math.pi / 2 + 2 * math.pi * n) / tau for n in range(3)]  # pi, 5 pi, 9 pi: all below 30
+    assert [c.value for c in loc.crossings] == pytest.approx(want, rel=1e-12)
+    assert [c.frequency for c in loc.crossings] == pytest.approx(want, rel=1e-12)  # w = k
+    assert [c.direction for c in loc.crossings] == [1, 1, 1]
+    passed = np.searchsorted(want, gains)
+    assert np.array_equal(loc.unstable, 2 * passed)
+    assert _flat(loc.stable_intervals) == pytest.approx([0.1, math.pi], rel=1e-12)
+    assert loc.all_certified and loc.consistent and loc.reason == ""
+
+
+def test_roots_match_lambert_w():
+    # s + k e^{-tau s} = 0 has the roots W_b(-k tau) / tau (scipy's Lambert W, an independent computation); the
+    # branches 0 and -1 are the rightmost pair.  Every root listed is a root, and the rightmost is branch 0's.
+    tau = 0.368
+    gains = np.linspace(0.2, 8.0, 40)
+    loc = root_locus(AltitudeLoop(kp=1.0, delay=tau), gains=gains, region=(-15, 5, -40, 40))
+    for k, row, cnt in zip(gains, loc.roots, loc.counts):
+        r = row[np.isfinite(row)]
+        assert r.size == cnt
+        assert np.all(np.abs(r + k * np.exp(-tau * r)) <= 1e-9 * (1 + np.abs(r)))
+        w0 = complex(lambertw(-k * tau, 0)) / tau
+        top = r[np.argmax(r.real)]
+        assert top.real == pytest.approx(w0.real, abs=1e-9)
+        assert abs(top.imag) == pytest.approx(abs(w0.imag), abs=1e-9)
+    # stability from the counts agrees with the sign of Lambert W's branch 0
+    assert np.array_equal(loc.stable, [lambertw(-k * tau, 0).real < 0 for k in gains])
+    assert loc.crossings[0].value * tau == pytest.approx(math.pi / 2, rel=1e-12)  # k tau = pi/2 (paper: 4.2685)
+
+
+def test_zero_delay_matches_python_control():
+    control = pytest.importorskip("control")
+    num, den = [1.0, 2.0], [1.0, 4.0, 3.0, 0.0]  # (s + 2) / (s (s + 1) (s + 3))
+    gains = np.linspace(0.5, 20.0, 40)
+    loc = root_locus((num, den), gains=gains, region=(-12, 2, -10, 10))
+    G = control.tf(num, den)
+    for k, row in zip(gains, loc.roots):
+        want = np.sort_complex(control.poles(control.feedback(k * G)))
+        got = np.sort_complex(row[np.isfinite(row)])
+        assert got.size == want.size
+        assert np.allclose(got, want, atol=1e-8)
+    assert loc.all_certified
+
+
+def test_zero_delay_crossing_routh():
+    # 1 / (s (s + 1) (s + 2)): s^3 + 3 s^2 + 2 s + k, Routh: unstable past k = 6, crossing at w = sqrt(2)
+    loc = root_locus(([1.0], [1.0, 3.0, 2.0, 0.0]), gains=np.linspace(0.5, 10.0, 20))
+    (c,) = loc.crossings
+    assert (c.value, c.frequency, c.direction) == (pytest.approx(6.0, rel=1e-12), pytest.approx(math.sqrt(2), rel=1e-12), 1)
+    assert _flat(loc.stable_intervals) == pytest.approx([0.5, 6.0], rel=1e-12)
+
+
+def _switches(a: float, b: float, c: float, tmax: float):
+    """By hand: s^2 + a s + b + c e^{-s tau}.  A root j w needs (b - w^2)^2 + a^2 w^2 = c^2, a quadratic in
+    x = w^2; then e^{-j w tau} = -(b - w^2 + j a w) / c.  Cooke & van den Driessche: the root moves right where
+    F(w) = (b - w^2)^2 + a^2 w^2 - c^2 rises (F'(w) > 0), left where it falls."""
+    B = 2 * b - a * a
+    disc = B * B - 4 * (b * b - c * c)
+    out = []
+    for x in ((B + math.sqrt(disc)) / 2, (B - math.sqrt(disc)) / 2):
+        if x <= 0:
+            continue
+        w = math.sqrt(x)
+        z = -complex(b - x, a * w) / c
+        t0 = (-math.atan2(z.imag, z.real)) % (2 * math.pi) / w
+        dF = 4 * w ** 3 - 4 * b * w + 2 * a * a * w
+        n = 0
+        while t0 + 2 * math.pi * n / w <= tmax:
+            out.append((t0 + 2 * math.pi * n / w, w, 1 if dF > 0 else -1))
+            n += 1
+    return sorted(out)
+
+
+def test_delay_switches_stable_unstable_stable():
+    # s^2 + 0.1 s + 1 + 0.5 e^{-s tau}: stable at tau = 0, unstable at 0.202, stable again at 4.220, unstable for
+    # good at 5.358 (the crossings' values from _switches, by hand)
+    delays = np.linspace(0.0, 15.0, 301)
+    loc = root_locus(([0.5], [1.0, 0.1, 1.0]), delays=delays)
+    want = _switches(0.1, 1.0, 0.5, 15.0)
+    got = [(c.value, c.frequency, c.direction) for c in loc.crossings]
+    assert len(got) == len(want) == 5
+    for g, w in zip(got, want):
+        assert g[0] == pytest.approx(w[0], rel=1e-10) and g[1] == pytest.approx(w[1], rel=1e-10) and g[2] == w[2]
+    assert [d for _, _, d in got][:3] == [1, -1, 1]
+    assert _flat(loc.stable_intervals) == pytest.approx([0.0, want[0][0], want[1][0], want[2][0]], rel=1e-10)
+    # the right-half-plane count between switches: 0, 2, 0, 2, 4, 2 (the last crossing at 13.06 is to the left)
+    assert loc.unstable[delays < want[0][0]].tolist() == [0] * int(np.sum(delays < want[0][0]))
+    mid = (delays > want[0][0]) & (delays < want[1][0])
+    assert set(loc.unstable[mid].tolist()) == {2}
+    late = delays > want[4][0]
+    assert set(loc.unstable[late].tolist()) == {2}
+    assert loc.all_certified
+
+
+def test_delay_first_switch_is_delay_margin():
+    # over the delay of e^{-tau s}/s at gain k, the first switch is the delay margin pi / (2 k)
+    loc = root_locus("1/s", delays=np.linspace(0.0, 2.0, 41), gain=1.31)
+    assert loc.crossings[0].value == pytest.approx(math.pi / 2 / 1.31, rel=1e-12)
+    assert loc.crossings[0].frequency == pytest.approx(1.31, rel=1e-12)
+    assert loc.stable_intervals[0][1] == pytest.approx(math.pi / 2 / 1.31, rel=1e-12)
+
+
+def test_inputs_agree():
+    # the same open loop given four ways
+    g = np.linspace(0.5, 6.0, 12)
+    a = root_locus("exp(-0.368*s)/s", gains=g)
+    b = root_locus(AltitudeLoop(kp=1.0, delay=0.368), gains=g)
+    c = root_locus(([1.0], [1.0, 0.0], 0.368), gains=g)
+    d = root_locus(delaykit.Loop("1/s", delaykit.Controller.p(1.0), delay=0.368), gains=g)
+    for x in (b, c, d):
+        assert np.array_equal(x.unstable, a.unstable)
+        assert [cr.value for cr in x.crossings] == pytest.approx([cr.value for cr in a.crossings], rel=1e-13)
+
+
+def test_result_form():
+    loc = root_locus("exp(-s)/s", gains=[0.0, 1.0, 2.0])
+    assert isinstance(loc, RootLocus) and isinstance(loc.crossings[0], LocusCrossing)
+    assert "\n" not in repr(loc) and repr(loc).startswith("RootLocus(gain over 3 values")
+    d = loc.to_dict()
+    json.dumps(d, allow_nan=False)  # strict JSON: the padding nan and the uncounted -1 do not leak
+    assert d["unstable"][0] is None  # at k = 0 the root s = 0 is on the axis: not counted, not stable
+    assert d["stable"] == [False, True, False]
+    # the crossing at k = 0 (the integrator's root through 0, moving left) and at pi/2
+    assert [(c.value, c.frequency, c.direction) for c in loc.crossings][0] == (0.0, 0.0, -1)
+    assert loc.roots.shape[0] == 3 and loc.roots.dtype == complex
+
+
+def test_check_reports_a_missing_crossing():
+    # the consistency check names where the counts change without a crossing found
+    values = np.array([1.0, 2.0, 3.0])
+    assert _check(values, np.array([0, 0, 2]), []) != ""
+    assert _check(values, np.array([0, 0, 2]), [LocusCrossing("gain", 2.5, 1.0, 1)]) == ""
+
+
+@pytest.mark.parametrize("kwargs, exc, words", [
+    ({}, InvalidValueError, "exactly one"),
+    ({"gains": [1.0], "delays": [0.1]}, InvalidValueError, "exactly one"),
+    ({"gains": [2.0, 1.0]}, InvalidValueError, "increasing"),
+    ({"gains": []}, InvalidValueError, "empty"),
+    ({"gains": [1.0, float("nan")]}, InvalidValueError, "finite"),
+    ({"gains": ["a"]}, InvalidTypeError, "numbers"),
+    ({"delays": [-0.1, 0.2]}, InvalidValueError, ">= 0"),
+    ({"gains": [1.0], "region": (1, 0, 0, 1)}, InvalidValueError, "re_min"),
+])
+def test_bad_input(kwargs, exc, words):
+    with pytest.raises(exc, match=words):
+        root_locus("exp(-s)/s", **kwargs)
+
+
+def test_bad_open_loop():
+    with pytest.raises(InvalidValueError, match="improper"):
+        open_loop_parts(([1.0, 0.0, 0.0], [1.0, 1.0]))
+    with pytest.raises(InvalidTypeError, match="open loop"):
+        root_locus(3.0, gains=[1.0])
+    with pytest.raises(InvalidValueError, match="sampled"):
+        root_locus(AltitudeLoop(kp=1.0, delay=0.368, period=0.05), gains=[1.0])
