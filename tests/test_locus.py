@@ -180,3 +180,26 @@ def test_bad_open_loop():
         root_locus(3.0, gains=[1.0])
     with pytest.raises(InvalidValueError, match="sampled"):
         root_locus(AltitudeLoop(kp=1.0, delay=0.368, period=0.05), gains=[1.0])
+
+
+def test_plot_root_locus(tmp_path):
+    from matplotlib.figure import Figure
+
+    from delaykit.plotting import plot_root_locus
+
+    loc = root_locus("exp(-s)/s", gains=np.linspace(0.2, 8.0, 30))
+    ax = Figure().subplots()
+    path = tmp_path / "locus.png"
+    fig = plot_root_locus(loc, path, ax=ax)
+    assert fig is ax.figure and path.stat().st_size > 0
+    # every root drawn once, coloured by its gain
+    offs = ax.collections[0].get_offsets()
+    assert offs.shape[0] == int(np.isfinite(loc.roots).sum())
+    assert np.allclose(np.sort(ax.collections[0].get_array()), np.sort(np.broadcast_to(
+        loc.values[:, None], loc.roots.shape)[np.isfinite(loc.roots)]))
+    # the crossings at +-j w on the axis: pi/2 and 2 pi + pi/2 (k tau = w tau = pi/2 + 2 pi n)
+    marks = [line for line in ax.lines if line.get_marker() == "x"]
+    ws = sorted(abs(y) for line in marks for y in line.get_ydata())
+    assert ws == pytest.approx(sorted([math.pi / 2] * 2 + [2.5 * math.pi] * 2), rel=1e-12)
+    with pytest.raises(InvalidTypeError, match="RootLocus"):
+        plot_root_locus("not a locus")
