@@ -238,17 +238,16 @@ def _eval_of(C: np.ndarray, tau: np.ndarray) -> _Eval:
 
 # -- the roots at each value -----------------------------------------------------------------------------------
 def _roots_at(num: np.ndarray, den: np.ndarray, k: float, T: float, region: tuple[float, float, float, float],
-              prev: np.ndarray) -> tuple[np.ndarray, int, bool, int]:
+              prev: np.ndarray, covers: bool) -> tuple[np.ndarray, int, bool, int]:
     """At ``D + k N exp(-s T)``: its roots in ``region`` (by multiplicity), the argument principle's count there
     (-1 if none), whether they match (Newton from ``prev`` confirmed by one count, else the full search), and the
-    count in the closed right half-plane (-1 where it cannot be made)."""
+    count in the closed right half-plane (-1 where it cannot be made: a root on the axis, or neutral chains
+    reaching it).  ``covers``: the region holds every root with ``Re s >= 0``, so the certified roots give that
+    count without a second contour."""
     C, tau = _arrays_of(num, den, k, T)
-    unstable = _rhp_count(C, tau)
-    unstable = -1 if unstable is None else unstable
     neutral = T > 0 and k != 0 and num.size == den.size
     q = _characteristic(num, den, k, T) if neutral else None
-    if unstable == 0 and q is not None and any(x >= 0 for x in neutral_lines(q)):
-        unstable = -1
+    roots: np.ndarray | None = None
     if prev.size:
         ev = _eval_of(C, tau)
         s, conv, clean = _newton(ev, prev)
@@ -259,10 +258,20 @@ def _roots_at(num: np.ndarray, den: np.ndarray, k: float, T: float, region: tupl
         got = got[_inside(got, region)]
         c = _count(ev, region)
         if c.ok and c.n == got.size:
-            return got, c.n, True, unstable
-    sp = find_roots(q if q is not None else _characteristic(num, den, k, T), region)
-    r = np.repeat(sp.roots, sp.multiplicities) if sp.roots.size else sp.roots
-    return r, (sp.count if sp.count is not None else -1), bool(sp.certified), unstable
+            roots, count, ok = got, c.n, True
+    if roots is None:
+        sp = find_roots(q if q is not None else _characteristic(num, den, k, T), region)
+        roots = np.repeat(sp.roots, sp.multiplicities) if sp.roots.size else sp.roots
+        count, ok = (sp.count if sp.count is not None else -1), bool(sp.certified)
+    if covers and ok:
+        on_axis = np.abs(roots.real) <= 1e-9 * (1.0 + np.abs(roots))
+        unstable = -1 if np.any(on_axis) else int(np.sum(roots.real > 0))
+    else:
+        n = _rhp_count(C, tau)
+        unstable = -1 if n is None else n
+    if unstable == 0 and q is not None and any(x >= 0 for x in neutral_lines(q)):
+        unstable = -1
+    return roots, count, ok, unstable
 
 
 # -- the crossings ---------------------------------------------------------------------------------------------
@@ -517,6 +526,7 @@ def root_locus(L: Any, gains: Any = None, *, delays: Any = None, region: Sequenc
         make = lambda v: (g, float(v))  # noqa: E731
         crossings = _delay_crossings(num, den, g, float(values[0]), float(values[-1]))
     box = _check_region(region) if region is not None else (-W, W, -W, W)
+    covers = box[0] <= 0.0 and box[1] >= W and box[2] <= -W and box[3] >= W
 
     n = values.size
     found: list[np.ndarray] = []
@@ -526,7 +536,7 @@ def root_locus(L: Any, gains: Any = None, *, delays: Any = None, region: Sequenc
     stable = np.zeros(n, dtype=bool)
     prev = np.zeros(0, complex)
     for i, v in enumerate(values):
-        r, c, ok, unstable[i] = _roots_at(num, den, *make(v), box, prev)
+        r, c, ok, unstable[i] = _roots_at(num, den, *make(v), box, prev, covers)
         r = r[np.lexsort((-r.imag, -r.real))] if r.size else r
         found.append(r)
         counts[i], certified[i] = c, ok
