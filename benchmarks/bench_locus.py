@@ -70,9 +70,11 @@ def main() -> None:
         table.add_row(r["method"], f"{r['seconds']:.3f}", r["certified"], "none" if k is None else f"{k:.6f}",
                       "-" if k is None else f"{abs(k - EXACT):.1e}", r["how"])
     Console(width=150).print(table)
-    target = rows[0]["seconds"] < 1.0
-    print(f"target (1,000 gains certified under 1 s): {'met' if target else 'NOT met'} "
-          f"({rows[0]['seconds']:.3f} s{'' if not args.quick else ', --quick: 100 gains'})")
+    if args.quick:
+        print(f"--quick: {n} gains in {rows[0]['seconds']:.3f} s (the target is for 1,000 gains: run without --quick)")
+    else:
+        target = rows[0]["seconds"] < 1.0
+        print(f"target (1,000 gains certified under 1 s): {'met' if target else 'NOT met'} ({rows[0]['seconds']:.3f} s)")
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps({"gains": n, "exact_first_crossing": EXACT, "rows": rows}, indent=2))
