@@ -133,7 +133,8 @@ def test_inputs_agree():
     b = root_locus(AltitudeLoop(kp=1.0, delay=0.368), gains=g)
     c = root_locus(([1.0], [1.0, 0.0], 0.368), gains=g)
     d = root_locus(delaykit.Loop("1/s", delaykit.Controller.p(1.0), delay=0.368), gains=g)
-    for x in (b, c, d):
+    e = root_locus(delaykit.tf("exp(-0.368*s)/s"), gains=g)
+    for x in (b, c, d, e):
         assert np.array_equal(x.unstable, a.unstable)
         assert [cr.value for cr in x.crossings] == pytest.approx([cr.value for cr in a.crossings], rel=1e-13)
 
@@ -178,6 +179,8 @@ def test_bad_open_loop():
         open_loop_parts(([1.0, 0.0, 0.0], [1.0, 1.0]))
     with pytest.raises(InvalidTypeError, match="open loop"):
         root_locus(3.0, gains=[1.0])
+    with pytest.raises(InvalidValueError, match="different delays"):  # not rational times one dead time
+        root_locus(delaykit.tf("1/(s+1)") + delaykit.tf("exp(-s)/(s+1)"), gains=[1.0])
     with pytest.raises(InvalidValueError, match="sampled"):
         root_locus(AltitudeLoop(kp=1.0, delay=0.368, period=0.05), gains=[1.0])
 

@@ -35,6 +35,8 @@ from ..models.altitude import AltitudeLoop, as_loop
 from ..models.loop import Loop
 from ..models.quasipolynomial import QuasiPolynomial
 from ..models.transfer import TransferFunction
+from ..systems.build import plant_of
+from ..systems.lti import DelayLTI
 from ._openloop import OpenLoop, positive_real_roots, solve_bracketed
 from .roots import _check_region, _count, _dedupe, _Eval, _inside, _newton, find_roots, neutral_lines, root_bound
 from .stability import _arrays, _rhp_count
@@ -175,8 +177,9 @@ def _poly(name: str, p: Any) -> np.ndarray:
 def open_loop_parts(L: Any) -> tuple[np.ndarray, np.ndarray, float]:
     """``(N, D, T)`` of an open loop ``N(s) / D(s) exp(-s T)``: from a :class:`~delaykit.models.loop.Loop` or an
     ``AltitudeLoop`` (its loop transfer function broken at the plant input, its whole delay), text
-    (``"exp(-0.368*s)/s"``), a :class:`~delaykit.models.transfer.TransferFunction`, or ``(num, den)`` /
-    ``(num, den, delay)``.
+    (``"exp(-0.368*s)/s"``), a :class:`~delaykit.models.transfer.TransferFunction`, a SISO
+    :class:`~delaykit.systems.lti.DelayLTI` that is a rational function times one dead time
+    (:func:`~delaykit.systems.build.plant_of`), or ``(num, den)`` / ``(num, den, delay)``.
 
     Examples
     --------
@@ -195,12 +198,16 @@ def open_loop_parts(L: Any) -> tuple[np.ndarray, np.ndarray, float]:
         num, den = tfn.num, tfn.den
     elif isinstance(L, TransferFunction):
         num, den, T = L.num, L.den, 0.0
+    elif isinstance(L, DelayLTI):  # rational times one dead time (plant_of says why not, otherwise)
+        tfn, T = plant_of(L)
+        num, den = tfn.num, tfn.den
     elif isinstance(L, (tuple, list)) and len(L) in (2, 3):
         num, den = L[0], L[1]
         T = L[2] if len(L) == 3 else 0.0
     else:
         raise InvalidTypeError("the open loop must be a Loop, an AltitudeLoop, text such as 'exp(-0.368*s)/s', a "
-                               f"TransferFunction or a tuple (num, den[, delay]); got {type(L).__name__}")
+                               "TransferFunction, a SISO DelayLTI or a tuple (num, den[, delay]); got "
+                               f"{type(L).__name__}")
     num, den = _poly("the numerator", num), _poly("the denominator", den)
     if num.size > den.size:
         raise InvalidValueError(f"the open loop is improper (numerator degree {num.size - 1} > denominator degree "
@@ -464,9 +471,10 @@ def root_locus(L: Any, gains: Any = None, *, delays: Any = None, region: Sequenc
 
     Parameters
     ----------
-    L : Loop, AltitudeLoop, str, TransferFunction or tuple
+    L : Loop, AltitudeLoop, str, TransferFunction, DelayLTI or tuple
         The open loop (see :func:`open_loop_parts`): a loop's transfer function broken at the plant input with
-        its whole delay, text such as ``"exp(-0.368*s)/s"``, or ``(num, den[, delay])``.
+        its whole delay, text such as ``"exp(-0.368*s)/s"``, a SISO system that is a rational function times one
+        dead time (``tf(...)``), or ``(num, den[, delay])``.
     gains : array_like, optional
         Increasing gains ``k`` multiplying ``L`` (the loop's delay fixed).
     delays : array_like, optional
