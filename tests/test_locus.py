@@ -206,3 +206,32 @@ def test_plot_root_locus(tmp_path):
     assert ws == pytest.approx(sorted([math.pi / 2] * 2 + [2.5 * math.pi] * 2), rel=1e-12)
     with pytest.raises(InvalidTypeError, match="RootLocus"):
         plot_root_locus("not a locus")
+
+
+def test_third_order_with_delay_phase_crossover():
+    # 2 e^{-0.2 s} / (s + 1)^3: a root j w needs the phase -3 atan(w) - 0.2 w = -pi, then k = |1 + j w|^3 / 2
+    # (solved here with scipy's brentq, independently of the code's scan)
+    from scipy.optimize import brentq
+
+    w = brentq(lambda x: 3 * math.atan(x) + 0.2 * x - math.pi, 0.5, 3.0, xtol=1e-15)
+    k = (1 + w * w) ** 1.5 / 2
+    loc = root_locus(([2.0], [1.0, 3.0, 3.0, 1.0], 0.2), gains=np.linspace(0.1, 10.0, 100))
+    first = loc.crossings[0]
+    assert first.value == pytest.approx(k, rel=1e-10) and first.frequency == pytest.approx(w, rel=1e-10)
+    assert first.direction == 1
+    assert _flat(loc.stable_intervals) == pytest.approx([0.1, k], rel=1e-10)
+    assert loc.all_certified
+
+
+def test_biproper_neutral_range_refused():
+    # (s + 2) / (s + 1) e^{-0.5 s} at |k| >= 1: k s e^{-0.5 s} matches s, the root chains reach the axis
+    with pytest.raises(InvalidValueError, match="neutral"):
+        root_locus(([1.0, 2.0], [1.0, 1.0], 0.5), gains=[0.5, 1.5])
+    # below, a neutral loop with its chains left of the axis: stable (Re s -> ln(k) / 0.5 < 0)
+    loc = root_locus(([1.0, 2.0], [1.0, 1.0], 0.5), gains=[0.1, 0.3])
+    assert loc.stable.tolist() == [True, True] and loc.all_certified
+    from delaykit import QuasiPolynomial
+    from delaykit.spectrum.stability import rightmost
+
+    # the same verdict from the rightmost-root search (another path through the root finder)
+    assert [rightmost(QuasiPolynomial([[1.0, 1.0], [k, 2 * k]], [0.0, 0.5])).stable for k in (0.1, 0.3)] == [True, True]

@@ -496,7 +496,9 @@ def root_locus(L: Any, gains: Any = None, *, delays: Any = None, region: Sequenc
     radian of ``w T`` and solves every sign change; a pair of crossings closer than a sample would be missed, but
     then the right-half-plane counts disagree with the crossings, the scan is refined, and if that does not help
     ``consistent`` is False with the place named.  A root that touches the axis without crossing is not found by
-    the scan.  Multiple roots are listed repeated by multiplicity.
+    the scan.  Multiple roots are listed repeated by multiplicity.  A biproper open loop whose gain range reaches
+    ``|k n_0| >= |d_0|`` (the leading coefficients) makes the closed loop neutral with root chains on or right
+    of the axis: that range is refused, with the gain named.
 
     Examples
     --------
