@@ -48,7 +48,8 @@ def main() -> None:
     loop = dk.AltitudeLoop(kp=1.0, delay=TAU)
     dk.root_locus(loop, gains=gains[:5])  # the kernels loaded, outside the timing
     loc, t = timed(lambda: dk.root_locus(loop, gains=gains), repeats)
-    rows = [{"method": "delaykit root_locus (exact delay)", "seconds": t, "certified": f"{int(loc.certified.sum())}/{n}",
+    rows = [{"method": "delaykit root_locus (exact delay)", "seconds": t,
+             "certified": f"{int(loc.certified.sum())}/{n}",
              "first crossing": loc.crossings[0].value if loc.crossings else None, "how": "exact"}]
     try:
         import control
@@ -74,7 +75,8 @@ def main() -> None:
         print(f"--quick: {n} gains in {rows[0]['seconds']:.3f} s (the target is for 1,000 gains: run without --quick)")
     else:
         target = rows[0]["seconds"] < 1.0
-        print(f"target (1,000 gains certified under 1 s): {'met' if target else 'NOT met'} ({rows[0]['seconds']:.3f} s)")
+        verdict = "met" if target else "NOT met"
+        print(f"target (1,000 gains certified under 1 s): {verdict} ({rows[0]['seconds']:.3f} s)")
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps({"gains": n, "exact_first_crossing": EXACT, "rows": rows}, indent=2))

@@ -72,7 +72,8 @@ def test_zero_delay_crossing_routh():
     # 1 / (s (s + 1) (s + 2)): s^3 + 3 s^2 + 2 s + k, Routh: unstable past k = 6, crossing at w = sqrt(2)
     loc = root_locus(([1.0], [1.0, 3.0, 2.0, 0.0]), gains=np.linspace(0.5, 10.0, 20))
     (c,) = loc.crossings
-    assert (c.value, c.frequency, c.direction) == (pytest.approx(6.0, rel=1e-12), pytest.approx(math.sqrt(2), rel=1e-12), 1)
+    assert c.value == pytest.approx(6.0, rel=1e-12) and c.frequency == pytest.approx(math.sqrt(2), rel=1e-12)
+    assert c.direction == 1
     assert _flat(loc.stable_intervals) == pytest.approx([0.5, 6.0], rel=1e-12)
 
 

@@ -285,9 +285,9 @@ def _roots_at(num: np.ndarray, den: np.ndarray, k: float, T: float, region: tupl
 def _bound(num: np.ndarray, den: np.ndarray, kmax: float) -> float:
     """A radius holding every root with ``Re s >= 0`` of ``D + k N exp(-s T)`` for every ``|k| <= kmax`` and every
     ``T >= 0`` (the root bound of ``D`` against the delayed majorant ``kmax |N|``)."""
-    if kmax == 0.0:
+    if kmax == 0.0:  # the open-loop poles (1 + their largest modulus, so the region is never a point)
         r = np.roots(den)
-        return float(np.max(np.abs(r))) * (1 + 1e-9) + 1e-12 if r.size else 1.0
+        return 1.0 + (float(np.max(np.abs(r))) if r.size else 0.0)
     try:
         return root_bound(QuasiPolynomial([den, kmax * num], [0.0, 1.0]), 0.0)
     except InvalidValueError:
