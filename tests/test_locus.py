@@ -236,3 +236,26 @@ def test_biproper_neutral_range_refused():
 
     # the same verdict from the rightmost-root search (another path through the root finder)
     assert [rightmost(QuasiPolynomial([[1.0, 1.0], [k, 2 * k]], [0.0, 0.5])).stable for k in (0.1, 0.3)] == [True, True]
+
+
+@pytest.mark.parametrize("a, b, c", [(0.1, 1.0, 0.5), (0.2, 2.0, 0.8), (0.05, 1.0, 0.3)])
+def test_delay_switching_sequences(a, b, c):
+    # x'' + a x' + b x = -c x(t - tau) (Cooke & Grossman's second-order form): the crossings and, from them, the
+    # stable intervals by hand: stable at tau = 0 (s^2 + a s + b + c is Hurwitz), each crossing moves the count of
+    # unstable roots by 2 in its direction.  The three cases have two, two and three stable intervals (the last one,
+    # 11.07 to 11.21, narrower than three grid steps)
+    tmax = 20.0
+    want = _switches(a, b, c, tmax)
+    loc = root_locus(([c], [1.0, a, b]), delays=np.linspace(0.0, tmax, 401))
+    assert [x.value for x in loc.crossings] == pytest.approx([w[0] for w in want], rel=1e-10)
+    assert [x.direction for x in loc.crossings] == [w[2] for w in want]
+    n, lo, intervals = 0, 0.0, []
+    for t, _, d in want:
+        if n == 0:
+            intervals.append((lo, t))
+        n += 2 * d
+        lo = t
+    if n == 0:
+        intervals.append((lo, tmax))
+    assert _flat(loc.stable_intervals) == pytest.approx(_flat(intervals), rel=1e-10)
+    assert loc.all_certified
