@@ -259,3 +259,16 @@ def test_delay_switching_sequences(a, b, c):
         intervals.append((lo, tmax))
     assert _flat(loc.stable_intervals) == pytest.approx(_flat(intervals), rel=1e-10)
     assert loc.all_certified
+
+
+def test_narrow_stable_interval_between_grid_values():
+    # the third case above is stable on (11.07, 11.21) only, narrower than this grid's step of 0.5: no grid value
+    # lands there, but the intervals follow from the crossings (consistent with every count), so it is found
+    want = _switches(0.05, 1.0, 0.3, 20.0)
+    loc = root_locus(([0.3], [1.0, 0.05, 1.0]), delays=np.linspace(0.0, 20.0, 41))
+    assert loc.consistent
+    narrow = [iv for iv in loc.stable_intervals if iv[0] > 10.0]
+    assert len(narrow) == 1 and narrow[0][1] - narrow[0][0] < 0.5
+    ends = [t for t, _, _ in want if 10.0 < t < 12.0]  # the crossings around it, by hand
+    assert list(narrow[0]) == pytest.approx(ends, rel=1e-10)
+    assert not np.any(loc.stable[(loc.values > 10.0)])  # no grid value sees it

@@ -102,8 +102,10 @@ class RootLocus:
     crossings : tuple of LocusCrossing
         Where a root crosses the imaginary axis, in increasing parameter order.
     stable_intervals : tuple of (float, float)
-        The parameter intervals (within the values' range) where the loop is stable; an end is the crossing's
-        exact value where one bounds it, else the first or last value of the grid.
+        The parameter intervals (within the values' range) where the loop is stable, their ends the crossings'
+        exact values (or the range's ends).  When the crossings agree with every count (``consistent``) they
+        come from the crossings, so an interval narrower than the grid's step is found too; otherwise from the
+        runs of stable values, each end moved to a crossing next to it where there is one.
     region : tuple
         ``(re_min, re_max, im_min, im_max)``.
     gain, delay : float
@@ -432,6 +434,30 @@ def _intervals(values: np.ndarray, stable: np.ndarray, unstable: np.ndarray, cro
     return tuple(out)
 
 
+def _exact_intervals(values: np.ndarray, unstable: np.ndarray, crossings: list[LocusCrossing]
+                     ) -> tuple[tuple[float, float], ...]:
+    """The stable intervals from one counted value and the crossings (consistent with every count): the count of
+    unstable roots is constant between crossings and moves by ``direction x roots`` at each, so an interval
+    narrower than the grid's step is found too.  A crossing that leaves the count as it was (a root touching the
+    axis, or two at once in opposite directions) still splits an interval: a root is on the axis there."""
+    ok = np.flatnonzero(unstable >= 0)
+    if ok.size == 0:
+        return ()
+    lo, hi = float(values[0]), float(values[-1])
+    inner = sorted({c.value for c in crossings if lo < c.value < hi})
+    edges = [lo, *inner, hi]
+    jump = {v: sum(c.direction * c.roots for c in crossings if c.value == v) for v in inner}
+    a = float(values[ok[0]])
+    seg = min(max(int(np.searchsorted(edges, a, side="right")) - 1, 0), len(edges) - 2)
+    counts = [0] * (len(edges) - 1)
+    counts[seg] = int(unstable[ok[0]])
+    for i in range(seg + 1, len(counts)):
+        counts[i] = counts[i - 1] + jump[edges[i]]
+    for i in range(seg - 1, -1, -1):
+        counts[i] = counts[i + 1] - jump[edges[i + 1]]
+    return tuple((float(edges[i]), float(edges[i + 1])) for i, n in enumerate(counts) if n == 0)
+
+
 def _values(name: str, v: Any, minimum: float | None) -> np.ndarray:
     try:
         a = np.asarray(v, dtype=float).ravel()
@@ -561,11 +587,14 @@ def root_locus(L: Any, gains: Any = None, *, delays: Any = None, region: Sequenc
         i = int(np.flatnonzero(~certified)[0])
         reason = (reason + "; " if reason else "") + (
             f"the roots at {parameter} {values[i]:.6g} could not be certified ({int((~certified).sum())} values)")
+    # the intervals from the crossings where they agree with every count, else from the grid's stable runs
+    intervals = (_exact_intervals(values, unstable, crossings) if consistent
+                 else _intervals(values, stable, unstable, crossings))
     width = max((r.size for r in found), default=0)
     roots = np.full((n, width), np.nan + 0j, dtype=complex)
     for i, r in enumerate(found):
         roots[i, :r.size] = r
     return RootLocus(parameter=parameter, values=values, roots=roots, counts=counts, certified=certified,
                      unstable=unstable, stable=stable, crossings=tuple(crossings),
-                     stable_intervals=_intervals(values, stable, unstable, crossings), region=box, gain=fixed_gain,
+                     stable_intervals=intervals, region=box, gain=fixed_gain,
                      delay=fixed_delay, consistent=consistent, reason=reason)
