@@ -151,6 +151,7 @@ def test_result_form():
     # the crossing at k = 0 (the integrator's root through 0, moving left) and at pi/2
     assert [(c.value, c.frequency, c.direction) for c in loc.crossings][0] == (0.0, 0.0, -1)
     assert loc.roots.shape[0] == 3 and loc.roots.dtype == complex
+    assert (d["gain"], d["delay"]) == (None, 1.0)  # the gain moves; the delay is the loop's
 
 
 def test_check_reports_a_missing_crossing():

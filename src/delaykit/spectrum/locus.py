@@ -108,8 +108,8 @@ class RootLocus:
         runs of stable values, each end moved to a crossing next to it where there is one.
     region : tuple
         ``(re_min, re_max, im_min, im_max)``.
-    gain, delay : float
-        The open loop's fixed gain and delay (the one moved holds its first value).
+    gain, delay : float or None
+        The open loop's fixed gain and delay; the one that moves is None (its values are ``values``).
     consistent : bool
         Every change of ``unstable`` between two values is what the crossings between them say.
     reason : str
@@ -126,8 +126,8 @@ class RootLocus:
     crossings: tuple[LocusCrossing, ...]
     stable_intervals: tuple[tuple[float, float], ...]
     region: tuple[float, float, float, float]
-    gain: float
-    delay: float
+    gain: float | None
+    delay: float | None
     consistent: bool
     reason: str
 
@@ -550,7 +550,7 @@ def root_locus(L: Any, gains: Any = None, *, delays: Any = None, region: Sequenc
         parameter = "gain"
         kmax = float(np.max(np.abs(values)))
         W = _bound(num, den, kmax)
-        fixed_gain, fixed_delay = float(values[0]), T
+        fixed_gain, fixed_delay = None, T
         make = lambda v: (float(v), T)  # noqa: E731
         crossings = _gain_crossings(num, den, T, float(values[0]), float(values[-1]), W)
     else:
@@ -558,7 +558,7 @@ def root_locus(L: Any, gains: Any = None, *, delays: Any = None, region: Sequenc
         parameter = "delay"
         g = check_real("gain", gain)
         W = _bound(num, den, abs(g))
-        fixed_gain, fixed_delay = g, float(values[0])
+        fixed_gain, fixed_delay = g, None
         make = lambda v: (g, float(v))  # noqa: E731
         crossings = _delay_crossings(num, den, g, float(values[0]), float(values[-1]))
     box = _check_region(region) if region is not None else (-W, W, -W, W)
