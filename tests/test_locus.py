@@ -273,3 +273,17 @@ def test_narrow_stable_interval_between_grid_values():
     ends = [t for t, _, _ in want if 10.0 < t < 12.0]  # the crossings around it, by hand
     assert list(narrow[0]) == pytest.approx(ends, rel=1e-10)
     assert not np.any(loc.stable[(loc.values > 10.0)])  # no grid value sees it
+
+
+def test_crossings_agree_with_margins():
+    # a PID loop with a delay: the gain crossing is the gain margin and the delay crossing the loop's delay plus
+    # the delay margin, both from margins() (the frequency module's certified crossovers, another computation)
+    loop = delaykit.Loop("1/((s+1)*(0.5*s+1))", delaykit.Controller.pid(1.0, 0.5, 0.2, 0.05), delay=0.2)
+    m = delaykit.margins(loop)
+    g = root_locus(loop, gains=np.linspace(0.05, 15.0, 60))
+    d = root_locus(loop, delays=np.linspace(0.0, 3.0, 60))
+    assert [c.value for c in g.crossings] == pytest.approx([m.gain_margin], rel=1e-9)
+    assert g.crossings[0].frequency == pytest.approx(m.phase_crossover, rel=1e-9)
+    assert d.crossings[0].value == pytest.approx(loop.delay + m.delay_margin, rel=1e-9)
+    assert d.crossings[0].frequency == pytest.approx(m.crossover, rel=1e-9)
+    assert g.all_certified and d.all_certified
