@@ -287,3 +287,19 @@ def test_crossings_agree_with_margins():
     assert d.crossings[0].value == pytest.approx(loop.delay + m.delay_margin, rel=1e-9)
     assert d.crossings[0].frequency == pytest.approx(m.crossover, rel=1e-9)
     assert g.all_certified and d.all_certified
+
+
+def test_lightly_damped_resonance_crossing():
+    # e^{-0.1 s} / (s^2 + 2e-4 s + 1): the phase passes -pi within 1e-3 of w = 1; a root j w needs
+    # angle(1 - w^2 + 2e-4 j w) + 0.1 w = pi, then k = |1 - w^2 + 2e-4 j w| (brentq, by hand)
+    from scipy.optimize import brentq
+
+    def phase(w):
+        return math.atan2(2e-4 * w, 1 - w * w) + 0.1 * w - math.pi
+
+    w = brentq(phase, 0.999, 1.01, xtol=1e-15)
+    k = abs(complex(1 - w * w, 2e-4 * w))
+    loc = root_locus(([1.0], [1.0, 2e-4, 1.0], 0.1), gains=np.linspace(1e-4, 1e-2, 50))
+    assert [c.value for c in loc.crossings] == pytest.approx([k], rel=1e-8)
+    assert loc.crossings[0].frequency == pytest.approx(w, rel=1e-12)
+    assert loc.all_certified

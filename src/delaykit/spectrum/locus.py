@@ -350,8 +350,15 @@ def _gain_crossings(num: np.ndarray, den: np.ndarray, T: float, lo: float, hi: f
 
     n = int(min(_MAX_SCAN, 64 + refine * _SCAN_PER_RADIAN * W * T + refine * 2000))
     w = np.linspace(0.0, W, n)[1:]
-    # (log-spaced points near 0 too: h vanishes there for a loop with integrators)
-    w = np.unique(np.concatenate([np.geomspace(W * 1e-9, w[0], 40 * refine), w]))
+    # log-spaced points near 0 too (h vanishes there for a loop with integrators), and dense ones across each
+    # open-loop pole or zero near the axis, where the phase of D conj N turns by pi within a width |Re r|
+    near = [np.geomspace(W * 1e-9, w[0], 40 * refine)]
+    for r in np.concatenate([np.roots(den), np.roots(num) if num.size > 1 else np.zeros(0)]):
+        if r.imag > 0 and r.imag < W:
+            wd = abs(r.real) + 1e-12 * r.imag
+            near.append(np.clip(r.imag + wd * np.linspace(-8.0, 8.0, 64 * refine + 1), 0.0, W))
+    w = np.unique(np.concatenate([*near, w]))
+    w = w[w > 0]
     hv = h(w)
     ch = np.flatnonzero(np.sign(hv[:-1]) * np.sign(hv[1:]) < 0)
     exact = np.flatnonzero(hv == 0.0)
@@ -519,7 +526,7 @@ def root_locus(L: Any, gains: Any = None, *, delays: Any = None, region: Sequenc
     Notes
     -----
     Honest limits: the crossing scan over the gain for ``T > 0`` samples ``Im(D conj N e^{jwT})`` some 20 times a
-    radian of ``w T`` and solves every sign change; a pair of crossings closer than a sample would be missed, but
+    radian of ``w T`` (densely across each open-loop pole or zero near the axis) and solves every sign change; a pair of crossings closer than a sample would be missed, but
     then the right-half-plane counts disagree with the crossings, the scan is refined, and if that does not help
     ``consistent`` is False with the place named.  A root that touches the axis without crossing is not found by
     the scan.  Multiple roots are listed repeated by multiplicity.  A biproper open loop whose gain range reaches
