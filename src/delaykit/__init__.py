@@ -43,6 +43,7 @@ __all__ = [
     "DelayLTI", "tf", "ss", "exp", "LaplaceExpression", "delay", "feedback", "append", "interconnect", "summing_junction", "from_loop", "plant_of", "to_loop", "c2d", "saturation", "load_system",
     "series", "parallel",
     "poles", "is_stable", "hinfnorm", "nyquist_count", "loop_margins",
+    "root_locus", "RootLocus", "LocusCrossing",
     "step_response", "impulse_response", "initial_response", "forced_response", "SystemTimeResponse", "step_info",
     "step_response_many", "BatchTimeResponse",
     # PID tuning
@@ -87,6 +88,7 @@ _LAZY = {
     "from_loop": ".systems.build", "plant_of": ".systems.build", "to_loop": ".systems.build", "c2d": ".systems.discrete",
     "saturation": ".systems.build", "load_system": ".systems.files",
     "poles": ".spectrum.systems",
+    "root_locus": ".spectrum.locus", "RootLocus": ".spectrum.locus", "LocusCrossing": ".spectrum.locus",
     "is_stable": ".spectrum.systems", "hinfnorm": ".spectrum.systems", "nyquist_count": ".spectrum.systems",
     "loop_margins": ".spectrum.systems",
     "step_response": ".simulate.systems", "impulse_response": ".simulate.systems",

@@ -2,7 +2,7 @@
 
 :mod:`.lambert` gives the roots of first-order loops in closed form with Lambert W, :mod:`.roots` finds every root
 of a retarded or neutral quasi-polynomial in a rectangle (the compiled inner loops are the private
-:mod:`._rootkernel`), :mod:`.stability` turns roots into the rightmost root, delay margins and stability maps,
+:mod:`._rootkernel`), :mod:`.locus` follows them as a loop's gain or delay moves (the root locus), :mod:`.stability` turns roots into the rightmost root, delay margins and stability maps,
 :mod:`.frequency` gives the exact frequency response and the gain, phase and delay margins of continuous loops
 (and, through :mod:`.system_margins`, of open loops given as delay systems), and
 :mod:`.sampled` gives the exact discrete-time model and poles of loops with a sampled (zero-order hold) controller
@@ -24,6 +24,7 @@ _SOURCES = {
     "lambert": ["LambertRoots", "lambert_w", "lambert_roots", "dominant_root", "kp_delay_for_damping",
                 "delay_for_damping", "complex_delays_for_root"],
     "roots": ["RootStatus", "Spectrum", "find_roots", "neutral_lines", "root_bound"],
+    "locus": ["RootLocus", "LocusCrossing", "root_locus"],
     "stability": ["Rightmost", "DelayMargin", "StabilityMap", "rightmost", "delay_margin", "stability_map"],
     "sampled": ["SampledModel", "SampledSpectrum", "sampled_model", "sampled_spectrum", "sampled_frequency_response"],
     "discrete_margins": ["SampledCrossover", "SampledMargins", "SamplingComparison", "sampled_margins",
@@ -39,6 +40,7 @@ __all__ = [
     "LambertRoots", "lambert_w", "lambert_roots", "dominant_root", "kp_delay_for_damping", "delay_for_damping",
     "complex_delays_for_root",
     "RootStatus", "Spectrum", "find_roots", "neutral_lines", "root_bound",
+    "RootLocus", "LocusCrossing", "root_locus",
     "Rightmost", "DelayMargin", "StabilityMap", "rightmost", "delay_margin", "stability_map",
     "SampledModel", "SampledSpectrum", "SampledCrossover", "SampledMargins", "SamplingComparison", "sampled_model",
     "sampled_spectrum", "sampled_frequency_response", "sampled_margins", "compare_sampling",
