@@ -58,7 +58,7 @@ import time
 from typing import Any, Callable
 
 from ..errors import InvalidValueError, check_real
-from .emulator_config import _check_ipv4, _check_port
+from .emulator_config import _check_port, _resolve_ipv4
 from .link import AltitudeSample, LinkError, VehicleLink, VehicleRefusedError
 from .stamps import enable_stamps, recv_stamped
 
@@ -153,15 +153,7 @@ class TelloLink(VehicleLink):
                  speed_per_percent: float = SPEED_PER_PERCENT, altitude: str = "tof", reply_timeout: float = 1.0,
                  keepalive: float = 1.0) -> None:
         super().__init__()
-        _check_ipv4("host", host)
-        try:
-            ipaddress.ip_address(host)
-        except ValueError:
-            try:
-                host = socket.gethostbyname(host)
-            except OSError:
-                raise InvalidValueError(f"host {host!r} is not an address and cannot be resolved") from None
-        self.host = host
+        self.host = host = _resolve_ipv4("host", host)
         self.name = f"Tello at {host}"
         self.command_port = _check_port("command_port", command_port)
         if command_port == 0:
