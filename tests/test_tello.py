@@ -346,3 +346,23 @@ def test_the_emulate_command_serves_a_tello_on_loopback():
     summary = json.loads(out)
     assert summary["protocol"] == "tello" and summary["sdk"] and summary["stats"]["state_sent"] > 5
     assert summary["state_to"] == ["127.0.0.1", state_port]
+
+
+@pytest.mark.realtime
+def test_speed_per_percent_is_identifiable_from_a_flight(tmp_path):
+    # the link assumes 0.01 m/s per percent, the vehicle does 0.015: the plant the log shows is 1.5 / s
+    emu, link = _pair(spp=0.01)
+    emu.speed_per_percent = 0.015
+    try:
+        res = fly(FlightPlan(kp=1.0, steps=(0.5,), step_duration=3.0, hover_time=0.5), tmp_path / "f.csv", link=link)
+    finally:
+        emu.stop()
+    assert res.completed, res.reason
+    log = _read_log(res.logs[0])
+    # the exact vehicle (speed = command) with a 0.1 s delay at 10 Hz: the command sent after sample k moves the
+    # altitude between samples k + 1 and k + 2, so dz/dt there = gain * u_k; least squares for the gain
+    z, u, t = log["z"], log["u"], log["recv_time"]
+    rate = np.diff(z)[1:] / np.diff(t)[1:]
+    gain = float(np.dot(rate, u[:-2]) / np.dot(u[:-2], u[:-2]))
+    # the true map over the assumed one, 0.015 / 0.01 (the rc's 1 % steps blur it by about 1 %)
+    assert abs(gain - 1.5) < 0.05, gain

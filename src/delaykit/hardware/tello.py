@@ -12,8 +12,9 @@ its state, one line of ``key:value;`` fields, to the PC's UDP port 8890 at about
   drone's words.
 * **Flying**: each command is ``rc 0 0 c 0`` with ``c = clip(round(v / speed_per_percent), -100, 100)``: the rc
   "sticks" are percentages, and ``speed_per_percent`` (m/s per percent, default 0.01) maps them to a vertical
-  speed.  It is a parameter, not a published constant: the loop's gain, identified from a flight
-  (``delaykit identify``), measures it.  The drone keeps the last rc values itself.
+  speed.  It is a parameter, not a published constant: a flight's log measures it, since the plant it shows
+  (the commanded m/s in, the altitude out) has the gain ``true / assumed`` m/s per percent.  The drone keeps the
+  last rc values itself.
 * **Keep-alive**: the Tello lands by itself after 15 s without a command; a thread resends the last ``rc``
   whenever none went out for ``1 / keepalive`` s (default 1 Hz), so it stays up while the loop hovers to
   estimate.
