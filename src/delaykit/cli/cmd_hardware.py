@@ -235,15 +235,14 @@ def fly(
     from ..hardware.flight import FlightPlan, land_on_signals
     from ..hardware.flight import fly as run
     from ..models.compensators import COMPENSATOR_KINDS
-    from .vehicle_opts import connection_is_loopback, link_factory
+    from .vehicle_opts import connection_is_loopback, default_host, link_factory
 
     check_output("--log", log)
     is_tello = vehicle.lower() == "tello"
-    if not is_tello and (command_port != 8889 or state_port != 8890):
-        raise InvalidValueError("--command-port and --state-port are for --vehicle tello")
+    resolved = default_host(vehicle, host, command_port, state_port)
     make_link = link_factory(vehicle, connect, rate=mav_rate, takeoff_height=takeoff_height, host=host,
                              command_port=command_port, state_port=state_port, speed_per_percent=speed_per_percent)
-    host = host or ("192.168.10.1" if is_tello else "192.168.1.1")
+    host = resolved
     kind = controller.lower().replace("_", "-")
     law = None
     if kind in COMPENSATOR_KINDS:

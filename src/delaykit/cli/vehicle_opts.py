@@ -7,7 +7,7 @@ from typing import Any, Callable, Optional
 
 from ..errors import InvalidValueError
 
-__all__ = ["VEHICLE_LINKS", "link_factory", "connection_is_loopback"]
+__all__ = ["VEHICLE_LINKS", "link_factory", "connection_is_loopback", "default_host"]
 
 #: the links the flight commands fly
 VEHICLE_LINKS = ("ardrone", "mavlink", "tello")
@@ -85,3 +85,18 @@ def _tello_factory(connect: Optional[str], option: str, host: Optional[str], com
     where = host or TELLO_HOST
     TelloLink(where, **kwargs).close()  # (the checks: binds the state port once and lets it go)
     return lambda: TelloLink(where, **kwargs)
+
+
+def default_host(vehicle: str, host: Optional[str], command_port: int = 8889, state_port: int = 8890) -> str:
+    """``--host`` or the vehicle's own address (an AR.Drone's 192.168.1.1, a Tello's 192.168.10.1); the Tello's
+    ports refused for the other vehicles.
+
+    Examples
+    --------
+    >>> default_host("tello", None), default_host("ardrone", None), default_host("tello", "127.0.0.1")
+    ('192.168.10.1', '192.168.1.1', '127.0.0.1')
+    """
+    tello = vehicle.lower() == "tello"
+    if not tello and (command_port != 8889 or state_port != 8890):
+        raise InvalidValueError("--command-port and --state-port are for --vehicle tello")
+    return host or ("192.168.10.1" if tello else "192.168.1.1")
