@@ -106,6 +106,17 @@ def test_cli_errors_exit_2_and_help_names_tello():
     assert "tello" in r.invoke(app, ["emulate", "--help"]).output
 
 
+def test_a_state_port_in_use_is_a_link_error_naming_it():
+    taken = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    taken.bind(("127.0.0.1", 0))
+    port = taken.getsockname()[1]
+    try:
+        with pytest.raises(LinkError, match=f"127.0.0.1:{port}: Address already in use"):
+            TelloLink("127.0.0.1", state_port=port)
+    finally:
+        taken.close()
+
+
 def test_vmax_beyond_full_throttle_is_refused_before_anything_is_sent():
     link = TelloLink("127.0.0.1", state_port=0, speed_per_percent=0.005)
     try:
@@ -412,3 +423,21 @@ def test_demo_flies_the_tello_emulator(tmp_path):
     assert rep.p_flight.packet_interval == pytest.approx(0.1, abs=0.01)  # at the Tello's 10 Hz
     # (biased by the speed loop and the 10 Hz sampling, as over MAVLink; see docs/guide/flying.md)
     assert abs(rep.estimate.delay - rep.true_delay) < 0.1
+
+
+@pytest.mark.realtime
+def test_the_delay_monitor_flies_on_the_tello_link(tmp_path):
+    from delaykit.hardware.monitor import DelayMonitor
+
+    emu, link = _pair(cfg={"delay": 0.25, "vehicle": "lag", "lag": 0.05, "noise": 0.003})
+    plan = FlightPlan(kp=1.0, steps=(0.5,), step_duration=4.0, hover_time=0.5)
+    try:
+        res = fly(plan, tmp_path / "f.csv", link=link, monitor=DelayMonitor(plan.law()))
+    finally:
+        emu.stop()
+    assert res.completed, res.reason
+    (o,) = res.online
+    # the actuator delay 0.25 s, plus what the pure-delay model absorbs: the 0.05 s speed lag and the 10 Hz
+    # sample-and-hold (half a period on average); P with kp 1 is stable up to pi/2 s, so no alarm
+    assert 0.25 <= o.delay <= 0.36 and not o.alarm, o
+    assert emu.stats["auto_lands"] == 0

@@ -169,6 +169,13 @@ class TelloLink(VehicleLink):
         self.reply_timeout = check_real("reply_timeout (s)", reply_timeout, minimum=0.05, maximum=30.0)
         self.keepalive = check_real("keepalive (Hz)", keepalive, minimum=0.1, maximum=50.0)
         self.counts = {"garbage": 0, "bad_replies": 0, "other_sender": 0}
+        self._tx = threading.Lock()
+        self._last_rc = "rc 0 0 0 0"
+        self._last_tx = 0.0
+        self._keep: threading.Thread | None = None
+        self._keep_stop = threading.Event()
+        self._seq = 0
+        self._t_state = 0.0  # arrival of the last valid state line
         local = "127.0.0.1" if ipaddress.ip_address(host).is_loopback else "0.0.0.0"
         self.cmd = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.state = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -177,17 +184,10 @@ class TelloLink(VehicleLink):
             self.state.bind((local, state_port))
         except OSError as exc:
             self.close()
-            raise LinkError(f"cannot listen for the Tello's state on port {state_port}: {exc.strerror} (is another "
-                            "Tello program running?)") from None
+            raise LinkError(f"cannot listen for the Tello's state on {local}:{state_port}: {exc.strerror} (is "
+                            "another Tello program running?)") from None
         self.state_port = self.state.getsockname()[1]
         self.kernel_stamps = enable_stamps(self.state)
-        self._tx = threading.Lock()
-        self._last_rc = "rc 0 0 0 0"
-        self._last_tx = 0.0
-        self._keep: threading.Thread | None = None
-        self._keep_stop = threading.Event()
-        self._seq = 0
-        self._t_state = 0.0  # arrival of the last valid state line
 
     # ---- the protocol ----------------------------------------------------------------------------------------
     def send(self, text: str) -> float:
