@@ -17,10 +17,13 @@ __all__ = ["autotune"]
 def autotune(
     relay: float = typer.Option(..., "--relay", help="The relay's amplitude, m/s (at most --vmax)."),
     hysteresis: float = typer.Option(0.0, "--hysteresis", help="The relay's hysteresis, m."),
-    host: str = typer.Option("192.168.1.1", "--host", help="The drone (the emulator: 127.0.0.1)."),
+    host: Optional[str] = typer.Option(None, "--host", help="The drone (default: an AR.Drone at 192.168.1.1; with --vehicle tello, 192.168.10.1; the emulator: 127.0.0.1)."),
     at_port: int = typer.Option(5556, "--at-port", help="The drone's AT command port."),
     navdata_port: int = typer.Option(5554, "--navdata-port", help="The drone's navdata port."),
-    vehicle: str = typer.Option("ardrone", "--vehicle", help="ardrone (--host and its ports; the default) | mavlink (PX4 or ArduPilot: --connect)."),
+    vehicle: str = typer.Option("ardrone", "--vehicle", help="ardrone (--host and its ports; the default) | mavlink (PX4 or ArduPilot: --connect) | tello (--host, --speed-per-percent)."),
+    speed_per_percent: Optional[float] = typer.Option(None, "--speed-per-percent", help="With --vehicle tello: m/s per rc throttle percent (default 0.01)."),
+    command_port: int = typer.Option(8889, "--command-port", help="With --vehicle tello: the drone's command port."),
+    state_port: int = typer.Option(8890, "--state-port", help="With --vehicle tello: the local port its state arrives on."),
     connect: Optional[str] = typer.Option(None, "--connect", help="With --vehicle mavlink: pymavlink's connection string, e.g. tcp:127.0.0.1:5760."),
     mav_rate: float = typer.Option(50.0, "--mavlink-rate", help="With --vehicle mavlink: the LOCAL_POSITION_NED rate asked for, Hz."),
     vmax: float = typer.Option(1.0, "--vmax", help="Command limit, m/s (at most 2)."),
@@ -51,10 +54,16 @@ def autotune(
         raise InvalidValueError(f"--relay {relay:g} is beyond the actuator's limit --vmax {vmax:g} m/s")
     check_real("--step-duration (s)", step_duration, minimum=0.0)
     check_output("--log", log)
-    from .vehicle_opts import connection_is_loopback, link_factory
+    from .vehicle_opts import connection_is_loopback, default_host, link_factory
 
-    make_link = link_factory(vehicle, connect, rate=mav_rate)
-    if make_link is None:
+    is_tello = vehicle.lower() == "tello"
+    resolved = default_host(vehicle, host, command_port, state_port)
+    make_link = link_factory(vehicle, connect, rate=mav_rate, host=host, command_port=command_port,
+                             state_port=state_port, speed_per_percent=speed_per_percent)
+    host = resolved
+    if is_tello:
+        fly_kw: dict = dict(link=make_link, confirm=confirm_real(host, yes))
+    elif make_link is None:
         fly_kw = dict(host=host, at_port=at_port, navdata_port=navdata_port, confirm=confirm_real(host, yes))
     else:
         fly_kw = dict(link=make_link, confirm=confirm_real(

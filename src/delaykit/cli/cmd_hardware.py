@@ -47,27 +47,37 @@ def emulate(
     accel_limit: float = typer.Option(0.0, "--accel-limit", help="Vertical acceleration limit of the speed command, m/s^2 (0: none; ArduPilot's default is 1): a speed step becomes a ramp."),
     refuse_arming: Optional[str] = typer.Option(None, "--refuse-arming", help="With --protocol mavlink: refuse every arming with this pre-arm reason."),
     ready_after: float = typer.Option(0.0, "--ready-after", help="With --protocol mavlink: seconds after start before arming is accepted (an estimator converging)."),
+    command_port: int = typer.Option(8889, "--command-port", help="With --protocol tello: the UDP port commands arrive on (0: any free one)."),
+    state_port: int = typer.Option(8890, "--state-port", help="With --protocol tello: the port the state goes to, at the address that sent `command`."),
+    speed_per_percent: float = typer.Option(0.01, "--speed-per-percent", help="With --protocol tello: the vehicle's true m/s per rc throttle percent."),
+    command_timeout: float = typer.Option(15.0, "--command-timeout", help="With --protocol tello: airborne, it lands by itself after this long without a command, s (a Tello's is 15)."),
 ) -> None:
     """Run the built-in emulator (loopback) until Ctrl-C, SIGTERM, SIGHUP or --duration; then print its summary
     (ports, counts, rejections) as JSON.
 
     One emulated vehicle (its physics, delays, jitter, loss, bursts and delay traces), two protocol front ends:
     the AR.Drone 2.0's (the default) and MAVLink (--protocol mavlink), which behaves as PX4 or ArduPilot and is
-    reached as their simulators are (--to udp:127.0.0.1:14540 or --listen tcp:127.0.0.1:5760)."""
+    reached as their simulators are (--to udp:127.0.0.1:14540 or --listen tcp:127.0.0.1:5760); and a Tello's
+    (--protocol tello: its text SDK on --host at --command-port 8889, state to the client's --state-port 8890 at
+    --rate 10 Hz, the 15 s no-command auto-land)."""
     from dataclasses import replace
 
     from ..hardware.emulator import DroneEmulator, EmulatorConfig
 
     check_real("--duration", duration, minimum=0.0)
     kind = protocol.lower()
-    if kind not in ("ardrone", "mavlink"):
-        raise InvalidValueError(f"--protocol must be ardrone or mavlink, got {protocol!r}")
-    if kind == "ardrone" and (to is not None or listen is not None or refuse_arming is not None or ready_after):
+    if kind not in ("ardrone", "mavlink", "tello"):
+        raise InvalidValueError(f"--protocol must be ardrone, mavlink or tello, got {protocol!r}")
+    if kind != "mavlink" and (to is not None or listen is not None or refuse_arming is not None or ready_after):
         raise InvalidValueError("--to, --listen, --refuse-arming and --ready-after are for --protocol mavlink")
+    if kind != "tello" and (command_port != 8889 or state_port != 8890 or speed_per_percent != 0.01
+                            or command_timeout != 15.0):
+        raise InvalidValueError("--command-port, --state-port, --speed-per-percent and --command-timeout are for "
+                                "--protocol tello")
     if kind == "mavlink" and (to is None) == (listen is None):
         raise InvalidValueError("--protocol mavlink needs exactly one of --to udp:127.0.0.1:PORT (a ground station "
                                 "listening there) and --listen tcp:127.0.0.1:PORT (serve one)")
-    rate = rate if rate is not None else (50.0 if kind == "mavlink" else 15.0)
+    rate = rate if rate is not None else {"mavlink": 50.0, "tello": 10.0}.get(kind, 15.0)
     if delay_schedule is not None and delay_trace is not None:
         raise InvalidValueError("give --delay-schedule or --delay-trace, not both: the schedule replaces --delay and "
                                 "the trace is added to it")
@@ -85,6 +95,11 @@ def emulate(
 
         emulator = MavlinkEmulator(replace(cfg, host="127.0.0.1"), autopilot=autopilot.lower(), to=to, listen=listen,
                                    refuse_arming=refuse_arming, ready_after=ready_after)
+    elif kind == "tello":
+        from ..hardware.emulator_tello import TelloEmulator
+
+        emulator = TelloEmulator(cfg, command_port=command_port, state_port=state_port,
+                                 speed_per_percent=speed_per_percent, command_timeout=command_timeout)
     else:
         emulator = DroneEmulator(cfg)
     with run_until_stopped(duration) as wait:  # Ctrl-C, SIGTERM and SIGHUP end the run alike, with the summary
@@ -94,6 +109,9 @@ def emulate(
                          f"serving tcp:{emu.endpoint[1]}:{emu.ports['mavlink']}")
                 err.print(f"emulated {autopilot} vehicle (MAVLink) {where}; loop delay {emu.true_delay:g} s. "
                           "Ctrl-C stops.", highlight=False)
+            elif kind == "tello":
+                err.print(f"emulated Tello on {host}: commands on UDP {emu.ports['command']}, state to the client's "
+                          f"port {state_port}; loop delay {emu.true_delay:g} s. Ctrl-C stops.", highlight=False)
             else:
                 err.print(f"emulated drone on {host}: AT {emu.ports['at']}, navdata {emu.ports['navdata']}, video "
                           f"{emu.ports['video']}, control {emu.ports['control']}; loop delay {emu.true_delay:g} s. "
@@ -171,10 +189,13 @@ def _parse_steps(spec: str) -> tuple[float, ...]:
 
 @friendly
 def fly(
-    host: str = typer.Option("192.168.1.1", "--host", help="The drone (the emulator: 127.0.0.1)."),
+    host: Optional[str] = typer.Option(None, "--host", help="The drone (default: an AR.Drone at 192.168.1.1; with --vehicle tello, 192.168.10.1; the emulator: 127.0.0.1)."),
     at_port: int = typer.Option(5556, "--at-port", help="The drone's AT command port."),
     navdata_port: int = typer.Option(5554, "--navdata-port", help="The drone's navdata port."),
-    vehicle: str = typer.Option("ardrone", "--vehicle", help="ardrone (AT commands and navdata: --host and its ports; the default) | mavlink (PX4 or ArduPilot through pymavlink: --connect)."),
+    vehicle: str = typer.Option("ardrone", "--vehicle", help="ardrone (AT commands and navdata: --host and its ports; the default) | mavlink (PX4 or ArduPilot through pymavlink: --connect) | tello (its text SDK over UDP: --host, --speed-per-percent)."),
+    speed_per_percent: Optional[float] = typer.Option(None, "--speed-per-percent", help="With --vehicle tello: m/s per rc throttle percent (default 0.01; identify it from a flight)."),
+    command_port: int = typer.Option(8889, "--command-port", help="With --vehicle tello: the drone's command port."),
+    state_port: int = typer.Option(8890, "--state-port", help="With --vehicle tello: the local port its state arrives on (0: any free one)."),
     connect: Optional[str] = typer.Option(None, "--connect", help="With --vehicle mavlink: pymavlink's connection string, e.g. tcp:127.0.0.1:5760, udpin:0.0.0.0:14550 or a serial device."),
     mav_rate: float = typer.Option(50.0, "--mavlink-rate", help="With --vehicle mavlink: the LOCAL_POSITION_NED rate asked for (the loop's), Hz."),
     takeoff_height: float = typer.Option(1.0, "--takeoff-height", help="With --vehicle mavlink: the hover height after take-off, m."),
@@ -210,7 +231,8 @@ def fly(
     when the alarm goes off.
 
     The vehicle is an AR.Drone 2.0 (--host) or, with --vehicle mavlink, a PX4 or ArduPilot autopilot (--connect):
-    PX4 flies in OFFBOARD, ArduPilot in GUIDED, both by vertical-velocity setpoints.
+    PX4 flies in OFFBOARD, ArduPilot in GUIDED, both by vertical-velocity setpoints; or, with --vehicle tello, a
+    Tello (--host, 192.168.10.1 on its Wi-Fi) by rc throttle percentages (--speed-per-percent m/s each).
 
     Exits with status 1 (saying why) if the flight did not complete: a gap in the altitude samples (the link
     lost: the vehicle's own failsafe takes over), an altitude out of bounds, Ctrl-C, or a declined take-off; with
@@ -218,10 +240,14 @@ def fly(
     from ..hardware.flight import FlightPlan, land_on_signals
     from ..hardware.flight import fly as run
     from ..models.compensators import COMPENSATOR_KINDS
-    from .vehicle_opts import connection_is_loopback, link_factory
+    from .vehicle_opts import connection_is_loopback, default_host, link_factory
 
     check_output("--log", log)
-    make_link = link_factory(vehicle, connect, rate=mav_rate, takeoff_height=takeoff_height)
+    is_tello = vehicle.lower() == "tello"
+    resolved = default_host(vehicle, host, command_port, state_port)
+    make_link = link_factory(vehicle, connect, rate=mav_rate, takeoff_height=takeoff_height, host=host,
+                             command_port=command_port, state_port=state_port, speed_per_percent=speed_per_percent)
+    host = resolved
     kind = controller.lower().replace("_", "-")
     law = None
     if loop_file is not None:
@@ -265,7 +291,7 @@ def fly(
                            delay_uncertainty=delay_uncertainty)
     try:
         with land_on_signals():  # SIGTERM and SIGHUP land the drone as Ctrl-C does, and the result says so
-            confirm = (confirm_real(host, yes) if make_link is None else
+            confirm = (confirm_real(host, yes) if make_link is None or is_tello else
                        confirm_real("127.0.0.1" if connection_is_loopback(connect or "") else str(connect), yes))
             res = run(plan, log, host=host, at_port=at_port, navdata_port=navdata_port, link=make_link,
                       ready_timeout=ready_timeout, confirm=confirm, status=lambda m: err.print(m), monitor=mon)

@@ -73,7 +73,7 @@ def demo(
     delay_jump: float = typer.Option(0.15, "--delay-jump", help="Emulator only: how much that flight's delay grows, s."),
     vehicle: str = typer.Option("speed_loop", "--vehicle", help="Emulator only: speed_loop (the PX4's speed loop and hover wander, not the estimator's model) | lag."),
     identify_plant: bool = typer.Option(True, "--identify/--no-identify", help="Identify the plant from the P flights and predict the PV flight with it."),
-    protocol: str = typer.Option("ardrone", "--protocol", help="Emulator only: how it is flown, ardrone (navdata, 15 Hz) | mavlink (its MAVLink front end, 50 Hz: --autopilot)."),
+    protocol: str = typer.Option("ardrone", "--protocol", help="Emulator only: how it is flown, ardrone (navdata, 15 Hz) | mavlink (its MAVLink front end, 50 Hz: --autopilot) | tello (its Tello front end, 10 Hz)."),
     autopilot: str = typer.Option("ardupilot", "--autopilot", help="Emulator only, with --protocol mavlink: ardupilot | px4."),
     connect: Optional[str] = typer.Option(None, "--connect", help="A real MAVLink vehicle (PX4 or ArduPilot): pymavlink's connection string (instead of --host)."),
     yes: bool = typer.Option(False, "--yes", help="Do not ask before taking off a real drone."),
@@ -89,8 +89,8 @@ def demo(
     if varying_steps < 0:
         raise InvalidValueError(f"--varying-steps must be at least 0, got {varying_steps}")
     check_real("--delay-jump (s)", delay_jump, minimum=0.0, maximum=2.0)
-    if protocol not in ("ardrone", "mavlink") or autopilot not in ("ardupilot", "px4"):
-        raise InvalidValueError(f"--protocol must be ardrone or mavlink and --autopilot ardupilot or px4, got "
+    if protocol not in ("ardrone", "mavlink", "tello") or autopilot not in ("ardupilot", "px4"):
+        raise InvalidValueError(f"--protocol must be ardrone, mavlink or tello and --autopilot ardupilot or px4, got "
                                 f"{protocol!r} and {autopilot!r}")
     if host is not None and connect is not None:
         raise InvalidValueError("give --host (an AR.Drone) or --connect (a MAVLink vehicle), not both")

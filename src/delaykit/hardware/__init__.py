@@ -3,10 +3,11 @@
 :mod:`.ardrone` encodes and decodes the drone's AT commands and navdata, :mod:`.emulator` is a drone on UDP
 (simulated altitude dynamics with a delay) for testing without one, :mod:`.stamps` gives datagrams the kernel's
 arrival time, :mod:`.laws` runs any controller or compensator on packets, :mod:`.autotune` flies a relay experiment and tunes from its cycle, :mod:`.monitor` re-estimates the delay
-during a flight (alarm, gain scheduling), :mod:`.link` is the vehicle-link interface (:mod:`.ardrone_link` the AR.Drone's, :mod:`.mavlink` PX4's and
-ArduPilot's), :mod:`.flight` is the real-time loop that flies a plan and logs what it saw, and :mod:`.relay`
-forwards a real link (UDP or TCP) with a set delay, jitter and loss. It sits above design and identification: its
-logs feed :mod:`delaykit.identify`.
+during a flight (alarm, gain scheduling), :mod:`.link` is the vehicle-link interface (:mod:`.ardrone_link` the
+AR.Drone's, :mod:`.mavlink` PX4's and ArduPilot's, :mod:`.tello` a Tello's over its SDK; :mod:`.emulator_mavlink` and
+:mod:`.emulator_tello` the emulator's front ends), :mod:`.flight` is the real-time loop that flies a plan and logs
+what it saw, and :mod:`.relay` forwards a real link (UDP or TCP) with a set delay, jitter and loss. It sits above
+design and identification: its logs feed :mod:`delaykit.identify`.
 """
 
 from .._lazy import lazy_exports
@@ -23,7 +24,7 @@ from .stamps import enable_stamps, recv_stamped
 
 # the monitor pulls in the estimator, the design and the simulator (numba): loaded on first use, so that the
 # emulator and the flight loop start without them
-_LAZY = {"MavlinkLink": ".mavlink", "MavlinkEmulator": ".emulator_mavlink", "AutotuneResult": ".autotune", "DelayMonitor": ".monitor", "OnlineEstimate": ".monitor", "stable_range": ".monitor"}
+_LAZY = {"MavlinkLink": ".mavlink", "MavlinkEmulator": ".emulator_mavlink", "TelloLink": ".tello", "TelloEmulator": ".emulator_tello", "AutotuneResult": ".autotune", "DelayMonitor": ".monitor", "OnlineEstimate": ".monitor", "stable_range": ".monitor"}
 
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())
@@ -36,4 +37,5 @@ __all__ = [
     "LinkError", "VehicleRefusedError", "VehicleLink", "AltitudeSample", "DroneLink", "FlightPlan", "FlightResult", "fly", "land_on_signals", "FlightLaw",
     "DelayMonitor", "OnlineEstimate", "stable_range", "enable_stamps", "recv_stamped", "Relay", "RelayLaw", "AutotuneResult",
     "DelayRelay", "RelaySummary", "DirectionStats", "Endpoint", "parse_endpoint", "MavlinkLink", "MavlinkEmulator",
+    "TelloLink", "TelloEmulator",
 ]

@@ -25,7 +25,7 @@ from typing import Callable
 
 from ..errors import InvalidValueError
 from .ardrone import ATEncoder, CtrlState, Navdata, NavState, ProtocolError, decode_navdata
-from .emulator_config import _check_ipv4, _check_port
+from .emulator_config import _check_port, _resolve_ipv4
 from .link import AltitudeSample, LinkError, VehicleLink
 from .stamps import enable_stamps, recv_stamped
 
@@ -42,15 +42,7 @@ class DroneLink(VehicleLink):
 
     def __init__(self, host: str, at_port: int = 5556, navdata_port: int = 5554) -> None:
         super().__init__()
-        _check_ipv4("host", host)
-        try:
-            ipaddress.ip_address(host)
-        except ValueError:
-            try:
-                host = socket.gethostbyname(host)
-            except OSError:
-                raise InvalidValueError(f"host {host!r} is not an address and cannot be resolved") from None
-        self.host = host
+        self.host = host = _resolve_ipv4("host", host)
         self.name = f"AR.Drone at {host}"
         self.at_port = _check_port("at_port", at_port)
         self.navdata_port = _check_port("navdata_port", navdata_port)

@@ -239,6 +239,23 @@ def _check_ipv4(name: str, host: Any) -> str:
     return host
 
 
+def _resolve_ipv4(name: str, host: Any) -> str:
+    """``host`` as an IPv4 address: checked by :func:`_check_ipv4`, a host name resolved (a delaykit error if it
+    cannot be)."""
+    import ipaddress
+    import socket
+
+    _check_ipv4(name, host)
+    try:
+        ipaddress.ip_address(host)
+    except ValueError:
+        try:
+            host = socket.gethostbyname(host)
+        except OSError:
+            raise InvalidValueError(f"{name} {host!r} is not an address and cannot be resolved") from None
+    return host
+
+
 @dataclass(frozen=True)
 class EmulatorConfig:
     """Settings of the emulated drone (see the module docstring).

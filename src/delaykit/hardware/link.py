@@ -7,7 +7,8 @@ flight loop, the laws, the delay monitor, ``autotune`` and ``demo`` only talk to
 link alike:
 
 * :class:`~delaykit.hardware.ardrone_link.DroneLink`: an AR.Drone 2.0 (AT commands and navdata, UDP);
-* :class:`~delaykit.hardware.mavlink.MavlinkLink`: a PX4 or ArduPilot autopilot over MAVLink (pymavlink).
+* :class:`~delaykit.hardware.mavlink.MavlinkLink`: a PX4 or ArduPilot autopilot over MAVLink (pymavlink);
+* :class:`~delaykit.hardware.tello.TelloLink`: a DJI/Ryze Tello over its text SDK (UDP).
 
 Errors: :class:`LinkError` when the vehicle does not answer (nothing flies), :class:`VehicleRefusedError` when
 it answers no (a mode, arming, a take-off refused, or pre-arm checks that do not pass in time), with the

@@ -63,7 +63,7 @@ from ..simulate.metrics import step_metrics
 from .data import PAPER_PV_KV, TABLE1_KP, TABLE3_KP
 
 __all__ = ["DemoReport", "run_demo", "identify_flights", "flight_experiment", "P_KP", "PV_KP", "PV_KV_CANDIDATES",
-           "FALLBACK_KV"]
+           "FALLBACK_KV", "PROTOCOL_RATES"]
 
 P_STEPS = (1.0, -1.0, 1.0, -1.0, 1.0)
 #: The P gain of the step tests the delay is estimated from: the paper's flights (Table 1, Table 2).
@@ -73,6 +73,9 @@ PV_KP = TABLE3_KP
 PV_KV_CANDIDATES = "0:0.7:8"
 #: Flown only when the design finds no candidate that settles: the paper's own choice (Table 3, Fig. 8).
 FALLBACK_KV = PAPER_PV_KV
+#: How the emulator is flown, and its sample rate (Hz): the AR.Drone's navdata, MAVLink's LOCAL_POSITION_NED, the
+#: Tello's state.
+PROTOCOL_RATES = {"ardrone": 15.0, "mavlink": 50.0, "tello": 10.0}
 
 
 @dataclass(frozen=True, repr=False)
@@ -160,9 +163,10 @@ def run_demo(
     on the emulator, ``varying_steps`` steps of ``varying_duration`` seconds then fly it again while the
     emulator's delay grows by ``delay_jump`` after about half of them (0: no such flight).
 
-    ``protocol`` is how the emulator is flown: ``"ardrone"`` (AT commands and navdata at 15 Hz) or ``"mavlink"``
+    ``protocol`` is how the emulator is flown: ``"ardrone"`` (AT commands and navdata at 15 Hz), ``"mavlink"``
     (its MAVLink front end behaving as ``autopilot``, ``"ardupilot"`` or ``"px4"``, flown by
-    :class:`~delaykit.hardware.mavlink.MavlinkLink` at 50 Hz).  A real vehicle is ``host`` (an AR.Drone) or
+    :class:`~delaykit.hardware.mavlink.MavlinkLink` at 50 Hz) or ``"tello"`` (its Tello front end, flown by
+    :class:`~delaykit.hardware.tello.TelloLink` at 10 Hz).  A real vehicle is ``host`` (an AR.Drone) or
     ``link``, a function making a :class:`~delaykit.hardware.link.VehicleLink` for each flight.
 
     ``vehicle`` is the emulator's (:data:`~delaykit.hardware.emulator.VEHICLES`; not used with ``host``).  With
@@ -184,8 +188,8 @@ def run_demo(
     out.mkdir(parents=True, exist_ok=True)
     emu = None
     truth = None
-    if protocol not in ("ardrone", "mavlink"):
-        raise InvalidValueError(f"protocol must be ardrone or mavlink, got {protocol!r}")
+    if protocol not in PROTOCOL_RATES:
+        raise InvalidValueError(f"protocol must be one of {', '.join(PROTOCOL_RATES)}, got {protocol!r}")
     if host is not None and link is not None:
         raise InvalidValueError("give host (an AR.Drone) or link (another vehicle), not both")
     fly_kw: dict[str, Any] = ({"link": link} if link is not None else
@@ -194,7 +198,7 @@ def run_demo(
         rng = random.Random(seed)
         cfg = EmulatorConfig(at_port=0, navdata_port=0, video_port=0, control_port=0,
                              delay=round(rng.uniform(0.22, 0.42), 4), lag=0.05, noise=0.004, seed=seed,
-                             vehicle=vehicle, rate=15.0 if protocol == "ardrone" else 50.0)
+                             vehicle=vehicle, rate=PROTOCOL_RATES[protocol])
         emu, fly_kw = _start_emulator(cfg, protocol, autopilot)
         truth = emu.true_delay
         say("emulator started on 127.0.0.1 with a delay the pipeline is not told")
@@ -478,6 +482,18 @@ def _start_emulator(cfg: EmulatorConfig, protocol: str, autopilot: str) -> tuple
     if protocol == "ardrone":
         emu = DroneEmulator(cfg).start()
         return emu, {"host": "127.0.0.1", "at_port": emu.ports["at"], "navdata_port": emu.ports["navdata"]}
+    if protocol == "tello":
+        import socket
+
+        from ..hardware.emulator_tello import TelloEmulator
+        from ..hardware.tello import TelloLink
+
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:  # a free port for the state
+            probe.bind(("127.0.0.1", 0))
+            state_port = probe.getsockname()[1]
+        emu = TelloEmulator(cfg, command_port=0, state_port=state_port).start()
+        port = emu.ports["command"]
+        return emu, {"link": lambda: TelloLink("127.0.0.1", command_port=port, state_port=state_port)}
     from ..hardware.emulator_mavlink import MavlinkEmulator
     from ..hardware.mavlink import MavlinkLink
 
