@@ -581,7 +581,7 @@ def zeros(sys: DelayLTI, region: Sequence[float] | None = None) -> Spectrum:
     >>> zeros(tf("(s-1)*exp(-s)/(s+2)^2")).roots.round(12).tolist()
     [(1+0j)]
     >>> z = zeros(tf("(1 - 0.5*exp(-s))/(s+1)"), (-2, 1, 0, 7)).roots    # exp(-s) = 2: s = -ln 2 + 2 pi k i
-    >>> z.round(6).tolist()
+    >>> sorted(z.round(6).tolist(), key=lambda c: c.imag)
     [(-0.693147+0j), (-0.693147+6.283185j)]
     """
     q = zero_function(sys)
