@@ -544,11 +544,32 @@ def zero_function(sys: DelayLTI) -> Any:
     if sys.ndelays > _MAX_CHANNELS:
         raise InvalidValueError(f"{sys!r} has {sys.ndelays} delay channels; at most {_MAX_CHANNELS} are supported")
     terms = _subset_terms(sys, transfer=True)
-    if not terms:
+    if not terms or _rank_deficient(sys, terms):
         raise InvalidValueError(f"the system matrix of {sys!r} is singular for every s (its transfer matrix is "
                                 "rank deficient): it has no isolated zeros")
     dead = min(terms)
     return QuasiPolynomial([c[::-1] for c in terms.values()], [k - dead for k in terms])
+
+
+def _rank_deficient(sys: DelayLTI, terms: dict[float, np.ndarray]) -> bool:
+    """True when the system matrix's determinant (``terms``, ascending coefficients by delay) is at rounding level
+    of Hadamard's bound (the product of the matrix's row norms) at eight points on a circle: singular for every
+    ``s``, its interpolated coefficients noise."""
+    n = sys.nstates
+    eig = np.linalg.eigvals(sys.A) if n else np.zeros(0)
+    mags = np.abs(eig[np.abs(eig) > 0])
+    radius = float(np.exp(np.mean(np.log(mags)))) if mags.size else 1.0
+    for s in radius * np.exp(2j * np.pi * (np.arange(8) + 0.5) / 8):
+        delta = np.exp(-s * np.array(sys.delays))
+        M = np.block([[s * np.eye(n) - sys.A, -sys.B2, -sys.B1],
+                      [-delta[:, None] * sys.C2, np.eye(sys.ndelays) - delta[:, None] * sys.D22,
+                       -delta[:, None] * sys.D21],
+                      [sys.C1, sys.D12, sys.D11]])
+        bound = float(np.prod(np.linalg.norm(M, axis=1)))
+        value = abs(sum(np.polyval(c[::-1], s) * np.exp(-s * tau) for tau, c in terms.items()))
+        if value > 1e-9 * bound:
+            return False
+    return True
 
 
 def zeros(sys: DelayLTI, region: Sequence[float] | None = None) -> Spectrum:
