@@ -55,14 +55,16 @@ def _loop(loop: Any) -> Loop:
     return loop
 
 
-def _order(pade_order: Any) -> int:
+def _order(pade_order: Any, name: str = "pade_order") -> int:
+    """A Padé order: an integer of at least 1 (an integral float accepted), or an error naming ``name``."""
     if isinstance(pade_order, (bool, np.bool_)) or not isinstance(pade_order, numbers.Integral):
-        if isinstance(pade_order, numbers.Real) and not isinstance(pade_order, bool) and float(pade_order).is_integer():
+        if (isinstance(pade_order, numbers.Real) and not isinstance(pade_order, (bool, np.bool_))
+                and math.isfinite(float(pade_order)) and float(pade_order).is_integer()):
             pade_order = int(pade_order)
         else:
-            raise InvalidValueError(f"pade_order must be an integer of at least 1, got {pade_order!r}")
+            raise InvalidValueError(f"{name} must be an integer of at least 1, got {pade_order!r}")
     if pade_order < 1:
-        raise InvalidValueError(f"pade_order must be an integer of at least 1, got {int(pade_order)}")
+        raise InvalidValueError(f"{name} must be an integer of at least 1, got {int(pade_order)}")
     return int(pade_order)
 
 

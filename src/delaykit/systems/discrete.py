@@ -329,12 +329,8 @@ def thiran(delay: float, period: float, order: int) -> DiscreteLTI:
 
     See Also
     --------
-    thiran_coefficients, c2d
-
-    References
-    ----------
-    .. [1] J.-P. Thiran, "Recursive digital filters with maximally flat group delay", *IEEE Transactions on
-       Circuit Theory* 18(6), 659-664, 1971.
+    thiran_coefficients : the filter's coefficients and their reference.
+    c2d
 
     Examples
     --------

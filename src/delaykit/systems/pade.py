@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
-from ..models.interop import PadeError
+from ..models.interop import PadeError, _order
 from ..models.transfer import TransferFunction
 from .algebra import append, close, gain
 from .lti import DelayLTI, as_frequencies
@@ -43,16 +43,9 @@ from .lti import DelayLTI, as_frequencies
 __all__ = ["pade_coefficients", "pade", "pade_error"]
 
 
-def _check_order(order: Any, name: str = "order") -> int:
-    """An integer of at least 1 (an integral float accepted), or an error naming ``name``."""
-    if isinstance(order, (bool, np.bool_)) or not isinstance(order, numbers.Real):
-        raise InvalidValueError(f"{name} must be an integer of at least 1, got {plain(order)!r}")
-    if not isinstance(order, numbers.Integral):
-        if not (math.isfinite(float(order)) and float(order).is_integer()):
-            raise InvalidValueError(f"{name} must be an integer of at least 1, got {plain(order)!r}")
-    if int(order) < 1:
-        raise InvalidValueError(f"{name} must be an integer of at least 1, got {int(order)}")
-    return int(order)
+def _check_order(order: Any) -> int:
+    """An order of at least 1, or an error naming ``order``."""
+    return _order(plain(order), "order")
 
 
 def pade_coefficients(T: float, order: int) -> tuple[np.ndarray, np.ndarray]:
