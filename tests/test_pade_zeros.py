@@ -256,3 +256,21 @@ def test_zeros_bad_input_is_named():
     with pytest.raises(InvalidValueError, match="advanced"):
         dk.zeros(tf("(1 + s*exp(-s))/(s^2+s+1)"))
     assert not dk.is_minimum_phase(tf("(1 + s*exp(-s))/(s^2+s+1)"))
+
+
+def test_pade_of_chosen_channels_keeps_the_others_exact():
+    # the first entry exact, the second approximated: the response is exp(-jw)/(jw+1) and the Padé of exp(-2 s)
+    # over (s+1), each in closed form
+    G = tf([["exp(-s)/(s+1)", "exp(-2*s)/(s+1)"]])
+    P = dk.pade(G, 3, channels=1)
+    assert P.delays == (1.0,)
+    w = np.array([0.3, 1.0, 2.0])
+    num, den = control.pade(2.0, 3)
+    H = P.frequency_response(w).response[0]
+    assert np.allclose(H[0], np.exp(-1j * w) / (1j * w + 1), atol=1e-14)
+    assert np.allclose(H[1], np.polyval(num, 1j * w) / np.polyval(den, 1j * w) / (1j * w + 1), atol=1e-13)
+    assert dk.pade(G, 3, channels=[]).delays == G.delays
+    with pytest.raises(InvalidValueError, match="channel 2 is out of range"):
+        dk.pade(G, 3, channels=[2])
+    with pytest.raises(InvalidTypeError, match="indices"):
+        dk.pade(G, 3, channels=["a"])

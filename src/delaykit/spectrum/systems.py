@@ -631,6 +631,11 @@ def is_minimum_phase(sys: DelayLTI) -> bool:
     roots.neutral_lines`): a line at ``Re s >= 0`` gives False; with several delays in its top-degree terms the
     line is an upper bound unless the delays are rationally independent, so False can then be conservative.
 
+    The zeros are those of the realisation (:func:`zeros`), cancelled ones included: a transfer matrix made by
+    :func:`delaykit.tf` realises each entry on its own, and an unstable mode that two entries share shows up as a
+    zero at that mode (``tf([["1/(s-1)", "1/(s-1)"], ["0", "1/(s+1)"]])`` gives a zero at 1 that no minimal
+    realisation has): for such a system the answer False may come from the realisation, not the transfer matrix.
+
     Raises
     ------
     InvalidValueError

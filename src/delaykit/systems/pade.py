@@ -94,9 +94,10 @@ def _block(T: float, order: int) -> DelayLTI:
     return DelayLTI(A=A, B1=B.reshape(n, 1), C1=C.reshape(1, n), D11=[[D]])
 
 
-def pade(sys: DelayLTI | float, order: int) -> DelayLTI:
+def pade(sys: DelayLTI | float, order: int, *, channels: Any = None) -> DelayLTI:
     """A delay-free system: every delay ``exp(-s tau_j)`` of ``sys`` replaced by its ``(order, order)`` Padé
-    approximant (:func:`pade_coefficients`), or the approximant of one delay ``T`` given as a number.
+    approximant (:func:`pade_coefficients`), or the approximant of one delay ``T`` given as a number; with
+    ``channels``, only those delay channels approximated, the others kept exact.
 
     The delay channels of the linear-fractional form are closed over the approximations (as MATLAB's ``pade`` of
     a ``delayss``), so internal delays (a delay inside a loop) are approximated where they sit; a channel of zero
@@ -108,17 +109,20 @@ def pade(sys: DelayLTI | float, order: int) -> DelayLTI:
         The system (without saturation channels), or a delay ``T`` in seconds (at least 0).
     order : int
         The order ``n`` of every approximant, at least 1: ``n`` states per delay.
+    channels : int or sequence of int, optional
+        The delay channels to approximate (indices into ``sys.delays``); by default all of them.
 
     Returns
     -------
     DelayLTI
-        No delays; the states of ``sys`` first, then ``order`` states per delay channel.
+        No delays (or only those of the channels left out); the states of ``sys`` first, then ``order`` states
+        per approximated delay channel.
 
     Raises
     ------
     InvalidValueError
-        For an order that is not an integer of at least 1, a negative delay, a saturation channel, or a closed
-        loop that is not well posed.
+        For an order that is not an integer of at least 1, a negative delay, a saturation channel, a channel
+        index out of range, or a closed loop that is not well posed.
 
     See Also
     --------
@@ -133,6 +137,8 @@ def pade(sys: DelayLTI | float, order: int) -> DelayLTI:
     (0, 3)
     >>> pade(0.5, 1)                  # exp(-0.5 s) ~ (4 - s)/(4 + s)
     DelayLTI(1 input ['u[0]'] -> 1 output ['y[0]'], 1 state, no delays)
+    >>> pade(tf([["exp(-s)/(s+1)", "exp(-2*s)/(s+1)"]]), 2, channels=[1])     # the second delay only
+    DelayLTI(2 inputs ['u[0]', 'u[1]'] -> 1 output ['y[0]'], 4 states, delays [1] s)
     """
     n = _check_order(order)
     if not isinstance(sys, DelayLTI):
@@ -143,6 +149,7 @@ def pade(sys: DelayLTI | float, order: int) -> DelayLTI:
         raise InvalidValueError(f"the channels {list(sys.saturations)} saturate, which a delay-free linear system "
                                 "cannot hold: approximate sys.without_limits() for the small-signal system")
     m, nu, ny = sys.ndelays, sys.ninputs, sys.noutputs
+    chosen = set(range(m)) if channels is None else _channels(channels, m)
     if not m:
         return sys
     P = DelayLTI(sys.A, np.hstack([sys.B1, sys.B2]), None, np.vstack([sys.C1, sys.C2]), None,
@@ -155,8 +162,33 @@ def pade(sys: DelayLTI | float, order: int) -> DelayLTI:
     G[:nu] = np.eye(nu)
     H = np.zeros((ny, ny + 2 * m))
     H[:, :ny] = np.eye(ny)
-    return close(append(P, *(_block(t, n) for t in sys.delays)), F, G, H, np.zeros((ny, nu)), inputs=sys.inputs,
-                 outputs=sys.outputs, name=sys.name, what="the Padé approximation")
+    blocks = [_block(t, n) if j in chosen else _exact(t) for j, t in enumerate(sys.delays)]
+    return close(append(P, *blocks), F, G, H, np.zeros((ny, nu)), inputs=sys.inputs, outputs=sys.outputs,
+                 name=sys.name, what="the Padé approximation")
+
+
+def _exact(T: float) -> DelayLTI:
+    """``exp(-s T)`` kept exact: one delay channel (a gain of 1 for ``T = 0``)."""
+    if T == 0.0:
+        return gain(1.0)
+    return DelayLTI(D11=[[0.0]], D12=[[1.0]], D21=[[1.0]], D22=[[0.0]], delays=[T])
+
+
+def _channels(channels: Any, m: int) -> set[int]:
+    """Delay-channel indices, each an integer in ``[0, m)``, or an error naming the bad one."""
+    items = [channels] if isinstance(channels, numbers.Integral) else channels
+    try:
+        items = list(items)
+    except TypeError:
+        raise InvalidTypeError(f"channels must be delay-channel indices (integers), got {plain(channels)!r}"
+                               ) from None
+    for j in items:
+        if isinstance(j, (bool, np.bool_)) or not isinstance(j, numbers.Integral):
+            raise InvalidTypeError(f"channels must be delay-channel indices (integers), got {plain(j)!r}")
+        if not 0 <= j < m:
+            raise InvalidValueError(f"channel {int(j)} is out of range: the system has {m} delay channels "
+                                    f"(0 to {m - 1})")
+    return {int(j) for j in items}
 
 
 def pade_error(sys: Any, order: int, w: Any) -> PadeError:
