@@ -627,9 +627,10 @@ def is_minimum_phase(sys: DelayLTI) -> bool:
     dead time is ``sys.delays``, and a dead time limits a loop's bandwidth as a right-half-plane zero does
     (Skogestad and Postlethwaite count both as non-minimum-phase elements).  A numerator whose delayed terms
     outrank its delay-free one in degree (``exp(-s) s + 1``) has zeros unbounded to the right: False.  A neutral
-    numerator (``1 - 0.5 exp(-s)``) has chains of zeros approaching vertical lines (:func:`~delaykit.spectrum.
-    roots.neutral_lines`): a line at ``Re s >= 0`` gives False; with several delays in its top-degree terms the
-    line is an upper bound unless the delays are rationally independent, so False can then be conservative.
+    numerator (``1 - 0.5 exp(-s)``) has chains of zeros approaching vertical lines
+    (:func:`~delaykit.spectrum.roots.neutral_lines`): a line at ``Re s >= 0`` gives False; with several delays in
+    its top-degree terms the line is an upper bound unless the delays are rationally independent, so False can
+    then be conservative.
 
     The zeros are those of the realisation (:func:`zeros`), cancelled ones included: a transfer matrix made by
     :func:`delaykit.tf` realises each entry on its own, and an unstable mode that two entries share shows up as a
