@@ -18,7 +18,7 @@ import scipy.linalg
 import delaykit as dk
 from delaykit import InvalidTypeError, InvalidValueError, delay, feedback, tf
 from delaykit.systems.discrete import DiscreteLTI, thiran_coefficients
-from delaykit.systems.pade import pade_coefficients
+from delaykit.models.interop import pade_coefficients
 
 control = pytest.importorskip("control")
 

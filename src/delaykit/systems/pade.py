@@ -35,54 +35,17 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
-from ..models.interop import PadeError, _order
+from ..models.interop import PadeError, _order, pade_coefficients
 from ..models.transfer import TransferFunction
 from .algebra import append, close, gain
 from .lti import DelayLTI, as_frequencies
 
-__all__ = ["pade_coefficients", "pade", "pade_error"]
+__all__ = ["pade", "pade_error"]
 
 
 def _check_order(order: Any) -> int:
     """An order of at least 1, or an error naming ``order``."""
     return _order(plain(order), "order")
-
-
-def pade_coefficients(T: float, order: int) -> tuple[np.ndarray, np.ndarray]:
-    """The ``(order, order)`` Padé approximant of ``exp(-s T)`` as ``(num, den)``, highest power of ``s`` first.
-
-    ``den = sum_k c_k T^k s^k`` and ``num`` the same with ``(-1)^k``, ``c_k = (2n - k)! n! / ((2n)! k! (n - k)!)``,
-    scaled so that ``den`` is monic (python-control's ``pade`` normalisation, whose coefficients these equal).
-
-    Parameters
-    ----------
-    T : float
-        The delay (s), at least 0 (``T = 0`` gives ``([1], [1])``).
-    order : int
-        ``n``, at least 1.
-
-    Returns
-    -------
-    (numpy.ndarray, numpy.ndarray)
-
-    Examples
-    --------
-    >>> num, den = pade_coefficients(1.0, 2)      # (12 - 6 s + s^2) / (12 + 6 s + s^2)
-    >>> num.tolist(), den.tolist()
-    ([1.0, -6.0, 12.0], [1.0, 6.0, 12.0])
-    """
-    T = check_real("delay T (s)", T, minimum=0.0)
-    n = _check_order(order)
-    if T == 0.0:
-        return np.ones(1), np.ones(1)
-    k = np.arange(n + 1)
-    c = np.array([math.factorial(2 * n - j) * math.factorial(n) / (math.factorial(2 * n) * math.factorial(j)
-                                                                    * math.factorial(n - j)) for j in k])
-    # monic in s: divide by c_n T^n, each power scaled by T^(k - n) (no overflow of T^n for long delays)
-    asc = c / c[-1] * T ** (k - n).astype(float)
-    den = asc[::-1].copy()
-    num = (asc * (-1.0) ** k)[::-1].copy()
-    return num, den
 
 
 def _block(T: float, order: int) -> DelayLTI:
@@ -96,7 +59,7 @@ def _block(T: float, order: int) -> DelayLTI:
 
 def pade(sys: DelayLTI | float, order: int, *, channels: Any = None) -> DelayLTI:
     """A delay-free system: every delay ``exp(-s tau_j)`` of ``sys`` replaced by its ``(order, order)`` Padé
-    approximant (:func:`pade_coefficients`), or the approximant of one delay ``T`` given as a number; with
+    approximant (:func:`~delaykit.models.interop.pade_coefficients`), or the approximant of one delay ``T`` given as a number; with
     ``channels``, only those delay channels approximated, the others kept exact.
 
     The delay channels of the linear-fractional form are closed over the approximations (as MATLAB's ``pade`` of
