@@ -1,7 +1,7 @@
 """python-control interoperability: a loop's open-loop transfer function as a ``control.TransferFunction``.
 
 python-control has no exact delay, so :func:`to_control` replaces ``exp(-s T)`` by a Padé approximation of the
-order asked for (and refuses a delayed loop without one), and :func:`pade_error` reports how far the
+order asked for (:func:`pade_coefficients`, from its closed form; a delayed loop without an order is refused), and :func:`pade_error` reports how far the
 approximation's ``L(jw)`` is from the exact one at chosen frequencies.  python-control stays optional: it is
 imported inside the functions, and a missing installation raises
 :class:`~delaykit.errors.MissingDependencyError` (an ``ImportError``).
@@ -29,11 +29,11 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, MissingDependencyError
+from ..errors import InvalidTypeError, InvalidValueError, MissingDependencyError, check_real, plain
 from .altitude import AltitudeLoop, as_loop
 from .loop import Loop
 
-__all__ = ["to_control", "pade_error", "PadeError", "require_control"]
+__all__ = ["to_control", "pade_error", "PadeError", "pade_coefficients", "require_control"]
 
 
 def require_control(what: str) -> Any:
@@ -55,15 +55,54 @@ def _loop(loop: Any) -> Loop:
     return loop
 
 
-def _order(pade_order: Any) -> int:
+def _order(pade_order: Any, name: str = "pade_order") -> int:
+    """A Padé order: an integer of at least 1 (an integral float accepted), or an error naming ``name``."""
     if isinstance(pade_order, (bool, np.bool_)) or not isinstance(pade_order, numbers.Integral):
-        if isinstance(pade_order, numbers.Real) and not isinstance(pade_order, bool) and float(pade_order).is_integer():
+        if (isinstance(pade_order, numbers.Real) and not isinstance(pade_order, (bool, np.bool_))
+                and math.isfinite(float(pade_order)) and float(pade_order).is_integer()):
             pade_order = int(pade_order)
         else:
-            raise InvalidValueError(f"pade_order must be an integer of at least 1, got {pade_order!r}")
+            raise InvalidValueError(f"{name} must be an integer of at least 1, got {pade_order!r}")
     if pade_order < 1:
-        raise InvalidValueError(f"pade_order must be an integer of at least 1, got {int(pade_order)}")
+        raise InvalidValueError(f"{name} must be an integer of at least 1, got {int(pade_order)}")
     return int(pade_order)
+
+
+def pade_coefficients(T: float, order: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``(order, order)`` Padé approximant of ``exp(-s T)`` as ``(num, den)``, highest power of ``s`` first.
+
+    ``den = sum_k c_k T^k s^k`` and ``num`` the same with ``(-1)^k``, ``c_k = (2n - k)! n! / ((2n)! k! (n - k)!)``,
+    scaled so that ``den`` is monic (python-control's ``pade`` normalisation, whose coefficients these equal).
+
+    Parameters
+    ----------
+    T : float
+        The delay (s), at least 0 (``T = 0`` gives ``([1], [1])``).
+    order : int
+        ``n``, at least 1.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+
+    Examples
+    --------
+    >>> num, den = pade_coefficients(1.0, 2)      # (12 - 6 s + s^2) / (12 + 6 s + s^2)
+    >>> num.tolist(), den.tolist()
+    ([1.0, -6.0, 12.0], [1.0, 6.0, 12.0])
+    """
+    T = check_real("delay T (s)", T, minimum=0.0)
+    n = _order(plain(order), "order")
+    if T == 0.0:
+        return np.ones(1), np.ones(1)
+    k = np.arange(n + 1)
+    c = np.array([math.factorial(2 * n - j) * math.factorial(n) / (math.factorial(2 * n) * math.factorial(j)
+                                                                    * math.factorial(n - j)) for j in k])
+    # monic in s: divide by c_n T^n, each power scaled by T^(k - n) (no overflow of T^n for long delays)
+    asc = c / c[-1] * T ** (k - n).astype(float)
+    den = asc[::-1].copy()
+    num = (asc * (-1.0) ** k)[::-1].copy()
+    return num, den
 
 
 def to_control(loop: Loop | AltitudeLoop, pade_order: int | None = None) -> Any:
@@ -71,7 +110,8 @@ def to_control(loop: Loop | AltitudeLoop, pade_order: int | None = None) -> Any:
 
     ``L(s) = Np(s) Nc(s) / (Dp(s) Dc(s)) exp(-s T)`` with ``T`` the total delay, so that
     ``control.feedback(L, 1)`` is the closed loop of the loop's characteristic equation.  The delay is replaced
-    by ``control.pade(T, pade_order)``.
+    by its Padé approximant of order ``pade_order`` (:func:`pade_coefficients`, the coefficients of
+    ``control.pade(T, pade_order)``).
 
     Parameters
     ----------
@@ -118,7 +158,7 @@ def to_control(loop: Loop | AltitudeLoop, pade_order: int | None = None) -> Any:
     num, den = loop.open_loop()
     L = control.tf(num, den)
     if loop.total_delay > 0:
-        pn, pd = control.pade(loop.total_delay, order)
+        pn, pd = pade_coefficients(loop.total_delay, order)
         L = L * control.tf(pn, pd)
     return L
 

@@ -44,7 +44,7 @@ from .roots import Spectrum, find_roots, root_bound
 from .stability import right_half_plane_count, rightmost
 
 __all__ = ["poles", "neutral_spectrum", "is_stable", "hinfnorm", "HinfNorm", "nyquist_count", "NyquistCount", "loop_margins",
-           "LoopMargins"]
+           "LoopMargins", "zeros", "zero_function", "is_minimum_phase"]
 
 _PHASE_STEP = 0.5  # rad: the largest turn of det(I + L) between two points of the Nyquist grid
 _MAX_POINTS = 400_000
@@ -507,3 +507,160 @@ def loop_margins(L: DelayLTI, channel: int = 0) -> LoopMargins:
 
     m = channel_margins(_system(L), channel)
     return LoopMargins(int(channel), m.gain_margin, m.phase_crossover, m.phase_margin, m.crossover, m.delay_margin)
+
+
+def zero_function(sys: DelayLTI) -> Any:
+    """The quasi-polynomial whose roots are the zeros of a SISO or square MIMO system, the pure delay that
+    multiplies every term divided out.
+
+    The determinant of the system matrix ``[[sI - A, -B], [C, D]]`` of the linear-fractional form, with the
+    delay channels' rows ``[-C2, I - Delta D22, -D21]`` scaled by ``Delta(s) = diag(exp(-s tau_j))`` (for a SISO
+    system, the numerator of ``H(s)`` over ``det(sI - A)``): multilinear in the channels' ``exp(-s tau_j)``, it is
+    the sum over the subsets of channels of bordered determinants, each a polynomial found by interpolation
+    (:meth:`DelayLTI.characteristic`'s method).  A factor ``exp(-s T)`` common to every term (the system's dead
+    time) has no zero, so it is divided out: ``(s - 1) exp(-s)`` gives ``s - 1``.
+
+    Raises
+    ------
+    InvalidValueError
+        For a system that is not square, has more delay channels than supported, or whose system matrix is
+        singular for every ``s`` (no isolated zeros, as ``tf([["1/(s+1)", "1/(s+1)"], ["1/(s+1)", "1/(s+1)"]])``).
+
+    Examples
+    --------
+    >>> from delaykit import tf
+    >>> zero_function(tf("(s-1)*exp(-s)/(s+2)^2"))
+    QuasiPolynomial(s + -1)
+    """
+    from ..models.quasipolynomial import QuasiPolynomial
+    from ..systems.build import _subset_terms
+    from ..systems.lti import _MAX_CHANNELS
+
+    sys = _system(sys).without_limits()
+    if sys.ninputs != sys.noutputs:
+        raise InvalidValueError(f"zeros are those of a square system (as many inputs as outputs); {sys!r} has "
+                                f"{sys.ninputs} inputs and {sys.noutputs} outputs (select a square part with "
+                                "sys[rows, cols])")
+    if sys.ndelays > _MAX_CHANNELS:
+        raise InvalidValueError(f"{sys!r} has {sys.ndelays} delay channels; at most {_MAX_CHANNELS} are supported")
+    terms = _subset_terms(sys, transfer=True)
+    if not terms or _rank_deficient(sys, terms):
+        raise InvalidValueError(f"the system matrix of {sys!r} is singular for every s (its transfer matrix is "
+                                "rank deficient): it has no isolated zeros")
+    dead = min(terms)
+    return QuasiPolynomial([c[::-1] for c in terms.values()], [k - dead for k in terms])
+
+
+def _rank_deficient(sys: DelayLTI, terms: dict[float, np.ndarray]) -> bool:
+    """True when the system matrix's determinant (``terms``, ascending coefficients by delay) is at rounding level
+    of Hadamard's bound (the product of the matrix's row norms) at eight points on a circle: singular for every
+    ``s``, its interpolated coefficients noise."""
+    n = sys.nstates
+    eig = np.linalg.eigvals(sys.A) if n else np.zeros(0)
+    mags = np.abs(eig[np.abs(eig) > 0])
+    radius = float(np.exp(np.mean(np.log(mags)))) if mags.size else 1.0
+    for s in radius * np.exp(2j * np.pi * (np.arange(8) + 0.5) / 8):
+        delta = np.exp(-s * np.array(sys.delays))
+        M = np.block([[s * np.eye(n) - sys.A, -sys.B2, -sys.B1],
+                      [-delta[:, None] * sys.C2, np.eye(sys.ndelays) - delta[:, None] * sys.D22,
+                       -delta[:, None] * sys.D21],
+                      [sys.C1, sys.D12, sys.D11]])
+        bound = float(np.prod(np.linalg.norm(M, axis=1)))
+        value = abs(sum(np.polyval(c[::-1], s) * np.exp(-s * tau) for tau, c in terms.items()))
+        if value > 1e-9 * bound:
+            return False
+    return True
+
+
+def zeros(sys: DelayLTI, region: Sequence[float] | None = None) -> Spectrum:
+    """Every (transmission) zero of a SISO or square MIMO system in ``region = (re_min, re_max, im_min,
+    im_max)``, certified as :func:`poles` certifies poles.
+
+    The zeros are the roots of :func:`zero_function`: for a SISO system the roots of the numerator
+    quasi-polynomial of ``H(s)``, for a square MIMO system those of the determinant of its system matrix (the
+    invariant zeros, which for a delay-free system are python-control's ``zeros``).  Zeros that a pole cancels
+    are kept (as MATLAB's ``tzero`` of a non-minimal model).  A delay ``exp(-s tau)`` has no zero in the finite
+    plane and gives none; a delayed sum such as ``1 - 0.5 exp(-s)`` gives a chain of zeros up a vertical line.
+
+    Without a region: one that holds the rightmost zeros, as :func:`poles` without one (every zero with
+    ``Im s >= 0`` right of ``.region[0]``; the others are conjugates).  A numerator whose delayed terms outrank its
+    delay-free one in degree (advanced) has zeros unbounded to the right, and needs a region.
+
+    Returns
+    -------
+    Spectrum
+        ``.roots`` (the zeros), ``.multiplicities``, ``.certified``; a system without zeros gives none.
+
+    Raises
+    ------
+    InvalidValueError
+        As :func:`zero_function`, or for an advanced numerator without a region.
+
+    Examples
+    --------
+    >>> from delaykit import tf
+    >>> zeros(tf("(s-1)*exp(-s)/(s+2)^2")).roots.round(12).tolist()
+    [(1+0j)]
+    >>> z = zeros(tf("(1 - 0.5*exp(-s))/(s+1)"), (-2, 1, 0, 7)).roots    # exp(-s) = 2: s = -ln 2 + 2 pi k i
+    >>> sorted(z.round(6).tolist(), key=lambda c: c.imag)
+    [(-0.693147+0j), (-0.693147+6.283185j)]
+    """
+    q = zero_function(sys)
+    if region is not None:
+        return find_roots(q, region)
+    if q.degree == 0 and len(q.polys) == 1:  # a constant: no zeros at all
+        return find_roots(q, (-1.0, 1.0, 0.0, 1.0))
+    if q.kind == "advanced":
+        raise InvalidValueError(f"the zeros of {_system(sys)!r} are unbounded to the right (its numerator "
+                                f"{q!r} is advanced: a delayed term has the highest degree); give a region")
+    if q.degree == 0:
+        raise InvalidValueError(f"the zeros of {_system(sys)!r} are those of {q!r}, infinitely many up every "
+                                "vertical line where they lie: give a region")
+    return rightmost(q).spectrum
+
+
+def is_minimum_phase(sys: DelayLTI) -> bool:
+    """True when the system has no zero with ``Re s >= 0`` (:func:`zeros`), certified.
+
+    A pure delay ``exp(-s tau)`` is not counted: it has no zero in the finite plane, and this function looks at
+    zeros only (as MATLAB's ``isminphase`` of a model with an input or output delay); whether the system has a
+    dead time is ``sys.delays``, and a dead time limits a loop's bandwidth as a right-half-plane zero does
+    (Skogestad and Postlethwaite count both as non-minimum-phase elements).  A numerator whose delayed terms
+    outrank its delay-free one in degree (``exp(-s) s + 1``) has zeros unbounded to the right: False.  A neutral
+    numerator (``1 - 0.5 exp(-s)``) has chains of zeros approaching vertical lines
+    (:func:`~delaykit.spectrum.roots.neutral_lines`): a line at ``Re s >= 0`` gives False; with several delays in
+    its top-degree terms the line is an upper bound unless the delays are rationally independent, so False can
+    then be conservative.
+
+    The zeros are those of the realisation (:func:`zeros`), cancelled ones included: a transfer matrix made by
+    :func:`delaykit.tf` realises each entry on its own, and an unstable mode that two entries share shows up as a
+    zero at that mode (``tf([["1/(s-1)", "1/(s-1)"], ["0", "1/(s+1)"]])`` gives a zero at 1 that no minimal
+    realisation has): for such a system the answer False may come from the realisation, not the transfer matrix.
+
+    Raises
+    ------
+    InvalidValueError
+        As :func:`zero_function`, or when the rightmost zero cannot be certified.
+
+    Examples
+    --------
+    >>> from delaykit import tf
+    >>> is_minimum_phase(tf("(s-1)*exp(-s)/(s+2)^2")), is_minimum_phase(tf("(s+1)*exp(-s)/(s+2)^2"))
+    (False, True)
+    >>> is_minimum_phase(tf("(1 - 0.5*exp(-s))/(s+1)"))     # zeros on Re s = -ln 2
+    True
+    """
+    from .roots import neutral_lines
+
+    q = zero_function(sys)
+    if q.degree == 0 and len(q.polys) == 1:
+        return True
+    if q.kind == "advanced":
+        return False
+    lines = neutral_lines(q)
+    if lines and (q.degree == 0 or lines[0] >= 0):  # chains of zeros approach the line (or lie on it)
+        return lines[0] < 0
+    rm = rightmost(q)
+    if not rm.certified and not rm.abscissa < 0:
+        raise InvalidValueError(f"the rightmost zero of {_system(sys)!r} could not be certified: {rm!r}")
+    return rm.abscissa < 0

@@ -28,9 +28,10 @@ import numpy as np
 from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
 from ..models.interop import require_control
 from ..models.transfer import TransferFunction, check_control_system
-from .algebra import _closed, _partitions, _stack, append, close, feedback, gain, interconnect, summing_junction
+from .algebra import _closed, _partitions, _stack, feedback, gain, interconnect, summing_junction
 from .laplace import LaplaceExpression, exp, laplace_variable, parse_expression
 from .lti import DelayLTI
+from .pade import pade
 
 __all__ = ["tf", "ss", "delay", "saturation", "to_control", "from_loop", "system_of", "plant_of", "to_loop"]
 
@@ -428,11 +429,6 @@ def saturation(lower: float, upper: float, *, inputs: Any = None, outputs: Any =
                     outputs=outputs, name=name, limits=[(lower, upper)])
 
 
-def _pade_block(T: float, order: int, control: Any) -> DelayLTI:
-    num, den = control.pade(T, order)
-    return _rational(TransferFunction(num, den))
-
-
 def to_control(sys: DelayLTI, pade_order: int | None = None) -> Any:
     """The system as a python-control ``StateSpace``, each delay channel replaced by a Padé approximation.
 
@@ -440,7 +436,8 @@ def to_control(sys: DelayLTI, pade_order: int | None = None) -> Any:
     ----------
     sys : DelayLTI
     pade_order : int, optional
-        The order (at least 1) of ``control.pade`` for every delay; required when the system has a delay.
+        The order (at least 1) of the Padé approximant of every delay (:func:`~delaykit.systems.pade.pade`, the
+        coefficients of ``control.pade``); required when the system has a delay.
 
     Raises
     ------
@@ -469,21 +466,8 @@ def to_control(sys: DelayLTI, pade_order: int | None = None) -> Any:
     if live:
         if isinstance(pade_order, bool) or not isinstance(pade_order, numbers.Integral) or pade_order < 1:
             raise InvalidValueError(f"pade_order must be an integer of at least 1, got {plain(pade_order)!r}")
-    m, nu, ny = sys.ndelays, sys.ninputs, sys.noutputs
-    if m:
-        P = DelayLTI(sys.A, np.hstack([sys.B1, sys.B2]), None, np.vstack([sys.C1, sys.C2]), None,
-                     np.block([[sys.D11, sys.D12], [sys.D21, sys.D22]]))
-        pades = [_pade_block(t, int(pade_order), control) if t > 0 else gain(1.0) for t in sys.delays]
-        # blocks: P (inputs u, w; outputs y, z) and the approximations (inputs z; outputs w)
-        F = np.zeros((nu + 2 * m, ny + 2 * m))
-        F[nu:nu + m, ny + m:] = np.eye(m)  # w = approximation outputs
-        F[nu + m:, ny:ny + m] = np.eye(m)  # approximation inputs = z
-        G = np.zeros((nu + 2 * m, nu))
-        G[:nu] = np.eye(nu)
-        H = np.zeros((ny, ny + 2 * m))
-        H[:, :ny] = np.eye(ny)
-        sys = close(append(P, *pades), F, G, H, np.zeros((ny, nu)), inputs=sys.inputs, outputs=sys.outputs,
-                    what="the Padé approximation")
+    if sys.ndelays:  # every channel closed over its Padé approximant (a zero delay closed as it is)
+        sys = pade(sys, int(pade_order) if live else 1)
     return control.ss(sys.A, sys.B1, sys.C1, sys.D11, inputs=list(sys.inputs), outputs=list(sys.outputs))
 
 

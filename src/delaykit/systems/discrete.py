@@ -37,12 +37,27 @@ from ..models.interop import require_control
 from .algebra import blockdiag, close_parts
 from .lti import DelayLTI, SystemResponse, as_frequencies
 
-__all__ = ["DiscreteLTI", "c2d", "thiran"]
+__all__ = ["DiscreteLTI", "c2d", "thiran", "thiran_coefficients", "absorb_delay"]
 
 
 @dataclass(frozen=True, repr=False, eq=False)
 class DiscreteLTI:
-    """``x[k+1] = A x[k] + B u[k]``, ``y[k] = C x[k] + D u[k]`` with period ``period`` (s), from :func:`c2d`."""
+    """``x[k+1] = A x[k] + B u[k - d_in]``, ``y[k] = C x[k] + D u[k - d_in]`` delayed by ``d_out`` at the outputs,
+    with period ``period`` (s), from :func:`c2d` or :func:`thiran`.
+
+    ``input_delay`` and ``output_delay`` are whole numbers of periods, one per input and per output (empty: none;
+    MATLAB's ``InputDelay`` and ``OutputDelay`` of a discrete model); :func:`absorb_delay` turns them into states.
+    The systems delaykit makes carry none (their delays are states already).
+
+    Examples
+    --------
+    >>> g = DiscreteLTI(np.array([[0.5]]), np.array([[1.0]]), np.array([[1.0]]), np.array([[0.0]]), 0.1,
+    ...                 ("u",), ("y",), input_delay=(2,))
+    >>> g
+    DiscreteLTI(1 input ['u'] -> 1 output ['y'], 1 state, period 0.1 s, input delays [2])
+    >>> absorb_delay(g)
+    DiscreteLTI(1 input ['u'] -> 1 output ['y'], 3 states, period 0.1 s)
+    """
 
     A: np.ndarray
     B: np.ndarray
@@ -51,28 +66,90 @@ class DiscreteLTI:
     period: float
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
+    input_delay: tuple[int, ...] = ()
+    output_delay: tuple[int, ...] = ()
+
+    def __post_init__(self) -> None:
+        for name, k in (("input_delay", self.B.shape[1]), ("output_delay", self.C.shape[0])):
+            d = getattr(self, name)
+            if isinstance(d, numbers.Integral) and not isinstance(d, (bool, np.bool_)):
+                d = (d,) * k
+            d = tuple(d)
+            if d and (len(d) != k or any(isinstance(x, (bool, np.bool_)) or not isinstance(x, numbers.Integral)
+                                         or x < 0 for x in d)):
+                raise InvalidValueError(f"{name} must be {k} whole numbers of periods (at least 0), one per "
+                                        f"{name.split('_')[0]}, got {plain(getattr(self, name))!r}")
+            object.__setattr__(self, name, tuple(int(x) for x in d) if any(d) else ())
 
     def frequency_response(self, w: Any) -> SystemResponse:
-        """``C (zI - A)^-1 B + D`` at ``z = exp(j w h)``, shaped ``(outputs, inputs, len(w))``."""
+        """``C (zI - A)^-1 B + D`` at ``z = exp(j w h)``, shaped ``(outputs, inputs, len(w))``, times
+        ``z^-d`` for the input and output delays."""
         w = as_frequencies(w)
         z = np.exp(1j * w * self.period)
         n = self.A.shape[0]
         with np.errstate(all="ignore"):
             X = np.linalg.solve(z[:, None, None] * np.eye(n) - self.A,
                                 np.broadcast_to(self.B, (w.size,) + self.B.shape))
-            H = self.C @ X + self.D
-        return SystemResponse(w, np.moveaxis(H, 0, -1), self.inputs, self.outputs)
+            H = np.moveaxis(self.C @ X + self.D, 0, -1)
+        if self.input_delay:
+            H = H * z ** -np.array(self.input_delay, float)[None, :, None]
+        if self.output_delay:
+            H = H * z ** -np.array(self.output_delay, float)[:, None, None]
+        return SystemResponse(w, H, self.inputs, self.outputs)
 
     def to_control(self) -> Any:
-        """A discrete-time python-control ``StateSpace`` (``dt = period``)."""
+        """A discrete-time python-control ``StateSpace`` (``dt = period``), the delays as states
+        (:func:`absorb_delay`)."""
         control = require_control("to_control()")
-        return control.ss(self.A, self.B, self.C, self.D, self.period, inputs=list(self.inputs),
-                          outputs=list(self.outputs))
+        d = absorb_delay(self)
+        return control.ss(d.A, d.B, d.C, d.D, d.period, inputs=list(d.inputs), outputs=list(d.outputs))
 
     def __repr__(self) -> str:
         nu, ny, n = self.B.shape[1], self.C.shape[0], self.A.shape[0]
+        delays = "".join(f", {k.split('_')[0]} delays {list(getattr(self, k))}" for k in ("input_delay", "output_delay")
+                         if getattr(self, k))
         return (f"DiscreteLTI({nu} input{'s' * (nu != 1)} {list(self.inputs)} -> {ny} output{'s' * (ny != 1)} "
-                f"{list(self.outputs)}, {n} state{'s' * (n != 1)}, period {self.period:g} s)")
+                f"{list(self.outputs)}, {n} state{'s' * (n != 1)}, period {self.period:g} s{delays})")
+
+
+def absorb_delay(dsys: DiscreteLTI) -> DiscreteLTI:
+    """The same discrete system with its input and output delays turned into states (as MATLAB's ``absorbDelay``).
+
+    An input delayed by ``d`` periods passes a shift register of ``d`` states before the system, an output one
+    after it; the transfer matrix is unchanged (exact: a discrete delay is a finite shift).
+
+    Parameters
+    ----------
+    dsys : DiscreteLTI
+
+    Returns
+    -------
+    DiscreteLTI
+        Without delays: the inputs' registers first, then the system's states, then the outputs' registers.
+
+    Examples
+    --------
+    >>> g = DiscreteLTI(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[2.0]]), 1.0, ("u",),
+    ...                 ("y",), input_delay=(3,))
+    >>> d = absorb_delay(g)
+    >>> d.A.shape, bool(abs(d.frequency_response([0.5]).response[0, 0, 0] - 2 * np.exp(-1.5j)) < 1e-12)
+    ((3, 3), True)
+    """
+    if not isinstance(dsys, DiscreteLTI):
+        raise InvalidTypeError(f"absorb_delay takes a DiscreteLTI, got {type(dsys).__name__}")
+    if not dsys.input_delay and not dsys.output_delay:
+        return dsys
+    nu, ny = dsys.B.shape[1], dsys.C.shape[0]
+    ind = dsys.input_delay or (0,) * nu
+    outd = dsys.output_delay or (0,) * ny
+    ins = [_shift(k) for k in ind]  # each input's register, then the system, then each output's
+    sysp = (dsys.A, dsys.B, dsys.C, dsys.D)
+    pre = tuple(blockdiag(*(f[i] for f in ins)) for i in range(4))
+    post = tuple(blockdiag(*(f[i] for f in (_shift(k) for k in outd))) for i in range(4))
+    A, B, C, D = _series(_series(pre, sysp), post)
+    for mat in (A, B, C, D):
+        mat.setflags(write=False)
+    return DiscreteLTI(A, B, C, D, dsys.period, dsys.inputs, dsys.outputs)
 
 
 def c2d(sys: DelayLTI, period: float, *, thiran_order: int | None = None) -> DiscreteLTI:
@@ -89,9 +166,10 @@ def c2d(sys: DelayLTI, period: float, *, thiran_order: int | None = None) -> Dis
     thiran_order : int, optional
         Approximate instead, as MATLAB's ``c2d`` does for internal delays: the delay-free part is sampled behind
         a zero-order hold with the delayed signals taken as held too, and each delay of ``D = tau / h`` periods
-        becomes ``z^-k`` times a Thiran all-pass filter of this order (maximally flat group delay, exactly ``D`` at
-        ``w = 0``; :func:`thiran`).  The error shrinks with the period (first order in ``h``: the delayed
-        signals are not piecewise constant).
+        becomes ``z^-k`` times a Thiran all-pass filter of this order or lower (maximally flat group delay,
+        exactly ``D`` at ``w = 0``; :func:`thiran`, with the order lowered to at most ``D + 1/2`` for a short
+        delay).  The error shrinks with the period (first order in ``h``: the delayed signals are not piecewise
+        constant).
 
     Returns
     -------
@@ -184,7 +262,7 @@ def c2d(sys: DelayLTI, period: float, *, thiran_order: int | None = None) -> Dis
 
 
 
-def thiran(D: float, order: int) -> tuple[np.ndarray, np.ndarray]:
+def thiran_coefficients(D: float, order: int) -> tuple[np.ndarray, np.ndarray]:
     """The Thiran all-pass filter of ``order`` for a delay of ``D`` periods, ``(num, den)`` in powers of ``z``.
 
     ``a_k = (-1)^k C(N, k) prod_{i=0}^{N} (D - N + i) / (D - N + k + i)``; the filter is
@@ -197,7 +275,7 @@ def thiran(D: float, order: int) -> tuple[np.ndarray, np.ndarray]:
 
     Examples
     --------
-    >>> num, den = thiran(1.5, 1)      # a_1 = -(D - 1)/(D + 1) = -0.2
+    >>> num, den = thiran_coefficients(1.5, 1)      # a_1 = -(D - 1)/(D + 1) = -0.2
     >>> num.round(12).tolist(), den.round(12).tolist()
     ([-0.2, 1.0], [1.0, -0.2])
     """
@@ -207,6 +285,74 @@ def thiran(D: float, order: int) -> tuple[np.ndarray, np.ndarray]:
     a = np.array([1.0] + [(-1) ** k * math.comb(N, k) * math.prod((D - N + i) / (D - N + k + i)
                                                                   for i in range(N + 1)) for k in range(1, N + 1)])
     return a[::-1].copy(), a.copy()
+
+
+def _thiran_parts(D: float, N: int) -> tuple[np.ndarray, ...]:
+    """``D`` periods as ``z^-k`` times a Thiran filter of order ``N`` for the remaining ``D - k`` periods, with
+    ``k`` whole periods such that ``D - k`` is within half a period of ``N`` (where the filter is best damped), or
+    as close as ``D`` allows (``D - k = D > N - 1``, for a short delay); ``N = 0`` rounds to whole periods."""
+    if N == 0:
+        return _shift(int(round(D)))
+    k = max(int(math.floor(D - N + 0.5)), 0)
+    return _series(_shift(k), _filter(*thiran_coefficients(D - k, N)))
+
+
+def thiran(delay: float, period: float, order: int) -> DiscreteLTI:
+    """The discrete delay-free approximation of a delay ``exp(-s delay)`` sampled every ``period``: whole periods
+    as a shift register, the rest by a Thiran all-pass filter of ``order`` (maximally flat group delay, exactly
+    ``delay / period`` periods at ``w = 0``; as MATLAB's ``thiran``).
+
+    With ``D = delay / period`` periods: ``z^-k`` times the Thiran filter of order ``N`` for ``D - k`` periods, ``k``
+    chosen so that ``D - k`` lies within half a period of ``N`` when ``D`` is long enough (the filter's poles then
+    stay well inside the unit circle); a whole number of periods is the exact ``z^-D``.  The filter is an all-pass
+    (``|H| = 1``), so the error is in the phase only, and it grows with ``w`` towards the Nyquist frequency.
+
+    Parameters
+    ----------
+    delay : float
+        The delay (s), at least 0.
+    period : float
+        The sampling period (s), positive.
+    order : int
+        ``N``, from 0 (the delay rounded to whole periods) to 10; the filter is stable for ``D > N - 1``.
+
+    Returns
+    -------
+    DiscreteLTI
+        One input and one output, ``k + N`` states, no delays.
+
+    Raises
+    ------
+    InvalidValueError
+        For a negative delay, a period that is not positive, an order out of range, or a delay of ``N - 1``
+        periods or less (the filter would be unstable: take a lower order).
+
+    See Also
+    --------
+    thiran_coefficients : the filter's coefficients and their reference.
+    c2d
+
+    Examples
+    --------
+    >>> F = thiran(0.25, 0.1, 2)          # 2.5 periods: one whole period, a second-order filter for 1.5
+    >>> F
+    DiscreteLTI(1 input ['u[0]'] -> 1 output ['y[0]'], 3 states, period 0.1 s)
+    >>> H = F.frequency_response([1e-3]).response[0, 0, 0]
+    >>> round(float(-np.angle(H) / 1e-3), 6)        # the delay at w -> 0
+    0.25
+    """
+    tau = check_real("delay (s)", delay, minimum=0.0)
+    h = check_real("period (s)", period, minimum=0.0, strict=True)
+    if isinstance(order, (bool, np.bool_)) or not isinstance(order, numbers.Integral) or not 0 <= order <= 10:
+        raise InvalidValueError(f"the Thiran order must be an integer from 0 to 10, got {plain(order)!r}")
+    D = tau / h
+    if order and not D > order - 1:
+        raise InvalidValueError(f"a Thiran filter of order {int(order)} needs a delay of more than {int(order) - 1} "
+                                f"periods, got {D:g} ({tau:g} s / {h:g} s); take an order below {D + 1:g}")
+    A, B, C, Dm = (np.asarray(x, float) for x in _thiran_parts(D, int(order)))
+    for mat in (A, B, C, Dm):
+        mat.setflags(write=False)
+    return DiscreteLTI(A, B, C, Dm, h, ("u[0]",), ("y[0]",))
 
 
 def _filter(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -250,11 +396,7 @@ def _thiran_c2d(sys: DelayLTI, h: float, order: Any) -> DiscreteLTI:
     for tau in sys.delays:
         D = tau / h
         N = min(int(order), max(int(math.floor(D + 0.5)), 0))  # an order the delay supports (D > N - 1)
-        k = max(int(math.floor(D - N + 0.5)), 0) if N else int(round(D))
-        f = _shift(k)
-        if N:
-            f = _series(f, _filter(*thiran(D - k, N)))
-        filters.append(f)
+        filters.append(_thiran_parts(D, N))
     Fa = blockdiag(*(f[0] for f in filters)) if filters else np.zeros((0, 0))
     Fb = blockdiag(*(f[1] for f in filters)) if filters else np.zeros((0, 0))
     Fc = blockdiag(*(f[2] for f in filters)) if filters else np.zeros((0, 0))

@@ -556,6 +556,34 @@ class DelayLTI:
 
         return is_stable(self)
 
+    def zeros(self, region: Sequence[float] | None = None) -> Any:
+        """Every zero in ``region`` (by default one that holds the rightmost zeros), certified, of a SISO or square
+        system: a :class:`~delaykit.spectrum.roots.Spectrum` (see :func:`delaykit.spectrum.systems.zeros`).
+
+        Examples
+        --------
+        >>> from delaykit import tf
+        >>> tf("(s-1)*exp(-s)/(s+2)^2").zeros().roots.round(12).tolist()
+        [(1+0j)]
+        """
+        from ..spectrum.systems import zeros
+
+        return zeros(self, region)
+
+    def is_minimum_phase(self) -> bool:
+        """True when no zero lies in the closed right half-plane, a delay not counted as one (see
+        :func:`delaykit.spectrum.systems.is_minimum_phase`).
+
+        Examples
+        --------
+        >>> from delaykit import tf
+        >>> tf("(s-1)*exp(-s)/(s+2)^2").is_minimum_phase()
+        False
+        """
+        from ..spectrum.systems import is_minimum_phase
+
+        return is_minimum_phase(self)
+
     # -- time responses (see delaykit.simulate.systems) ---------------------------------------------------------
     def step(self, T: Any = None) -> Any:
         """The exact step response, ``outputs`` shaped ``(outputs, inputs, times)`` (see
