@@ -434,15 +434,24 @@ def summing_junction(inputs: Sequence[str], output: str, *, name: str = "") -> D
     --------
     >>> summing_junction(["r", "-y"], "e").D11.tolist()
     [[1.0, -1.0]]
+    >>> summing_junction(["r", "--y"], "e")
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.InvalidValueError: summing_junction: input '--y' must be a name with one sign at most (e, +e, -e)
     """
     if isinstance(inputs, str) or not isinstance(inputs, Sequence) or not inputs:
         raise InvalidTypeError(f"summing_junction: inputs must be a non-empty list of names, got {inputs!r}")
     signs, names = [], []
     for x in inputs:
-        if not isinstance(x, str) or not x.lstrip("-+"):
+        if not isinstance(x, str):
             raise InvalidTypeError(f"summing_junction: every input must be a name, optionally '-name', got {x!r}")
-        signs.append(-1.0 if x.startswith("-") else 1.0)
-        names.append(x.lstrip("-+").strip())
+        term = x.strip()
+        sign = term[:1] if term[:1] in ("-", "+") else ""
+        name_ = term[len(sign):].strip()
+        if not name_ or name_[0] in "-+":  # '--r', '+-y': one sign at most, never read as a product of signs
+            raise InvalidValueError(f"summing_junction: input {x!r} must be a name with one sign at most (e, +e, -e)")
+        signs.append(-1.0 if sign == "-" else 1.0)
+        names.append(name_)
     return gain(np.array([signs]), inputs=names, outputs=[output], name=name)
 
 

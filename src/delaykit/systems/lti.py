@@ -411,10 +411,7 @@ class DelayLTI:
         >>> complex(tf("exp(-2*s)/(s+1)").evaluate([1.0])[0, 0, 0]).real.__round__(6)
         0.067668
         """
-        try:
-            s = np.atleast_1d(np.asarray(s, dtype=complex)).ravel()
-        except (TypeError, ValueError) as exc:
-            raise InvalidTypeError(f"a system is evaluated at numbers, got {reprlib.repr(s)}") from exc
+        s = _points(s)
         n, nu, ny, m = self.nstates, self.ninputs, self.noutputs, self.ndelays
         N = s.size
         # the states and the delayed signals at once: [[sI - A, -B2], [-E C2, I - E D22]] [x; w] = [B1; E D21] u,
@@ -728,6 +725,22 @@ def _rows(cname: str, c: Any, dname: str, d: Any, n: int) -> int:
         if v is not None and _is_numeric(v) and np.ndim(v) == 2:
             return int(np.shape(v)[0])
     return 0
+
+
+def _points(s: Any) -> np.ndarray:
+    """``s`` as a flat complex array of finite points; text, None, bools, nan and infinity refused by name."""
+    try:
+        arr = np.asarray(s)
+        if arr.dtype.kind not in "iufc" or arr.dtype == object:
+            raise TypeError(arr.dtype)
+        arr = np.atleast_1d(arr.astype(complex)).ravel()
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidTypeError(f"a system is evaluated at complex numbers, got {reprlib.repr(s)}") from None
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise InvalidValueError(f"a system is evaluated at finite points s, got s[{int(bad[0])}] = "
+                                f"{complex(arr[bad[0]])!r}")
+    return arr
 
 
 def _solve(M: np.ndarray, B: np.ndarray) -> np.ndarray:
