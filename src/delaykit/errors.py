@@ -37,7 +37,7 @@ from typing import Any
 
 __all__ = ["DelaykitError", "DelaykitWarning", "InvalidValueError", "InvalidTypeError", "RangeSpecError", "PortError",
            "PortNumberError", "FlightError", "FlightInterruptedError", "MissingDependencyError", "check_real",
-           "check_finite_array", "plain"]
+           "check_finite_array", "check_path", "plain"]
 
 
 class DelaykitError(Exception):
@@ -211,3 +211,40 @@ def check_finite_array(name: str, values: Any) -> Any:
         where = f"{name}[{i}]" if arr.ndim == 1 else f"{name}[{', '.join(map(str, np.unravel_index(i, arr.shape)))}]"
         raise InvalidValueError(f"{where} is {arr.ravel()[i]}; every sample must be finite")
     return arr
+
+
+def check_path(name: str, value: Any) -> Any:
+    """Return ``value`` as a :class:`pathlib.Path`, or raise :class:`InvalidTypeError` naming it when it is not a
+    file name (text or an ``os.PathLike`` giving text): None, a number, bytes.
+
+    Parameters
+    ----------
+    name : str
+        What the path is, for the message (for example ``"loop file"``).
+    value : Any
+        The path to check.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Examples
+    --------
+    >>> check_path("loop file", "loop.toml").name
+    'loop.toml'
+    >>> check_path("loop file", None)
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.InvalidTypeError: the loop file must be a path (text or a pathlib.Path), got None (NoneType)
+    """
+    import os
+    from pathlib import Path
+
+    text = os.fspath(value) if isinstance(value, os.PathLike) else value
+    if not isinstance(text, str):
+        raise InvalidTypeError(f"the {name} must be a path (text or a pathlib.Path), got {value!r:.60} "
+                               f"({type(value).__name__})")
+    if not text or "\0" in text:
+        raise InvalidValueError(f"the {name} {text!r:.60} is not a file name" + (" (it holds a NUL character)"
+                                                                              if text else " (it is empty)"))
+    return Path(text)

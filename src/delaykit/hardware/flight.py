@@ -29,6 +29,7 @@ The link binds to an ephemeral local port and talks to ``host``; for the emulato
 from __future__ import annotations
 
 import ipaddress
+import re
 import socket
 import time
 from collections import deque
@@ -122,18 +123,23 @@ class DroneLink:
         try:
             ipaddress.ip_address(host)
         except ValueError:
+            _check_host_name(host)
             try:
                 host = socket.gethostbyname(host)
-            except OSError:
-                raise InvalidValueError(f"host {host!r} is not an address and cannot be resolved") from None
+            except (OSError, UnicodeError):
+                raise InvalidValueError(f"host {host!r:.80} is not an address and cannot be resolved") from None
         self.host = host
         self.at_port = _check_port("at_port", at_port)
         self.navdata_port = _check_port("navdata_port", navdata_port)
         if at_port == 0 or navdata_port == 0:
             raise InvalidValueError("the drone's ports must be given (not 0)")
-        self.at = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.nav = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.nav.bind(("127.0.0.1" if ipaddress.ip_address(host).is_loopback else "0.0.0.0", 0))
+        try:
+            self.at = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            self.nav = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            self.nav.bind(("127.0.0.1" if ipaddress.ip_address(host).is_loopback else "0.0.0.0", 0))
+        except OSError as exc:
+            self.close()
+            raise LinkError(f"cannot open the sockets to talk to {host}: {exc.strerror or exc}") from None
         # a packet's time is its arrival in the kernel, not when this thread woke to read it
         self.kernel_stamps = enable_stamps(self.nav)
         self.enc = ATEncoder()
@@ -142,12 +148,22 @@ class DroneLink:
 
     def send(self, *cmds: bytes) -> float:
         """Send commands in one datagram; returns the time (monotonic) it went out."""
-        self.at.sendto(b"".join(cmds), (self.host, self.at_port))
+        try:
+            self.at.sendto(b"".join(cmds), (self.host, self.at_port))
+        except OSError as exc:
+            raise self._failed("send AT commands to", self.at_port, exc) from None
         return time.monotonic()
 
     def wake(self) -> None:
         """Ask the drone to stream navdata to this socket."""
-        self.nav.sendto(b"\x01\x00\x00\x00", (self.host, self.navdata_port))
+        try:
+            self.nav.sendto(b"\x01\x00\x00\x00", (self.host, self.navdata_port))
+        except OSError as exc:
+            raise self._failed("wake navdata from", self.navdata_port, exc) from None
+
+    def _failed(self, what: str, port: int, exc: OSError) -> LinkError:
+        """The :class:`LinkError` for a socket's failure (the network unreachable, the port refused...)."""
+        return LinkError(f"cannot {what} {self.host}:{port}: {exc.strerror or exc}")
 
     def recv(self, timeout: float) -> tuple[Navdata, float] | None:
         """The next valid navdata packet from the drone and its arrival time, or None on timeout."""
@@ -161,6 +177,8 @@ class DroneLink:
                 data, addr, t = recv_stamped(self.nav, 4096)
             except socket.timeout:
                 return None
+            except OSError as exc:  # an ICMP error of an earlier datagram (port unreachable: refused)
+                raise self._failed("receive navdata from", self.navdata_port, exc) from None
             if addr[0] != self.host:
                 continue
             try:
@@ -171,8 +189,23 @@ class DroneLink:
                     self.rejections.append(str(exc))
 
     def close(self) -> None:
-        self.at.close()
-        self.nav.close()
+        """Close the sockets (those that were opened)."""
+        for sock in (getattr(self, "at", None), getattr(self, "nav", None)):
+            if sock is not None:
+                sock.close()
+
+
+def _check_host_name(host: str) -> None:
+    """Refuse, before any lookup, text that cannot be a host name (RFC 1123: at most 253 characters, labels of 1 to
+    63 letters, digits, hyphens (and underscores), not starting or ending with a hyphen)."""
+    labels = host[:-1].split(".") if host.endswith(".") else host.split(".")
+    if not host or len(host) > 253 or not all(_LABEL.fullmatch(x) for x in labels):
+        shown = host if len(host) <= 60 else host[:57] + "..."
+        raise InvalidValueError(f"host {shown!r} ({len(host)} characters) is not an IPv4 address or a host name "
+                                "(labels of 1 to 63 letters, digits and hyphens, 253 characters at most)")
+
+
+_LABEL = re.compile(r"[A-Za-z0-9_](?:[A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?")  # (an underscore: in use, if not RFC's)
 
 
 @dataclass(frozen=True)
@@ -502,7 +535,7 @@ def fly(
                 r = link.recv(0.2)
                 if r and r[0].demo and r[0].demo.major == CtrlState.LANDED:
                     break
-        except OSError:
+        except (OSError, LinkError):
             pass
         link.close()
     lat = np.array(latencies)

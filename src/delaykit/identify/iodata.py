@@ -39,7 +39,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_path, check_real
 from ..models.budget import sample_count
 from ..models.ranges import parse_number
 from .flightlog import LogError, iter_csv_rows
@@ -285,7 +285,7 @@ def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input:
     >>> read_experiment(p, outputs=["y"], input="u")
     Experiment('step.csv': 12 samples every 1 s, input u, output y, moves at 1 s)
     """
-    path = Path(path)
+    path = check_path("experiment file", path)
     name = path.name
     if isinstance(outputs, str):
         outputs = [outputs]

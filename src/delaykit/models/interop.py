@@ -29,11 +29,11 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, MissingDependencyError
+from ..errors import InvalidTypeError, InvalidValueError, MissingDependencyError, plain
 from .altitude import AltitudeLoop, as_loop
 from .loop import Loop
 
-__all__ = ["to_control", "pade_error", "PadeError", "require_control"]
+__all__ = ["to_control", "pade_error", "PadeError", "require_control", "check_pade_order", "MAX_PADE_ORDER"]
 
 
 def require_control(what: str) -> Any:
@@ -55,14 +55,32 @@ def _loop(loop: Any) -> Loop:
     return loop
 
 
-def _order(pade_order: Any) -> int:
+MAX_PADE_ORDER = 40
+"""The highest Padé order accepted: the coefficients of order ``n`` span ``n! / (2n)!`` (1e-30 at ``n = 20``), so
+that higher orders hold nothing more in floating point (and ``control.pade`` divides by zero from about 200)."""
+
+
+def check_pade_order(pade_order: Any) -> int:
+    """``pade_order`` as an int from 1 to :data:`MAX_PADE_ORDER`, or an :class:`InvalidValueError` naming it.
+
+    Examples
+    --------
+    >>> check_pade_order(6), check_pade_order(3.0)
+    (6, 3)
+    >>> check_pade_order(10**6)
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.InvalidValueError: pade_order must be an integer from 1 to 40, got 1000000
+    """
     if isinstance(pade_order, (bool, np.bool_)) or not isinstance(pade_order, numbers.Integral):
-        if isinstance(pade_order, numbers.Real) and not isinstance(pade_order, bool) and float(pade_order).is_integer():
+        if isinstance(pade_order, numbers.Real) and not isinstance(pade_order, bool) and math.isfinite(pade_order) \
+                and float(pade_order).is_integer():
             pade_order = int(pade_order)
         else:
-            raise InvalidValueError(f"pade_order must be an integer of at least 1, got {pade_order!r}")
-    if pade_order < 1:
-        raise InvalidValueError(f"pade_order must be an integer of at least 1, got {int(pade_order)}")
+            raise InvalidValueError(f"pade_order must be an integer from 1 to {MAX_PADE_ORDER}, got "
+                                    f"{plain(pade_order)!r:.40}")
+    if not 1 <= pade_order <= MAX_PADE_ORDER:
+        raise InvalidValueError(f"pade_order must be an integer from 1 to {MAX_PADE_ORDER}, got {int(pade_order)}")
     return int(pade_order)
 
 
@@ -109,7 +127,7 @@ def to_control(loop: Loop | AltitudeLoop, pade_order: int | None = None) -> Any:
     1.5
     """
     loop = _loop(loop)
-    order = None if pade_order is None else _order(pade_order)
+    order = None if pade_order is None else check_pade_order(pade_order)
     if loop.total_delay > 0 and order is None:
         raise InvalidValueError(
             f"the loop has a delay of {loop.total_delay:g} s, which python-control cannot represent exactly: give "
@@ -173,7 +191,7 @@ def pade_error(loop: Loop | AltitudeLoop, order: int, w: Any) -> PadeError:
     [True, True]
     """
     loop = _loop(loop)
-    n = _order(order)
+    n = check_pade_order(order)
     if isinstance(w, (str, bytes)):
         raise InvalidTypeError(f"w must be frequencies in rad/s (numbers), got {w!r}")
     wa = np.atleast_1d(np.asarray(w))

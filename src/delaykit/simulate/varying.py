@@ -45,7 +45,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from .. import _native
-from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_path, check_real
 from ..models.ranges import parse_number
 from ..models.altitude import as_loop
 from ..models.closed_loop import loop_realisation
@@ -377,7 +377,7 @@ class DelayTrace(DelayModel):
         """
         if unit not in ("s", "ms"):
             raise InvalidValueError(f"unit must be 's' or 'ms', got {unit!r}")
-        name = str(path)
+        name = str(check_path("delay trace", path))
         try:  # (read as identify.flightlog reads a log; this layer may not import it)
             rows = list(csv.reader(io.StringIO(Path(path).read_bytes().decode("utf-8-sig"), newline="")))
         except OSError as exc:

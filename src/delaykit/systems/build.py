@@ -25,8 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
-from ..models.interop import require_control
+from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..models.interop import check_pade_order, require_control
 from ..models.transfer import TransferFunction, check_control_system
 from .algebra import _closed, _partitions, _stack, append, close, feedback, gain, interconnect, summing_junction
 from .lti import DelayLTI
@@ -467,8 +467,7 @@ def to_control(sys: DelayLTI, pade_order: int | None = None) -> Any:
         raise InvalidValueError(f"the system has delays {list(sys.delays)} s, which python-control cannot represent "
                                 "exactly: give pade_order=n for an n-th order Padé approximation of each")
     if live:
-        if isinstance(pade_order, bool) or not isinstance(pade_order, numbers.Integral) or pade_order < 1:
-            raise InvalidValueError(f"pade_order must be an integer of at least 1, got {plain(pade_order)!r}")
+        pade_order = check_pade_order(pade_order)
     m, nu, ny = sys.ndelays, sys.ninputs, sys.noutputs
     if m:
         P = DelayLTI(sys.A, np.hstack([sys.B1, sys.B2]), None, np.vstack([sys.C1, sys.C2]), None,
