@@ -580,6 +580,15 @@ def _check_output(flag: str, p: Path, text: str, kind: str) -> None:
     import os
 
     global _FIGURE_FORMATS
+    if p.is_symlink():  # the checks below are of where the link leads (writing follows it)
+        real = Path(os.path.realpath(p))
+        if real.is_symlink():
+            raise InvalidValueError(f"{flag} {text!r} is a loop of links")
+        if not real.exists() and kind == "folder":
+            raise InvalidValueError(f"{flag} {text!r} is a link to {str(real)!r}, which does not exist")
+        if not real.parent.is_dir():
+            raise InvalidValueError(f"{flag} {text!r} is a link to {str(real)!r}, whose folder does not exist")
+        p, text = real, f"{text}' (a link to '{real}"
     if kind == "folder":
         if p.exists() and not p.is_dir():
             raise InvalidValueError(f"{flag} {text!r} is a file, not a folder")

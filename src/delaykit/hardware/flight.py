@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 import numpy as np
 
-from ..errors import DelaykitError, InvalidTypeError, InvalidValueError, check_real
+from ..errors import DelaykitError, InvalidTypeError, InvalidValueError, check_real, writing
 from ..models.compensators import Compensator
 from ..models.controllers import Controller
 from .ardrone import ATEncoder, CtrlState, Navdata, NavState, ProtocolError, decode_navdata
@@ -193,6 +193,30 @@ class DroneLink:
         for sock in (getattr(self, "at", None), getattr(self, "nav", None)):
             if sock is not None:
                 sock.close()
+
+
+class _LogFile:
+    """A flight log open for writing, line-buffered; a failure to write it (the disk full, the folder gone) an
+    :class:`~delaykit.errors.OutputError` naming the log, raised through the flight (which then lands)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        with writing("the flight log", path):
+            self.fh = open(path, "w", buffering=1)
+
+    def write(self, text: str) -> None:
+        with writing("the flight log", self.path):
+            self.fh.write(text)
+
+    def flush(self) -> None:
+        with writing("the flight log", self.path):
+            self.fh.flush()
+
+    def close(self) -> None:
+        try:
+            self.fh.close()
+        except OSError:  # (the error was reported by the write that failed)
+            pass
 
 
 def _check_host_name(host: str) -> None:
@@ -463,7 +487,7 @@ def fly(
         for k, step in enumerate(plan.steps):
             path = _log_path(base, k, len(plan.steps))
             logs.append(path)
-            fh = open(path, "w", buffering=1)
+            fh = _LogFile(path)
             fh.write(",".join(_COLUMNS) + "\n")
             for _, row in recent:  # the second before the step
                 fh.write(row)

@@ -39,7 +39,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 from scipy import special  # (its functions only: scipy.stats would import ten times more at start-up)
 
-from ..errors import DelaykitError, InvalidTypeError, InvalidValueError, check_path, check_real
+from ..errors import DelaykitError, InvalidTypeError, InvalidValueError, check_path, check_real, writing
 from ..models.loop import Loop
 from ..models.transfer import TransferFunction
 from ._fit import (IdentificationError, _fit, _guesses, _jacobian, _Law, _law, _law_dict, _law_from_dict, _prepare,
@@ -243,7 +243,10 @@ class IdentifiedModel:
 
         A number that is not finite (a standard error the data could not determine is NaN) is written as
         ``null``, which JSON readers other than Python's accept, and read back as NaN."""
-        Path(path).write_text(json.dumps(_nulls(self.to_dict()), indent=2, allow_nan=False))
+        p = check_path("model file", path)
+        text = json.dumps(_nulls(self.to_dict()), indent=2, allow_nan=False)
+        with writing("the model file", p):
+            p.write_text(text)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], *, source: str = "model") -> "IdentifiedModel":
