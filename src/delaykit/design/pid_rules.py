@@ -465,7 +465,9 @@ def rule_gains(rule: str, controller: str, plant: Any, delay: float, *, tau_c: f
         _warn(f"amigo: normalised dead time tau = {m.delay / (m.delay + m.tau1):.3g} is below 0.1, where the "
               "AMIGO PID rule is conservative", notes)
     if rule != "amigo":
-        return _representable(_tau_c_rule(rule, kind, m, tc, notes))
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # (refused by _representable)
+            g = _tau_c_rule(rule, kind, m, tc, notes)
+        return _representable(g)
     kp, ti, td = _amigo(m, kind)
     return RuleGains(rule, kind, kp, kp / ti, kp * td, model=m, notes=tuple(notes))
 
@@ -473,9 +475,12 @@ def rule_gains(rule: str, controller: str, plant: Any, delay: float, *, tau_c: f
 def _representable(g: RuleGains) -> RuleGains:
     """``g``, unless a gain its rule makes positive came out below the floats' normal range (``tau_c = 1e300 s``
     makes SIMC's ``ki`` of an integrating plant 1e-601, which is 0.0: silently a P controller)."""
-    for name in ("kp", "ki") if g.controller in ("pi", "pid") else ("kp",):
+    for name in ("kp", "ki", "kd"):
         value = getattr(g, name)
-        if abs(value) < sys.float_info.min:
+        if not math.isfinite(value):  # a delay and tau_c of 1e-320 s: kp = 1 / 2e-320 is beyond the floats
+            raise InvalidValueError(f"{g.rule}: the delay {g.model.delay:g} s and tau_c = {g.tau_c:g} s make {name} "
+                                    f"= {value:g}, beyond the floats: give a longer delay or tau_c")
+        if name != "kd" and (name == "kp" or g.controller in ("pi", "pid")) and abs(value) < sys.float_info.min:
             raise InvalidValueError(f"{g.rule}: tau_c = {g.tau_c:g} s makes {name} = {value:g}, below the floats' "
                                     f"range (kp = {g.kp:g}): give a tau_c nearer the delay ({g.model.delay:.4g} s)")
     return g

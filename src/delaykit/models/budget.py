@@ -80,7 +80,10 @@ def check_count(what: str, count: float, limit: int, unit: str, hint: str = "") 
     5
     """
     if not count <= limit:  # (also refuses NaN)
-        shown = f"{count:.0f}" if count < 1e18 else f"{count:.3g}"
+        try:
+            shown = f"{count:.0f}" if count < 1e18 else f"{count:.3g}"
+        except OverflowError:  # an integer beyond the floats
+            shown = f"about 1e{len(str(int(count))) - 1}"
         name = _NAMES.get(limit)
         where = f" (delaykit.models.budget.{name})" if name else ""
         raise InvalidValueError(f"{what}: {shown} {unit}, above the limit of {limit}{where}"

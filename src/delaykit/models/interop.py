@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -207,15 +208,21 @@ def pade_error(loop: Loop | AltitudeLoop, order: int, w: Any) -> PadeError:
     approx_tf = to_control(loop, pade_order=n)
     num, den = loop.open_loop()
     s = 1j * wa
-    with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # python-control's own division at a pole (w = 0 on 1/s)
         exact = np.polyval(num, s) / np.polyval(den, s) * np.exp(-s * loop.total_delay)
         approx = np.asarray(approx_tf(s), dtype=complex).reshape(wa.shape)
         err = np.abs(approx - exact)
         rel = np.where(np.abs(exact) > 0, err / np.abs(exact), 0.0)
     if not np.all(np.isfinite(err)):
-        bad = wa[~np.isfinite(err)][0]
-        raise InvalidValueError(f"L(jw) is infinite at w = {bad:g} rad/s (a pole on the imaginary axis); leave that "
-                                "frequency out")
+        k = int(np.flatnonzero(~np.isfinite(err))[0])
+        with np.errstate(all="ignore"):
+            pole = np.polyval(den, s[k]) == 0
+        if not pole:  # L or its approximation beyond the floats (the Pade polynomials at w = 1e308)
+            raise InvalidValueError(f"L(jw) or its approximation cannot be evaluated at w = {wa[k]:g} rad/s: the "
+                                    "polynomials overflow the floats there; leave frequencies this high out")
+        raise InvalidValueError(f"L(jw) is infinite at w = {wa[k]:g} rad/s (a pole on the imaginary axis); leave "
+                                "that frequency out")
     i = int(np.argmax(err))
     return PadeError(order=n, max_error=float(err[i]), frequency=float(wa[i]),
                      max_relative_error=float(np.max(rel)) if rel.size else math.nan)

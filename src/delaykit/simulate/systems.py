@@ -469,7 +469,9 @@ def _check_horizon(red: _Reduced, t_end: float) -> None:
     from ..models import budget  # the module's limit (a test may shrink this module's MAX_PIECES to truncate)
 
     if t_end > 0.0 and math.isfinite(red.hmax):
-        budget.check_count(f"T: a horizon of {t_end:g} s", t_end / red.hmax, budget.MAX_PIECES, "pieces at least",
+        with np.errstate(over="ignore"):  # (an infinite count is refused like any other too large)
+            pieces = float(np.float64(t_end) / red.hmax)
+        budget.check_count(f"T: a horizon of {t_end:g} s", pieces, budget.MAX_PIECES, "pieces at least",
                            f"each piece is at most {red.hmax:.3g} s (the system's fastest time scale); ask for a "
                            "shorter horizon")
 

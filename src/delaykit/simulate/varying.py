@@ -38,6 +38,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import reprlib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -75,6 +76,9 @@ def _floats(values: Any, what: str) -> np.ndarray:
     """``values`` as an array of floats, or an :class:`InvalidTypeError` naming ``what`` (text, complex numbers...)."""
     try:
         return np.asarray(values, dtype=float)
+    except OverflowError:  # an integer of hundreds of digits
+        raise InvalidValueError(f"{what} must be finite, got an integer beyond the floats in "
+                                f"{reprlib.repr(values)}") from None
     except (TypeError, ValueError):
         raise InvalidTypeError(f"{what} must be real numbers (seconds), got {values!r}") from None
 

@@ -55,7 +55,7 @@ import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop, as_loop
-from ..models.budget import MAX_FREQUENCY_DECADES, check_count
+from ..models.budget import MAX_FREQUENCY_DECADES, MAX_SAMPLES, check_count
 from ..models.loop import Loop
 from ._openloop import (TWO_PI, OpenLoop, PhaseScan, cutoff_frequency, dense_grid, gain_crossovers, scan_phase,
                         newton_bracketed, snap_half_turns)
@@ -156,7 +156,8 @@ def frequency_grid(loop: Loop | AltitudeLoop, n: int = 500, *, wmin: float | Non
     """
     loop = _continuous(loop)
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
-        raise InvalidValueError(f"n (number of frequencies) must be an integer of at least 2, got {n!r}")
+        raise InvalidValueError(f"n (number of frequencies) must be an integer of at least 2, got {n!r:.40}")
+    check_count("frequency_grid", n, MAX_SAMPLES, "frequencies", "give fewer (n)")
     if _compensated(loop):
         from .compensated import compensated_grid
 
@@ -244,7 +245,9 @@ def frequency_response(loop: Loop | AltitudeLoop, w: Any = None) -> FrequencyRes
         snapped = ang + TWO_PI * np.round((phi - ang) / TWO_PI)
         phase = np.where(np.isfinite(L) & (L != 0), snapped, 0.0 if ol.zero else phi)
         mag_db = 20.0 * np.log10(np.abs(L))
-    return FrequencyResponse(w=w, L=L, magnitude_db=mag_db, phase_deg=np.degrees(phase))
+    with np.errstate(over="ignore"):  # a phase beyond the floats in degrees (w T near 1e308): -inf
+        phase_deg = np.degrees(phase)
+    return FrequencyResponse(w=w, L=L, magnitude_db=mag_db, phase_deg=phase_deg)
 
 
 # --------------------------------------------------------------------------------------------- margins

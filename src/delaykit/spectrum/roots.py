@@ -567,7 +567,8 @@ def find_roots(
     scale = max(x1 - x0, y1 - y0)
     margin = 0.05 * scale
     search = (x0 - margin, x1 + margin, y0 - margin, y1 + margin)
-    points = ((search[1] - search[0]) / grid[0] + 3.0) * ((search[3] - search[2]) / grid[1] + 3.0)
+    points = (((search[1] - search[0]) / grid[0] + 3.0) * ((search[3] - search[2]) / grid[1] + 3.0)
+              if grid[0] > 0 and grid[1] > 0 else math.inf)  # (a delay near the largest float: 2 pi / 6 tau is 0)
     check_count(f"the root search in region {tuple(box)} with the delay {taumax:g} s", points, MAX_ROOT_GRID_POINTS,
                 "grid points", "give a smaller region (the grid has some six points per 2 pi / delay along Im)")
     cand = _grid_candidates(ev, search, grid)

@@ -493,8 +493,12 @@ def interconnect(blocks: Sequence[Any], inputs: Sequence[str], outputs: Sequence
     if isinstance(blocks, DelayLTI) or not isinstance(blocks, Sequence) or not blocks:
         raise InvalidTypeError("interconnect: blocks must be a non-empty list of systems")
     bl = [as_system(b, f"block {k}") for k, b in enumerate(blocks)]
-    ext_in = [inputs] if isinstance(inputs, str) else list(inputs)
-    ext_out = [outputs] if isinstance(outputs, str) else list(outputs)
+    try:
+        ext_in = [inputs] if isinstance(inputs, str) else list(inputs)
+        ext_out = [outputs] if isinstance(outputs, str) else list(outputs)
+    except TypeError:
+        raise InvalidTypeError(f"interconnect: inputs and outputs must be names or lists of names, got "
+                               f"{reprlib.repr(inputs)} and {reprlib.repr(outputs)}") from None
     for label, names in (("inputs", ext_in), ("outputs", ext_out)):
         if any(not isinstance(x, str) for x in names):
             raise InvalidTypeError(f"interconnect: {label} must be names, got {names!r}")

@@ -139,7 +139,11 @@ def _check_limits(limits: Any, m: int) -> tuple[tuple[float, float], ...]:
         hi = math.inf if hi is None else hi
         if any(isinstance(x, (bool, np.bool_)) or not isinstance(x, numbers.Real) for x in (lo, hi)):
             raise InvalidTypeError(f"the limits of channel {j} must be numbers, got ({lo!r}, {hi!r})")
-        lo, hi = float(lo), float(hi)
+        try:
+            lo, hi = float(lo), float(hi)
+        except OverflowError:  # an integer of hundreds of digits (inf, or None, is no limit)
+            raise InvalidValueError(f"the limits of channel {j} must be floats (inf or None for no limit), got an "
+                                    "integer beyond them") from None
         if math.isnan(lo) or math.isnan(hi) or not (lo <= 0.0 <= hi and lo < hi):
             raise InvalidValueError(f"the limits of channel {j} must satisfy lower <= 0 <= upper and lower < upper "
                                     f"(the origin at rest inside them), got ({lo:g}, {hi:g})")
