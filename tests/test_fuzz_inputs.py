@@ -372,3 +372,120 @@ def test_cli_a_dangling_link_for_an_output_folder_is_refused(tmp_path):
 def test_cli_tune_a_tau_c_whose_gains_underflow_is_one_line():
     res = runner.invoke(app, ["tune", "--plant", "1/s", "--delay", "0.3", "--rule", "simc", "--tau-c", "1e300"])
     _refused(res, "tau_c")
+
+
+# ------------------------------------------------------------- found by trying: integers beyond the floats
+_BIG = 10**400
+
+
+@pytest.mark.parametrize("call", [
+    lambda: delaykit.saturation(-1.0, _BIG),
+    lambda: delaykit.TransferFunction([_BIG], [1.0, 1.0]),
+    lambda: tune(_BIG, delay=0.3, rule="simc"),
+    lambda: delaykit.DelaySchedule((0.0, 0.3), (1.0, _BIG)),
+    lambda: delaykit.Samples([0.0, _BIG], [0.0, 1.0]),
+    lambda: delaykit.sampled_frequency_response(delaykit.AltitudeLoop(kp=1.31, delay=0.368, period=0.065), [_BIG]),
+    lambda: delaykit.frequency_grid(delaykit.AltitudeLoop(kp=1.31, delay=0.368), _BIG),
+    lambda: delaykit.step_metrics([0.0, 1.0, _BIG], [0.0, 1.0, 1.0], step=1.0),
+    lambda: delaykit.simulate_many(delaykit.AltitudeLoop(kp=1.31, delay=0.368), t_end=2.0, kp=[1.0, _BIG]),
+], ids=["saturation", "TransferFunction", "tune", "DelaySchedule", "Samples", "sampled_frequency_response",
+        "frequency_grid", "step_metrics", "simulate_many"])
+def test_integers_beyond_the_floats_are_refused_by_name(call):
+    with pytest.raises(InvalidValueError):  # (a raw OverflowError: int too large to convert to float)
+        call()
+
+
+@pytest.mark.parametrize("call", [
+    lambda: delaykit.QuasiPolynomial(None, [0.0]),
+    lambda: delaykit.QuasiPolynomial([[1.0]], 0.5),
+    lambda: delaykit.interconnect([tf("1/(s+1)", inputs="u", outputs="y")], None, ["y"]),
+    lambda: delaykit.interconnect([tf("1/(s+1)", inputs="u", outputs="y")], ["u"], 3),
+    lambda: delaykit.measure_cycle([0.0, 1.0j], [0.0, 1.0], [1.0, -1.0]),
+    lambda: delaykit.measure_cycle(["a", "b"], [0.0, 1.0], [1.0, -1.0]),
+], ids=["qp-polys", "qp-delays", "interconnect-inputs", "interconnect-outputs", "cycle-complex", "cycle-text"])
+def test_arguments_that_are_not_lists_of_numbers_are_type_errors(call):
+    with pytest.raises(InvalidTypeError):  # (a raw TypeError or ValueError)
+        call()
+
+
+@pytest.mark.parametrize("sign", [np.array([1.0, -1.0]), "1", None])
+def test_feedback_sign_that_is_not_a_number(sign):
+    with pytest.raises(InvalidValueError, match="sign must be -1"):
+        delaykit.feedback(tf("1/(s+1)"), 1, sign=sign)
+    with pytest.raises(InvalidValueError, match="sign must be -1"):
+        delaykit.TransferFunction([1.0], [1.0, 1.0]).feedback(1.0, sign=sign)
+
+
+@pytest.mark.parametrize("kw", [{"ratio_max": None}, {"ratio_max": math.inf}, {"ratio_max": 1e308},
+                                {"ratio_max": 0.5}, {"tol": 1e-320}, {"tol": 0.0}, {"tol": "x"}])
+def test_delay_ratio_range_bounds_its_scan(kw):
+    comp = delaykit.Compensator.smith("1/s", 0.37, closed_loop_time=0.5)
+    with pytest.raises((InvalidValueError, InvalidTypeError)):  # (TypeError, or a scan or bisection without end)
+        delaykit.delay_ratio_range(comp, "1/s", **kw)
+
+
+# ------------------------------------------------------------- found by trying: huge and tiny delays, steps
+def _quiet(call):
+    """``call()`` with warnings as errors (numpy's overflow warnings were printed on the way to the answer)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        return call()
+
+
+def test_margins_and_roots_of_a_delay_near_the_largest_float_refuse_without_a_traceback():
+    loop = delaykit.AltitudeLoop(kp=1.31, delay=1e308)
+    with pytest.raises(InvalidValueError, match="phase crossovers"):
+        _quiet(lambda: delaykit.margins(loop))  # (OverflowError: cannot convert float infinity to integer)
+    from delaykit.spectrum.roots import find_roots
+
+    with pytest.raises(InvalidValueError, match="grid points"):
+        _quiet(lambda: find_roots(loop.characteristic(), (-5.0, 1.0, 0.0, 30.0)))  # (ZeroDivisionError)
+
+
+def test_frequency_response_far_beyond_the_crossovers_is_quiet():
+    fr = _quiet(lambda: delaykit.frequency_response(delaykit.AltitudeLoop(kp=1.31, delay=0.368), [1e308]))
+    assert fr.phase_deg[0] == -math.inf  # -w T in degrees: -2.1e309, beyond the floats
+    assert fr.magnitude_db[0] == pytest.approx(20 * math.log10(1.31 / 1e308), rel=1e-12)  # |1.31 / (j w)|
+
+
+def test_a_delay_below_the_floats_range_is_refused_by_margins():
+    with pytest.raises(InvalidValueError, match="too small"):
+        _quiet(lambda: delaykit.stable_for(delaykit.AltitudeLoop(kp=1.31, delay=0.368), 1e-320, 0.2))
+
+
+def test_tune_names_a_delay_whose_gains_overflow():
+    with pytest.raises(InvalidValueError, match="beyond the floats"):
+        _quiet(lambda: tune("1/(s+1)", delay=1e-320, rule="simc"))
+
+
+def test_pade_error_tells_a_pole_from_an_overflow():
+    pytest.importorskip("control")
+    loop = delaykit.AltitudeLoop(kp=1.31, delay=0.368)  # L = 1.31 exp(-0.368 s) / s: a pole at 0
+    with pytest.raises(InvalidValueError, match="a pole on the imaginary axis"):
+        _quiet(lambda: delaykit.pade_error(loop, 3, [0.0]))
+    with pytest.raises(InvalidValueError, match="overflow the floats"):
+        _quiet(lambda: delaykit.pade_error(loop, 3, [1e308]))
+
+
+def test_a_horizon_of_1e308_seconds_is_refused_quietly():
+    G = delaykit.feedback(tf("exp(-0.3*s)/(s+1)"), 1)
+    with pytest.raises(InvalidValueError, match="pieces"):
+        _quiet(lambda: delaykit.step_response_many([G, G], 1e308))
+
+
+def test_a_step_too_small_to_measure_against_is_refused():
+    t = np.linspace(0.0, 5.0, 51)
+    with pytest.raises(InvalidValueError, match="too small"):
+        _quiet(lambda: delaykit.step_metrics(t, 1 - np.exp(-t), step=1e-320))
+
+
+def test_relay_cycle_of_a_delay_near_the_largest_float_is_refused():
+    with pytest.raises(InvalidValueError, match="shorter delay"):
+        _quiet(lambda: delaykit.relay_cycle("1/(s+1)", 1e308))
+
+
+@pytest.mark.parametrize("args", [["roots", "--kp", "1.31", "--delay", "0.368", "--region", "-5", "1", "0", "30",
+                                   "--output-delay", "1e308"],
+                                  ["margins", "--kp", "1.31", "--delay", "0.368", "--output-delay", "1e308"]])
+def test_cli_a_delay_near_the_largest_float_is_one_line(args):
+    _refused(runner.invoke(app, args))

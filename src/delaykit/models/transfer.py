@@ -708,8 +708,8 @@ class TransferFunction:
         TransferFunction(1/(s + 1))
         """
         h = TransferFunction.coerce(other, name="feedback path", proper=False)
-        if isinstance(sign, bool) or sign not in (1, -1):
-            raise InvalidValueError(f"sign must be -1 (negative feedback) or +1, got {sign!r}")
+        if isinstance(sign, bool) or not isinstance(sign, numbers.Real) or sign not in (1, -1):
+            raise InvalidValueError(f"sign must be -1 (negative feedback) or +1, got {sign!r:.60}")
         den = _padd(_pmul(self.den, h.den), -sign * _pmul(self.num, h.num))
         if not den.any():
             raise InvalidValueError(f"the closed loop of {self.to_string()} with {h.to_string()} is undefined: "

@@ -425,8 +425,10 @@ def _check_array(name: str, value: Any, minimum: float | None = None, strict: bo
                  maximum: float | None = None, allow_inf: bool = False) -> np.ndarray:
     try:
         arr = np.asarray(value, dtype=float)
+    except OverflowError:  # an integer of hundreds of digits
+        raise InvalidValueError(f"{name} must be finite, got an integer beyond the floats") from None
     except (TypeError, ValueError) as exc:
-        raise InvalidTypeError(f"{name} must be numbers, got {value!r}") from exc
+        raise InvalidTypeError(f"{name} must be numbers, got {value!r:.80}") from exc
     bad = np.isnan(arr) if allow_inf else ~np.isfinite(arr)
     if minimum is not None:
         bad |= (arr <= minimum) if strict else (arr < minimum)

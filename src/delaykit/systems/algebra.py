@@ -357,8 +357,8 @@ def feedback(sys1: Any, sys2: Any = 1, sign: int = -1) -> DelayLTI:
     >>> bool(abs(T.frequency_response([1.0]).response[0, 0, 0] - g / (1 + g)) < 1e-14)
     True
     """
-    if isinstance(sign, bool) or sign not in (1, -1):
-        raise InvalidValueError(f"sign must be -1 (negative feedback) or +1, got {plain(sign)!r}")
+    if isinstance(sign, bool) or not isinstance(sign, numbers.Real) or sign not in (1, -1):
+        raise InvalidValueError(f"sign must be -1 (negative feedback) or +1, got {plain(sign)!r:.60}")
     sys1 = as_system(sys1, "forward path")
     # feedback(L, 1): the return path's gain made once (times the identity for MIMO); other numbers as before
     number = (type(sys2) is float and math.isfinite(sys2)) or (type(sys2) is int and abs(sys2) <= 2 ** 53)
