@@ -489,3 +489,34 @@ def test_relay_cycle_of_a_delay_near_the_largest_float_is_refused():
                                   ["margins", "--kp", "1.31", "--delay", "0.368", "--output-delay", "1e308"]])
 def test_cli_a_delay_near_the_largest_float_is_one_line(args):
     _refused(runner.invoke(app, args))
+
+
+# ------------------------------------------------------------- found by trying: entries near the largest float
+_HUGE_SYSTEM = ('inputs = "u"\noutputs = "y"\n[[blocks]]\nss = {A = [[-1e308, 1e308], [1e308, -1e308]], '
+                'B = [[1e308], [1e308]], C = [[1e308, 1e308]]}\ninputs = "u"\noutputs = "y"\n[[blocks]]\n'
+                'delay = 1e308\ninputs = "y"\noutputs = "z"\n')
+
+
+@pytest.mark.parametrize("args", [["simulate", "--t-end", "2"], ["roots", "--region", "-5", "1", "0", "30"],
+                                  ["margins"]])
+def test_cli_a_system_file_with_entries_near_the_largest_float_is_one_line_without_warnings(tmp_path, args):
+    path = tmp_path / "huge.toml"
+    path.write_text(_HUGE_SYSTEM)
+    res = runner.invoke(app, [args[0], "--system", str(path), *args[1:]])
+    _refused(res)  # (numpy's overflow warnings were printed before the error, or after)
+    assert "Warning" not in res.stderr
+
+
+def test_the_characteristic_function_names_an_overflow():
+    G = ss([[-1e308, 1e308], [1e308, -1e308]], [[1.0], [1.0]], [[1.0, 1.0]], [[0.0]])
+    with pytest.raises(InvalidValueError, match="characteristic function overflows"):
+        _quiet(lambda: G.characteristic())
+
+
+@pytest.mark.parametrize("seed", [True, 2.5, "3"])
+def test_the_emulator_refuses_a_seed_that_is_not_an_integer(seed):
+    from delaykit.hardware.emulator import EmulatorConfig
+
+    with pytest.raises(InvalidTypeError, match="seed must be an integer"):
+        EmulatorConfig(seed=seed)  # (True was used as the seed 1)
+    assert EmulatorConfig(seed=np.int64(3)).seed == 3

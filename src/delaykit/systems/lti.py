@@ -502,9 +502,15 @@ class DelayLTI:
         if m > _MAX_CHANNELS:
             raise InvalidValueError(f"the characteristic function of {m} delay channels has 2^{m} terms; at most "
                                     f"{_MAX_CHANNELS} channels are supported")
-        eig = np.linalg.eigvals(self.A) if n else np.zeros(0)
-        mags = np.abs(eig[eig != 0])
-        radius = float(np.exp(np.mean(np.log(mags)))) if mags.size else 1.0  # balances the coefficients' sizes
+        overflow = InvalidValueError("the characteristic function overflows the floats (the system's matrices, A up "
+                                     f"to {float(np.max(np.abs(self.A), initial=0.0)):g}, are too large for its "
+                                     "determinant): rescale the system's units")
+        with np.errstate(all="ignore"):  # (checked just below)
+            eig = np.linalg.eigvals(self.A) if n else np.zeros(0)
+            mags = np.abs(eig[eig != 0])
+            radius = float(np.exp(np.mean(np.log(mags)))) if mags.size else 1.0  # balances the coefficients' sizes
+        if not (math.isfinite(radius) and radius > 0):
+            raise overflow
         k = np.arange(n + 1)
         pts = radius * np.exp(2j * np.pi * k / (n + 1))
         terms = []
@@ -517,7 +523,10 @@ class DelayLTI:
             G = np.vstack([top, bottom])
             F = np.zeros_like(G)
             F[:n, :n] = np.eye(n)
-            vals = np.array([np.linalg.det(p * F + G) for p in pts])
+            with np.errstate(all="ignore"):  # (checked just below)
+                vals = np.array([np.linalg.det(p * F + G) for p in pts])
+            if not np.all(np.isfinite(vals)):
+                raise overflow
             terms.append((np.fft.fft(vals).real / (n + 1), sum(self.delays[j] for j in S)))
         # coefficients at rounding level of the largest (scaled) one are noise of the interpolation
         big = max(float(np.max(np.abs(c))) for c, _ in terms)
