@@ -520,3 +520,40 @@ def test_the_emulator_refuses_a_seed_that_is_not_an_integer(seed):
     with pytest.raises(InvalidTypeError, match="seed must be an integer"):
         EmulatorConfig(seed=seed)  # (True was used as the seed 1)
     assert EmulatorConfig(seed=np.int64(3)).seed == 3
+
+
+# ------------------------------------------------------------- found by trying: inputs that overflow a response
+def test_a_ramp_beyond_the_floats_by_t_end_is_refused():
+    loop = delaykit.AltitudeLoop(kp=1.31, delay=0.368)
+    with pytest.raises(InvalidValueError, match="reference reaches inf"):
+        _quiet(lambda: delaykit.simulate(loop, t_end=2.0, reference=delaykit.Ramp(slope=1e308, size=0.0)))
+    r = _quiet(lambda: delaykit.simulate(loop, t_end=2.0, reference=delaykit.Ramp(slope=1e300, size=0.0)))
+    assert r.metrics is None or r is not None  # 2e300 at t_end: within the floats, answered
+
+
+def test_a_load_that_overflows_the_response_is_refused():
+    loop = delaykit.AltitudeLoop(kp=1.31, delay=0.368)
+    with pytest.raises(InvalidValueError, match="response overflows"):
+        _quiet(lambda: delaykit.simulate(loop, t_end=2.0, disturbance=delaykit.LoadStep(1e308, 0.0)))
+
+
+def test_a_huge_step_is_answered_through_the_speed_limit():
+    # the altitude loop climbs at vmax = 1 m/s at most: after a step of 1e308 m the output is t - 0 at t = 2 s,
+    # no overflow (the closed form of a saturated climb from rest)
+    r = _quiet(lambda: delaykit.simulate(delaykit.AltitudeLoop(kp=1.31, delay=0.368), step=1e308, t_end=2.0))
+    z = r.sample(dt=0.5)["z"]
+    assert np.all(np.isfinite(z)) and z[-1] <= 2.0 + 1e-9
+
+
+@pytest.mark.parametrize("args", [["simulate", "--kp", "1.31", "--delay", "0.368", "--t-end", "2", "--ramp", "1e308"],
+                                  ["simulate", "--kp", "1.31", "--delay", "0.368", "--t-end", "2", "--disturbance",
+                                   "1e308"]])
+def test_cli_an_overflowing_response_is_one_line_without_warnings(args):
+    res = runner.invoke(app, args)
+    _refused(res, "floats")
+    assert "Warning" not in res.stderr
+
+
+def test_margins_with_a_gain_at_infinity_below_the_floats_is_quiet():
+    m = _quiet(lambda: delaykit.margins(delaykit.AltitudeLoop(kp=1.31, delay=0.368, kv=1e-320)))
+    assert m is not None

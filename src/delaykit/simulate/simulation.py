@@ -330,10 +330,20 @@ def simulate(
     norm = 0.0 if isinstance(ref, Ramp) else ref.final_value(t_end)
     knots = ref.knots()
     row = param_row(gen, lay, step=float(knots[1][0]), slope=0.0, norm=norm, t_end=t_end, band=band, dist=dist)
+    with np.errstate(over="ignore", invalid="ignore"):
+        reach = float(np.max(np.abs(ref.value(np.array([0.0, t_end])))))
+    if not math.isfinite(reach):  # a ramp of 1e308 per s: the reference itself is beyond the floats by t_end
+        raise InvalidValueError(f"the reference reaches {reach} by t_end = {t_end:g} s (beyond the floats): give a "
+                                "smaller slope or a shorter run")
     ws = _Workspace(store=True)
-    n = ws.run(row, knots)
+    with np.errstate(over="ignore", invalid="ignore"):  # (an overflow is refused just below)
+        n = ws.run(row, knots)
     out = ws.out
     (tu0, thu, tuc, _, _), (ty0, tyh, tyc, tyd, _) = ws.u, ws.y
+    if not (np.all(np.isfinite(tyc[:n])) and np.all(np.isfinite(ty0[:n]))):
+        raise InvalidValueError(f"the response overflows the floats (reference up to {reach:g}"
+                                + (f", load {dist.size:g}" if dist is not None else "")
+                                + "): express the signals in larger units")
     nu = int(out[K.OUT["u_pieces"]])
     return Response(
         loop=loop, reference=ref, disturbance=dist, z0=z0, t_end=t_end,

@@ -564,8 +564,10 @@ def margins(loop: Loop | AltitudeLoop) -> Margins:
                                     gain_margin=(1.0 / mag if mag > 0 else math.inf), direction=direction))
     ui = ol.phase_at_infinity() / math.pi
     if ol.l_inf > 0 and (ol.T > 0 or snap_half_turns(np.array([ui]))[0] % 2 == 1):
+        with np.errstate(over="ignore"):  # |L| at infinity of 1e-320: a gain margin beyond the floats, inf
+            gm_inf = float(np.float64(1.0) / ol.l_inf)
         crossovers.append(Crossover("phase", math.inf, ol.l_inf, math.nan if ol.T > 0 else math.degrees(ui * math.pi),
-                                    gain_margin=1.0 / ol.l_inf))
+                                    gain_margin=gm_inf))
     crossovers.sort(key=lambda c: (c.frequency, c.kind))
     ccw = scan.ccw
     l0 = ol.value(np.zeros(1))[0] if ol.integrators <= 0 else math.inf

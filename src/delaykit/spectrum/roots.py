@@ -249,7 +249,8 @@ def root_bound(q: QuasiPolynomial, re_min: float = 0.0, *, lead: float | None = 
     others = np.zeros(n + 1)
     for p, t in zip(q.polys, q.delays):
         if t > 0:
-            a = np.abs(np.array(p)) * math.exp(-re_min * t)
+            with np.errstate(over="ignore"):  # (coefficients near 1e308: an infinite bound, refused by its users)
+                a = np.abs(np.array(p)) * math.exp(-re_min * t)
             if a.size > n + 1:
                 raise InvalidValueError("an advanced quasi-polynomial has no root bound")
             others[n + 1 - a.size:] += a
