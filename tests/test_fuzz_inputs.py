@@ -557,3 +557,48 @@ def test_cli_an_overflowing_response_is_one_line_without_warnings(args):
 def test_margins_with_a_gain_at_infinity_below_the_floats_is_quiet():
     m = _quiet(lambda: delaykit.margins(delaykit.AltitudeLoop(kp=1.31, delay=0.368, kv=1e-320)))
     assert m is not None
+
+
+# ------------------------------------------------------------- found by trying: library writers' paths
+def test_library_writers_refuse_paths_that_are_not_text(scratch, tmp_path):
+    from matplotlib.figure import Figure
+
+    from delaykit.hardware.flight import FlightPlan, fly
+    from delaykit.identify import write_log
+    from delaykit.paper.report import write_report
+    from delaykit.plotting.figures import save_figure
+
+    model = load_model(scratch / "model.json")
+    for call in (lambda: model.save(None), lambda: save_figure(Figure(), 3),
+                 lambda: write_log(b"x.csv", {"t": [0.0], "z": [1.0]}), lambda: write_report(None),
+                 lambda: fly(FlightPlan(kp=1.31), None, host="127.0.0.1")):
+        with pytest.raises(InvalidTypeError, match="must be a path"):
+            call()  # (TypeError: expected str, bytes or os.PathLike object)
+
+
+def test_save_figure_refuses_a_suffix_that_is_no_figure_format(tmp_path):
+    from matplotlib.figure import Figure
+
+    from delaykit.plotting.figures import save_figure
+
+    with pytest.raises(InvalidValueError, match="'.json' is not a figure format"):
+        save_figure(Figure(), tmp_path / "x.json")  # (matplotlib's ValueError)
+    assert not (tmp_path / "x.json").exists()
+
+
+def test_writes_into_a_folder_or_a_missing_one_are_output_errors(scratch, tmp_path):
+    model = load_model(scratch / "model.json")
+    with pytest.raises(OutputError, match="Is a directory"):
+        model.save(tmp_path)
+    with pytest.raises(OutputError, match="No such file or directory"):
+        model.save(tmp_path / "missing" / "m.json")
+
+
+@pytest.mark.parametrize("args", [
+    ["identify", "LOG", "--model", "ipdt", "--input", "u", "--resample", "1e-320"],
+    ["estimate", "--kp", "1.31", "--method", "overshoot", "--overshoot", "20", "--peak-time", "1.2", "--kp", "1e308"],
+])
+def test_cli_counts_beyond_the_floats_are_refused_without_warnings(scratch, args):
+    res = runner.invoke(app, [str(scratch / "log.csv") if a == "LOG" else a for a in args])
+    _refused(res)  # (numpy's 'overflow encountered in scalar divide' printed before the refusal)
+    assert "Warning" not in res.stderr

@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 import numpy as np
 
-from ..errors import DelaykitError, InvalidTypeError, InvalidValueError, check_real, writing
+from ..errors import DelaykitError, InvalidTypeError, InvalidValueError, check_path, check_real, writing
 from ..models.compensators import Compensator
 from ..models.controllers import Controller
 from .ardrone import ATEncoder, CtrlState, Navdata, NavState, ProtocolError, decode_navdata
@@ -416,7 +416,7 @@ def fly(
     holds: list[tuple[float, float]] = []  # commands sent between packets (the hovers while estimating)
     cmd_t: list[float] = []
     cmd_u: list[float] = []
-    base = Path(log)
+    base = check_path("flight log", log)
     base.parent.mkdir(parents=True, exist_ok=True)
     link = DroneLink(host, at_port, navdata_port)
     enc = link.enc

@@ -50,7 +50,7 @@ import numpy as np
 
 from ..design.compensators import design_compensator
 from ..design.tuning import design_sweep
-from ..errors import FlightError, FlightInterruptedError, InvalidValueError, writing
+from ..errors import FlightError, FlightInterruptedError, InvalidValueError, check_path, writing
 from ..models.altitude import AltitudeLoop
 from ..hardware.emulator import DroneEmulator, EmulatorConfig
 from ..hardware.flight import FlightPlan, FlightResult, fly
@@ -172,7 +172,7 @@ def run_demo(
     ('ipdt_speed', True)
     """
     say = status or (lambda _m: None)
-    out = Path(out)
+    out = check_path("output folder", out)
     out.mkdir(parents=True, exist_ok=True)
     emu = None
     truth = None

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Literal, Mapping
 
-from ..errors import InvalidTypeError, InvalidValueError, writing
+from ..errors import InvalidTypeError, InvalidValueError, check_path, writing
 from ..models.altitude import PAPER_PERIOD
 from ..plotting.figures import plot_responses
 from ..simulate.simulation import simulate
@@ -205,7 +205,7 @@ def write_report(out: str | Path = "out", progress: Callable[[str], None] | None
     Report
     """
     say = progress or (lambda _msg: None)
-    out = Path(out)
+    out = check_path("output folder", out)
     out.mkdir(parents=True, exist_ok=True)
     say("Table 1: exact overshoot at each K·Ts")
     rows = tuple(table1())

@@ -28,7 +28,7 @@ from typing import Any, Callable
 
 
 from ..design.tuning import filter_analysis
-from ..errors import writing
+from ..errors import check_path, writing
 from ..identify.estimation import estimate_lambert, estimate_overshoot, lambert_paper_iterations
 from ..models.altitude import PAPER_PERIOD, AltitudeLoop
 from ..simulate.metrics import SecondOrder
@@ -524,7 +524,7 @@ def reproduce(out: str | Path = "out", progress: Callable[[str, int, int], None]
 
     ``progress(stage, done, total)`` is called before each item.
     """
-    out = Path(out)
+    out = check_path("output folder", out)
     out.mkdir(parents=True, exist_ok=True)
     stages = [("Table 1", lambda: _table1(out)), ("section 5.1.1", _section511), ("section 5.1.2", lambda: _section512(out)),
               ("Table 3 and Fig. 8", lambda: _table3(out)), ("Table 4 and Fig. 9", lambda: _table4(out)),

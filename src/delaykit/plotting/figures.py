@@ -51,8 +51,13 @@ def save_figure(fig: Figure, path: str | Path | None, dpi: int = DPI) -> Figure:
         path = check_path("figure", path)
         root = fig if isinstance(fig, Figure) else fig.figure  # axes given on a subfigure: save the whole figure
         # drawn in memory, then written: matplotlib's own writing lets a failed write pass (/dev/full: no error)
+        fmt = path.suffix[1:].lower() or None
+        formats = root.canvas.get_supported_filetypes()
+        if fmt is not None and fmt not in formats:
+            raise InvalidValueError(f"the figure {str(path)!r}: {path.suffix!r} is not a figure format; use one of "
+                                    f"{', '.join('.' + f for f in sorted(formats))}")
         buf = io.BytesIO()
-        root.savefig(buf, format=path.suffix[1:].lower() or None, dpi=dpi)
+        root.savefig(buf, format=fmt, dpi=dpi)
         with writing("the figure", path):
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_bytes(buf.getvalue())

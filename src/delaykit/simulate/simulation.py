@@ -79,7 +79,9 @@ class _Workspace:
         nstates = int(row[K.HEAD["n"]])
         t_end, hmax = row[K.HEAD["t_end"]], row[K.HEAD["hmax"]]
         if t_end > 4 * _CAP_MAX * K.GROW * hmax:  # past what the longest pieces could cover: refused before any work
-            self._too_many(row, t_end / (K.GROW * hmax), None)
+            with np.errstate(over="ignore", divide="ignore"):  # (hmax of 1e-308: an infinite count, refused)
+                need = float(t_end / (K.GROW * hmax))
+            self._too_many(row, need, None)
         while True:
             allowed = _jit.budget(nstates)  # pieces the interpreter may run (0: compiled)
             cap = min(self.cap, allowed) if allowed else self.cap
