@@ -86,6 +86,15 @@ def test_ss_reads_vectors_and_zero_d_as_python_control_does():
         assert np.array_equal(ours.B1, theirs.B) and np.array_equal(ours.D11, theirs.D)
 
 
+def test_ss_of_one_state_from_vectors_as_python_control():
+    control = pytest.importorskip("control")
+    ours, theirs = ss([-1.0], [2.0], [3.0], 0.5), control.ss([-1.0], [2.0], [3.0], 0.5)  # the reference
+    for a, b in ((ours.A, theirs.A), (ours.B1, theirs.B), (ours.C1, theirs.C), (ours.D11, theirs.D)):
+        assert a.shape == b.shape and np.array_equal(a, b)
+    with pytest.raises(InvalidValueError, match="A must be a square matrix"):
+        ss([-1.0, 2.0], [1.0], [1.0], 0.0)
+
+
 @pytest.mark.parametrize("bad", [np.array([[-1.0 + 1j]]), [[complex(-1, 1)]], [[np.complex128(-1 + 0j)]]])
 def test_ss_refuses_complex_matrices_without_a_warning(bad):
     with warnings.catch_warnings():

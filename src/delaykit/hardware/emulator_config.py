@@ -309,7 +309,8 @@ class EmulatorConfig:
                 raise PortNumberError(f"{a} and {b} are both {getattr(self, a)}: two {transport} services cannot "
                                       "share a port (give different ones, or 0 for any free one)")
         if self.seed is not None and (isinstance(self.seed, bool) or not isinstance(self.seed, numbers.Integral)):
-            raise InvalidTypeError(f"seed must be an integer or None, got {self.seed!r:.40} ({type(self.seed).__name__})")
+            raise InvalidTypeError(f"seed must be an integer or None, got {self.seed!r:.40} "
+                                   f"({type(self.seed).__name__})")
         check_real("delay (s)", self.delay, minimum=0.0, maximum=5.0)
         check_real("lag (s)", self.lag, minimum=0.0, maximum=5.0)
         check_real("link_delay (s)", self.link_delay, minimum=0.0, maximum=2.0)

@@ -318,7 +318,7 @@ def ss(A: Any, B: Any, C: Any, D: Any = None, *, inputs: Any = None, outputs: An
         bad = next(k for k, v in zip("ABCD", args) if _overflows(v))
         raise InvalidValueError(f"ss: the entries of {bad} must be finite, got an integer beyond the floats in "
                                 f"{bad} = {reprlib.repr(args['ABCD'.index(bad)])}") from None
-    A = A.reshape(1, 1) if A.ndim == 0 else A if A.size else np.zeros((0, 0))
+    A = np.atleast_2d(A) if A.size else np.zeros((0, 0))  # (a 1-D A is a row, as python-control reads it)
     if A.ndim != 2 or A.shape[0] != A.shape[1]:
         raise InvalidValueError(f"ss: A must be a square matrix, got shape {A.shape}")
     n = A.shape[0]
@@ -367,8 +367,8 @@ def _ss_shape(key: str, arr: np.ndarray, n: int, side: str, reshape: Any) -> np.
         arr = reshape(arr)
     k = 0 if side == "rows" else 1
     if arr.ndim != 2 or arr.shape[k] != n:
-        raise InvalidValueError(f"ss: {key} must have {n} {side[:-1] if n == 1 else side} (A has {n} state{'s' * (n != 1)}), got shape "
-                                f"{arr.shape}")
+        raise InvalidValueError(f"ss: {key} must have {n} {side[:-1] if n == 1 else side} (A has {n} "
+                                f"state{'s' * (n != 1)}), got shape {arr.shape}")
     return arr
 
 
