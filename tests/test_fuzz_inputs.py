@@ -611,3 +611,20 @@ def test_cli_counts_beyond_the_floats_are_refused_without_warnings(scratch, args
     res = runner.invoke(app, [str(scratch / "log.csv") if a == "LOG" else a for a in args])
     _refused(res)  # (numpy's 'overflow encountered in scalar divide' printed before the refusal)
     assert "Warning" not in res.stderr
+
+
+# ------------------------------------------------------------- found by trying: identification's arguments
+@pytest.mark.parametrize("outputs", [None, True, 3, [], [1], object()])
+def test_read_experiment_and_identify_name_outputs_that_are_not_names(scratch, outputs):
+    with pytest.raises(InvalidTypeError, match="outputs must be"):
+        read_experiment(scratch / "log.csv", input="u", outputs=outputs)  # (TypeError: Value after * ...)
+    if outputs is not None:
+        e = read_experiment(scratch / "log.csv", input="u")
+        with pytest.raises(InvalidTypeError, match="outputs must be"):
+            delaykit.identify(e, model="ipdt", outputs=outputs)
+
+
+@pytest.mark.parametrize("experiment", [None, "log.csv", 1.0, []])
+def test_predict_names_an_experiment_that_is_not_one(scratch, experiment):
+    with pytest.raises(InvalidTypeError, match="experiment must be an Experiment"):
+        delaykit.predict(load_model(scratch / "model.json"), experiment)  # (AttributeError: no attribute 'outputs')

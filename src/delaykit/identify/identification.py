@@ -551,7 +551,11 @@ def identify(
     if outputs is None:
         outs = tuple(o for o in exps[0].outputs if o not in (rate, command))
     else:
-        outs = tuple([outputs] if isinstance(outputs, str) else outputs)
+        outs = (outputs,) if isinstance(outputs, str) else outputs
+        if not isinstance(outs, Sequence) or not outs or not all(isinstance(o, str) for o in outs):
+            raise InvalidTypeError(f"outputs must be an output's name or a non-empty list of them, got "
+                                   f"{outputs!r:.60}")
+        outs = tuple(outs)
     if len(outs) != 1:
         raise IdentificationError(f"give one output (and its rate with rate=...), got {list(outs)}")
     for o in outs:  # an output that never moves in any log: no response, nothing to fit (a gain of 0 +- 0)
@@ -791,6 +795,8 @@ def predict(model: IdentifiedModel, experiment: Experiment, *, u0: float | None 
     """
     if not isinstance(model, IdentifiedModel):
         raise InvalidTypeError(f"model must be an IdentifiedModel, got {type(model).__name__}")
+    if not isinstance(experiment, Experiment):
+        raise InvalidTypeError(f"experiment must be an Experiment (read_experiment), got {type(experiment).__name__}")
     sim = simulate_experiment(model, experiment, u0=u0, command=command)
     meas = {o: experiment.outputs[o] for o in sim}
     rms = {o: float(np.sqrt(np.mean((meas[o] - sim[o]) ** 2))) for o in sim}

@@ -289,6 +289,8 @@ def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input:
     name = path.name
     if isinstance(outputs, str):
         outputs = [outputs]
+    if not isinstance(outputs, Sequence) or not outputs or not all(isinstance(o, str) for o in outputs):
+        raise InvalidTypeError(f"outputs must be a column name or a non-empty list of them, got {outputs!r:.60}")
     header, records = iter_csv_rows(path)  # one row at a time: the numbers go into packed arrays
     wanted = [time, *outputs] + ([input] if input else []) + ([reference] if reference else [])
     for col in wanted:
