@@ -281,7 +281,8 @@ def test_a_network_failure_is_a_link_error(monkeypatch, tmp_path):
         fly(FlightPlan(kp=1.31), tmp_path / "f.csv", host="127.0.0.1")
 
 
-@pytest.mark.parametrize("host", ["a" * 300, "x" * 64 + ".example", "bad name", "-leading.example", "a..b", ""])
+@pytest.mark.parametrize("host", ["a" * 300, "x" * 64 + ".example", "bad name", "-leading.example", "a..b", "",
+                                  "1.2.3", "256.1.1.1", "127.0.0.1:5556"])
 def test_a_host_that_cannot_be_a_name_is_refused_before_any_lookup(monkeypatch, host):
     from delaykit.hardware.flight import DroneLink
 
@@ -289,8 +290,8 @@ def test_a_host_that_cannot_be_a_name_is_refused_before_any_lookup(monkeypatch, 
         raise AssertionError(f"looked up {name!r}")
 
     monkeypatch.setattr(socket, "gethostbyname", lookup)
-    with pytest.raises(InvalidValueError, match="is not an IPv4 address or a host name"):
-        DroneLink(host, 5556, 5554)  # (300 characters: a UnicodeError from the resolver)
+    with pytest.raises(InvalidValueError, match="is not an IPv4 address"):
+        DroneLink(host, 5556, 5554)  # (300 characters: a UnicodeError from the resolver; 256.1.1.1 was looked up)
 
 
 def test_a_name_that_does_not_resolve_is_a_value_error(monkeypatch):
@@ -628,3 +629,20 @@ def test_read_experiment_and_identify_name_outputs_that_are_not_names(scratch, o
 def test_predict_names_an_experiment_that_is_not_one(scratch, experiment):
     with pytest.raises(InvalidTypeError, match="experiment must be an Experiment"):
         delaykit.predict(load_model(scratch / "model.json"), experiment)  # (AttributeError: no attribute 'outputs')
+
+
+@pytest.mark.parametrize("call, error", [
+    (lambda: delaykit.design_compensator("smith", "1/s", 0.37, closed_loop_time=0.5, steps=None), InvalidTypeError),
+    (lambda: delaykit.design_compensator("smith", "1/s", 0.37, closed_loop_time=0.5, steps=0.2), InvalidTypeError),
+    (lambda: delaykit.design_compensator("smith", "1/s", 0.37, closed_loop_time=0.5, steps="x"), InvalidTypeError),
+    (lambda: delaykit.Experiment.from_arrays([0.0, 1.0, _BIG], {"z": [0.0, 1.0, 2.0]}), InvalidValueError),
+    (lambda: delaykit.DelayLTI([[_BIG]]), InvalidValueError),
+    (lambda: delaykit.DelayLTI([[-1.0]], [[_BIG]], None, [[1.0]]), InvalidValueError),
+    (lambda: delaykit.Jitter(0.3, np.array([1.0, 2.0])), InvalidValueError),
+    (lambda: delaykit.monte_carlo(delaykit.AltitudeLoop(kp=1.31, delay=0.368),
+                                  delaykit.Jitter(0.368, "uniform", spread=0.05), n=_BIG), InvalidValueError),
+], ids=["steps-None", "steps-number", "steps-text", "experiment-big", "DelayLTI-A-big", "DelayLTI-B-big",
+        "jitter-array", "monte-carlo-n-big"])
+def test_design_and_simulation_arguments_are_refused_by_name(call, error):
+    with pytest.raises(error):  # (raw TypeError, OverflowError, or numpy's 'truth value is ambiguous')
+        call()

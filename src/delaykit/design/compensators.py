@@ -269,7 +269,14 @@ def design_horizon(plant: Any, delay: float, closed_loop_time: float, shortest: 
 
 
 def _steps(loop: Loop, sizes: Sequence[float], t_end: float) -> dict[float, StepMetrics | None]:
-    return {float(s): simulate(loop, step=s, t_end=t_end).metrics for s in sizes}
+    try:
+        items = [] if isinstance(sizes, (str, bytes)) else list(sizes)
+    except TypeError:
+        items = []
+    if not items:
+        raise InvalidTypeError(f"steps must be a non-empty list of step sizes, got {sizes!r:.60}")
+    values = [check_real("step size", s) for s in items]
+    return {s: simulate(loop, step=s, t_end=t_end).metrics for s in values}
 
 
 def design_compensator(kind: str, plant: Any, delay: float, *, umin: float = -math.inf, umax: float = math.inf,

@@ -227,6 +227,9 @@ def _check_host_name(host: str) -> None:
         shown = host if len(host) <= 60 else host[:57] + "..."
         raise InvalidValueError(f"host {shown!r} ({len(host)} characters) is not an IPv4 address or a host name "
                                 "(labels of 1 to 63 letters, digits and hyphens, 253 characters at most)")
+    if labels[-1].isdigit():  # (a top-level label is never all digits: 1.2.3 or 256.1.1.1 is a mistyped address)
+        raise InvalidValueError(f"host {host!r} is not an IPv4 address (four numbers from 0 to 255, such as "
+                                "192.168.1.1) nor a host name")
 
 
 _LABEL = re.compile(r"[A-Za-z0-9_](?:[A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?")  # (an underscore: in use, if not RFC's)

@@ -231,6 +231,8 @@ class Experiment:
 def _array(name: str, col: str, values: Any, n: int | None = None) -> np.ndarray:
     try:
         a = np.asarray(values, dtype=float)
+    except OverflowError:  # an integer of hundreds of digits
+        raise InvalidValueError(f"{name}: column {col!r} holds an integer beyond the floats") from None
     except (TypeError, ValueError):
         raise InvalidValueError(f"{name}: column {col!r} is not numeric") from None
     if a.ndim != 1:

@@ -249,7 +249,7 @@ class Jitter(DelayModel):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
         for name in ("base", "spread", "scale"):
             set_(name, check_real(f"{name} (s)", getattr(self, name), minimum=0.0))
-        if self.distribution not in JITTER_DISTRIBUTIONS:
+        if not isinstance(self.distribution, str) or self.distribution not in JITTER_DISTRIBUTIONS:
             raise InvalidValueError(f"distribution must be one of {', '.join(JITTER_DISTRIBUTIONS)}; "
                                     f"got {self.distribution!r}")
         set_("shape", check_real("shape", self.shape, minimum=0.0, strict=True))

@@ -58,6 +58,9 @@ def _real(name: str, value: Any) -> np.ndarray:
         if np.asarray(value).dtype.kind == "c":
             raise TypeError("complex")
         return np.array(value, dtype=float)
+    except OverflowError:  # an integer of hundreds of digits
+        raise InvalidValueError(f"{name} must be finite, got an integer beyond the floats in "
+                                f"{reprlib.repr(value)}") from None
     except (TypeError, ValueError) as exc:
         raise InvalidTypeError(f"{name} must be a real matrix, got {reprlib.repr(value)}") from exc
 
@@ -719,7 +722,7 @@ _FLOAT = np.dtype(float)
 def _is_numeric(x: Any) -> bool:
     try:
         np.asarray(x, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # (an integer beyond the floats: refused by _real)
         return False
     return True
 
