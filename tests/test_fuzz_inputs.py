@@ -646,3 +646,15 @@ def test_predict_names_an_experiment_that_is_not_one(scratch, experiment):
 def test_design_and_simulation_arguments_are_refused_by_name(call, error):
     with pytest.raises(error):  # (raw TypeError, OverflowError, or numpy's 'truth value is ambiguous')
         call()
+
+
+@pytest.mark.parametrize("host", ["a" * 300, "", "256.1.1.1", "bad name"])
+def test_the_emulator_checks_its_host_before_binding(monkeypatch, host):
+    from delaykit.hardware.emulator import EmulatorConfig
+
+    def lookup(*args, **kwargs):
+        raise AssertionError(f"looked up {args!r}")
+
+    monkeypatch.setattr(socket, "getaddrinfo", lookup)
+    with pytest.raises(InvalidValueError, match="is not an IPv4 address"):
+        EmulatorConfig(host=host)  # (a PortError from bind, after the resolver; '' bound every interface)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import bisect
 import math
 import numbers
+import re
 import sys
 from dataclasses import dataclass
 from typing import Any
@@ -231,12 +232,29 @@ def _check_ipv4(name: str, host: Any) -> str:
         raise InvalidTypeError(f"{name} must be an address or a host name (text), got {host!r}")
     try:
         v6 = ipaddress.ip_address(host).version == 6
-    except ValueError:
+    except ValueError:  # a name: checked before any lookup (a 300-character one was a UnicodeError from it)
+        _check_host_name(name, host)
         v6 = False
     if v6:
         raise InvalidValueError(f"{name} {host!r} is an IPv6 address; the AR.Drone speaks IPv4 only: give an IPv4 "
                                 "address such as 127.0.0.1 (loopback) or 192.168.1.1")
     return host
+
+
+def _check_host_name(name: str, host: str) -> None:
+    """Refuse, before any lookup, text that cannot be a host name (RFC 1123: at most 253 characters, labels of 1 to
+    63 letters, digits, hyphens (and underscores), not starting or ending with a hyphen)."""
+    labels = host[:-1].split(".") if host.endswith(".") else host.split(".")
+    if not host or len(host) > 253 or not all(_LABEL.fullmatch(x) for x in labels):
+        shown = host if len(host) <= 60 else host[:57] + "..."
+        raise InvalidValueError(f"{name} {shown!r} ({len(host)} characters) is not an IPv4 address or a host name "
+                                "(labels of 1 to 63 letters, digits and hyphens, 253 characters at most)")
+    if labels[-1].isdigit():  # (a top-level label is never all digits: 1.2.3 or 256.1.1.1 is a mistyped address)
+        raise InvalidValueError(f"{name} {host!r} is not an IPv4 address (four numbers from 0 to 255, such as "
+                                "192.168.1.1) nor a host name")
+
+
+_LABEL = re.compile(r"[A-Za-z0-9_](?:[A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?")  # (an underscore: in use, if not RFC's)
 
 
 @dataclass(frozen=True)

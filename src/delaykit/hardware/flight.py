@@ -29,7 +29,6 @@ The link binds to an ephemeral local port and talks to ``host``; for the emulato
 from __future__ import annotations
 
 import ipaddress
-import re
 import socket
 import time
 from collections import deque
@@ -123,7 +122,6 @@ class DroneLink:
         try:
             ipaddress.ip_address(host)
         except ValueError:
-            _check_host_name(host)
             try:
                 host = socket.gethostbyname(host)
             except (OSError, UnicodeError):
@@ -217,22 +215,6 @@ class _LogFile:
             self.fh.close()
         except OSError:  # (the error was reported by the write that failed)
             pass
-
-
-def _check_host_name(host: str) -> None:
-    """Refuse, before any lookup, text that cannot be a host name (RFC 1123: at most 253 characters, labels of 1 to
-    63 letters, digits, hyphens (and underscores), not starting or ending with a hyphen)."""
-    labels = host[:-1].split(".") if host.endswith(".") else host.split(".")
-    if not host or len(host) > 253 or not all(_LABEL.fullmatch(x) for x in labels):
-        shown = host if len(host) <= 60 else host[:57] + "..."
-        raise InvalidValueError(f"host {shown!r} ({len(host)} characters) is not an IPv4 address or a host name "
-                                "(labels of 1 to 63 letters, digits and hyphens, 253 characters at most)")
-    if labels[-1].isdigit():  # (a top-level label is never all digits: 1.2.3 or 256.1.1.1 is a mistyped address)
-        raise InvalidValueError(f"host {host!r} is not an IPv4 address (four numbers from 0 to 255, such as "
-                                "192.168.1.1) nor a host name")
-
-
-_LABEL = re.compile(r"[A-Za-z0-9_](?:[A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?")  # (an underscore: in use, if not RFC's)
 
 
 @dataclass(frozen=True)
