@@ -658,3 +658,11 @@ def test_the_emulator_checks_its_host_before_binding(monkeypatch, host):
     monkeypatch.setattr(socket, "getaddrinfo", lookup)
     with pytest.raises(InvalidValueError, match="is not an IPv4 address"):
         EmulatorConfig(host=host)  # (a PortError from bind, after the resolver; '' bound every interface)
+
+
+def test_cli_a_link_to_a_folder_names_both(tmp_path):
+    (tmp_path / "out.csv").symlink_to(tmp_path)
+    res = runner.invoke(app, ["simulate", "--kp", "1.31", "--delay", "0.368", "--t-end", "1", "--csv",
+                              str(tmp_path / "out.csv")])
+    line = _refused(res, "is a folder")
+    assert f"{str(tmp_path / 'out.csv')!r} (a link to {str(tmp_path)!r})" in line
