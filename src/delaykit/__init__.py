@@ -19,7 +19,7 @@ from typing import Any
 
 from ._lazy import lazy_exports
 from .errors import (DelaykitError, DelaykitWarning, FlightError, FlightInterruptedError, InvalidTypeError, InvalidValueError, MissingDependencyError,
-                     PortError, PortNumberError, RangeSpecError)
+                     OutputError, PortError, PortNumberError, RangeSpecError)
 
 __all__ = [
     "AltitudeLoop", "Loop", "Controller", "TransferFunction", "Step", "Ramp", "Samples", "LoadStep", "load_loop",
@@ -31,6 +31,7 @@ __all__ = [
     "sampled_spectrum", "sampled_margins", "compare_sampling", "sampled_frequency_response",
     # every exception class of the package (all derive from DelaykitError)
     "DelaykitError", "InvalidTypeError", "InvalidValueError", "RangeSpecError", "PortError", "PortNumberError",
+    "OutputError",
     "FlightError", "FlightInterruptedError", "MissingDependencyError", "ProtocolError", "ATError", "NavdataError", "LinkError", "VehicleRefusedError", "EstimationError", "LogError",
     "IdentificationError",
     # identification

@@ -21,7 +21,8 @@ Hierarchy::
     │   ├── EstimationError: the data cannot give a delay by this method
     │   ├── LogError: an unreadable flight log
     │   ├── IdentificationError: data or settings that do not allow an identification
-    │   └── PortNumberError (also PortError): a port number out of range
+    │   ├── PortNumberError (also PortError): a port number out of range
+    │   └── OutputError (also OSError): a file that cannot be written (its folder gone, no space left...)
     ├── InvalidTypeError (also TypeError): a value of the wrong type
     ├── PortError (also OSError): a port that cannot be bound (already in use, ...)
     ├── LinkError (also RuntimeError): the vehicle does not answer
@@ -34,11 +35,13 @@ Hierarchy::
 from __future__ import annotations
 
 import math
-from typing import Any
+from contextlib import contextmanager
+from typing import Any, Iterator
 
 __all__ = ["DelaykitError", "DelaykitWarning", "InvalidValueError", "InvalidTypeError", "RangeSpecError", "PortError",
-           "PortNumberError", "FlightError", "FlightInterruptedError", "MissingDependencyError", "check_real",
-           "check_finite_array", "plain"]
+           "PortNumberError", "OutputError", "FlightError", "FlightInterruptedError", "MissingDependencyError",
+           "check_real",
+           "check_finite_array", "check_path", "plain", "writing"]
 
 
 class DelaykitError(Exception):
@@ -74,6 +77,12 @@ class PortError(DelaykitError, OSError):
 
 class PortNumberError(PortError, InvalidValueError):
     """A port number out of range (0 to 65535): a bad value, and a :class:`PortError`."""
+
+
+class OutputError(InvalidValueError, OSError):
+    """A file that cannot be written: its folder is gone, the disk is full (``/dev/full``), a link points nowhere,
+    a device refuses.  A bad output path (an :class:`InvalidValueError`, as the checks before the work say) and an
+    :class:`OSError` (what the system said)."""
 
 
 class FlightError(DelaykitError, RuntimeError):
@@ -212,3 +221,61 @@ def check_finite_array(name: str, values: Any) -> Any:
         where = f"{name}[{i}]" if arr.ndim == 1 else f"{name}[{', '.join(map(str, np.unravel_index(i, arr.shape)))}]"
         raise InvalidValueError(f"{where} is {arr.ravel()[i]}; every sample must be finite")
     return arr
+
+
+def check_path(name: str, value: Any) -> Any:
+    """Return ``value`` as a :class:`pathlib.Path`, or raise :class:`InvalidTypeError` naming it when it is not a
+    file name (text or an ``os.PathLike`` giving text): None, a number, bytes.
+
+    Parameters
+    ----------
+    name : str
+        What the path is, for the message (for example ``"loop file"``).
+    value : Any
+        The path to check.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Examples
+    --------
+    >>> check_path("loop file", "loop.toml").name
+    'loop.toml'
+    >>> check_path("loop file", None)
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.InvalidTypeError: the loop file must be a path (text or a pathlib.Path), got None (NoneType)
+    """
+    import os
+    from pathlib import Path
+
+    text = os.fspath(value) if isinstance(value, os.PathLike) else value
+    if not isinstance(text, str):
+        raise InvalidTypeError(f"the {name} must be a path (text or a pathlib.Path), got {value!r:.60} "
+                               f"({type(value).__name__})")
+    if not text or "\0" in text:
+        raise InvalidValueError(f"the {name} {text!r:.60} is not a file name" + (" (it holds a NUL character)"
+                                                                              if text else " (it is empty)"))
+    return Path(text)
+
+
+@contextmanager
+def writing(name: str, path: Any) -> Iterator[None]:
+    """Turn an :class:`OSError` raised while writing ``path`` into an :class:`OutputError` naming ``name`` (an
+    option such as ``--save``, or what the file is) and the path: a failure after the work, one line.
+
+    Examples
+    --------
+    >>> with writing("--csv", "/no/such/folder/r.csv"):
+    ...     open("/no/such/folder/r.csv", "w")
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.OutputError: --csv '/no/such/folder/r.csv' could not be written: No such file or directory
+    """
+    try:
+        yield
+    except OutputError:
+        raise
+    except OSError as exc:
+        raise OutputError(f"{name} {str(path)!r} could not be written: {exc.strerror or exc}") from None

@@ -8,7 +8,7 @@ from typing import Any, Optional
 
 import typer
 
-from ..errors import InvalidValueError, check_real
+from ..errors import InvalidValueError, check_real, writing
 from ..models.budget import MAX_SAMPLES, check_count, sample_count
 from .common import (check_output, err, fmt, friendly, out, parse_schedule, print_json, progress_bar,
                      read_delay_trace)
@@ -157,7 +157,7 @@ def simulate(
                 row["paper_overshoot"] = table1_overshoot(r.loop.delay)
             rows.append(row)
         if csv_path is not None:
-            with open(csv_path, "w", newline="") as fh:
+            with writing("--csv", csv_path), open(csv_path, "w", newline="") as fh:
                 w = csv.writer(fh)
                 w.writerow((["delay"] if len(responses) > 1 else []) + ["t", "z", "z_ref", "u"])
                 for r in responses:
@@ -284,7 +284,7 @@ def _simulate_varying(loop: Any, model: Any, keep_order: Optional[bool], *, step
     row = {"delay": loop.delay, "delay_model": d.pop("delay"), "keep_order": order, "varying": True,
            "reference": Step(step).to_dict(), "disturbance": None, **d}
     if csv_path is not None:
-        with open(csv_path, "w", newline="") as fh:
+        with writing("--csv", csv_path), open(csv_path, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["t", "z", "z_ref", "u"])
             for i in range(r.t.size):

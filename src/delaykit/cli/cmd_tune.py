@@ -7,7 +7,7 @@ from typing import Any, Optional
 
 import typer
 
-from ..errors import InvalidValueError
+from ..errors import InvalidValueError, writing
 from .common import check_output, err, fmt, friendly, out, print_json, warn
 from .loopopts import with_loop
 
@@ -107,7 +107,9 @@ def tune(
     if save is not None:
         from ..models.loop import loop_to_toml
 
-        save.write_text(loop_to_toml(t.loop))
+        text = loop_to_toml(t.loop)
+        with writing("--save", save):
+            save.write_text(text)
     if plot is not None:
         from ..plotting.tuning import plot_tuning
 

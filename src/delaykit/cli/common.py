@@ -617,33 +617,44 @@ def _check_output(flag: str, p: Path, text: str, kind: str) -> None:
     import os
 
     global _FIGURE_FORMATS
+    suffix = p.suffix  # (the format is the name's, as given, even through a link)
+    shown = repr(text)
+    if p.is_symlink():  # the checks below are of where the link leads (writing follows it)
+        real = Path(os.path.realpath(p))
+        if real.is_symlink():
+            raise InvalidValueError(f"{flag} {text!r} is a loop of links")
+        if not real.exists() and kind == "folder":
+            raise InvalidValueError(f"{flag} {text!r} is a link to {str(real)!r}, which does not exist")
+        if not real.parent.is_dir():
+            raise InvalidValueError(f"{flag} {text!r} is a link to {str(real)!r}, whose folder does not exist")
+        p, shown = real, f"{text!r} (a link to {str(real)!r})"
     if kind == "folder":
         if p.exists() and not p.is_dir():
-            raise InvalidValueError(f"{flag} {text!r} is a file, not a folder")
+            raise InvalidValueError(f"{flag} {shown} is a file, not a folder")
         up = p
         while not up.exists():
             up = up.parent
         if not up.is_dir():
-            raise InvalidValueError(f"{flag} {text!r}: {str(up)!r} is a file, not a folder")
+            raise InvalidValueError(f"{flag} {shown}: {str(up)!r} is a file, not a folder")
         if not os.access(up, os.W_OK | os.X_OK):
-            raise InvalidValueError(f"{flag} {text!r}: the folder {str(up)!r} is not writable")
+            raise InvalidValueError(f"{flag} {shown}: the folder {str(up)!r} is not writable")
         return
     if p.is_dir():
-        raise InvalidValueError(f"{flag} {text!r} is a folder: give a file name")
+        raise InvalidValueError(f"{flag} {shown} is a folder: give a file name")
     folder = p.parent
     if not folder.exists():
-        raise InvalidValueError(f"{flag} {text!r}: the folder {str(folder)!r} does not exist")
+        raise InvalidValueError(f"{flag} {shown}: the folder {str(folder)!r} does not exist")
     if not folder.is_dir():
-        raise InvalidValueError(f"{flag} {text!r}: {str(folder)!r} is not a folder")
+        raise InvalidValueError(f"{flag} {shown}: {str(folder)!r} is not a folder")
     if not os.access(folder, os.W_OK | os.X_OK) or p.exists() and not os.access(p, os.W_OK):
-        raise InvalidValueError(f"{flag} {text!r} cannot be written (no permission)")
-    if kind == "figure" and p.suffix:
+        raise InvalidValueError(f"{flag} {shown} cannot be written (no permission)")
+    if kind == "figure" and suffix:
         if _FIGURE_FORMATS is None:
             from matplotlib.backend_bases import FigureCanvasBase
 
             _FIGURE_FORMATS = sorted(FigureCanvasBase.get_supported_filetypes())
-        if p.suffix[1:].lower() not in _FIGURE_FORMATS:
-            raise InvalidValueError(f"{flag} {text!r}: {p.suffix!r} is not a figure format; use one of "
+        if suffix[1:].lower() not in _FIGURE_FORMATS:
+            raise InvalidValueError(f"{flag} {shown}: {suffix!r} is not a figure format; use one of "
                                     f"{', '.join('.' + f for f in _FIGURE_FORMATS)}")
 
 

@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidValueError, check_real
+from ..errors import InvalidValueError, check_finite_array, check_real
 from ..models.transfer import TransferFunction
 from .pid_rules import UltimatePoint, ultimate_point
 from .relay import _output_over, _times_over, relay_cycle
@@ -142,7 +142,7 @@ def measure_cycle(t: Any, y: Any, u: Any, *, skip: int = 2, hysteresis: float = 
     >>> round(c.period, 6), c.cycles, round(c.amplitude, 3)
     (2.0, 3, 0.5)
     """
-    t, y, u = (np.asarray(a, dtype=float).ravel() for a in (t, y, u))
+    t, y, u = (check_finite_array(name, a).ravel() for name, a in (("t", t), ("y", y), ("u", u)))
     if not t.size == y.size == u.size:
         raise InvalidValueError(f"t, y and u must have one length, got {t.size}, {y.size} and {u.size}")
     if not (np.all(np.isfinite(t)) and np.all(np.isfinite(y)) and np.all(np.isfinite(u))):

@@ -41,6 +41,7 @@ __all__ = ["CompensatorDesign", "RobustnessMap", "DisturbanceRecovery", "delay_r
 
 _RATIO_MAX = 4.0
 _SCAN = 0.02
+_RATIO_LIMIT = 100.0  # the largest ratio_max: 5000 steps of the scan
 
 
 def _abscissa(law: Compensator | Controller, plant: TransferFunction, delay: float) -> float:
@@ -79,6 +80,9 @@ def delay_ratio_range(compensator: Compensator, plant: Any = None, *, ratio_max:
     """
     if not isinstance(compensator, Compensator):
         raise InvalidTypeError(f"expected a Compensator, got {type(compensator).__name__}")
+    # (a scan in steps of 0.02 up to ratio_max, then a bisection to tol: both bounded, 1e-320 never ends)
+    ratio_max = check_real("ratio_max", ratio_max, minimum=1.0, strict=True, maximum=_RATIO_LIMIT)
+    tol = check_real("tol", tol, minimum=1e-12, maximum=_SCAN)
     tm = compensator.model_delay
     if tm <= 0:
         raise InvalidValueError("the delay-ratio range needs a positive model delay; got model_delay=0")
@@ -265,7 +269,14 @@ def design_horizon(plant: Any, delay: float, closed_loop_time: float, shortest: 
 
 
 def _steps(loop: Loop, sizes: Sequence[float], t_end: float) -> dict[float, StepMetrics | None]:
-    return {float(s): simulate(loop, step=s, t_end=t_end).metrics for s in sizes}
+    try:
+        items = [] if isinstance(sizes, (str, bytes)) else list(sizes)
+    except TypeError:
+        items = []
+    if not items:
+        raise InvalidTypeError(f"steps must be a non-empty list of step sizes, got {sizes!r:.60}")
+    values = [check_real("step size", s) for s in items]
+    return {s: simulate(loop, step=s, t_end=t_end).metrics for s in values}
 
 
 def design_compensator(kind: str, plant: Any, delay: float, *, umin: float = -math.inf, umax: float = math.inf,

@@ -237,9 +237,12 @@ def _range(name: str, values: Any) -> list[float] | None:
     if isinstance(values, (int, float)):
         return [check_real(name, values)]
     try:
-        return [check_real(name, v) for v in values]
+        out = [check_real(name, v) for v in values]
     except TypeError:
-        raise InvalidTypeError(f"{name} must be a list of numbers or START:STOP:N, got {values!r}") from None
+        raise InvalidTypeError(f"{name} must be a list of numbers or START:STOP:N, got {values!r:.60}") from None
+    if not out:
+        raise InvalidValueError(f"{name} is empty: give at least one value (or None for no robust design)")
+    return out
 
 
 # ---------------------------------------------------------------------------------------------- the checks

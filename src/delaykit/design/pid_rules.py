@@ -27,6 +27,7 @@ Examples
 from __future__ import annotations
 
 import math
+import sys
 import warnings
 from dataclasses import dataclass
 from typing import Any
@@ -460,6 +461,33 @@ def rule_gains(rule: str, controller: str, plant: Any, delay: float, *, tau_c: f
         if rule == "amigo":
             _warn(f"amigo: the plant was reduced by the half rule ({m.reduction}); AMIGO is defined on a fitted "
                   "FOPDT or integrating model", notes)
+    if rule == "amigo" and kind == "pid" and m.family == "fopdt" and m.delay / (m.delay + m.tau1) < 0.1:
+        _warn(f"amigo: normalised dead time tau = {m.delay / (m.delay + m.tau1):.3g} is below 0.1, where the "
+              "AMIGO PID rule is conservative", notes)
+    if rule != "amigo":
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # (refused by _representable)
+            g = _tau_c_rule(rule, kind, m, tc, notes)
+        return _representable(g)
+    kp, ti, td = _amigo(m, kind)
+    return RuleGains(rule, kind, kp, kp / ti, kp * td, model=m, notes=tuple(notes))
+
+
+def _representable(g: RuleGains) -> RuleGains:
+    """``g``, unless a gain its rule makes positive came out below the floats' normal range (``tau_c = 1e300 s``
+    makes SIMC's ``ki`` of an integrating plant 1e-601, which is 0.0: silently a P controller)."""
+    for name in ("kp", "ki", "kd"):
+        value = getattr(g, name)
+        if not math.isfinite(value):  # a delay and tau_c of 1e-320 s: kp = 1 / 2e-320 is beyond the floats
+            raise InvalidValueError(f"{g.rule}: the delay {g.model.delay:g} s and tau_c = {g.tau_c:g} s make {name} "
+                                    f"= {value:g}, beyond the floats: give a longer delay or tau_c")
+        if name != "kd" and (name == "kp" or g.controller in ("pi", "pid")) and abs(value) < sys.float_info.min:
+            raise InvalidValueError(f"{g.rule}: tau_c = {g.tau_c:g} s makes {name} = {value:g}, below the floats' "
+                                    f"range (kp = {g.kp:g}): give a tau_c nearer the delay ({g.model.delay:.4g} s)")
+    return g
+
+
+def _tau_c_rule(rule: str, kind: str, m: ReducedModel, tc: float, notes: list[str]) -> RuleGains:
+    """The gains of the rules set by ``tau_c`` (SIMC) or lambda (IMC, lambda tuning)."""
     if rule == "simc":
         if tc < m.delay * (1 - 1e-12):
             _warn(f"simc: tau_c = {tc:g} s is below the effective delay {m.delay:.4g} s; Skogestad recommends "
@@ -473,12 +501,6 @@ def rule_gains(rule: str, controller: str, plant: Any, delay: float, *, tau_c: f
             return RuleGains(rule, kind, kc, kc / ti, 0.0, model=m, tau_c=tc, notes=tuple(notes))
         # series (1 + 1/(ti s))(1 + td s) = (1 + td/ti) + 1/(ti s) + td s
         return RuleGains(rule, kind, kc * (1 + td / ti), kc / ti, kc * td, model=m, tau_c=tc, notes=tuple(notes))
-    if rule == "amigo":
-        if kind == "pid" and m.family == "fopdt" and m.delay / (m.delay + m.tau1) < 0.1:
-            _warn(f"amigo: normalised dead time tau = {m.delay / (m.delay + m.tau1):.3g} is below 0.1, where the "
-                  "AMIGO PID rule is conservative", notes)
-        kp, ti, td = _amigo(m, kind)
-        return RuleGains(rule, kind, kp, kp / ti, kp * td, model=m, notes=tuple(notes))
     if kind == "pid" and tc < 0.8 * m.delay:
         _warn(f"{rule}: lambda = {tc:g} s is below 0.8 times the delay {m.delay:.4g} s, the least Rivera, Morari "
               "and Skogestad recommend", notes)

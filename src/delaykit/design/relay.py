@@ -139,6 +139,9 @@ def relay_cycle(plant: Any, delay: float, amplitude: float = 1.0, hysteresis: fl
     C = np.asarray(C, float).ravel()
     taus = [1.0 / abs(p.real) for p in tf.poles() if p.real < -1e-12]
     scale = theta + (max(taus) if taus else 0.0) + 1e-3
+    if h_max is None and not scale < 1e300:  # (50 times it would overflow)
+        raise InvalidValueError(f"the relay's time scale (delay {theta:g} s plus the slowest lag) is beyond what the "
+                                "scan of half-periods can cover: give a shorter delay")
     hi = 50.0 * scale if h_max is None else check_real("h_max (s)", h_max, minimum=0.0, strict=True)
     # the relay's own cycle has h > θ: after a switch the output keeps its course for a delay before it turns
     # (shorter roots are the delay's high-frequency cycles, which the relay does not settle into)

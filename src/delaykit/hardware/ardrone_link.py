@@ -48,9 +48,13 @@ class DroneLink(VehicleLink):
         self.navdata_port = _check_port("navdata_port", navdata_port)
         if at_port == 0 or navdata_port == 0:
             raise InvalidValueError("the drone's ports must be given (not 0)")
-        self.at = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.nav = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.nav.bind(("127.0.0.1" if ipaddress.ip_address(host).is_loopback else "0.0.0.0", 0))
+        try:
+            self.at = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            self.nav = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            self.nav.bind(("127.0.0.1" if ipaddress.ip_address(host).is_loopback else "0.0.0.0", 0))
+        except OSError as exc:
+            self.close()
+            raise LinkError(f"cannot open the sockets to talk to {host}: {exc.strerror or exc}") from None
         # a packet's time is its arrival in the kernel, not when this thread woke to read it
         self.kernel_stamps = enable_stamps(self.nav)
         self.enc = ATEncoder()
@@ -60,12 +64,22 @@ class DroneLink(VehicleLink):
     # ---- the protocol ------------------------------------------------------------------------------------
     def send(self, *cmds: bytes) -> float:
         """Send AT commands in one datagram; returns the time (monotonic) it went out."""
-        self.at.sendto(b"".join(cmds), (self.host, self.at_port))
+        try:
+            self.at.sendto(b"".join(cmds), (self.host, self.at_port))
+        except OSError as exc:
+            raise self._failed("send AT commands to", self.at_port, exc) from None
         return time.monotonic()
 
     def wake(self) -> None:
         """Ask the drone to stream navdata to this socket."""
-        self.nav.sendto(b"\x01\x00\x00\x00", (self.host, self.navdata_port))
+        try:
+            self.nav.sendto(b"\x01\x00\x00\x00", (self.host, self.navdata_port))
+        except OSError as exc:
+            raise self._failed("wake navdata from", self.navdata_port, exc) from None
+
+    def _failed(self, what: str, port: int, exc: OSError) -> LinkError:
+        """The :class:`LinkError` for a socket's failure (the network unreachable, the port refused...)."""
+        return LinkError(f"cannot {what} {self.host}:{port}: {exc.strerror or exc}")
 
     def recv_navdata(self, timeout: float) -> tuple[Navdata, float] | None:
         """The next valid navdata packet from the drone and its arrival time, or None on timeout."""
@@ -79,6 +93,8 @@ class DroneLink(VehicleLink):
                 data, addr, t = recv_stamped(self.nav, 4096)
             except socket.timeout:
                 return None
+            except OSError as exc:  # an ICMP error of an earlier datagram (port unreachable: refused)
+                raise self._failed("receive navdata from", self.navdata_port, exc) from None
             if addr[0] != self.host:
                 continue
             try:
@@ -163,5 +179,7 @@ class DroneLink(VehicleLink):
         return False
 
     def close(self) -> None:
-        self.at.close()
-        self.nav.close()
+        """Close the sockets (those that were opened)."""
+        for sock in (getattr(self, "at", None), getattr(self, "nav", None)):
+            if sock is not None:
+                sock.close()

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import bisect
 import math
+import numbers
+import re
 import sys
 from dataclasses import dataclass
 from typing import Any
@@ -231,7 +233,8 @@ def _check_ipv4(name: str, host: Any) -> str:
         raise InvalidTypeError(f"{name} must be an address or a host name (text), got {host!r}")
     try:
         v6 = ipaddress.ip_address(host).version == 6
-    except ValueError:
+    except ValueError:  # a name: checked before any lookup (a 300-character one was a UnicodeError from it)
+        _check_host_name(name, host)
         v6 = False
     if v6:
         raise InvalidValueError(f"{name} {host!r} is an IPv6 address; the AR.Drone speaks IPv4 only: give an IPv4 "
@@ -251,9 +254,25 @@ def _resolve_ipv4(name: str, host: Any) -> str:
     except ValueError:
         try:
             host = socket.gethostbyname(host)
-        except OSError:
-            raise InvalidValueError(f"{name} {host!r} is not an address and cannot be resolved") from None
+        except (OSError, UnicodeError):
+            raise InvalidValueError(f"{name} {host!r:.80} is not an address and cannot be resolved") from None
     return host
+
+
+def _check_host_name(name: str, host: str) -> None:
+    """Refuse, before any lookup, text that cannot be a host name (RFC 1123: at most 253 characters, labels of 1 to
+    63 letters, digits, hyphens (and underscores), not starting or ending with a hyphen)."""
+    labels = host[:-1].split(".") if host.endswith(".") else host.split(".")
+    if not host or len(host) > 253 or not all(_LABEL.fullmatch(x) for x in labels):
+        shown = host if len(host) <= 60 else host[:57] + "..."
+        raise InvalidValueError(f"{name} {shown!r} ({len(host)} characters) is not an IPv4 address or a host name "
+                                "(labels of 1 to 63 letters, digits and hyphens, 253 characters at most)")
+    if labels[-1].isdigit():  # (a top-level label is never all digits: 1.2.3 or 256.1.1.1 is a mistyped address)
+        raise InvalidValueError(f"{name} {host!r} is not an IPv4 address (four numbers from 0 to 255, such as "
+                                "192.168.1.1) nor a host name")
+
+
+_LABEL = re.compile(r"[A-Za-z0-9_](?:[A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?")  # (an underscore: in use, if not RFC's)
 
 
 @dataclass(frozen=True)
@@ -330,6 +349,9 @@ class EmulatorConfig:
             if getattr(self, a) and getattr(self, a) == getattr(self, b):
                 raise PortNumberError(f"{a} and {b} are both {getattr(self, a)}: two {transport} services cannot "
                                       "share a port (give different ones, or 0 for any free one)")
+        if self.seed is not None and (isinstance(self.seed, bool) or not isinstance(self.seed, numbers.Integral)):
+            raise InvalidTypeError(f"seed must be an integer or None, got {self.seed!r:.40} "
+                                   f"({type(self.seed).__name__})")
         check_real("delay (s)", self.delay, minimum=0.0, maximum=5.0)
         check_real("lag (s)", self.lag, minimum=0.0, maximum=5.0)
         check_real("link_delay (s)", self.link_delay, minimum=0.0, maximum=2.0)

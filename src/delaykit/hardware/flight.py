@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_path, check_real, writing
 from ..models.compensators import Compensator
 from ..models.controllers import Controller
 from .ardrone_link import VZ_MAX_LIMIT, DroneLink
@@ -104,6 +104,30 @@ def land_on_signals(names: tuple[str, ...] = ("SIGTERM", "SIGHUP")) -> Iterator[
     finally:
         for sig, handler in old.items():
             signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+
+
+class _LogFile:
+    """A flight log open for writing, line-buffered; a failure to write it (the disk full, the folder gone) an
+    :class:`~delaykit.errors.OutputError` naming the log, raised through the flight (which then lands)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        with writing("the flight log", path):
+            self.fh = open(path, "w", buffering=1)
+
+    def write(self, text: str) -> None:
+        with writing("the flight log", self.path):
+            self.fh.write(text)
+
+    def flush(self) -> None:
+        with writing("the flight log", self.path):
+            self.fh.flush()
+
+    def close(self) -> None:
+        try:
+            self.fh.close()
+        except OSError:  # (the error was reported by the write that failed)
+            pass
 
 
 @dataclass(frozen=True)
@@ -309,7 +333,7 @@ def fly(
     holds: list[tuple[float, float]] = []  # commands sent between packets (the hovers while estimating)
     cmd_t: list[float] = []
     cmd_u: list[float] = []
-    base = Path(log)
+    base = check_path("flight log", log)
     base.parent.mkdir(parents=True, exist_ok=True)
     if link is None:
         link = DroneLink(host, at_port, navdata_port)
@@ -358,7 +382,7 @@ def fly(
         for k, step in enumerate(plan.steps):
             path = _log_path(base, k, len(plan.steps))
             logs.append(path)
-            fh = open(path, "w", buffering=1)
+            fh = _LogFile(path)
             fh.write(",".join(columns) + "\n")
             for _, row in recent:  # the second before the step
                 fh.write(row)

@@ -38,7 +38,7 @@ from typing import Any, Iterator, Mapping
 
 import numpy as np
 
-from ..errors import InvalidValueError, check_real
+from ..errors import InvalidValueError, check_path, check_real, writing
 from ..models.ranges import parse_number
 
 __all__ = ["FlightLog", "LogError", "REQUIRED", "MAX_ALTITUDE", "MAX_TIME", "read_csv_rows", "iter_csv_rows", "write_log",
@@ -439,7 +439,8 @@ def write_log(path: str | Path, columns: Mapping[str, Any]) -> None:
         keys.remove("t")
         keys.insert(0, "t")
     cols = [np.asarray(columns[k]) for k in keys]
-    with open(path, "w", newline="") as fh:
+    path = check_path("log", path)
+    with writing("the log", path), open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(keys)
         for row in zip(*cols):

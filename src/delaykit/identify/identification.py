@@ -39,7 +39,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 from scipy import special  # (its functions only: scipy.stats would import ten times more at start-up)
 
-from ..errors import DelaykitError, InvalidTypeError, InvalidValueError, check_real
+from ..errors import DelaykitError, InvalidTypeError, InvalidValueError, check_path, check_real, writing
 from ..models.loop import Loop
 from ..models.transfer import TransferFunction
 from ._fit import (IdentificationError, _fit, _guesses, _jacobian, _Law, _law, _law_dict, _law_from_dict, _prepare,
@@ -157,9 +157,21 @@ def _nulls(v: Any) -> Any:
     return v
 
 
-def _number(v: Any) -> float:
-    """A saved uncertainty: a number, or ``None`` (written for a value the fit could not determine) as NaN."""
-    return math.nan if v is None else float(v)
+def _number(v: Any, what: str = "an uncertainty") -> float:
+    """A saved uncertainty: a number, or ``None`` (written for a value the fit could not determine) as NaN; a bool
+    (JSON's ``true``) or text is refused, not read as 1.0."""
+    if v is None:
+        return math.nan
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise InvalidTypeError(f"{what} must be a number or null, got {v!r:.40}")
+    return float(v)
+
+
+def _count(v: Any, what: str) -> int:
+    """A saved count (samples, an order): an integer of at least 0; a bool, a fraction or text refused."""
+    if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+        raise InvalidValueError(f"{what} must be a whole number of at least 0, got {v!r:.40}")
+    return v
 
 @dataclass(frozen=True, repr=False, eq=False)
 class IdentifiedModel:
@@ -231,7 +243,10 @@ class IdentifiedModel:
 
         A number that is not finite (a standard error the data could not determine is NaN) is written as
         ``null``, which JSON readers other than Python's accept, and read back as NaN."""
-        Path(path).write_text(json.dumps(_nulls(self.to_dict()), indent=2, allow_nan=False))
+        p = check_path("model file", path)
+        text = json.dumps(_nulls(self.to_dict()), indent=2, allow_nan=False)
+        with writing("the model file", p):
+            p.write_text(text)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], *, source: str = "model") -> "IdentifiedModel":
@@ -239,12 +254,13 @@ class IdentifiedModel:
         try:
             name = d["model"]
             st = structure(name)
-            params = {k: float(d["params"][k]) for k in st.params}
+            params = {k: check_real(f"parameter {k}", d["params"][k]) for k in st.params}
             stderr = {k: _number(d["stderr"][k]) for k in st.params}
             ci = {k: (_number(v[0]), _number(v[1])) for k, v in d["ci"].items()}
             cov = np.array([[_number(x) for x in row] for row in d["cov"]], dtype=float).reshape(st.size, st.size)
             logs = tuple(LogFit(g["file"], {k: _number(v) for k, v in g["rms_by_output"].items()},
-                                {k: math.nan for k in g["rms_by_output"]}, int(g["samples"]), int(g["noise_order"]))
+                                {k: math.nan for k in g["rms_by_output"]}, _count(g["samples"], "samples"),
+                                _count(g["noise_order"], "noise_order"))
                          for g in d.get("logs", []))
             for k, positive in zip(st.params, st.positive):  # what a fit can give: finite, the signs it keeps
                 check_real(f"parameter {k}", params[k], minimum=0.0 if positive or k == "delay" else None,
@@ -260,8 +276,9 @@ class IdentifiedModel:
                 if kp is not None and "gain" in params and kp * params["gain"] < 0:
                     raise InvalidValueError(f"the closed loop's kp ({kp:g}) and the plant's gain "
                                             f"({params['gain']:g}) have opposite signs: positive feedback")
-            return cls(model=name, params=params, stderr=stderr, ci=ci, cov=cov, rms=float(d["rms"]),
-                       aic=float(d["aic"]), bic=float(d["bic"]), n=int(d["n"]), outputs=tuple(d["outputs"]),
+            return cls(model=name, params=params, stderr=stderr, ci=ci, cov=cov, rms=_number(d["rms"], "rms"),
+                       aic=_number(d["aic"], "aic"), bic=_number(d["bic"], "bic"), n=_count(d["n"], "n"),
+                       outputs=tuple(d["outputs"]),
                        rate=d.get("rate"), closed_loop=closed, logs=logs,
                        criterion=d.get("criterion", "bic"), warnings=tuple(d.get("warnings", ())),
                        drive_column=str(d.get("drive_column", "u")))
@@ -534,7 +551,11 @@ def identify(
     if outputs is None:
         outs = tuple(o for o in exps[0].outputs if o not in (rate, command))
     else:
-        outs = tuple([outputs] if isinstance(outputs, str) else outputs)
+        outs = (outputs,) if isinstance(outputs, str) else outputs
+        if not isinstance(outs, Sequence) or not outs or not all(isinstance(o, str) for o in outs):
+            raise InvalidTypeError(f"outputs must be an output's name or a non-empty list of them, got "
+                                   f"{outputs!r:.60}")
+        outs = tuple(outs)
     if len(outs) != 1:
         raise IdentificationError(f"give one output (and its rate with rate=...), got {list(outs)}")
     for o in outs:  # an output that never moves in any log: no response, nothing to fit (a gain of 0 +- 0)
@@ -774,6 +795,8 @@ def predict(model: IdentifiedModel, experiment: Experiment, *, u0: float | None 
     """
     if not isinstance(model, IdentifiedModel):
         raise InvalidTypeError(f"model must be an IdentifiedModel, got {type(model).__name__}")
+    if not isinstance(experiment, Experiment):
+        raise InvalidTypeError(f"experiment must be an Experiment (read_experiment), got {type(experiment).__name__}")
     sim = simulate_experiment(model, experiment, u0=u0, command=command)
     meas = {o: experiment.outputs[o] for o in sim}
     rms = {o: float(np.sqrt(np.mean((meas[o] - sim[o]) ** 2))) for o in sim}
@@ -792,7 +815,7 @@ def load_model(path: str | Path) -> IdentifiedModel:
     IdentificationError
         A file that cannot be read or is not a model.
     """
-    p = Path(path)
+    p = check_path("model file", path)
     try:
         d = json.loads(p.read_text(encoding="utf-8"))
     except OSError as exc:

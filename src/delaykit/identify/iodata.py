@@ -39,7 +39,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_path, check_real
 from ..models.budget import sample_count
 from ..models.ranges import parse_number
 from .flightlog import LogError, iter_csv_rows
@@ -231,6 +231,8 @@ class Experiment:
 def _array(name: str, col: str, values: Any, n: int | None = None) -> np.ndarray:
     try:
         a = np.asarray(values, dtype=float)
+    except OverflowError:  # an integer of hundreds of digits
+        raise InvalidValueError(f"{name}: column {col!r} holds an integer beyond the floats") from None
     except (TypeError, ValueError):
         raise InvalidValueError(f"{name}: column {col!r} is not numeric") from None
     if a.ndim != 1:
@@ -298,10 +300,12 @@ def read_experiment(path: str | Path, *, outputs: Sequence[str] = ("z",), input:
     from .logalign import read_log_experiment
     from .vehiclelogs import log_format
 
-    path = Path(path)
+    path = check_path("experiment file", path)
     name = path.name
     if isinstance(outputs, str):
         outputs = [outputs]
+    if not isinstance(outputs, Sequence) or not outputs or not all(isinstance(o, str) for o in outputs):
+        raise InvalidTypeError(f"outputs must be a column name or a non-empty list of them, got {outputs!r:.60}")
     if log_format(path) is not None:
         if time != "t":
             raise LogError(f"{path}: a flight log's time is its own (its microsecond stamps): time={time!r} does not "

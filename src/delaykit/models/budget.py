@@ -80,7 +80,10 @@ def check_count(what: str, count: float, limit: int, unit: str, hint: str = "") 
     5
     """
     if not count <= limit:  # (also refuses NaN)
-        shown = f"{count:.0f}" if count < 1e18 else f"{count:.3g}"
+        try:
+            shown = f"{count:.0f}" if count < 1e18 else f"{count:.3g}"
+        except OverflowError:  # an integer beyond the floats
+            shown = f"about 1e{len(str(int(count))) - 1}"
         name = _NAMES.get(limit)
         where = f" (delaykit.models.budget.{name})" if name else ""
         raise InvalidValueError(f"{what}: {shown} {unit}, above the limit of {limit}{where}"
@@ -101,6 +104,9 @@ def sample_count(what: str, span: float, step: float, hint: str = "") -> int:
     ...
     delaykit.errors.InvalidValueError: --dt 1e-09 s: 15000000001 samples, above the limit of 10000000 (delaykit.models.budget.MAX_SAMPLES)
     """
-    n = span / step * (1 + 1e-12) + 1 if span > 0 else 1.0
+    try:
+        n = float(span) / float(step) * (1 + 1e-12) + 1 if span > 0 else 1.0  # (Python floats: no numpy warning)
+    except (OverflowError, ZeroDivisionError):  # a step of 1e-320: beyond any count
+        n = math.inf
     check_count(what, n, MAX_SAMPLES, "samples", hint)
     return math.floor(n)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -33,7 +34,8 @@ from ..errors import InvalidTypeError, InvalidValueError, MissingDependencyError
 from .altitude import AltitudeLoop, as_loop
 from .loop import Loop
 
-__all__ = ["to_control", "pade_error", "PadeError", "pade_coefficients", "require_control"]
+__all__ = ["to_control", "pade_error", "PadeError", "pade_coefficients", "require_control", "check_pade_order",
+           "MAX_PADE_ORDER"]
 
 
 def require_control(what: str) -> Any:
@@ -55,16 +57,33 @@ def _loop(loop: Any) -> Loop:
     return loop
 
 
-def _order(pade_order: Any, name: str = "pade_order") -> int:
-    """A Padé order: an integer of at least 1 (an integral float accepted), or an error naming ``name``."""
+MAX_PADE_ORDER = 40
+"""The highest Padé order accepted: the coefficients of order ``n`` span ``n! / (2n)!`` (1e-30 at ``n = 20``), so
+that higher orders hold nothing more in floating point (and ``control.pade`` divides by zero from about 200)."""
+
+
+def check_pade_order(pade_order: Any, name: str = "pade_order") -> int:
+    """``pade_order`` as an int from 1 to :data:`MAX_PADE_ORDER` (an integral float accepted), or an
+    :class:`InvalidValueError` naming it as ``name``.
+
+    Examples
+    --------
+    >>> check_pade_order(6), check_pade_order(3.0)
+    (6, 3)
+    >>> check_pade_order(10**6)
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.InvalidValueError: pade_order must be an integer from 1 to 40, got 1000000
+    """
     if isinstance(pade_order, (bool, np.bool_)) or not isinstance(pade_order, numbers.Integral):
-        if (isinstance(pade_order, numbers.Real) and not isinstance(pade_order, (bool, np.bool_))
-                and math.isfinite(float(pade_order)) and float(pade_order).is_integer()):
+        if isinstance(pade_order, numbers.Real) and not isinstance(pade_order, bool) and math.isfinite(pade_order) \
+                and float(pade_order).is_integer():
             pade_order = int(pade_order)
         else:
-            raise InvalidValueError(f"{name} must be an integer of at least 1, got {pade_order!r}")
-    if pade_order < 1:
-        raise InvalidValueError(f"{name} must be an integer of at least 1, got {int(pade_order)}")
+            raise InvalidValueError(f"{name} must be an integer from 1 to {MAX_PADE_ORDER}, got "
+                                    f"{plain(pade_order)!r:.40}")
+    if not 1 <= pade_order <= MAX_PADE_ORDER:
+        raise InvalidValueError(f"{name} must be an integer from 1 to {MAX_PADE_ORDER}, got {int(pade_order)}")
     return int(pade_order)
 
 
@@ -92,7 +111,7 @@ def pade_coefficients(T: float, order: int) -> tuple[np.ndarray, np.ndarray]:
     ([1.0, -6.0, 12.0], [1.0, 6.0, 12.0])
     """
     T = check_real("delay T (s)", T, minimum=0.0)
-    n = _order(plain(order), "order")
+    n = check_pade_order(plain(order), "order")
     if T == 0.0:
         return np.ones(1), np.ones(1)
     k = np.arange(n + 1)
@@ -149,7 +168,7 @@ def to_control(loop: Loop | AltitudeLoop, pade_order: int | None = None) -> Any:
     1.5
     """
     loop = _loop(loop)
-    order = None if pade_order is None else _order(pade_order)
+    order = None if pade_order is None else check_pade_order(pade_order)
     if loop.total_delay > 0 and order is None:
         raise InvalidValueError(
             f"the loop has a delay of {loop.total_delay:g} s, which python-control cannot represent exactly: give "
@@ -213,7 +232,7 @@ def pade_error(loop: Loop | AltitudeLoop, order: int, w: Any) -> PadeError:
     [True, True]
     """
     loop = _loop(loop)
-    n = _order(order)
+    n = check_pade_order(order, "order")
     if isinstance(w, (str, bytes)):
         raise InvalidTypeError(f"w must be frequencies in rad/s (numbers), got {w!r}")
     wa = np.atleast_1d(np.asarray(w))
@@ -229,15 +248,21 @@ def pade_error(loop: Loop | AltitudeLoop, order: int, w: Any) -> PadeError:
     approx_tf = to_control(loop, pade_order=n)
     num, den = loop.open_loop()
     s = 1j * wa
-    with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # python-control's own division at a pole (w = 0 on 1/s)
         exact = np.polyval(num, s) / np.polyval(den, s) * np.exp(-s * loop.total_delay)
         approx = np.asarray(approx_tf(s), dtype=complex).reshape(wa.shape)
         err = np.abs(approx - exact)
         rel = np.where(np.abs(exact) > 0, err / np.abs(exact), 0.0)
     if not np.all(np.isfinite(err)):
-        bad = wa[~np.isfinite(err)][0]
-        raise InvalidValueError(f"L(jw) is infinite at w = {bad:g} rad/s (a pole on the imaginary axis); leave that "
-                                "frequency out")
+        k = int(np.flatnonzero(~np.isfinite(err))[0])
+        with np.errstate(all="ignore"):
+            pole = np.polyval(den, s[k]) == 0
+        if not pole:  # L or its approximation beyond the floats (the Pade polynomials at w = 1e308)
+            raise InvalidValueError(f"L(jw) or its approximation cannot be evaluated at w = {wa[k]:g} rad/s: the "
+                                    "polynomials overflow the floats there; leave frequencies this high out")
+        raise InvalidValueError(f"L(jw) is infinite at w = {wa[k]:g} rad/s (a pole on the imaginary axis); leave "
+                                "that frequency out")
     i = int(np.argmax(err))
     return PadeError(order=n, max_error=float(err[i]), frequency=float(wa[i]),
                      max_relative_error=float(np.max(rel)) if rel.size else math.nan)

@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_path, check_real
 from .compensators import Compensator
 from .controllers import Controller, input_transfer
 from .quasipolynomial import QuasiPolynomial
@@ -384,7 +384,7 @@ def load_loop(path: str | Path) -> Loop:
     1.31
     >>> os.unlink(f.name)
     """
-    return loop_from_dict(read_toml(path, "loop file"), source=str(path))
+    return loop_from_dict(read_toml(check_path("loop file", path), "loop file"), source=str(path))
 
 
 def read_toml(path: str | Path, what: str, *, max_bytes: int | None = None) -> dict[str, Any]:

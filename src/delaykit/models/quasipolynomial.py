@@ -57,8 +57,12 @@ class QuasiPolynomial:
     delays: tuple[float, ...]
 
     def __init__(self, polys: Sequence[Sequence[complex]], delays: Sequence[float]) -> None:
-        polys = list(polys)
-        delays = list(delays)
+        try:
+            polys = list(polys)
+            delays = list(delays)
+        except TypeError:
+            raise InvalidTypeError(f"QuasiPolynomial takes a list of polynomials and a list of delays, got "
+                                   f"{type(polys).__name__} and {type(delays).__name__}") from None
         if len(polys) != len(delays):
             raise InvalidValueError(
                 f"QuasiPolynomial needs one delay per polynomial, got {len(polys)} polynomials and {len(delays)} delays"

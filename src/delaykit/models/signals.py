@@ -125,6 +125,8 @@ class Samples:
         try:
             t = np.array(self.t, dtype=float).ravel()
             r = np.array(self.r, dtype=float).ravel()
+        except OverflowError:  # an integer of hundreds of digits
+            raise InvalidValueError("reference samples must be finite, got an integer beyond the floats") from None
         except (TypeError, ValueError) as exc:
             raise InvalidTypeError(f"reference samples must be numbers: {exc}") from None
         if t.size == 0 or t.size != r.size:

@@ -76,7 +76,11 @@ def _real_array(name: str, value: Any) -> np.ndarray:
             isinstance(x, (bool, np.bool_)) for x in np.asarray(value, dtype=object).flat):
         arr = np.asarray(value, dtype=object)  # a bool among numbers: refused below
     if arr.dtype == object and all(isinstance(x, numbers.Real) and not isinstance(x, bool) for x in arr.flat):
-        arr = arr.astype(float)
+        try:
+            arr = arr.astype(float)
+        except OverflowError:  # an integer of hundreds of digits
+            raise InvalidValueError(f"{name} must be finite, got an integer beyond the floats in "
+                                    f"{reprlib.repr(value)}") from None
     if arr.dtype.kind not in "iuf":
         raise InvalidTypeError(f"{name} must be real numbers, got {reprlib.repr(value)} (dtype {arr.dtype})")
     arr = arr.astype(float)
@@ -317,7 +321,11 @@ def _scalar(x: Any) -> float | None:
     if isinstance(x, (bool, np.bool_)):
         return None
     if isinstance(x, numbers.Real) or (isinstance(x, np.ndarray) and x.ndim == 0 and x.dtype.kind in "iuf"):
-        return float(x)
+        try:
+            return float(x)
+        except OverflowError:  # 10**400
+            raise InvalidValueError(f"a gain must be finite, got an integer of about {len(str(abs(int(x))))} "
+                                    "digits") from None
     return None
 
 
@@ -700,8 +708,8 @@ class TransferFunction:
         TransferFunction(1/(s + 1))
         """
         h = TransferFunction.coerce(other, name="feedback path", proper=False)
-        if isinstance(sign, bool) or sign not in (1, -1):
-            raise InvalidValueError(f"sign must be -1 (negative feedback) or +1, got {sign!r}")
+        if isinstance(sign, bool) or not isinstance(sign, numbers.Real) or sign not in (1, -1):
+            raise InvalidValueError(f"sign must be -1 (negative feedback) or +1, got {sign!r:.60}")
         den = _padd(_pmul(self.den, h.den), -sign * _pmul(self.num, h.num))
         if not den.any():
             raise InvalidValueError(f"the closed loop of {self.to_string()} with {h.to_string()} is undefined: "

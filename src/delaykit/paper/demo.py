@@ -50,7 +50,7 @@ import numpy as np
 
 from ..design.compensators import design_compensator
 from ..design.tuning import design_sweep
-from ..errors import FlightError, FlightInterruptedError, InvalidValueError
+from ..errors import FlightError, FlightInterruptedError, InvalidValueError, check_path, writing
 from ..models.altitude import AltitudeLoop
 from ..hardware.emulator import DroneEmulator, EmulatorConfig
 from ..hardware.flight import FlightPlan, FlightResult, fly
@@ -184,7 +184,7 @@ def run_demo(
     ('ipdt_speed', True)
     """
     say = status or (lambda _m: None)
-    out = Path(out)
+    out = check_path("output folder", out)
     out.mkdir(parents=True, exist_ok=True)
     emu = None
     truth = None
@@ -695,16 +695,18 @@ def _write(out, truth, est, lag, kv, d, p, pv, pm, vm, kv_source="design", comp=
     if ident is not None:
         text += _identification_text(ident, truth, vehicle)
     md = out / "demo.md"
-    md.write_text(text)
+    with writing("the demo's report", md):
+        md.write_text(text)
     js = out / "demo.json"
-    js.write_text(json.dumps({"true_delay": truth, "estimate": est.to_dict(), "lag": lag, "p_kp": P_KP,
-                              "pv_kp": PV_KP, "kv": kv, "kv_source": kv_source,
-                              "p_metrics": pm, "pv_metrics": vm, "p_flight": p.to_dict(), "pv_flight": pv.to_dict(),
-                              "compensator": comp, "comp_metrics": cm,
-                              "comp_flight": None if cf is None else cf.to_dict(),
-                              "varying_flight": None if vf is None else vf.to_dict(), "varying_truth": vtruth,
-                              "vehicle": vehicle, "identification": ident},
-                             indent=2, default=str))
+    with writing("the demo's report", js):
+        js.write_text(json.dumps({"true_delay": truth, "estimate": est.to_dict(), "lag": lag, "p_kp": P_KP,
+                                  "pv_kp": PV_KP, "kv": kv, "kv_source": kv_source,
+                                  "p_metrics": pm, "pv_metrics": vm, "p_flight": p.to_dict(), "pv_flight": pv.to_dict(),
+                                  "compensator": comp, "comp_metrics": cm,
+                                  "comp_flight": None if cf is None else cf.to_dict(),
+                                  "varying_flight": None if vf is None else vf.to_dict(), "varying_truth": vtruth,
+                                  "vehicle": vehicle, "identification": ident},
+                                 indent=2, default=str))
     extra = [*(cf.logs if cf is not None else ()), *(vf.logs if vf is not None else ())]
     model = out / "identified_model.json"
     if ident is not None and "error" not in ident and model.exists():

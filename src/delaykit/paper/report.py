@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Literal, Mapping
 
-from ..errors import InvalidTypeError, InvalidValueError
+from ..errors import InvalidTypeError, InvalidValueError, check_path, writing
 from ..models.altitude import PAPER_PERIOD
 from ..plotting.figures import plot_responses
 from ..simulate.simulation import simulate
@@ -205,7 +205,7 @@ def write_report(out: str | Path = "out", progress: Callable[[str], None] | None
     Report
     """
     say = progress or (lambda _msg: None)
-    out = Path(out)
+    out = check_path("output folder", out)
     out.mkdir(parents=True, exist_ok=True)
     say("Table 1: exact overshoot at each K·Ts")
     rows = tuple(table1())
@@ -222,7 +222,8 @@ def write_report(out: str | Path = "out", progress: Callable[[str], None] | None
     fig = out / "responses.png"
     plot_table1_responses(fig)
     md = out / "table1.md"
-    md.write_text(
+    _write(
+        md,
         "# Table 1: overshoot against delay (P control, Kp = 1.31, ±1 m/s, 1 m step)\n\n"
         + table1_markdown(rows)
         + f"\n\nVerdict: {check.text}.\n\n"
@@ -235,5 +236,11 @@ def write_report(out: str | Path = "out", progress: Callable[[str], None] | None
     js = out / "table1.json"
     rep = Report(out=out, files=(md, js, fig), rows=rows, variants=variants, verdict=check.text,
                  status=check.status, variants_verdict=vcheck)
-    js.write_text(json.dumps(rep.to_dict(), indent=2))
+    _write(js, json.dumps(rep.to_dict(), indent=2))
     return rep
+
+
+def _write(path: Path, text: str) -> None:
+    """Write one file of the report; a failure (the disk full) an OutputError naming it."""
+    with writing("the report file", path):
+        path.write_text(text)

@@ -28,6 +28,7 @@ from typing import Any, Callable
 
 
 from ..design.tuning import filter_analysis
+from ..errors import check_path, writing
 from ..identify.estimation import estimate_lambert, estimate_overshoot, lambert_paper_iterations
 from ..models.altitude import PAPER_PERIOD, AltitudeLoop
 from ..simulate.metrics import SecondOrder
@@ -523,7 +524,7 @@ def reproduce(out: str | Path = "out", progress: Callable[[str, int, int], None]
 
     ``progress(stage, done, total)`` is called before each item.
     """
-    out = Path(out)
+    out = check_path("output folder", out)
     out.mkdir(parents=True, exist_ok=True)
     stages = [("Table 1", lambda: _table1(out)), ("section 5.1.1", _section511), ("section 5.1.2", lambda: _section512(out)),
               ("Table 3 and Fig. 8", lambda: _table3(out)), ("Table 4 and Fig. 9", lambda: _table4(out)),
@@ -536,10 +537,10 @@ def reproduce(out: str | Path = "out", progress: Callable[[str, int, int], None]
     if progress:
         progress("writing", len(stages), len(stages))
     md = out / "report.md"
-    md.write_text(_markdown(items))
     page = out / "index.html"
-    page.write_text(_html(items))
     js = out / "report.json"
     rep = Reproduction(out=out, items=tuple(items), files=(md, page, js, *[f for it in items for f in it.figures]))
-    js.write_text(json.dumps(rep.to_dict(), indent=2))
+    for path, text in ((md, _markdown(items)), (page, _html(items)), (js, json.dumps(rep.to_dict(), indent=2))):
+        with writing("the report file", path):
+            path.write_text(text)
     return rep

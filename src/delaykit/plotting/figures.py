@@ -17,6 +17,7 @@ Examples
 
 from __future__ import annotations
 
+import io
 import textwrap
 from pathlib import Path
 from typing import Any, Sequence
@@ -25,7 +26,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from ..errors import InvalidTypeError, InvalidValueError
+from ..errors import InvalidTypeError, InvalidValueError, check_path, writing
 from ..simulate.simulation import Response
 
 __all__ = ["plot_responses", "plot_spectrum", "plot_z_spectrum", "plot_stability_map", "plot_fit",
@@ -47,10 +48,19 @@ def save_figure(fig: Figure, path: str | Path | None, dpi: int = DPI) -> Figure:
     (True, True)
     """
     if path is not None:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
+        path = check_path("figure", path)
         root = fig if isinstance(fig, Figure) else fig.figure  # axes given on a subfigure: save the whole figure
-        root.savefig(path, dpi=dpi)
+        # drawn in memory, then written: matplotlib's own writing lets a failed write pass (/dev/full: no error)
+        fmt = path.suffix[1:].lower() or None
+        formats = root.canvas.get_supported_filetypes()
+        if fmt is not None and fmt not in formats:
+            raise InvalidValueError(f"the figure {str(path)!r}: {path.suffix!r} is not a figure format; use one of "
+                                    f"{', '.join('.' + f for f in sorted(formats))}")
+        buf = io.BytesIO()
+        root.savefig(buf, format=fmt, dpi=dpi)
+        with writing("the figure", path):
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(buf.getvalue())
     return fig
 
 

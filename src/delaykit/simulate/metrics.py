@@ -243,8 +243,8 @@ def _validate(t: Any, z: Any) -> tuple[np.ndarray, np.ndarray]:
     try:
         t = np.asarray(t, dtype=float)
         z = np.asarray(z, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidValueError(f"times and altitudes must be numbers: {exc}") from exc
+    except (TypeError, ValueError, OverflowError) as exc:  # (an integer of hundreds of digits: OverflowError)
+        raise InvalidValueError(f"times and altitudes must be finite numbers: {exc}") from None
     if t.ndim != 1 or z.ndim != 1 or t.size != z.size:
         raise InvalidValueError(f"t and z must be 1-D of equal length, got shapes {t.shape} and {z.shape}")
     check_finite_array("t", t)
@@ -352,7 +352,11 @@ def step_metrics(
     if zf == z0:
         raise InvalidValueError("the final value equals the initial one; there is no step to measure")
     ta = t[after] - step_time
-    w = (z[after] - z0) / (zf - z0)
+    with np.errstate(over="ignore"):
+        w = (z[after] - z0) / (zf - z0)
+    if not np.all(np.isfinite(w)):  # a step of 1e-320: the response over it is beyond the floats
+        raise InvalidValueError(f"the step from {z0:g} to {zf:g} is too small for the response to be measured "
+                                "against it (the normalised response overflows)")
 
     i = int(np.argmax(w))
     wpeak, tpeak = float(w[i]), float(ta[i])

@@ -79,7 +79,9 @@ class _Workspace:
         nstates = int(row[K.HEAD["n"]])
         t_end, hmax = row[K.HEAD["t_end"]], row[K.HEAD["hmax"]]
         if t_end > 4 * _CAP_MAX * K.GROW * hmax:  # past what the longest pieces could cover: refused before any work
-            self._too_many(row, t_end / (K.GROW * hmax), None)
+            with np.errstate(over="ignore", divide="ignore"):  # (hmax of 1e-308: an infinite count, refused)
+                need = float(t_end / (K.GROW * hmax))
+            self._too_many(row, need, None)
         while True:
             allowed = _jit.budget(nstates)  # pieces the interpreter may run (0: compiled)
             cap = min(self.cap, allowed) if allowed else self.cap
@@ -331,8 +333,14 @@ def simulate(
     norm = 0.0 if isinstance(ref, Ramp) else ref.final_value(t_end)
     knots = ref.knots()
     row = param_row(gen, lay, step=float(knots[1][0]), slope=0.0, norm=norm, t_end=t_end, band=band, dist=dist)
+    with np.errstate(over="ignore", invalid="ignore"):
+        reach = float(np.max(np.abs(ref.value(np.array([0.0, t_end])))))
+    if not math.isfinite(reach):  # a ramp of 1e308 per s: the reference itself is beyond the floats by t_end
+        raise InvalidValueError(f"the reference reaches {reach} by t_end = {t_end:g} s (beyond the floats): give a "
+                                "smaller slope or a shorter run")
     ws = _Workspace(store=True)
-    n = ws.run(row, knots)
+    with np.errstate(over="ignore", invalid="ignore"):  # a response that overflows is an answer (its metrics say
+        n = ws.run(row, knots)                           # inf, as for a diverging loop): no numpy warnings on the way
     out = ws.out
     (tu0, thu, tuc, _, _), (ty0, tyh, tyc, tyd, _) = ws.u, ws.y
     nu = int(out[K.OUT["u_pieces"]])
@@ -426,8 +434,10 @@ def _check_array(name: str, value: Any, minimum: float | None = None, strict: bo
                  maximum: float | None = None, allow_inf: bool = False) -> np.ndarray:
     try:
         arr = np.asarray(value, dtype=float)
+    except OverflowError:  # an integer of hundreds of digits
+        raise InvalidValueError(f"{name} must be finite, got an integer beyond the floats") from None
     except (TypeError, ValueError) as exc:
-        raise InvalidTypeError(f"{name} must be numbers, got {value!r}") from exc
+        raise InvalidTypeError(f"{name} must be numbers, got {value!r:.80}") from exc
     bad = np.isnan(arr) if allow_inf else ~np.isfinite(arr)
     if minimum is not None:
         bad |= (arr <= minimum) if strict else (arr < minimum)

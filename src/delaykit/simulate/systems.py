@@ -248,7 +248,8 @@ def _weights(M: np.ndarray, Bm: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
     v = np.abs(np.take_along_axis(vec, k[..., None, None], axis=-1)[..., 0].real)
     v = v / v.max(axis=-1, keepdims=True)
     v = np.maximum(v, 1e-8)  # (rounding of a vector with positive entries)
-    anorm = ((M @ v[..., None])[..., 0] / v).max(axis=-1)
+    with np.errstate(over="ignore"):  # entries near 1e308: the bound is inf, and the horizon is refused (no pieces)
+        anorm = ((M @ v[..., None])[..., 0] / v).max(axis=-1)
     bw = (Bm.sum(axis=-1) / v).max(axis=-1) if Bm.shape[-1] else np.zeros(M.shape[:-2])
     return anorm, bw, np.ascontiguousarray(1.0 / v)
 
@@ -292,14 +293,15 @@ def _rel_degree(direct: np.ndarray, C: np.ndarray, A: np.ndarray, B: np.ndarray,
     n = A.shape[-1]
     nA, nC, norm = np.maximum(big(A), 1e-300), big(C), big(B)
     P = B.copy()
-    for r in range(1, min(deg, n + 1) + 1):  # (C A^k B for k >= n is a combination of the lower ones)
-        if not P.size or not C.size:
-            break
-        G = C @ P
-        hit = (np.abs(G) > 1e-13 * np.maximum(nC * norm * n, 1e-300)) & (R > r)
-        R[hit] = r
-        P = A @ P
-        norm = norm * nA
+    with np.errstate(over="ignore", invalid="ignore"):  # entries near 1e308: the powers overflow (the horizon
+        for r in range(1, min(deg, n + 1) + 1):  # check refuses such a system); C A^k B, k >= n, adds nothing
+            if not P.size or not C.size:
+                break
+            G = C @ P
+            hit = (np.abs(G) > 1e-13 * np.maximum(nC * norm * n, 1e-300)) & (R > r)
+            R[hit] = r
+            P = A @ P
+            norm = norm * nA
     return R
 
 
@@ -507,7 +509,9 @@ def _check_horizon(red: _Reduced, t_end: float) -> None:
     from ..models import budget  # the module's limit (a test may shrink this module's MAX_PIECES to truncate)
 
     if t_end > 0.0 and math.isfinite(red.hmax):
-        budget.check_count(f"T: a horizon of {t_end:g} s", t_end / red.hmax, budget.MAX_PIECES, "pieces at least",
+        with np.errstate(over="ignore", divide="ignore"):  # (an infinite count is refused as any too large)
+            pieces = float(np.float64(t_end) / red.hmax)
+        budget.check_count(f"T: a horizon of {t_end:g} s", pieces, budget.MAX_PIECES, "pieces at least",
                            f"each piece is at most {red.hmax:.3g} s (the system's fastest time scale); ask for a "
                            "shorter horizon")
 

@@ -38,6 +38,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import reprlib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -45,7 +46,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from .. import _native
-from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_path, check_real
 from ..models.ranges import parse_number
 from ..models.altitude import as_loop
 from ..models.closed_loop import loop_realisation
@@ -75,6 +76,9 @@ def _floats(values: Any, what: str) -> np.ndarray:
     """``values`` as an array of floats, or an :class:`InvalidTypeError` naming ``what`` (text, complex numbers...)."""
     try:
         return np.asarray(values, dtype=float)
+    except OverflowError:  # an integer of hundreds of digits
+        raise InvalidValueError(f"{what} must be finite, got an integer beyond the floats in "
+                                f"{reprlib.repr(values)}") from None
     except (TypeError, ValueError):
         raise InvalidTypeError(f"{what} must be real numbers (seconds), got {values!r}") from None
 
@@ -245,7 +249,7 @@ class Jitter(DelayModel):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731 (frozen dataclass)
         for name in ("base", "spread", "scale"):
             set_(name, check_real(f"{name} (s)", getattr(self, name), minimum=0.0))
-        if self.distribution not in JITTER_DISTRIBUTIONS:
+        if not isinstance(self.distribution, str) or self.distribution not in JITTER_DISTRIBUTIONS:
             raise InvalidValueError(f"distribution must be one of {', '.join(JITTER_DISTRIBUTIONS)}; "
                                     f"got {self.distribution!r}")
         set_("shape", check_real("shape", self.shape, minimum=0.0, strict=True))
@@ -377,7 +381,7 @@ class DelayTrace(DelayModel):
         """
         if unit not in ("s", "ms"):
             raise InvalidValueError(f"unit must be 's' or 'ms', got {unit!r}")
-        name = str(path)
+        name = str(check_path("delay trace", path))
         try:  # (read as identify.flightlog reads a log; this layer may not import it)
             rows = list(csv.reader(io.StringIO(Path(path).read_bytes().decode("utf-8-sig"), newline="")))
         except OSError as exc:

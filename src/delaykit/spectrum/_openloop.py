@@ -190,8 +190,9 @@ class OpenLoop:
     def phase(self, w: np.ndarray, side: float = 0.0) -> np.ndarray:
         """Unwrapped phase (rad) at ``w >= 0``; at a root on the axis, its left (side=-1) or right (+1) limit."""
         w = np.asarray(w, float)
-        return (self.offset + (self.z0 - self.p0) * math.pi / 2 + self.k_term - w * self.T
-                + self._angles(w, self.zparts, side) - self._angles(w, self.pparts, side))
+        with np.errstate(over="ignore", invalid="ignore"):  # w T beyond the floats (a delay of 1e308 s): -inf
+            return (self.offset + (self.z0 - self.p0) * math.pi / 2 + self.k_term - w * self.T
+                    + self._angles(w, self.zparts, side) - self._angles(w, self.pparts, side))
 
     def dphase(self, w: np.ndarray) -> np.ndarray:
         """d(phase)/dw (rad s); roots on the axis contribute only their jumps, which are left out."""
@@ -501,8 +502,9 @@ def scan_phase(ol: OpenLoop, grid: np.ndarray, w_hi: float) -> PhaseScan:
 def snap_half_turns(u: np.ndarray) -> np.ndarray:
     """Phases in half-turns, with values within rounding of an odd integer set to it."""
     u = np.asarray(u, float)
-    near = 2 * np.round((u - 1) / 2) + 1
-    return np.where(np.abs(u - near) <= _LEVEL_TOL * (1 + np.abs(u)), near, u)
+    with np.errstate(over="ignore", invalid="ignore"):  # an infinite phase stays as it is
+        near = 2 * np.round((u - 1) / 2) + 1
+        return np.where(np.abs(u - near) <= _LEVEL_TOL * (1 + np.abs(u)), near, u)
 
 
 def _odd_between(lo: float, hi: float, upper: bool) -> int:
@@ -547,8 +549,11 @@ def dense_grid(ol: OpenLoop, gains: np.ndarray, w_hi: float) -> np.ndarray:
     """The dense grid on ``(0, w_hi]``: logarithmic, plus points over each complex root and the crossovers."""
     r = np.concatenate([ol.zr, ol.pr])
     feats = [x for x in np.abs(r) if x > 0] + list(gains) + ([1.0 / ol.T] if ol.T > 0 else [])
+    if not math.isfinite(w_hi):  # 2 pi / T beyond the floats: a delay of 1e-320 s
+        raise InvalidValueError(f"the delay {ol.T:g} s is too small to scan the phase up to its crossovers (2 pi / "
+                                "delay is beyond the floats): give a delay of 0, or one within the floats' range")
     w_lo = min(min(feats) if feats else 1.0, w_hi) * 1e-3
-    n = max(int(_PER_DECADE * math.log10(w_hi / w_lo)), 2) + 1
+    n = max(int(_PER_DECADE * (math.log10(w_hi) - math.log10(w_lo))), 2) + 1  # (the ratio may overflow: 1/T tiny)
     parts = [np.geomspace(w_lo, w_hi, n)]
     c = r[(r.imag > 0) & (r.real != 0)]
     if c.size:  # 41 points over each complex root, equally spaced in the angle of jw - r

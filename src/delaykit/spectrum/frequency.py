@@ -55,7 +55,7 @@ import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop, as_loop
-from ..models.budget import MAX_FREQUENCY_DECADES, check_count
+from ..models.budget import MAX_FREQUENCY_DECADES, MAX_SAMPLES, check_count
 from ..models.loop import Loop
 from ._openloop import (TWO_PI, OpenLoop, PhaseScan, cutoff_frequency, dense_grid, gain_crossovers, scan_phase,
                         newton_bracketed, snap_half_turns)
@@ -181,7 +181,8 @@ def frequency_grid(loop: Loop | AltitudeLoop | DelayLTI, n: int = 500, *, wmin: 
     """
     sys = _system(loop)
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
-        raise InvalidValueError(f"n (number of frequencies) must be an integer of at least 2, got {n!r}")
+        raise InvalidValueError(f"n (number of frequencies) must be an integer of at least 2, got {n!r:.40}")
+    check_count("frequency_grid", n, MAX_SAMPLES, "frequencies", "give fewer (n)")
     if sys is not None:
         from .system_margins import as_exact_loop, system_frequency_grid
 
@@ -301,7 +302,9 @@ def frequency_response(loop: Loop | AltitudeLoop | DelayLTI, w: Any = None) -> F
         snapped = ang + TWO_PI * np.round((phi - ang) / TWO_PI)
         phase = np.where(np.isfinite(L) & (L != 0), snapped, 0.0 if ol.zero else phi)
         mag_db = 20.0 * np.log10(np.abs(L))
-    return FrequencyResponse(w=w, L=L, magnitude_db=mag_db, phase_deg=np.degrees(phase))
+    with np.errstate(over="ignore"):  # a phase beyond the floats in degrees (w T near 1e308): -inf
+        phase_deg = np.degrees(phase)
+    return FrequencyResponse(w=w, L=L, magnitude_db=mag_db, phase_deg=phase_deg)
 
 
 # --------------------------------------------------------------------------------------------- margins
@@ -656,8 +659,10 @@ def margins(loop: Loop | AltitudeLoop | DelayLTI) -> Margins | tuple[Margins, ..
                                     gain_margin=(1.0 / mag if mag > 0 else math.inf), direction=direction))
     ui = ol.phase_at_infinity() / math.pi
     if ol.l_inf > 0 and (ol.T > 0 or snap_half_turns(np.array([ui]))[0] % 2 == 1):
+        with np.errstate(over="ignore"):  # |L| at infinity of 1e-320: a gain margin beyond the floats, inf
+            gm_inf = float(np.float64(1.0) / ol.l_inf)
         crossovers.append(Crossover("phase", math.inf, ol.l_inf, math.nan if ol.T > 0 else math.degrees(ui * math.pi),
-                                    gain_margin=1.0 / ol.l_inf))
+                                    gain_margin=gm_inf))
     crossovers.sort(key=lambda c: (c.frequency, c.kind))
     ccw = scan.ccw
     l0 = ol.value(np.zeros(1))[0] if ol.integrators <= 0 else math.inf

@@ -249,7 +249,8 @@ def root_bound(q: QuasiPolynomial, re_min: float = 0.0, *, lead: float | None = 
     others = np.zeros(n + 1)
     for p, t in zip(q.polys, q.delays):
         if t > 0:
-            a = np.abs(np.array(p)) * math.exp(-re_min * t)
+            with np.errstate(over="ignore"):  # (coefficients near 1e308: an infinite bound, refused by its users)
+                a = np.abs(np.array(p)) * math.exp(-re_min * t)
             if a.size > n + 1:
                 raise InvalidValueError("an advanced quasi-polynomial has no root bound")
             others[n + 1 - a.size:] += a
@@ -567,7 +568,8 @@ def find_roots(
     scale = max(x1 - x0, y1 - y0)
     margin = 0.05 * scale
     search = (x0 - margin, x1 + margin, y0 - margin, y1 + margin)
-    points = ((search[1] - search[0]) / grid[0] + 3.0) * ((search[3] - search[2]) / grid[1] + 3.0)
+    points = (((search[1] - search[0]) / grid[0] + 3.0) * ((search[3] - search[2]) / grid[1] + 3.0)
+              if grid[0] > 0 and grid[1] > 0 else math.inf)  # (a delay near the largest float: 2 pi / 6 tau is 0)
     check_count(f"the root search in region {tuple(box)} with the delay {taumax:g} s", points, MAX_ROOT_GRID_POINTS,
                 "grid points", "give a smaller region (the grid has some six points per 2 pi / delay along Im)")
     cand = _grid_candidates(ev, search, grid)

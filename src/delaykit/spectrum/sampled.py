@@ -564,8 +564,10 @@ def _response(mdl: SampledModel, w: np.ndarray) -> np.ndarray:
 def _check_frequencies(w: Any, h: float) -> np.ndarray:
     try:
         arr = np.asarray(w, dtype=float)
+    except OverflowError:  # an integer of hundreds of digits
+        raise InvalidValueError("w must be finite frequencies in rad/s, got an integer beyond the floats") from None
     except (TypeError, ValueError):
-        raise InvalidTypeError(f"w must be real frequencies in rad/s, got {w!r}") from None
+        raise InvalidTypeError(f"w must be real frequencies in rad/s, got {w!r:.60}") from None
     if not np.all(np.isfinite(arr)):
         bad = arr[~np.isfinite(arr)].ravel()[0]
         raise InvalidValueError(f"w must be finite frequencies in rad/s, got {bad!r}")

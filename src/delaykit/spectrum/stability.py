@@ -496,8 +496,32 @@ def right_half_plane_count(q: QuasiPolynomial, *, radius: float | None = None) -
     return _rhp_count(*_arrays(q), radius=radius)
 
 
+def _bound_underflows(C: np.ndarray, tau: np.ndarray) -> bool:
+    """True when the kernel's root bound at ``x = 0`` (``RK.bound``) would divide by a power of its bisection point
+    that underflows to 0 (coefficients below the leading one by hundreds of decades, 1e-300·s·exp(-s T) on s²):
+    its Fujiwara start ``hi``, halved 60 times and raised to the degree, is 0.  The kernel's error would be
+    printed and lost, and its bound meaningless; the caller counts another way."""
+    fixed = tau == 0.0
+    p0 = np.abs(C[fixed].sum(axis=0))
+    oth = np.abs(C[~fixed]).sum(axis=0)
+    nz = np.flatnonzero(p0)
+    if not nz.size or nz[0] == C.shape[1] - 1 or oth[:nz[0]].any():
+        return False  # no bound at all (the kernel says so without dividing)
+    k0 = int(nz[0])
+    lead = p0[k0] - oth[k0]
+    if not lead > 0.0:
+        return False
+    rest = (p0 + oth)[k0 + 1:]
+    ks = np.arange(1, rest.size + 1)
+    with np.errstate(all="ignore"):
+        hi = float(np.max(2.0 * (rest / lead) ** (1.0 / ks)))
+    return 0.0 < hi < 1.0 and (hi * 2.0 ** -61) ** rest.size == 0.0
+
+
 def _rhp_count(C: np.ndarray, tau: np.ndarray, radius: float | None = None) -> int | None:
     """:func:`right_half_plane_count` on the root finder's arrays (:func:`_arrays`)."""
+    if radius is None and _bound_underflows(C, tau):
+        return None
     R = RK.bound(C, tau, 0.0) if radius is None else float(radius)
     if R < 0.0:
         return None

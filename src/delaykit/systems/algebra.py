@@ -398,8 +398,8 @@ def feedback(sys1: Any, sys2: Any = 1, sign: int = -1) -> DelayLTI:
     >>> bool(abs(T.frequency_response([1.0]).response[0, 0, 0] - g / (1 + g)) < 1e-14)
     True
     """
-    if isinstance(sign, bool) or sign not in (1, -1):
-        raise InvalidValueError(f"sign must be -1 (negative feedback) or +1, got {plain(sign)!r}")
+    if isinstance(sign, bool) or not isinstance(sign, numbers.Real) or sign not in (1, -1):
+        raise InvalidValueError(f"sign must be -1 (negative feedback) or +1, got {plain(sign)!r:.60}")
     sys1 = as_system(sys1, "forward path")
     # feedback(L, 1): the return path's gain made once (times the identity for MIMO); other numbers as before
     number = (type(sys2) is float and math.isfinite(sys2)) or (type(sys2) is int and abs(sys2) <= 2 ** 53)
@@ -475,15 +475,24 @@ def summing_junction(inputs: Sequence[str], output: str, *, name: str = "") -> D
     --------
     >>> summing_junction(["r", "-y"], "e").D11.tolist()
     [[1.0, -1.0]]
+    >>> summing_junction(["r", "--y"], "e")
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.InvalidValueError: summing_junction: input '--y' must be a name with one sign at most (e, +e, -e)
     """
     if isinstance(inputs, str) or not isinstance(inputs, Sequence) or not inputs:
         raise InvalidTypeError(f"summing_junction: inputs must be a non-empty list of names, got {inputs!r}")
     signs, names = [], []
     for x in inputs:
-        if not isinstance(x, str) or not x.lstrip("-+"):
+        if not isinstance(x, str):
             raise InvalidTypeError(f"summing_junction: every input must be a name, optionally '-name', got {x!r}")
-        signs.append(-1.0 if x.startswith("-") else 1.0)
-        names.append(x.lstrip("-+").strip())
+        term = x.strip()
+        sign = term[:1] if term[:1] in ("-", "+") else ""
+        name_ = term[len(sign):].strip()
+        if not name_ or name_[0] in "-+":  # '--r', '+-y': one sign at most, never read as a product of signs
+            raise InvalidValueError(f"summing_junction: input {x!r} must be a name with one sign at most (e, +e, -e)")
+        signs.append(-1.0 if sign == "-" else 1.0)
+        names.append(name_)
     return gain(np.array([signs]), inputs=names, outputs=[output], name=name)
 
 
@@ -525,8 +534,12 @@ def interconnect(blocks: Sequence[Any], inputs: Sequence[str], outputs: Sequence
     if isinstance(blocks, DelayLTI) or not isinstance(blocks, Sequence) or not blocks:
         raise InvalidTypeError("interconnect: blocks must be a non-empty list of systems")
     bl = [as_system(b, f"block {k}") for k, b in enumerate(blocks)]
-    ext_in = [inputs] if isinstance(inputs, str) else list(inputs)
-    ext_out = [outputs] if isinstance(outputs, str) else list(outputs)
+    try:
+        ext_in = [inputs] if isinstance(inputs, str) else list(inputs)
+        ext_out = [outputs] if isinstance(outputs, str) else list(outputs)
+    except TypeError:
+        raise InvalidTypeError(f"interconnect: inputs and outputs must be names or lists of names, got "
+                               f"{reprlib.repr(inputs)} and {reprlib.repr(outputs)}") from None
     for label, names in (("inputs", ext_in), ("outputs", ext_out)):
         if any(not isinstance(x, str) for x in names):
             raise InvalidTypeError(f"interconnect: {label} must be names, got {names!r}")

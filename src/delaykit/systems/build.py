@@ -25,8 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
-from ..models.interop import require_control
+from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..models.interop import check_pade_order, require_control
 from ..models.transfer import TransferFunction, check_control_system
 from .algebra import _closed, _partitions, _stack, feedback, gain, interconnect, summing_junction
 from .laplace import LaplaceExpression, exp, laplace_variable, parse_expression
@@ -352,25 +352,68 @@ def ss(A: Any, B: Any, C: Any, D: Any = None, *, inputs: Any = None, outputs: An
     for k, v in zip("ABCD", args):
         if _holds_bool(v):  # numpy would read True as 1.0; a bool is no number (as the algebra's gains say)
             raise InvalidTypeError(f"ss: {k} holds a bool ({reprlib.repr(v)}); write the numbers 1 or 0")
+    for k, v in zip("ABC", args):
+        if v is None:
+            raise InvalidTypeError(f"ss: {k} must be a real matrix, got None")
     try:
-        A = np.atleast_2d(np.array(A, dtype=float)) if np.size(A) else np.zeros((0, 0))
-        n = A.shape[0]
-        B = np.array(B, dtype=float).reshape(n, -1) if n else np.zeros((0, 0))
-        C = np.array(C, dtype=float).reshape(-1, n) if n else np.zeros((0, 0))
-        if D is None:
-            D = np.zeros((C.shape[0], B.shape[1]))
-        D = np.atleast_2d(np.array(D, dtype=float))
+        A, B, C = (_ss_array(k, v) for k, v in zip("ABC", args))
+        D = None if D is None else _ss_array("D", D)
     except OverflowError:  # an integer beyond the floats (10**400)
         bad = next(k for k, v in zip("ABCD", args) if _overflows(v))
         raise InvalidValueError(f"ss: the entries of {bad} must be finite, got an integer beyond the floats in "
                                 f"{bad} = {reprlib.repr(args['ABCD'.index(bad)])}") from None
-    except (TypeError, ValueError) as exc:
-        raise InvalidValueError(f"ss: A, B, C must be real matrices of matching sizes ({exc})") from None
+    A = np.atleast_2d(A) if A.size else np.zeros((0, 0))  # (a 1-D A is a row, as python-control reads it)
+    if A.ndim != 2 or A.shape[0] != A.shape[1]:
+        raise InvalidValueError(f"ss: A must be a square matrix, got shape {A.shape}")
+    n = A.shape[0]
+    # python-control's shapes: B has n rows (a 1-D B is one column), C has n columns (a 1-D C is one row); a scalar
+    # only for one state.  Nothing is reshaped to fit: a B of 2 rows for 1 state is an error, not 2 inputs.
+    B = _ss_shape("B", B, n, "rows", lambda a: a.reshape(-1, 1) if a.ndim == 1 else a.reshape(1, 1))
+    C = _ss_shape("C", C, n, "columns", lambda a: a.reshape(1, -1) if a.ndim == 1 else a.reshape(1, 1))
+    ny, nu = C.shape[0], B.shape[1]
+    if n == 0 and (D is None or not D.size):
+        raise InvalidValueError("ss: a system without states needs D, its matrix of gains (not empty)")
+    if D is None or D.ndim == 0 and not D.any() and D.size:
+        D = np.zeros((ny, nu))  # D = 0: zeros of the size B and C give (as python-control)
     if n == 0:
+        D = np.atleast_2d(D)
+        if D.ndim != 2:
+            raise InvalidValueError(f"ss: D must be a matrix, got shape {D.shape}")
         return DelayLTI(D11=D, inputs=inputs, outputs=outputs, name=name)
-    if D.size == 1 and (C.shape[0], B.shape[1]) != (1, 1) and not D.any():
-        D = np.zeros((C.shape[0], B.shape[1]))
+    if D.ndim < 2 and D.size == ny * nu and (ny == 1 or nu == 1):
+        D = D.reshape(ny, nu)  # a scalar or 1-D D for one input or one output
+    if D.shape != (ny, nu):
+        raise InvalidValueError(f"ss: D must have shape ({ny}, {nu}) (outputs of C, inputs of B), got {D.shape}")
     return DelayLTI(A=A, B1=B, C1=C, D11=D, inputs=inputs, outputs=outputs, name=name)
+
+
+def _ss_array(key: str, value: Any) -> np.ndarray:
+    """One of ss's matrices as a float array: complex values and anything that is not numbers refused."""
+    try:
+        arr = np.asarray(value)
+        if arr.dtype.kind == "c" or arr.dtype == object and any(isinstance(x, complex) for x in arr.ravel()):
+            raise InvalidTypeError(f"ss: {key} must be a real matrix, got complex entries in {reprlib.repr(value)}")
+        return np.array(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, InvalidTypeError):
+            raise
+        raise InvalidTypeError(f"ss: {key} must be a real matrix (rows of numbers), got {reprlib.repr(value)}"
+                               ) from None
+
+
+def _ss_shape(key: str, arr: np.ndarray, n: int, side: str, reshape: Any) -> np.ndarray:
+    """``arr`` (B or C) with ``n`` rows (``side = "rows"``) or columns, as python-control reads it."""
+    if n == 0:
+        if arr.size:
+            raise InvalidValueError(f"ss: A has no states, so {key} must be empty, got shape {arr.shape}")
+        return np.zeros((0, 0))
+    if arr.ndim == 1 and arr.size == n or arr.ndim == 0 and n == 1:
+        arr = reshape(arr)
+    k = 0 if side == "rows" else 1
+    if arr.ndim != 2 or arr.shape[k] != n:
+        raise InvalidValueError(f"ss: {key} must have {n} {side[:-1] if n == 1 else side} (A has {n} "
+                                f"state{'s' * (n != 1)}), got shape {arr.shape}")
+    return arr
 
 
 def _holds_bool(value: Any) -> bool:
@@ -464,8 +507,7 @@ def to_control(sys: DelayLTI, pade_order: int | None = None) -> Any:
         raise InvalidValueError(f"the system has delays {list(sys.delays)} s, which python-control cannot represent "
                                 "exactly: give pade_order=n for an n-th order Padé approximation of each")
     if live:
-        if isinstance(pade_order, bool) or not isinstance(pade_order, numbers.Integral) or pade_order < 1:
-            raise InvalidValueError(f"pade_order must be an integer of at least 1, got {plain(pade_order)!r}")
+        pade_order = check_pade_order(pade_order)
     if sys.ndelays:  # every channel closed over its Padé approximant (a zero delay closed as it is)
         sys = pade(sys, int(pade_order) if live else 1)
     return control.ss(sys.A, sys.B1, sys.C1, sys.D11, inputs=list(sys.inputs), outputs=list(sys.outputs))

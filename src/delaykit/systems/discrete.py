@@ -207,6 +207,7 @@ def c2d(sys: DelayLTI, period: float, *, thiran_order: int | None = None) -> Dis
         raise InvalidValueError(f"the channels {list(sys.saturations)} saturate: c2d samples linear systems only; "
                                 "discretise sys.without_limits() for the small-signal system")
     if thiran_order is not None:
+        _check_size(sys, h, sum(t / h for t in sys.delays))
         return _thiran_c2d(sys, h, thiran_order)
     internal = [j for j in range(sys.ndelays) if sys.C2[j].any() or sys.D22[j].any()]
     if internal:
@@ -215,6 +216,7 @@ def c2d(sys: DelayLTI, period: float, *, thiran_order: int | None = None) -> Dis
                                 "loop has no finite exact zero-order-hold discretisation; give thiran_order=N for an "
                                 "approximation, or discretise the open-loop blocks and close the loop in discrete time")
     n, nu, ny = sys.nstates, sys.ninputs, sys.noutputs
+    _check_size(sys, h, max([t / h for t in sys.delays], default=0.0) * nu)
     splits = [split_delay(t, h) for t in sys.delays]
     M = max([m + (1 if f > 0 else 0) for m, f in splits], default=0)
     # state: [x; u[k-1]; ...; u[k-M]]
@@ -260,6 +262,21 @@ def c2d(sys: DelayLTI, period: float, *, thiran_order: int | None = None) -> Dis
         mat.setflags(write=False)
     return DiscreteLTI(Ad, Bd, Cd, Dd, h, sys.inputs, sys.outputs)
 
+
+
+MAX_STATES = 5000
+"""The most states :func:`c2d` makes (the system's own and one per input per period of delay): a dense matrix of
+5000 x 5000 floats is 200 MB."""
+
+
+def _check_size(sys: DelayLTI, h: float, delay_states: float) -> None:
+    """Refuse, before any work, a discretisation with more than :data:`MAX_STATES` states (``delay_states``, a
+    float, the states the delays need: a delay of 1e100 s sampled every 0.1 s would need 1e101)."""
+    need = sys.nstates + delay_states
+    if not need <= MAX_STATES:
+        longest = max(sys.delays)
+        raise InvalidValueError(f"c2d: the delay {longest:g} s sampled every {h:g} s needs {need:.3g} states (at most "
+                                f"{MAX_STATES}): sample more slowly, or leave the delay continuous")
 
 
 def thiran_coefficients(D: float, order: int) -> tuple[np.ndarray, np.ndarray]:

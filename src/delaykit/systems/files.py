@@ -71,7 +71,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..errors import InvalidValueError
+from ..errors import InvalidValueError, check_path
 from ..models.loop import read_toml
 from .algebra import interconnect, summing_junction
 from .build import delay, saturation, ss, tf
@@ -143,10 +143,15 @@ def _names(source: str, where: str, value: Any, *, required: bool = True) -> lis
 
 def _number(source: str, where: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InvalidValueError(_where(source, f"{where} must be a number, got {value!r}"))
-    if not math.isfinite(value):
+        raise InvalidValueError(_where(source, f"{where} must be a number, got {value!r:.60}"))
+    try:
+        x = float(value)  # an integer of 400 digits: beyond the floats
+    except OverflowError:
+        raise InvalidValueError(_where(source, f"{where} must be finite, got an integer of "
+                                               f"{len(str(abs(value)))} digits")) from None
+    if not math.isfinite(x):
         raise InvalidValueError(_where(source, f"{where} must be finite, got {value!r}"))
-    return float(value)
+    return x
 
 
 def _matrix(source: str, where: str, value: Any) -> list[list[float]]:
@@ -220,10 +225,10 @@ def _limits(source: str, where: str, value: Any) -> tuple[float, float]:
         raise InvalidValueError(_where(source, f"{where}: saturation must be [lower, upper] or a table with lower "
                                                f"and/or upper, got {value!r}"))
     for x in pair:
-        if isinstance(x, bool) or not isinstance(x, (int, float)) or math.isnan(x):
+        if isinstance(x, bool) or not isinstance(x, (int, float)) or isinstance(x, float) and math.isnan(x):
             raise InvalidValueError(_where(source, f"{where}: saturation limits must be numbers (inf for no "
-                                                   f"limit), got {x!r}"))
-    lo, hi = float(pair[0]), float(pair[1])
+                                                   f"limit), got {x!r:.60}"))
+    lo, hi = (x if isinstance(x, float) else _number(source, f"{where}: saturation limit", x) for x in pair)
     if not (lo <= 0.0 <= hi and lo < hi):
         raise InvalidValueError(_where(source, f"{where}: saturation must have lower <= 0 <= upper and lower < "
                                                f"upper (rest inside the limits), got [{lo:g}, {hi:g}]"))
@@ -323,7 +328,7 @@ def read_system_file(path: str | Path) -> SystemFile:
     --------
     See the module's.
     """
-    data = read_toml(path, "system file", max_bytes=_MAX_BYTES)
+    data = read_toml(check_path("system file", path), "system file", max_bytes=_MAX_BYTES)
     return system_from_dict(data, source=str(path))
 
 

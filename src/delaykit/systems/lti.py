@@ -58,6 +58,9 @@ def _real(name: str, value: Any) -> np.ndarray:
         if np.asarray(value).dtype.kind == "c":
             raise TypeError("complex")
         return np.array(value, dtype=float)
+    except OverflowError:  # an integer of hundreds of digits
+        raise InvalidValueError(f"{name} must be finite, got an integer beyond the floats in "
+                                f"{reprlib.repr(value)}") from None
     except (TypeError, ValueError) as exc:
         raise InvalidTypeError(f"{name} must be a real matrix, got {reprlib.repr(value)}") from exc
 
@@ -139,7 +142,11 @@ def _check_limits(limits: Any, m: int) -> tuple[tuple[float, float], ...]:
         hi = math.inf if hi is None else hi
         if any(isinstance(x, (bool, np.bool_)) or not isinstance(x, numbers.Real) for x in (lo, hi)):
             raise InvalidTypeError(f"the limits of channel {j} must be numbers, got ({lo!r}, {hi!r})")
-        lo, hi = float(lo), float(hi)
+        try:
+            lo, hi = float(lo), float(hi)
+        except OverflowError:  # an integer of hundreds of digits (inf, or None, is no limit)
+            raise InvalidValueError(f"the limits of channel {j} must be floats (inf or None for no limit), got an "
+                                    "integer beyond them") from None
         if math.isnan(lo) or math.isnan(hi) or not (lo <= 0.0 <= hi and lo < hi):
             raise InvalidValueError(f"the limits of channel {j} must satisfy lower <= 0 <= upper and lower < upper "
                                     f"(the origin at rest inside them), got ({lo:g}, {hi:g})")
@@ -411,10 +418,7 @@ class DelayLTI:
         >>> complex(tf("exp(-2*s)/(s+1)").evaluate([1.0])[0, 0, 0]).real.__round__(6)
         0.067668
         """
-        try:
-            s = np.atleast_1d(np.asarray(s, dtype=complex)).ravel()
-        except (TypeError, ValueError) as exc:
-            raise InvalidTypeError(f"a system is evaluated at numbers, got {reprlib.repr(s)}") from exc
+        s = _points(s)
         n, nu, ny, m = self.nstates, self.ninputs, self.noutputs, self.ndelays
         N = s.size
         # the states and the delayed signals at once: [[sI - A, -B2], [-E C2, I - E D22]] [x; w] = [B1; E D21] u,
@@ -501,9 +505,15 @@ class DelayLTI:
         if m > _MAX_CHANNELS:
             raise InvalidValueError(f"the characteristic function of {m} delay channels has 2^{m} terms; at most "
                                     f"{_MAX_CHANNELS} channels are supported")
-        eig = np.linalg.eigvals(self.A) if n else np.zeros(0)
-        mags = np.abs(eig[eig != 0])
-        radius = float(np.exp(np.mean(np.log(mags)))) if mags.size else 1.0  # balances the coefficients' sizes
+        overflow = InvalidValueError("the characteristic function overflows the floats (the system's matrices, A up "
+                                     f"to {float(np.max(np.abs(self.A), initial=0.0)):g}, are too large for its "
+                                     "determinant): rescale the system's units")
+        with np.errstate(all="ignore"):  # (checked just below)
+            eig = np.linalg.eigvals(self.A) if n else np.zeros(0)
+            mags = np.abs(eig[eig != 0])
+            radius = float(np.exp(np.mean(np.log(mags)))) if mags.size else 1.0  # balances the coefficients' sizes
+        if not (math.isfinite(radius) and radius > 0):
+            raise overflow
         k = np.arange(n + 1)
         pts = radius * np.exp(2j * np.pi * k / (n + 1))
         terms = []
@@ -516,7 +526,10 @@ class DelayLTI:
             G = np.vstack([top, bottom])
             F = np.zeros_like(G)
             F[:n, :n] = np.eye(n)
-            vals = np.array([np.linalg.det(p * F + G) for p in pts])
+            with np.errstate(all="ignore"):  # (checked just below)
+                vals = np.array([np.linalg.det(p * F + G) for p in pts])
+            if not np.all(np.isfinite(vals)):
+                raise overflow
             terms.append((np.fft.fft(vals).real / (n + 1), sum(self.delays[j] for j in S)))
         # coefficients at rounding level of the largest (scaled) one are noise of the interpolation
         big = max(float(np.max(np.abs(c))) for c, _ in terms)
@@ -791,7 +804,7 @@ _FLOAT = np.dtype(float)
 def _is_numeric(x: Any) -> bool:
     try:
         np.asarray(x, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # (an integer beyond the floats: refused by _real)
         return False
     return True
 
@@ -810,6 +823,22 @@ def _rows(cname: str, c: Any, dname: str, d: Any, n: int) -> int:
         if v is not None and _is_numeric(v) and np.ndim(v) == 2:
             return int(np.shape(v)[0])
     return 0
+
+
+def _points(s: Any) -> np.ndarray:
+    """``s`` as a flat complex array of finite points; text, None, bools, nan and infinity refused by name."""
+    try:
+        arr = np.asarray(s)
+        if arr.dtype.kind not in "iufc" or arr.dtype == object:
+            raise TypeError(arr.dtype)
+        arr = np.atleast_1d(arr.astype(complex)).ravel()
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidTypeError(f"a system is evaluated at complex numbers, got {reprlib.repr(s)}") from None
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise InvalidValueError(f"a system is evaluated at finite points s, got s[{int(bad[0])}] = "
+                                f"{complex(arr[bad[0]])!r}")
+    return arr
 
 
 def _solve(M: np.ndarray, B: np.ndarray) -> np.ndarray:

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
-from ..models.interop import PadeError, _order, pade_coefficients
+from ..models.interop import PadeError, check_pade_order, pade_coefficients
 from ..models.transfer import TransferFunction
 from .algebra import append, close, gain
 from .lti import DelayLTI, as_frequencies
@@ -44,8 +44,8 @@ __all__ = ["pade", "pade_error"]
 
 
 def _check_order(order: Any) -> int:
-    """An order of at least 1, or an error naming ``order``."""
-    return _order(plain(order), "order")
+    """An order from 1 to :data:`~delaykit.models.interop.MAX_PADE_ORDER`, or an error naming ``order``."""
+    return check_pade_order(plain(order), "order")
 
 
 def _block(T: float, order: int) -> DelayLTI:
