@@ -95,3 +95,15 @@ def test_identified_model_title_is_one_line():
     title = fig.axes[0].get_title()
     assert "\n" not in title and "±" not in title
     assert title.startswith("fopdt: gain 2, time constant 10 s, delay 3 s")
+
+
+def test_a_sum_with_a_delay_keeps_its_phase_falling_between_sparse_frequencies():
+    """frequency_response of exp(-s)/(s+1) + 0.5/(s+2) (not one rational function times one delay) at two
+    frequencies 6 decades apart: the phase at 1e3 rad/s is -w - atan(w) + arg(1 + 0.5 (jw+1)/(jw+2) exp(jw)) (closed
+    form), thousands of degrees below what unwrapping the two given points alone gives."""
+    from delaykit import tf
+
+    w = 1e3
+    ref = np.degrees(-w - np.arctan(w) + np.angle(1 + 0.5 * (1j * w + 1) / (1j * w + 2) * np.exp(1j * w)))
+    r = frequency_response(tf("exp(-s)/(s+1)") + tf("0.5/(s+2)"), [1e-3, w])
+    assert r.phase_deg[1] == pytest.approx(ref, abs=1e-6)
