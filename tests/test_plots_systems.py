@@ -107,3 +107,168 @@ def test_a_sum_with_a_delay_keeps_its_phase_falling_between_sparse_frequencies()
     ref = np.degrees(-w - np.arctan(w) + np.angle(1 + 0.5 * (1j * w + 1) / (1j * w + 2) * np.exp(1j * w)))
     r = frequency_response(tf("exp(-s)/(s+1)") + tf("0.5/(s+2)"), [1e-3, w])
     assert r.phase_deg[1] == pytest.approx(ref, abs=1e-6)
+
+
+# ---- plots of any system ---------------------------------------------------------------------------------------
+
+def _wood_berry():
+    from delaykit import tf
+
+    return tf([["12.8*exp(-s)/(16.7*s+1)", "-18.9*exp(-3*s)/(21*s+1)"],
+               ["6.6*exp(-7*s)/(10.9*s+1)", "-19.4*exp(-3*s)/(14.4*s+1)"]],
+              inputs=["R", "S"], outputs=["xD", "xB"], name="Wood-Berry")
+
+
+def _wood_berry_closed_form(w):
+    """Wood and Berry's G(jw) written out by hand (numpy only), shaped (len(w), 2, 2)."""
+    s = 1j * np.asarray(w, float)
+    return np.stack([np.stack([12.8 * np.exp(-s) / (16.7 * s + 1), -18.9 * np.exp(-3 * s) / (21 * s + 1)], -1),
+                     np.stack([6.6 * np.exp(-7 * s) / (10.9 * s + 1), -19.4 * np.exp(-3 * s) / (14.4 * s + 1)], -1)],
+                    -2)
+
+
+def test_bode_phase_of_a_delay_is_exact_over_many_decades_on_a_sparse_grid():
+    """exp(-s)/(s+1) on 6 points over 5 decades: the plotted phase is -w - atan(w) in degrees at each, unwrapped
+    (no Padé, no unwrapping between points 10 times apart), -57386 degrees at 1e3 rad/s."""
+    from delaykit import tf
+    from delaykit.plotting import bode_plot
+
+    w = np.geomspace(1e-2, 1e3, 6)
+    fig = bode_plot(tf("exp(-s)/(s+1)"), w)
+    ax_mag, ax_ph = fig.axes
+    assert np.allclose(ax_ph.lines[0].get_ydata(), np.degrees(-w - np.arctan(w)), rtol=0, atol=1e-8)
+    assert np.allclose(ax_mag.lines[0].get_ydata(), -10 * np.log10(1 + w ** 2), rtol=0, atol=1e-10)
+    assert "dB" in ax_mag.get_ylabel() and "deg" in ax_ph.get_ylabel() and "rad/s" in ax_ph.get_xlabel()
+
+
+def test_bode_of_a_mimo_system_draws_each_element_exactly():
+    """Wood-Berry's 2 x 2: panels titled by input, labelled by output; element (xB, R) = 6.6 exp(-7s)/(10.9s+1)
+    against its closed form: magnitude, and phase -7w - atan(10.9w) unwrapped to 10 rad/s (-4100 degrees)."""
+    from delaykit.plotting import bode_plot
+
+    w = np.geomspace(1e-3, 10.0, 50)
+    fig = bode_plot(_wood_berry(), w)
+    assert len(fig.axes) == 8
+    grid = np.array(fig.axes).reshape(4, 2)
+    assert [a.get_title() for a in grid[0]] == ["from R", "from S"]
+    assert grid[0, 0].get_ylabel().startswith("to xD") and grid[2, 0].get_ylabel().startswith("to xB")
+    H = _wood_berry_closed_form(w)
+    for i in range(2):
+        for j in range(2):
+            assert np.allclose(grid[2 * i, j].lines[0].get_ydata(), 20 * np.log10(np.abs(H[:, i, j])), atol=1e-9)
+    assert np.allclose(grid[3, 0].lines[0].get_ydata(), np.degrees(-7 * w - np.arctan(10.9 * w)), atol=1e-8)
+    ph = grid[1, 1].lines[0].get_ydata()  # -18.9 exp(-3s)/(21s+1): -180 - 3w - atan(21w) modulo 360, continuous
+    d = (ph - np.degrees(-np.pi - 3 * w - np.arctan(21 * w))) / 360.0
+    assert np.allclose(d, np.round(d[0]), atol=1e-9)
+
+
+def test_bode_margins_of_a_system_loop():
+    """bode_plot(L, margins=True) marks the margins that margins(L) gives, at its crossovers."""
+    from delaykit import tf
+    from delaykit.plotting import bode_plot
+
+    L = tf("2*exp(-0.5*s)/(s+1)")
+    m = margins(L)
+    fig = bode_plot(L, margins=True)
+    xs = sorted({float(line.get_xdata()[0]) for line in fig.axes[1].lines[1:] if len(set(line.get_xdata())) == 1})
+    assert np.allclose(xs, sorted([m.crossover, m.phase_crossover]))
+    assert any(t.get_text().startswith(f"PM {m.phase_margin:.1f}") for t in fig.axes[1].texts)
+
+
+def test_nyquist_plot_counts_encirclements_and_draws_the_ms_circle():
+    """exp(-2s)/s closes into 2 unstable poles (Lambert: s exp(2s) = -1 has W_0 and W_-1 right of the axis):
+    the title gives Z = 2; exp(-0.5s)/s is stable and its circle has radius 1/Ms of margins()."""
+    from delaykit import tf
+    from delaykit.plotting import nyquist_plot
+
+    fig = nyquist_plot(tf("exp(-2*s)/s"))
+    assert "Z = P - N = 2 (UNSTABLE)" in fig.axes[0].get_title()
+    L = tf("exp(-0.5*s)/s")
+    fig = nyquist_plot(L)
+    a = fig.axes[0]
+    assert a.get_title() == "N = 0 encirclements of -1, P = 0: Z = P - N = 0 (stable)"
+    circle = [line for line in a.lines if line.get_label().startswith("|1 + L|")]
+    assert len(circle) == 1
+    xy = circle[0].get_xydata()
+    assert np.allclose(np.hypot(xy[:, 0] + 1, xy[:, 1]), 1 / margins(L).ms)
+    lo, hi = a.get_xlim()
+    assert lo < -1 - 1 / margins(L).ms and hi > 0
+    with pytest.raises(InvalidValueError, match="SISO"):
+        nyquist_plot(_wood_berry())
+
+
+def test_sigma_plot_against_numpys_svd_of_the_closed_form():
+    from delaykit.plotting import sigma_plot
+
+    w = np.geomspace(1e-3, 10.0, 40)
+    fig = sigma_plot(_wood_berry(), w)
+    sv = np.linalg.svd(_wood_berry_closed_form(w), compute_uv=False)
+    lines = fig.axes[0].lines
+    assert [line.get_label() for line in lines[:2]] == ["σ1", "σ2"]
+    for k in range(2):
+        assert np.allclose(lines[k].get_ydata(), 20 * np.log10(sv[:, k]), atol=1e-9)
+
+
+def test_nichols_plot_exact_phase_and_critical_points():
+    """exp(-s)/(s+1): x is -w - atan(w) in degrees, y -10 log10(1 + w^2); the critical points (-180 + 360k, 0) in
+    the range are marked."""
+    from delaykit import tf
+    from delaykit.plotting import nichols_plot
+
+    w = np.array([0.1, 1.0, 10.0, 100.0])
+    a = nichols_plot(tf("exp(-s)/(s+1)"), w).axes[0]
+    xy = a.lines[0].get_xydata()
+    assert np.allclose(xy[:, 0], np.degrees(-w - np.arctan(w)), atol=1e-8)
+    assert np.allclose(xy[:, 1], -10 * np.log10(1 + w ** 2), atol=1e-10)
+    crit = [line for line in a.lines if line.get_label() == "critical points"][0].get_xdata()
+    lo = np.degrees(-100 - np.arctan(100))
+    assert sorted(crit) == [-180.0 + 360.0 * k for k in range(int(np.ceil((lo + 180) / 360)), 1)]
+
+
+def test_step_grid_titles_by_signal_names_and_draws_the_exact_steps():
+    """A 1 x 2 system: panels "from a", "from b", "to y"; exp(-s)/(s+1)'s step is 1 - exp(-(t - 1)) after t = 1."""
+    from delaykit import tf
+    from delaykit.plotting import step_grid
+
+    t = np.linspace(0.0, 5.0, 11)
+    fig = step_grid(tf([["exp(-s)/(s+1)", "0.5/(2*s+1)"]], inputs=["a", "b"], outputs="y"), t)
+    a, b = fig.axes
+    assert (a.get_title(), b.get_title(), a.get_ylabel(), a.get_xlabel()) == ("from a", "from b", "to y", "time (s)")
+    assert np.allclose(a.lines[0].get_ydata(), np.where(t > 1, 1 - np.exp(-(t - 1)), 0.0), atol=1e-12)
+    assert np.allclose(b.lines[0].get_ydata(), 0.5 * (1 - np.exp(-t / 2)), atol=1e-12)
+
+
+def test_pole_map_draws_certified_poles_region_and_neutral_lines():
+    """feedback(exp(-0.5s)/s, 1): the rightmost poles are W_0(-0.5)/0.5 and its conjugate (Lambert W, scipy);
+    feedback(1/(s+1) + 0.6 exp(-0.5s), 1) is neutral: its root chains approach Re s = 2 ln 0.6 (1 + 0.6 exp(-s/2) = 0)."""
+    from scipy.special import lambertw
+
+    from delaykit import feedback, tf
+    from delaykit.plotting import pole_map
+
+    fig = pole_map(feedback(tf("exp(-0.5*s)/s"), 1))
+    a = fig.axes[0]
+    pts = a.lines[0].get_xydata()
+    s0 = complex(lambertw(-0.5, 0)) / 0.5
+    assert np.min(np.abs(pts[:, 0] + 1j * pts[:, 1] - s0)) < 1e-8
+    assert np.min(np.abs(pts[:, 0] + 1j * pts[:, 1] - np.conj(s0))) < 1e-8
+    assert "certified" in a.get_title() and "NOT" not in a.get_title()
+    region = [line for line in a.lines if line.get_label() == "region searched"]
+    assert len(region) == 1
+    fig = pole_map(feedback(tf("1/(s+1)") + tf("0.6*exp(-0.5*s)"), 1), (-3.0, 1.0, 0.0, 30.0))
+    lines = [line for line in fig.axes[0].lines if line.get_label() == "neutral root chains"]
+    assert len(lines) == 1 and lines[0].get_xdata()[0] == pytest.approx(2 * np.log(0.6), abs=1e-6)
+
+
+def test_plots_refuse_what_they_cannot_draw():
+    from delaykit import InvalidTypeError
+    from delaykit.plotting import bode_plot, pole_map, step_grid
+
+    with pytest.raises(InvalidTypeError, match="DelayLTI"):
+        bode_plot("exp(-s)/(s+1)")
+    with pytest.raises(InvalidTypeError, match="DelayLTI"):
+        step_grid([1.0, 2.0])
+    with pytest.raises(InvalidTypeError, match="Spectrum"):
+        pole_map(3.0)
+    with pytest.raises(InvalidValueError, match="margins"):
+        bode_plot(_wood_berry(), margins=True)
