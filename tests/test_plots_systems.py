@@ -272,3 +272,30 @@ def test_plots_refuse_what_they_cannot_draw():
         pole_map(3.0)
     with pytest.raises(InvalidValueError, match="margins"):
         bode_plot(_wood_berry(), margins=True)
+
+
+# ---- --plot with --system on the command line ------------------------------------------------------------------
+
+def test_cli_margins_and_roots_of_a_system_file_draw_a_figure(tmp_path):
+    """margins --system and roots --system write their figures (the Wood-Berry file, two break signals); the output
+    path is checked before the file is read (a missing folder is refused even when the system file is missing)."""
+    from pathlib import Path
+
+    from typer.testing import CliRunner
+
+    from delaykit.cli.app import app
+
+    wb = str(Path(__file__).resolve().parents[1] / "examples" / "wood-berry.toml")
+    runner = CliRunner()
+    fig = tmp_path / "m.png"
+    res = runner.invoke(app, ["margins", "--system", wb, "--plot", str(fig)])
+    assert res.exit_code == 0, res.output
+    assert fig.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    fig = tmp_path / "r.svg"
+    res = runner.invoke(app, ["roots", "--system", wb, "--region", "-0.5", "0.1", "0", "2", "--plot", str(fig)])
+    assert res.exit_code == 0, res.output
+    assert fig.read_text().lstrip().startswith("<?xml")
+    for cmd in ("margins", "roots"):
+        res = runner.invoke(app, [cmd, "--system", str(tmp_path / "missing.toml"),
+                                  "--plot", str(tmp_path / "no" / "such" / "folder" / "f.png")])
+        assert res.exit_code == 2 and "does not exist" in res.output and "missing.toml" not in res.output

@@ -184,9 +184,10 @@ def bode_plot(sys: Any, w: Any = None, *, ax: Any = None, margins: bool = False,
     if (ny, nu) == (1, 1):
         fig = plot_bode([d.siso() for d in data], ax=ax,
                         margins=[_margins_of(d) for d in data] if margins else None, labels=labels)
-        if first.source is not None and _is_system(first.source):
+        if any(d.source is None or _is_system(d.source) for d in data):  # not only loops' L
             fig_axes = ax if ax is not None else fig.axes[:2]
-            fig_axes[0].set_ylabel(f"|{first.outputs[0]}/{first.inputs[0]}| (dB)")
+            one = len(data) == 1 and first.source is not None
+            fig_axes[0].set_ylabel(f"|{first.outputs[0]}/{first.inputs[0]}| (dB)" if one else "magnitude (dB)")
             fig_axes[1].set_ylabel("phase (deg)")
         return save_figure(fig, path)
     if margins:
@@ -284,8 +285,9 @@ def nyquist_plot(sys: Any, w: Any = None, *, ax: Axes | None = None, radius: flo
     colours = [line.get_color() for line in a.lines[0:2 * len(data):2]]
     texts = []
     t = np.linspace(0.0, 2 * np.pi, 361)
-    for d, colour in zip(data, colours):
-        texts.append(_count_text(d))
+    for d, colour, name in zip(data, colours, _labels(labels, len(data))):
+        text = _count_text(d)
+        texts.append(f"{name}: {text}" if name and text else text)
         if ms_circle and d.source is not None:
             m = _margins_of(d)
             if m.stable and math.isfinite(m.ms) and m.ms > 0:
