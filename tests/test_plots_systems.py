@@ -299,3 +299,17 @@ def test_cli_margins_and_roots_of_a_system_file_draw_a_figure(tmp_path):
         res = runner.invoke(app, [cmd, "--system", str(tmp_path / "missing.toml"),
                                   "--plot", str(tmp_path / "no" / "such" / "folder" / "f.png")])
         assert res.exit_code == 2 and "does not exist" in res.output and "missing.toml" not in res.output
+
+
+def test_a_system_response_plots_itself():
+    """sys.frequency_response(w).plot(), as python-control's response.plot(): the magnitude of exp(-s)/(s+1) at
+    its frequencies (closed form -10 log10(1 + w^2)); kind="sigma" its singular values; anything else refused."""
+    from delaykit import tf
+
+    w = np.array([0.1, 1.0, 10.0])
+    r = tf("exp(-s)/(s+1)").frequency_response(w)
+    fig = r.plot()
+    assert np.allclose(fig.axes[0].lines[0].get_ydata(), -10 * np.log10(1 + w ** 2), atol=1e-10)
+    assert len(_wood_berry().frequency_response(w).plot(kind="sigma").axes[0].lines) >= 2
+    with pytest.raises(InvalidValueError, match="kind"):
+        r.plot(kind="nyquist")
