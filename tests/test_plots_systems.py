@@ -313,3 +313,17 @@ def test_a_system_response_plots_itself():
     assert len(_wood_berry().frequency_response(w).plot(kind="sigma").axes[0].lines) >= 2
     with pytest.raises(InvalidValueError, match="kind"):
         r.plot(kind="nyquist")
+
+
+def test_a_loop_object_draws_as_its_open_loop_with_its_count():
+    """A Loop is drawn as its L: its Nyquist title gives margins()'s count, and the same loop written as a system
+    (C * G) gets the same title from nyquist_count."""
+    from delaykit import tf
+    from delaykit.plotting import nyquist_plot
+
+    loop = Loop("1/(s*(0.05*s+1))", Controller.pd(2.0, 0.1, 0.02), delay=0.1)
+    m = margins(loop)
+    title = nyquist_plot(loop).axes[0].get_title()
+    assert title == (f"N = {m.encirclements} encirclements of -1, P = {m.open_loop_rhp_poles}: "
+                     f"Z = P - N = {m.nyquist_rhp_roots} (stable)")
+    assert nyquist_plot(tf("2.0*exp(-0.37*s)/s")).axes[0].get_title().endswith("(stable)")
