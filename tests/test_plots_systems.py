@@ -240,7 +240,8 @@ def test_step_grid_titles_by_signal_names_and_draws_the_exact_steps():
 
 def test_pole_map_draws_certified_poles_region_and_neutral_lines():
     """feedback(exp(-0.5s)/s, 1): the rightmost poles are W_0(-0.5)/0.5 and its conjugate (Lambert W, scipy);
-    feedback(1/(s+1) + 0.6 exp(-0.5s), 1) is neutral: its root chains approach Re s = 2 ln 0.6 (1 + 0.6 exp(-s/2) = 0)."""
+    feedback(1/(s+1) + 0.6 exp(-0.5s), 1) is neutral: its root chains approach Re s = 2 ln 0.6 (the roots of
+    1 + 0.6 exp(-s/2) = 0)."""
     from scipy.special import lambertw
 
     from delaykit import feedback, tf

@@ -3,9 +3,9 @@ frequency responses, identified models' predictions).
 
 Every function draws on given axes (or a new figure), returns the figure and writes a PNG, PDF or SVG file only
 when given a path; nothing switches matplotlib's backend. :mod:`.figures` holds the paper's figures,
-:mod:`.frequency` Bode and Nyquist plots, :mod:`.identification` measured logs beside a model's predictions, :mod:`.systems` a delay system's step
-responses, :mod:`.lti` plots of any system (Bode, Nyquist, singular values, Nichols, a step-response grid, a pole
-map).
+:mod:`.frequency` Bode and Nyquist plots, :mod:`.identification` measured logs beside a model's predictions,
+:mod:`.systems` a delay system's step responses, :mod:`.lti` plots of any system (Bode, Nyquist, singular values,
+Nichols, a step-response grid, a pole map).
 Importing this package imports matplotlib, which is why nothing below it (models to hardware) imports it: only the
 paper layer and the command line do, and the command line only when a figure is asked for.
 """
