@@ -328,3 +328,24 @@ def test_a_loop_object_draws_as_its_open_loop_with_its_count():
     assert title == (f"N = {m.encirclements} encirclements of -1, P = {m.open_loop_rhp_poles}: "
                      f"Z = P - N = {m.nyquist_rhp_roots} (stable)")
     assert nyquist_plot(tf("2.0*exp(-0.37*s)/s")).axes[0].get_title().endswith("(stable)")
+
+
+@pytest.mark.slow
+def test_plots_benchmark_runs(tmp_path):
+    """benchmarks/bench_plots.py runs once through (no timing asserted): three rows, each beside python-control's,
+    and the Padé model's phase falls short of the exact one over the range (order 10, the 3-minute delay to 10
+    rad/min: 30 rad of delay phase, beyond what a 10th-order Padé follows)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    out = tmp_path / "p.json"
+    env = {**os.environ, "PYTHONPATH": str(root / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    subprocess.run([sys.executable, str(root / "benchmarks" / "bench_plots.py"), "--repeat", "1", "--json", str(out)],
+                   check=True, capture_output=True, text=True, env=env, timeout=600)
+    res = json.loads(out.read_text())
+    assert len(res["rows"]) == 3 and all("control_s" in r for r in res["rows"])
+    assert res["pade_phase_error_deg"] > 90.0
