@@ -44,6 +44,8 @@ ALLOWED: set[tuple[str, str]] = {
     # SystemResponse.plot() (python-control's response.plot()) draws its Bode plot with the plotting layer, imported
     # inside the method only, as SystemTimeResponse.plot() does
     ("delaykit.systems.lti", "delaykit.plotting.lti"),
+    # FrequencyResponse.plot() (a loop's response, python-control's response.plot()), the same way
+    ("delaykit.spectrum.frequency", "delaykit.plotting.lti"),
 }
 
 

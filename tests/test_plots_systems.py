@@ -349,3 +349,16 @@ def test_plots_benchmark_runs(tmp_path):
     res = json.loads(out.read_text())
     assert len(res["rows"]) == 3 and all("control_s" in r for r in res["rows"])
     assert res["pade_phase_error_deg"] > 90.0
+
+
+def test_a_loop_response_plots_itself():
+    """frequency_response(loop).plot(kind=...): the Bode phase is the response's own (exact) phase; Nyquist and
+    Nichols draw the same L."""
+    fr = frequency_response(_loops()[0])
+    fig = fr.plot()
+    keep = fr.w > 0
+    assert np.array_equal(fig.axes[1].lines[0].get_ydata(), fr.phase_deg[keep])
+    assert np.array_equal(fr.plot(kind="nichols").axes[0].lines[0].get_xdata(), fr.phase_deg[keep])
+    assert fr.plot(kind="nyquist").axes[0].get_xlabel() == "Re L(jω)"
+    with pytest.raises(InvalidValueError, match="kind"):
+        fr.plot(kind="sigma")
