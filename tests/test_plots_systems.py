@@ -362,3 +362,14 @@ def test_a_loop_response_plots_itself():
     assert fr.plot(kind="nyquist").axes[0].get_xlabel() == "Re L(jω)"
     with pytest.raises(InvalidValueError, match="kind"):
         fr.plot(kind="sigma")
+
+
+def test_nyquist_of_a_loop_without_a_count_still_draws_and_says_why():
+    """1/(s+1) + exp(-s) has a delayed direct feedthrough: nyquist_count refuses it (no finite count) and margins
+    gives no verdict; the curve is drawn, the title says why there is no count."""
+    from delaykit import tf
+    from delaykit.plotting import nyquist_plot
+
+    a = nyquist_plot(tf("1/(s+1)") + tf("exp(-s)")).axes[0]
+    assert a.get_title().startswith("no Nyquist count: ") and "feedthrough" in a.get_title()
+    assert len(a.lines[0].get_xdata()) > 100

@@ -289,7 +289,10 @@ def nyquist_plot(sys: Any, w: Any = None, *, ax: Axes | None = None, radius: flo
         text = _count_text(d)
         texts.append(f"{name}: {text}" if name and text else text)
         if ms_circle and d.source is not None:
-            m = _margins_of(d)
+            try:
+                m = _margins_of(d)
+            except InvalidValueError:  # no margins (a neutral loop without a verdict): the curve without its circle
+                continue
             if m.stable and math.isfinite(m.ms) and m.ms > 0:
                 a.plot(-1.0 + np.cos(t) / m.ms, np.sin(t) / m.ms, color=colour, lw=1.0, ls=":",
                        label=f"|1 + L| = 1/Ms, Ms = {m.ms:.3g}")
