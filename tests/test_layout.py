@@ -41,6 +41,11 @@ ALLOWED: set[tuple[str, str]] = {
     # SystemTimeResponse.plot() (python-control's response.plot()) draws with the plotting layer, imported inside
     # the method only, so that computing a response never loads matplotlib
     ("delaykit.simulate.systems", "delaykit.plotting.systems"),
+    # SystemResponse.plot() (python-control's response.plot()) draws its Bode plot with the plotting layer, imported
+    # inside the method only, as SystemTimeResponse.plot() does
+    ("delaykit.systems.lti", "delaykit.plotting.lti"),
+    # FrequencyResponse.plot() (a loop's response, python-control's response.plot()), the same way
+    ("delaykit.spectrum.frequency", "delaykit.plotting.lti"),
 }
 
 

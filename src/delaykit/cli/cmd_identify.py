@@ -249,9 +249,10 @@ def identify(
     if save is not None:
         m.save(save)
     if plot is not None:
-        from ..plotting.identification import plot_predictions
+        from ..plotting.identification import model_title, plot_predictions
 
-        plot_predictions([run_predict(m, e, u0=u0, command=command) for e in exps], path=plot, title=repr(m))
+        plot_predictions([run_predict(m, e, u0=u0, command=command) for e in exps], path=plot,
+                         title=model_title(m))
     if as_json:
         print_json(m.to_dict())
         return

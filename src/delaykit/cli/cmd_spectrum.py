@@ -22,7 +22,8 @@ def roots(
         (-10.0, 2.0, 0.0, 100.0), "--region", help="RE_MIN RE_MAX IM_MIN IM_MAX."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
     plot: Optional[Path] = typer.Option(
-        None, "--plot", help="Draw the spectrum (as the paper's Fig. 8) here; a sampled loop's poles in the z-plane."),
+        None, "--plot", help="Draw the spectrum (as the paper's Fig. 8) here; a sampled loop's poles in the z-plane; "
+        "with --system its pole map (the poles, the region searched, a neutral system's lines)."),
     system: Optional[Path] = typer.Option(
         None, "--system", help="A delay system from a TOML file of blocks connected by name (instead of a loop): "
         "its poles in --region and its stability."),
@@ -39,9 +40,7 @@ def roots(
     if system is not None:
         from .systemfile import system_roots
 
-        if plot is not None:
-            raise InvalidValueError("roots --system has no --plot yet")
-        system_roots(system, region, as_json)
+        system_roots(system, region, as_json, plot)
         return
     from ..spectrum.roots import find_roots
     from ..spectrum.stability import rightmost as rightmost_root
@@ -135,7 +134,8 @@ def margins(
     wmin: Optional[float] = typer.Option(None, "--wmin", help="Lowest frequency of the plot, rad/s (default: from the loop)."),
     wmax: Optional[float] = typer.Option(None, "--wmax", help="Highest frequency of the plot, rad/s (default: from the loop)."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON."),
-    plot: Optional[Path] = typer.Option(None, "--plot", help="Write a Bode plot, with the Nyquist plot beside it, here."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Write a Bode plot, with the Nyquist plot beside it, here "
+                                        "(with --system: each break signal's loop, its margins in its colour)."),
     system: Optional[Path] = typer.Option(
         None, "--system", help="A delay system from a TOML file of blocks connected by name (instead of a loop): "
         "loop-at-a-time margins at its break signals and its stability."),
@@ -162,10 +162,10 @@ def margins(
     if system is not None:
         from .systemfile import system_margins
 
-        for flag, v in (("--wmin", wmin), ("--wmax", wmax), ("--plot", plot)):
+        for flag, v in (("--wmin", wmin), ("--wmax", wmax)):
             if v is not None:
                 raise InvalidValueError(f"margins --system has no {flag} yet")
-        system_margins(system, as_json)
+        system_margins(system, as_json, plot)
         return
     from ..spectrum.frequency import frequency_grid, frequency_response
     from ..spectrum.frequency import margins as loop_margins

@@ -27,14 +27,21 @@ def _stability(system: Any) -> tuple[bool | None, str]:
         return None, str(exc)
 
 
-def system_roots(path: Path, region: tuple[float, float, float, float], as_json: bool) -> None:
-    """Print the certified poles of a system file's interconnection in ``region`` and its stability."""
+def system_roots(path: Path, region: tuple[float, float, float, float], as_json: bool,
+                 plot: Path | None = None) -> None:
+    """Print the certified poles of a system file's interconnection in ``region`` and its stability; draw them,
+    the region and any neutral lines to ``plot``."""
     from ..spectrum.systems import poles
     from ..systems.files import read_system_file
 
+    check_output("--plot", plot, "figure")
     sf = read_system_file(path)
     sp = poles(sf.system, region)
     stable, why = _stability(sf.system)
+    if plot is not None:
+        from ..plotting.lti import pole_map
+
+        pole_map(sp, path=plot, title=f"Poles of {sf.system.name or sf.source}")
     if as_json:
         data = {**sp.to_dict(), "system": repr(sf.system), "source": sf.source, "stable": stable,
                 "stability_reason": why or None}
@@ -51,17 +58,21 @@ def system_roots(path: Path, region: tuple[float, float, float, float], as_json:
     out.print(f"The system is {verdict}.", highlight=False, markup=False)
 
 
-def system_margins(path: Path, as_json: bool) -> None:
-    """Print the loop-at-a-time margins at a system file's break signals and the closed system's stability."""
+def system_margins(path: Path, as_json: bool, plot: Path | None = None) -> None:
+    """Print the loop-at-a-time margins at a system file's break signals and the closed system's stability; draw
+    each loop's Bode plot (its margins marked in its colour) and Nyquist plot to ``plot``."""
     from ..spectrum.frequency import margins
     from ..systems.files import read_system_file
 
+    check_output("--plot", plot, "figure")
     sf = read_system_file(path)
     if not sf.loops:
         raise InvalidValueError(f"{sf.source}: margins need the signals where the loop is opened: add "
                                 "break = [\"signal\", ...] to the file")
     stable, why = _stability(sf.system)
     rows = [(x, margins(L)) for x, L in zip(sf.breaks, sf.loops)]
+    if plot is not None:
+        _plot_loops(sf, plot)
     if as_json:
         data = {"system": repr(sf.system), "source": sf.source, "stable": stable, "stability_reason": why or None,
                 "loops": [{"at": x, **m.to_dict()} for x, m in rows]}
@@ -83,6 +94,26 @@ def system_margins(path: Path, as_json: bool) -> None:
               "blocks use another).", highlight=False, markup=False)
     verdict = {True: "stable", False: "UNSTABLE"}.get(stable, f"stability not decided: {why}")
     out.print(f"The closed system is {verdict}.", highlight=False, markup=False)
+
+
+def _plot_loops(sf: Any, plot: Path) -> None:
+    """Bode plots of the loops opened at the break signals (margins marked) and their Nyquist plots beside."""
+    from matplotlib.figure import Figure
+
+    from ..plotting.lti import bode_plot, nyquist_plot
+
+    fig = Figure(figsize=(12.0, 6.0), layout="constrained")
+    grid = fig.add_gridspec(2, 2)
+    ax_mag = fig.add_subplot(grid[0, 0])
+    ax_ph = fig.add_subplot(grid[1, 0], sharex=ax_mag)
+    names = [f"opened at {x}" for x in sf.breaks]
+    loops = list(sf.loops)
+    bode_plot(loops, ax=(ax_mag, ax_ph), margins=True, labels=names)
+    nyquist_plot(loops, ax=fig.add_subplot(grid[:, 1]), labels=names)
+    fig.suptitle(f"Loop-at-a-time margins of {sf.system.name or sf.source}", fontsize=10)
+    from ..plotting.figures import save_figure
+
+    save_figure(fig, plot)
 
 
 def system_simulate(path: Path, t_end: float | None, as_json: bool, plot: Path | None) -> int:

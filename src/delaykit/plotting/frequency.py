@@ -52,13 +52,47 @@ def _labels(labels: Sequence[str] | None, n: int) -> list[str | None]:
     return labels
 
 
+def _margins(margins: Any, n: int) -> list[Margins | None]:
+    """One ``Margins`` (or None) per response: a single one belongs to the first response."""
+    if margins is None:
+        return [None] * n
+    if isinstance(margins, Margins):
+        return [margins] + [None] * (n - 1)
+    ms = list(margins)
+    if len(ms) != n:
+        raise InvalidValueError(f"margins: {len(ms)} given for {n} responses (give one per response, None for none)")
+    for m in ms:
+        if m is not None and not isinstance(m, Margins):
+            raise InvalidTypeError(f"margins must be Margins objects (from margins(loop)) or None, got "
+                                   f"{type(m).__name__}")
+    return ms
+
+
+def _mark_margins(m: Margins, ax_mag: Axes, ax_ph: Axes, colour: str) -> None:
+    """The gain crossover (phase and delay margins) and the phase crossover (gain margin) of one loop, drawn and
+    labelled in its response's colour (not a fixed colour, which would be another response's)."""
+    if m.crossover is not None:
+        wc = m.crossover
+        gain = next(c for c in m.crossovers if c.kind == "gain" and c.frequency == wc)
+        for a in (ax_mag, ax_ph):
+            a.axvline(wc, color=colour, lw=0.8, ls=":")
+        ax_ph.annotate(f"PM {gain.phase_margin:.1f}°, DM {gain.delay_margin:.3g} s", (wc, gain.phase_deg),
+                       textcoords="offset points", xytext=(6, 6), fontsize=8, color=colour)
+    wp = m.phase_crossover
+    if wp is not None and np.isfinite(wp):
+        for a in (ax_mag, ax_ph):
+            a.axvline(wp, color=colour, lw=0.8, ls="-.")
+        ax_mag.annotate(f"GM {m.gain_margin:.3g} ({m.gain_margin_db:.1f} dB)", (wp, -m.gain_margin_db),
+                        textcoords="offset points", xytext=(6, -12), fontsize=8, color=colour)
+
+
 def plot_bode(
     resp_or_list: FrequencyResponse | Sequence[FrequencyResponse],
     path: str | Path | None = None,
     *,
     ax: Any = None,
     axes: tuple[Axes, Axes] | None = None,
-    margins: Margins | None = None,
+    margins: Margins | Sequence[Margins | None] | None = None,
     labels: Sequence[str] | None = None,
 ) -> Figure:
     """Bode plot (magnitude in dB and unwrapped phase in degrees against log frequency) of one or more responses.
@@ -73,8 +107,10 @@ def plot_bode(
     ax, axes : pair of matplotlib Axes, optional
         ``(ax_mag, ax_phase)`` to draw on (``ax`` and ``axes`` are the same argument; give one).  By default a
         new figure with two axes sharing the frequency axis.
-    margins : Margins, optional
-        Mark the gain crossover (phase margin) and the phase crossover that sets the gain margin.
+    margins : Margins or sequence of (Margins or None), optional
+        Mark the gain crossover (phase margin, dotted) and the phase crossover that sets the gain margin (dash-dot),
+        with their labels, in the colour of the response they belong to.  One ``Margins`` marks the first
+        response; a sequence gives one per response (``None`` for none).
     labels : sequence of str, optional
         Legend entries, one per response.
 
@@ -104,10 +140,12 @@ def plot_bode(
             raise InvalidTypeError("a Bode plot needs two axes: give ax=(ax_magnitude, ax_phase)")
         ax_mag, ax_ph = pair
         fig = ax_mag.figure
+    colours = []
     for r, name in zip(items, names):
         keep = r.w > 0
         (line,) = ax_mag.semilogx(r.w[keep], r.magnitude_db[keep], lw=1.4, label=name)
         ax_ph.semilogx(r.w[keep], r.phase_deg[keep], lw=1.4, color=line.get_color())
+        colours.append(line.get_color())
     ax_mag.axhline(0.0, color="0.4", lw=0.7, ls="--")
     lo = min(float(np.nanmin(r.phase_deg)) for r in items)
     hi = max(float(np.nanmax(r.phase_deg)) for r in items)
@@ -116,22 +154,9 @@ def plot_bode(
               if lo - 1 <= -180.0 + 360.0 * k <= hi + 1] if k1 - k0 <= 8 else [0.0] * 5
     for level in levels if len(levels) <= 4 else [-180.0]:  # -180 modulo 360, unless that clutters the axes
         ax_ph.axhline(level, color="0.4", lw=0.7, ls="--")
-    if margins is not None and margins.stable:
-        if margins.crossover is not None:
-            wc = margins.crossover
-            gain = next(c for c in margins.crossovers if c.kind == "gain" and c.frequency == wc)
-            ax_mag.axvline(wc, color="tab:green", lw=0.8, ls=":")
-            ax_ph.axvline(wc, color="tab:green", lw=0.8, ls=":")
-            ax_ph.annotate(f"PM {gain.phase_margin:.1f}°, DM {gain.delay_margin:.3g} s",
-                           (wc, gain.phase_deg), textcoords="offset points", xytext=(6, 6), fontsize=8,
-                           color="tab:green")
-        wp = margins.phase_crossover
-        if wp is not None and np.isfinite(wp):
-            ax_mag.axvline(wp, color="tab:red", lw=0.8, ls=":")
-            ax_ph.axvline(wp, color="tab:red", lw=0.8, ls=":")
-            ax_mag.annotate(f"GM {margins.gain_margin:.3g} ({margins.gain_margin_db:.1f} dB)",
-                            (wp, -margins.gain_margin_db), textcoords="offset points", xytext=(6, -12),
-                            fontsize=8, color="tab:red")
+    for m, colour in zip(_margins(margins, len(items)), colours):
+        if m is not None and m.stable:
+            _mark_margins(m, ax_mag, ax_ph, colour)
     ax_mag.set_ylabel("|L| (dB)")
     ax_ph.set_ylabel("phase of L (deg)")
     ax_ph.set_xlabel("frequency ω (rad/s)")
@@ -148,12 +173,13 @@ def plot_nyquist(
     *,
     ax: Axes | None = None,
     labels: Sequence[str] | None = None,
-    radius: float = 4.0,
+    radius: float = 2.0,
 ) -> Figure:
     """Nyquist plot: ``L(jw)`` for ``w >= 0`` (solid) and its mirror image for ``w <= 0`` (dashed), with -1.
 
     The view is limited to ``|L| <= radius`` around the origin (a curve that starts at infinity, as with an
-    integrator, would otherwise hide the point -1).
+    integrator, would otherwise hide the point -1); the default, 2, gives the unit circle around -1, where the
+    margins are read, half the view's width.
 
     Parameters
     ----------
@@ -166,7 +192,7 @@ def plot_nyquist(
     labels : sequence of str, optional
         Legend entries, one per response.
     radius : float
-        Half-width of the view (default 4).
+        Half-width of the view at most (default 2; less when the curves stay closer to the origin).
 
     Returns
     -------

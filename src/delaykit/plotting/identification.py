@@ -20,7 +20,37 @@ from matplotlib.figure import Figure
 
 from .figures import _axes, save_figure, set_title
 
-__all__ = ["plot_predictions"]
+__all__ = ["plot_predictions", "model_title"]
+
+
+def model_title(model: Any) -> str:
+    """A one-line title for an identified model's figure: the structure and its parameters to 4 digits, with their
+    units, then the fit's rms and the number of logs (the standard errors are left to the printed table).
+
+    Parameters
+    ----------
+    model : IdentifiedModel
+        From :func:`delaykit.identify.identify`.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from delaykit.identify import Experiment, identify
+    >>> t = np.arange(0, 60.0, 0.5); u = np.where(t >= 5, 1.0, 0.0)
+    >>> e = Experiment.from_arrays(t, {"y": 2 * (1 - np.exp(-np.maximum(t - 8, 0) / 10))}, u=u)
+    >>> model_title(identify(e, model="fopdt"))[:50]
+    'fopdt: gain 2, time constant 10 s, delay 3 s (rms '
+    """
+    parts = []
+    for p, u in zip(model.structure.params, model.structure.units):
+        unit = f" {u}" if u in ("s", "rad/s") else ""
+        parts.append(f"{p.replace('_', ' ')} {model.params[p]:.4g}{unit}")
+    n = len(model.logs)
+    return f"{model.model}: {', '.join(parts)} (rms {model.rms:.3g}, {n} log{'' if n == 1 else 's'})"
 
 
 def plot_predictions(predictions: Sequence[Any], *, ax: Any = None, path: str | Path | None = None,
@@ -72,7 +102,7 @@ def plot_predictions(predictions: Sequence[Any], *, ax: Any = None, path: str | 
     for a in axes:
         a.grid(alpha=0.3)
     if title:
-        set_title(top, title)
+        set_title(top, title, fontsize=10)
     if 0 < len(predictions) <= 6:  # a legend of nothing would only warn
         top.legend(fontsize=7)
     return save_figure(fig, path)

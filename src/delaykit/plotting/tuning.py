@@ -52,8 +52,13 @@ def plot_stable_region(tuning: Any, path: str | Path | None = None, *, ax: Axes 
     sm = stability_map(loop.replace(antiwindup="none"), "kp", kps, "ki", kis)
     ms = ms_map(loop, kps, kis)
     stable = sm.stable
-    a.contourf(kps, kis, stable.astype(float), levels=[0.5, 1.5], colors=["#cfe8cf"])
-    a.contour(kps, kis, stable.astype(float), levels=[0.5], colors="tab:green", linewidths=1.0)
+    # the edge is the zero contour of the spectral abscissa, interpolated between grid points (the contour of the
+    # stable/unstable booleans would be a staircase of half cells)
+    absc = np.where(np.isfinite(sm.abscissa), sm.abscissa, np.nanmax(np.abs(sm.abscissa[np.isfinite(sm.abscissa)]),
+                                                                       initial=1.0))
+    floor = min(float(absc.min()), -1.0)
+    a.contourf(kps, kis, absc, levels=[2.0 * floor, 0.0], colors=["#cfe8cf"])
+    a.contour(kps, kis, absc, levels=[0.0], colors="tab:green", linewidths=1.0)
     level = tuning.ms_limit or tuning.ms
     cs = a.contour(kps, kis, np.where(stable, ms, np.nan), levels=[level], colors="tab:blue", linewidths=1.2)
     a.clabel(cs, fmt={level: f"Ms = {level:.3g}"}, fontsize=8)
@@ -67,7 +72,7 @@ def plot_stable_region(tuning: Any, path: str | Path | None = None, *, ax: Axes 
 
 
 def plot_tuning_nyquist(tuning: Any, path: str | Path | None = None, *, ax: Axes | None = None,
-                        radius: float = 3.0) -> Figure:
+                        radius: float = 2.0) -> Figure:
     """The tuned loop's Nyquist curve with the circle ``|1 + L| = 1/Ms`` (centre -1) of its Ms limit (or its Ms).
 
     Examples

@@ -157,6 +157,26 @@ class FrequencyResponse:
                  ("phase_deg", self.phase_deg))
         return {k: _jsonable(v.tolist()) for k, v in parts}
 
+    def plot(self, *, ax: Any = None, kind: str = "bode") -> Any:
+        """Draw the response, as python-control's ``response.plot()``: ``kind`` ``"bode"``, ``"nyquist"`` or
+        ``"nichols"`` (:mod:`delaykit.plotting.lti`, imported here: computing a response never loads matplotlib).
+        Returns the figure.  The loop itself (``bode_plot(loop, margins=True)``, ``nyquist_plot(loop)``) adds its
+        margins, Nyquist count and Ms circle.
+
+        Examples
+        --------
+        >>> from delaykit import AltitudeLoop
+        >>> fig = frequency_response(AltitudeLoop(kp=1.31, delay=0.368)).plot(kind="nyquist")
+        >>> fig.axes[0].get_xlabel()
+        'Re L(jω)'
+        """
+        from ..plotting.lti import bode_plot, nichols_plot, nyquist_plot  # on demand (tests/test_layout.py)
+
+        draw = {"bode": bode_plot, "nyquist": nyquist_plot, "nichols": nichols_plot}.get(kind)
+        if draw is None:
+            raise InvalidValueError(f"kind must be 'bode', 'nyquist' or 'nichols', got {kind!r}")
+        return draw(self, ax=ax)
+
     def __repr__(self) -> str:
         db = self.magnitude_db[np.isfinite(self.magnitude_db)]
         mag = f", |L| {db.min():.4g} to {db.max():.4g} dB" if db.size else ""

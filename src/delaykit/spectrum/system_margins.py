@@ -248,20 +248,64 @@ def system_frequency_grid(L: DelayLTI, n: int) -> np.ndarray:
     return np.geomspace(min(feats) / 100, max(feats) * 10, int(n))
 
 
+def _phase_grid(w: np.ndarray, delay: float) -> np.ndarray:
+    """The sorted positive frequencies ``w`` with points added between neighbours until the total delay's phase
+    turns by at most 45 degrees and the frequency grows by at most a factor 10^(1/100) from one to the next."""
+    from ..models.budget import MAX_GRID_POINTS, check_count
+
+    w = np.unique(w[np.isfinite(w) & (w > 0)])
+    if w.size < 2:
+        return w
+    gaps = np.maximum(np.ceil(np.diff(w) * delay / (np.pi / 4)), np.ceil(100 * np.log10(w[1:] / w[:-1])))
+    gaps = np.maximum(gaps, 1).astype(np.int64)
+    check_count(f"the points between {w[0]:g} and {w[-1]:g} rad/s that unwrap the phase of delays totalling "
+                f"{delay:g}", float(gaps.sum()), MAX_GRID_POINTS, "points", "give a narrower range")
+    k = np.repeat(np.arange(gaps.size), gaps)
+    frac = (np.arange(k.size) - np.repeat(np.cumsum(gaps) - gaps, gaps)) / np.repeat(gaps, gaps)
+    return np.append(w[:-1][k] + frac * np.diff(w)[k], w[-1])
+
+
 def system_frequency_response(L: DelayLTI, w: np.ndarray) -> Any:
     """:class:`~delaykit.spectrum.frequency.FrequencyResponse` of a SISO ``L`` that is not a rational function
     times one dead time: ``L(jw)`` exact (:meth:`DelayLTI.evaluate`), the phase unwrapped along the sorted
-    frequencies (``numpy.unwrap``: right when the phase turns by less than 180 degrees between neighbours)."""
+    frequencies (``numpy.unwrap``), on a grid refined between the given frequencies so that the delays' phase
+    (their sum times the spacing) turns by at most 45 degrees and the frequency by at most 1/100 decade from
+    one point to the next: so a delay's phase keeps falling over as many decades as asked, however sparse ``w``.
+    The refinement bounds the delays' part of the phase exactly and a rational part's on a log grid; a resonance
+    sharper than 1/100 decade inside a loop with delays could still be unwrapped wrongly.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from delaykit import tf
+    >>> r = system_frequency_response(tf("exp(-s)/(s+1)") + tf("0.5/(s+2)"), np.array([1e-3, 1e3]))
+    >>> w = 1e3     # the phase is -w - atan(w) + arg(1 + 0.5 (jw + 1)/(jw + 2) exp(jw)), the last within 30 degrees
+    >>> rest = np.angle(1 + 0.5 * (1j * w + 1) / (1j * w + 2) * np.exp(1j * w))
+    >>> round(float(np.degrees(-w - np.arctan(w) + rest)), 5)
+    -57367.82056
+    >>> round(float(r.phase_deg[1]), 5)
+    -57367.82056
+    """
     from .frequency import FrequencyResponse
 
     h = L.evaluate(1j * w)[0, 0]
-    order = np.argsort(w, kind="stable")
     with np.errstate(all="ignore"):
         ang = np.angle(h)
-        fin = np.isfinite(h[order]) & (h[order] != 0)
-        srt = ang[order].copy()
-        srt[fin] = np.unwrap(srt[fin])
-        phase = np.empty_like(ang)
-        phase[order] = srt
+        dense = _phase_grid(np.asarray(w, float), float(sum(L.delays)))
+        hd = L.evaluate(1j * dense)[0, 0] if dense.size else np.zeros(0, complex)
+        fin = np.isfinite(hd) & (hd != 0)
+        ud = np.angle(hd)
+        ud[fin] = np.unwrap(ud[fin])
+        phase = ang.copy()
+        pos = (w > 0) & np.isfinite(h) & (h != 0)
+        if dense.size and pos.any():  # each given frequency's phase: its angle moved by whole turns to the dense one
+            near = ud[np.searchsorted(dense, w[pos])]
+            phase[pos] = ang[pos] + 2 * np.pi * np.round((near - ang[pos]) / (2 * np.pi))
+        if not pos.all():  # w = 0 (and poles, zeros on the axis): as before, unwrapped from its neighbour
+            order = np.argsort(w, kind="stable")
+            fin0 = np.isfinite(h[order]) & (h[order] != 0)
+            srt = phase[order].copy()
+            srt[fin0] = np.unwrap(srt[fin0])
+            phase[order] = srt
         mag_db = 20.0 * np.log10(np.abs(h))
     return FrequencyResponse(w=w, L=h, magnitude_db=mag_db, phase_deg=np.degrees(phase))

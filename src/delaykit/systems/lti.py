@@ -244,6 +244,27 @@ class SystemResponse:
         return {"omega": self.omega.tolist(), "inputs": list(self.inputs), "outputs": list(self.outputs),
                 "real": clean(self.response.real), "imag": clean(self.response.imag)}
 
+    def plot(self, *, ax: Any = None, kind: str = "bode") -> Any:
+        """Draw the response, as python-control's ``response.plot()``: ``kind="bode"``
+        (:func:`~delaykit.plotting.lti.bode_plot`, every element) or ``"sigma"`` (its singular values); the plotting
+        layer is imported here, so computing a response never loads matplotlib.  Returns the figure.
+
+        The phase drawn is unwrapped between these frequencies (right when they are dense enough); ``bode_plot(sys)``
+        of the system itself draws the exact phase at any spacing.
+
+        Examples
+        --------
+        >>> from delaykit import tf
+        >>> fig = tf("exp(-s)/(s+1)").frequency_response([0.1, 1.0, 10.0]).plot()
+        >>> len(fig.axes)
+        2
+        """
+        from ..plotting.lti import bode_plot, sigma_plot  # the plotting layer, on demand (tests/test_layout.py)
+
+        if kind not in ("bode", "sigma"):
+            raise InvalidValueError(f"kind must be 'bode' or 'sigma', got {kind!r}")
+        return bode_plot(self, ax=ax) if kind == "bode" else sigma_plot(self, ax=ax)
+
     def __repr__(self) -> str:
         ny, nu, nw = self.response.shape
         span = f"{self.omega.min():g} to {self.omega.max():g} rad/s"
