@@ -29,11 +29,11 @@ from ..models.altitude import AltitudeLoop
 from ..models.loop import Loop
 from ..models.quasipolynomial import QuasiPolynomial
 from .lambert import lambert_roots
-from .roots import (RK, _CAP, _MAX_PHASE, _RELIABLE, RootStatus, Spectrum, _Eval, _nudged_count, find_roots,
-                    neutral_lines, root_bound)
+from .roots import (RK, _CAP, _MAX_PHASE, _RELIABLE, RootStatus, Spectrum, _count, _Eval, _nudged_count,
+                    find_roots, neutral_lines, root_bound)
 
 __all__ = ["Rightmost", "DelayMargin", "StabilityMap", "rightmost", "delay_margin", "stability_map",
-           "right_half_plane_count"]
+           "right_half_plane_count", "in_delay_units", "far_right_verdict"]
 
 
 @dataclass(frozen=True, repr=False)
@@ -301,6 +301,81 @@ def _delay_free_scale(q: QuasiPolynomial) -> float:
     r = np.roots(total[nz[0]:])
     r = r[np.isfinite(r)]
     return 1.0 + 2.0 * float(np.max(np.abs(r))) if r.size else 1.0
+
+
+def in_delay_units(q: QuasiPolynomial) -> QuasiPolynomial:
+    """``Q(s / tau_max)`` divided by its largest coefficient: the same roots times ``tau_max`` (the longest delay
+    becomes 1), with coefficients of order one however large the loop gain or the time scales.
+
+    The scaling is done on the logarithms of the coefficients, so ``1e300 exp(-1e-300 s)`` is no overflow; only a
+    coefficient below 1e-308 of the largest (negligible wherever a root can be represented) underflows to 0.  A
+    polynomial (no delay) is only divided by its largest coefficient.
+
+    Examples
+    --------
+    >>> in_delay_units(QuasiPolynomial([[1, 1], [1e20]], [0.0, 0.3]))   # s + 1 + 1e20 exp(-0.3 s), s = z / 0.3
+    QuasiPolynomial(3.33333e-20·s + 1e-20 + 1·exp(-1 s))
+    """
+    q = _as_qp(q)
+    tmax = max(q.delays)
+    log_sigma = -math.log(tmax) if tmax > 0 else 0.0
+    logs = []
+    for p in q.polys:
+        a = np.asarray(p, dtype=complex)
+        n = a.size - 1
+        with np.errstate(divide="ignore"):
+            logs.append(np.log(np.abs(a)) + log_sigma * np.arange(n, -1, -1))
+    top = max(float(np.max(lg)) for lg in logs)
+    polys = []
+    for p, lg in zip(q.polys, logs):
+        a = np.asarray(p, dtype=complex)
+        unit = np.divide(a, np.abs(a), out=np.zeros_like(a), where=a != 0)
+        polys.append(unit * np.exp(lg - top))
+    return QuasiPolynomial(polys, [t / tmax if tmax > 0 else t for t in q.delays])
+
+
+def far_right_verdict(q: QuasiPolynomial) -> bool | None:
+    """Stability of a retarded quasi-polynomial whose right half-plane is too large to search directly (a huge
+    loop gain): True when no root has ``Re s >= 0``, False when one has, None when it cannot be decided.
+
+    Worked in :func:`in_delay_units`.  First one argument-principle count of the right half-plane
+    (:func:`right_half_plane_count`); if its boundary is too long, the roots are sought from the right: every
+    root lies left of the first ``x`` with ``R(x) <= x`` (:func:`~delaykit.spectrum.roots.root_bound`), and strips
+    ``[x - 1, x] x [-R(x - 1), R(x - 1)]`` are counted moving left down to the axis; the first strip right of the
+    axis that holds a root proves instability (a high-gain loop's rightmost roots lie near ``ln(gain) / tau``, where
+    these strips are small, while its root chain up the axis reaches ``|s| ~ gain``).
+
+    Examples
+    --------
+    >>> q = QuasiPolynomial([[1, 1], [1e20]], [0.0, 0.3])     # 1e20 exp(-0.3 s) / (s + 1), unity feedback
+    >>> far_right_verdict(q)
+    False
+    """
+    q = in_delay_units(q)
+    if q.kind != "retarded" or max(q.delays) == 0.0:
+        return None
+    n = right_half_plane_count(q)
+    if n is not None:
+        return n == 0
+    ev = _Eval(q)
+    x = 1.0
+    while root_bound(q, x) > x:
+        x *= 2.0
+        if x > 1e6:
+            return None
+    right = x
+    while right > 0.0:
+        left = max(0.0, right - 1.0)
+        R = root_bound(q, left)
+        if _contour_samples((left, right, -R, R), 1.0) > _CAP:
+            return None
+        c = _count(ev, (left, right, -R, R))
+        if not c.ok:
+            return None
+        if c.n > 0:
+            return False
+        right = left
+    return True
 
 
 @dataclass(frozen=True, repr=False)

@@ -39,7 +39,7 @@ from ..systems.algebra import feedback, gain
 from ..systems.difference import ChannelAbscissa, channel_abscissa
 from ..systems.lti import DelayLTI
 from .roots import Spectrum, find_roots, root_bound
-from .stability import right_half_plane_count, rightmost
+from .stability import far_right_verdict, right_half_plane_count, rightmost
 
 __all__ = ["poles", "neutral_spectrum", "is_stable", "hinfnorm", "HinfNorm", "nyquist_count", "NyquistCount", "loop_margins",
            "LoopMargins"]
@@ -162,7 +162,11 @@ def is_stable(sys: DelayLTI) -> bool:
         return True  # a constant: no poles at all (a static system, pure delays)
     rm = _rightmost(sys, q)
     if not rm.certified and not rm.abscissa < 0:
-        raise InvalidValueError(f"the stability of {sys!r} could not be certified: {rm!r}")
+        # too large a region from the loop's own time scale (a huge gain): decided in the delays' units instead
+        verdict = far_right_verdict(q) if q.kind == "retarded" else None
+        if verdict is None:
+            raise InvalidValueError(f"the stability of {sys!r} could not be certified: {rm!r}")
+        return verdict
     return rm.stable
 
 

@@ -516,13 +516,20 @@ class DelayLTI:
             G = np.vstack([top, bottom])
             F = np.zeros_like(G)
             F[:n, :n] = np.eye(n)
-            vals = np.array([np.linalg.det(p * F + G) for p in pts])
-            terms.append((np.fft.fft(vals).real / (n + 1), sum(self.delays[j] for j in S)))
-        # coefficients at rounding level of the largest (scaled) one are noise of the interpolation
-        big = max(float(np.max(np.abs(c))) for c, _ in terms)
+            mats = [p * F + G for p in pts]
+            vals = np.array([np.linalg.det(M) for M in mats])
+            # the determinant's rounding error is a small multiple of eps times Hadamard's bound (the product of
+            # the rows' norms): this term's own noise floor, whatever the scale of the other terms
+            with np.errstate(over="ignore"):
+                noise = max(float(np.prod(np.abs(M).sum(axis=1))) for M in mats)  # 1-norms: no underflow
+            terms.append((np.fft.fft(vals).real / (n + 1), sum(self.delays[j] for j in S), noise))
+        # coefficients at rounding level of a term's (scaled) size are noise of the interpolation; each term is
+        # judged against its own floor (never above the largest coefficient's), so a term far smaller than
+        # another (a loop gain of 1e20 against the plant's own s + 1) is kept, not dropped
+        big = max(float(np.max(np.abs(c))) for c, _, _ in terms)
         polys, delays = [], []
-        for c, tau in terms:
-            c = np.where(np.abs(c) <= 1e-12 * big, 0.0, c) / radius ** k  # ascending powers
+        for c, tau, noise in terms:
+            c = np.where(np.abs(c) <= 1e-12 * min(big, noise), 0.0, c) / radius ** k  # ascending powers
             if c.any():
                 polys.append(c[::-1])
                 delays.append(tau)

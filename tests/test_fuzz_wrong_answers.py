@@ -1,0 +1,81 @@
+"""Issue 34, the wrong answers: cases that gave a confident result that was false, each now answered correctly or
+refused with a delaykit error.  Reference values come from closed forms stated at each test."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from delaykit import delay, feedback, hinfnorm, tf
+from delaykit.spectrum.stability import far_right_verdict, in_delay_units
+
+
+def _first_order_boundary(k: float, T: float = 1.0) -> float:
+    """The largest delay for which ``k exp(-tau s) / (T s + 1)`` under unity negative feedback is stable, k > 1.
+
+    Closed form: the crossing ``j w`` with ``|k / (j w T + 1)| = 1`` gives ``w T = sqrt(k^2 - 1)`` and the phase
+    condition ``w tau = arccos(-1 / k)`` (written without ``k^2``, which overflows past 1e154)."""
+    return T * math.acos(-1.0 / k) / (k * math.sqrt(1.0 - 1.0 / k / k))
+
+
+# -- the characteristic function keeps every term, at every scale ------------------------------------------------
+@pytest.mark.parametrize("k", [1.0, 1e14, 1e20, 1e100, 1e300, 1e-300])
+def test_characteristic_keeps_the_undelayed_part(k):
+    # 1 + k exp(-0.3 s) / (s + 1) = 0  <=>  s + 1 + k exp(-0.3 s) = 0: by hand
+    q = feedback(k * tf("exp(-0.3*s)/(s+1)"), 1).characteristic()
+    assert q.delays == (0.0, 0.3)
+    assert np.allclose(q.polys[0], [1.0, 1.0], rtol=1e-12, atol=0)
+    assert len(q.polys[1]) == 1 and abs(q.polys[1][0] - k) <= 1e-12 * k
+
+
+def test_high_gain_loop_is_unstable_everywhere():
+    # the issue's case: 1e20 exp(-0.3 s)/(s+1) is far past its delay margin (closed form: 1.6e-20 s), so unstable;
+    # before, the s + 1 was dropped and is_stable said True, hinfnorm 1
+    T = feedback(tf("1e20*exp(-0.3*s)/(s+1)"), 1)
+    assert T.is_stable() is False
+    assert math.isinf(hinfnorm(T).value) and not hinfnorm(T).stable
+
+
+@pytest.mark.parametrize("plant", ["lag", "integrator"])
+def test_stability_boundary_sweeps_the_gain_from_1_to_1e300(plant):
+    # closed forms: k exp(-tau s)/(s+1) is stable iff tau < arccos(-1/k)/sqrt(k^2-1) (k > 1); k exp(-tau s)/s is
+    # stable iff k tau < pi/2.  Each gain is tried 5 % inside and 5 % outside its boundary.
+    wrong = []
+    for j in range(0, 301, 10):
+        k = 10.0 ** j if j else 1.5
+        if plant == "lag":
+            G, edge = tf("1/(s+1)"), _first_order_boundary(k)
+        else:
+            G, edge = tf("1/s"), math.pi / 2 / k
+        for f, expected in ((0.95, True), (1.05, False)):
+            verdict = feedback(k * delay(f * edge) * G, 1).is_stable()
+            if verdict is not expected:
+                wrong.append((k, f, verdict))
+    assert wrong == []
+
+
+@pytest.mark.parametrize("T", [1e-6, 60.0, 1e6])
+@pytest.mark.parametrize("k", [1e-300, 1e-20, 0.5, 3.0, 1e15, 1e150, 1e300])
+def test_stability_at_every_time_scale(T, k):
+    # k exp(-0.3 T s)/(T s + 1): microsecond, minute and 11-day plants; closed form as above (time scaled by T);
+    # |k| < 1 is stable for every delay (|L(jw)| < 1)
+    expected = k < 1 or 0.3 < _first_order_boundary(k)
+    assert feedback(k * delay(0.3 * T) * tf(f"1/({T}*s+1)"), 1).is_stable() is expected
+
+
+def test_in_delay_units_has_the_roots_scaled():
+    # s + 1 + 1e20 exp(-0.3 s) at s = z / 0.3, divided by 1e20: by hand
+    q = in_delay_units(feedback(1e20 * tf("exp(-0.3*s)/(s+1)"), 1).characteristic())
+    assert q.delays == (0.0, 1.0)
+    assert np.allclose(q.polys[0], [1e-20 / 0.3, 1e-20], rtol=1e-12, atol=0)
+    assert q.polys[1] == (1.0,)
+
+
+def test_far_right_verdict_refuses_neutral():
+    from delaykit import QuasiPolynomial
+
+    # s + 1 + s exp(-s) is neutral: not this search's to decide
+    assert far_right_verdict(QuasiPolynomial([[1, 1], [1, 0]], [0.0, 1.0])) is None
+
