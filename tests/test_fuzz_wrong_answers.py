@@ -79,3 +79,17 @@ def test_far_right_verdict_refuses_neutral():
     # s + 1 + s exp(-s) is neutral: not this search's to decide
     assert far_right_verdict(QuasiPolynomial([[1, 1], [1, 0]], [0.0, 1.0])) is None
 
+
+
+@pytest.mark.parametrize("k", [1e20, 1e300])
+def test_poles_of_a_huge_gain_loop_are_found_in_scale(k):
+    # s + 1 + k exp(-tau s) = 0 with u = tau (s + 1): u exp(u) = -k tau exp(tau), so s = W_b(-k tau e^tau)/tau - 1
+    # (scipy's Lambert W, branches 0 and -1 hold the rightmost pair); tau half the stability boundary
+    from scipy.special import lambertw
+
+    tau = 0.5 * _first_order_boundary(k)
+    sp = feedback(k * delay(tau) * tf("1/(s+1)"), 1).poles((-10 * k, 10 * k, -10 * k, 10 * k))
+    assert sp.certified
+    ref = max((complex(lambertw(-k * tau * math.exp(tau), b)) / tau - 1 for b in (0, -1)), key=lambda z: z.real)
+    ref = complex(ref.real, abs(ref.imag))
+    assert abs(sp.rightmost - ref) <= 1e-8 * abs(ref)

@@ -38,8 +38,8 @@ from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
 from ..systems.algebra import feedback, gain
 from ..systems.difference import ChannelAbscissa, channel_abscissa
 from ..systems.lti import DelayLTI
-from .roots import Spectrum, find_roots, root_bound
-from .stability import far_right_verdict, right_half_plane_count, rightmost
+from .roots import RootStatus, Spectrum, find_roots, root_bound
+from .stability import far_right_verdict, in_delay_units, right_half_plane_count, rightmost
 
 __all__ = ["poles", "neutral_spectrum", "is_stable", "hinfnorm", "HinfNorm", "nyquist_count", "NyquistCount", "loop_margins",
            "LoopMargins"]
@@ -71,12 +71,19 @@ def poles(sys: DelayLTI, region: Sequence[float]) -> Spectrum:
     >>> sp.roots.round(12).tolist(), sp.certified
     ([(-3+0j)], True)
     """
+    import dataclasses
+
     sys = _system(sys)
     q = sys.characteristic()
     sp = find_roots(q, region)
+    if sp.status is RootStatus.SAMPLE_BUDGET and q.kind == "retarded" and max(q.delays) > 0:
+        # a region far larger than 1 s (a huge gain's poles): searched again in the delays' units, where the
+        # boundary's samples do not grow with the scale
+        t = max(q.delays)
+        scaled = find_roots(in_delay_units(q), tuple(float(v) * t for v in region))
+        if scaled.certified:
+            sp = dataclasses.replace(scaled, roots=scaled.roots / t, region=sp.region)
     if q.kind == "neutral" and q.degree > 0:
-        import dataclasses
-
         sp = dataclasses.replace(sp, neutral_lines=(neutral_spectrum(sys).lines,))
     return sp
 
