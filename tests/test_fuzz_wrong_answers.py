@@ -93,3 +93,46 @@ def test_poles_of_a_huge_gain_loop_are_found_in_scale(k):
     ref = max((complex(lambertw(-k * tau * math.exp(tau), b)) / tau - 1 for b in (0, -1)), key=lambda z: z.real)
     ref = complex(ref.real, abs(ref.imag))
     assert abs(sp.rightmost - ref) <= 1e-8 * abs(ref)
+
+
+# -- responses over a horizon shorter than the kernel's time tolerance -------------------------------------------
+@pytest.mark.parametrize("t_end", [1e-300, 1e-16, 1e-14, 1e-13])
+def test_step_and_initial_over_a_tiny_horizon(t_end):
+    # closed forms for 1/(s+1): step 1 - exp(-t), initial from x0 = 1: exp(-t); before, every value was NaN with
+    # status "exact" and 0 pieces
+    t = np.array([0.0, t_end / 2, t_end])
+    r = tf("1/(s+1)").step(t)
+    assert r.status == "exact" and r.pieces >= 1
+    assert np.allclose(r.outputs[0, 0], -np.expm1(-t), rtol=1e-12, atol=0)
+    from delaykit import ss
+
+    r = ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]]).initial(t, X0=1.0)
+    assert r.status == "exact" and np.allclose(r.outputs[0], np.exp(-t), rtol=1e-12, atol=0)
+
+
+def test_tiny_horizon_of_a_picosecond_plant_with_a_femtosecond_delay():
+    # 1/(1e-12 s + 1) after a delay of 1e-15 s: 0 until the delay, then 1 - exp(-(t - 1e-15)/1e-12) (closed form)
+    t = np.array([0.0, 5e-16, 1e-15, 1e-14, 1e-13])
+    r = tf("exp(-1e-15*s)/(1e-12*s+1)").step(t)
+    ref = np.where(t > 1e-15, -np.expm1(-(t - 1e-15) / 1e-12), 0.0)
+    assert r.status == "exact"
+    assert np.allclose(r.outputs[0, 0], ref, rtol=1e-9, atol=1e-300)
+
+
+def test_many_step_responses_over_a_tiny_horizon():
+    # the batch path: k (1 - exp(-t)) for k = 1, 2
+    from delaykit.simulate.systems import step_response_many
+
+    r = step_response_many([tf("1/(s+1)"), tf("2/(s+1)")], [0.0, 1e-16])
+    assert r.status == ("exact", "exact")
+    assert np.allclose(r.outputs[:, 0, 0, 1], [1e-16, 2e-16], rtol=1e-12, atol=0)
+
+
+def test_nan_is_never_labelled_exact():
+    # the last guard: an "exact" run with an output missing at a time asked says where it stalled
+    from delaykit.simulate.systems import _honest
+
+    out = np.array([[0.0, 1.0, np.nan, np.nan]])
+    assert _honest("exact", 3.0, out, np.array([0.0, 1.0, 2.0, 3.0])) == ("stalled", 2.0)
+    assert _honest("exact", 3.0, out[:, :2], np.array([0.0, 1.0])) == ("exact", 3.0)
+    assert _honest("overflow", 1.5, out, np.array([0.0, 1.0, 2.0, 3.0])) == ("overflow", 1.5)
