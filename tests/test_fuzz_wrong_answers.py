@@ -136,3 +136,38 @@ def test_nan_is_never_labelled_exact():
     assert _honest("exact", 3.0, out, np.array([0.0, 1.0, 2.0, 3.0])) == ("stalled", 2.0)
     assert _honest("exact", 3.0, out[:, :2], np.array([0.0, 1.0])) == ("exact", 3.0)
     assert _honest("overflow", 1.5, out, np.array([0.0, 1.0, 2.0, 3.0])) == ("overflow", 1.5)
+
+
+# -- relay cycles: the one the relay settles into ------------------------------------------------------------------
+def _ultimate_period(order: int, theta: float) -> float:
+    """The exact ultimate period of exp(-theta s)/(s+1)^order: order atan(w) + theta w = pi (closed form phase)."""
+    from scipy.optimize import brentq
+
+    w = brentq(lambda w: order * math.atan(w) + theta * w - math.pi, 1e-9, math.pi / theta)
+    return 2 * math.pi / w
+
+
+@pytest.mark.parametrize("order", [6, 12])
+def test_relay_cycle_of_a_high_order_lag_is_the_slow_stable_one(order):
+    # the issue's case: 1/(s+1)^12 with a 0.1 s delay gave a 0.57 s "cycle" of amplitude 4e-13 (an unstable
+    # periodic solution).  The relay's cycle of a lag this smooth is nearly sinusoidal, so its period is within
+    # 1 % of the exact ultimate period (closed-form phase) and its amplitude within 3 % of the describing
+    # function's 4 d |P(j w)| / pi there; the issue measured 23.5 s and 0.84 for order 12
+    from delaykit import relay_cycle
+
+    c = relay_cycle(f"1/(s+1)^{order}", 0.1)
+    pu = _ultimate_period(order, 0.1)
+    assert abs(c.period / pu - 1) < 0.01
+    w = 2 * math.pi / c.period
+    assert abs(c.output_amplitude / (4 / math.pi * (1 + w * w) ** (-order / 2)) - 1) < 0.03
+
+
+def test_relay_cycle_refuses_an_h_max_below_the_delay():
+    # the integrator's cycle has h = 2 theta = 0.74 s (period 4 theta, closed form); h_max = 1e-9 made it 0.296 s
+    from delaykit import InvalidValueError, relay_cycle
+
+    with pytest.raises(InvalidValueError, match="h_max"):
+        relay_cycle("1/s", 0.37, h_max=1e-9)
+    with pytest.raises(InvalidValueError, match="no stable relay limit cycle"):
+        relay_cycle("1/s", 0.37, h_max=0.5)
+    assert abs(relay_cycle("1/s", 0.37, h_max=1.0).period - 4 * 0.37) < 1e-12
