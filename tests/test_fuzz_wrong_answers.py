@@ -171,3 +171,47 @@ def test_relay_cycle_refuses_an_h_max_below_the_delay():
     with pytest.raises(InvalidValueError, match="no stable relay limit cycle"):
         relay_cycle("1/s", 0.37, h_max=0.5)
     assert abs(relay_cycle("1/s", 0.37, h_max=1.0).period - 4 * 0.37) < 1e-12
+
+
+# -- tuning: find what was asked, or refuse saying why (truly) -----------------------------------------------------
+def test_tune_refuses_an_unstable_plant_instead_of_returning_an_unstable_loop():
+    # 1/(s-1) with a 0.2 s delay gave kp > 0, ki = 0, UNSTABLE; the optimisation grows gains from zero (unstable
+    # for this plant), so it refuses, naming the pole at s = 1
+    from delaykit import InvalidValueError, tune
+
+    with pytest.raises(InvalidValueError, match=r"unstable \(a pole at 1\)"):
+        tune("1/(s-1)", "pi", delay=0.2)
+
+
+@pytest.mark.parametrize("kind", ["p", "pi"])
+def test_tune_without_delay_says_the_gains_are_unbounded(kind):
+    # 1/(s+1) without delay: with kp = ki the loop is kp/s, Ms = 1 for every kp (by hand), so MIGO's largest
+    # gain does not exist; it said "no gains meet Ms <= 1.4", which is false
+    from delaykit import InvalidValueError, tune
+
+    with pytest.raises(InvalidValueError, match="no largest value"):
+        tune("1/(s+1)", kind, delay=0.0)
+    # a microsecond delay bounds them: a stable design at the limit
+    t = tune("1/(s+1)", kind, delay=1e-6)
+    assert t.stable and abs(t.ms - 1.4) < 1e-6
+
+
+def test_tune_refuses_an_ms_limit_it_cannot_resolve():
+    from delaykit import InvalidValueError, tune
+
+    with pytest.raises(InvalidValueError, match="ms must be at most 100, got 1e\\+09"):
+        tune("1/(s+1)", "pi", delay=0.2, ms=1e9)
+    with pytest.raises(InvalidValueError, match="mt must be at most 100"):
+        tune("1/(s+1)", "pi", delay=0.2, mt=1e3)
+    assert abs(tune("1/(s+1)", "pi", delay=0.2, ms=100.0).ms - 100.0) < 1e-6   # the largest taken is met
+
+
+def test_tune_cli_refusals_exit_2():
+    from typer.testing import CliRunner
+
+    from delaykit.cli.app import app
+
+    for args in (["--plant", "1/(s-1)", "--delay", "0.2"], ["--plant", "1/(s+1)", "--delay", "0"],
+                 ["--plant", "1/(s+1)", "--delay", "0.2", "--ms", "1e9"]):
+        res = CliRunner().invoke(app, ["tune", "--controller", "pi", *args])
+        assert res.exit_code == 2 and res.output.startswith("error:") and "Traceback" not in res.output, res.output
