@@ -215,3 +215,27 @@ def test_tune_cli_refusals_exit_2():
                  ["--plant", "1/(s+1)", "--delay", "0.2", "--ms", "1e9"]):
         res = CliRunner().invoke(app, ["tune", "--controller", "pi", *args])
         assert res.exit_code == 2 and res.output.startswith("error:") and "Traceback" not in res.output, res.output
+
+
+# -- BLT: an unstable paired element is refused, not tuned into an UNSTABLE design ----------------------------------
+def test_blt_refuses_an_unstable_paired_element():
+    # exp(-s)/(s-1) has its pole at s = 1 (by hand); BLT returned an UNSTABLE design for it.  The off-diagonal
+    # element's own stable pole (s = -1) must not hide it, nor the other elements' poles be blamed on it
+    from delaykit import InvalidValueError, blt
+
+    G = tf([["exp(-s)/(s-1)", "0.1*exp(-s)/(s+1)"], ["0.1*exp(-s)/(s+1)", "exp(-s)/(s+1)"]])
+    with pytest.raises(InvalidValueError, match=r"G\[0, 0\] is unstable \(a pole at 1\)"):
+        blt(G)
+    # the check looks at each element's own states only (the realisation keeps all four elements' in G[i, j])
+    from delaykit.design.mimo import _element
+
+    assert _element(G, 0, 1).characteristic().polys == ((1.0, 1.0),)
+    assert _element(G, 0, 0).characteristic().polys == ((1.0, -1.0),)
+
+
+def test_blt_still_tunes_an_integrating_element():
+    # an integrator (pole at 0) is allowed: the closed loop is certified stable
+    from delaykit import blt
+
+    r = blt(tf([["exp(-s)/s", "0.1*exp(-s)/(s+1)"], ["0.1*exp(-s)/(s+1)", "exp(-s)/(s+1)"]]))
+    assert r.stable is True
