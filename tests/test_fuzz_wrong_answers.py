@@ -239,3 +239,20 @@ def test_blt_still_tunes_an_integrating_element():
 
     r = blt(tf([["exp(-s)/s", "0.1*exp(-s)/(s+1)"], ["0.1*exp(-s)/(s+1)", "exp(-s)/(s+1)"]]))
     assert r.stable is True
+
+
+# -- time scales far apart in one system ------------------------------------------------------------------------
+@pytest.mark.parametrize("a", [1e-6, 1e-10, 1e-13, 1e-15])
+def test_characteristic_of_time_scales_far_apart(a):
+    # poles -a and -1/a: det(sI - A) = s^2 + (a + 1/a) s + 1 (by hand); on one circle the 1 and the s^2 were lost
+    # past a spread of 1e24, and the stable system was called unstable (a pole at 0)
+    from delaykit import ss
+
+    S = ss(np.diag([-a, -1 / a]), [[1.0], [1.0]], [[1.0, 1.0]], [[0.0]])
+    q = S.characteristic()
+    assert np.allclose(q.polys[0], [1.0, a + 1 / a, 1.0], rtol=1e-9, atol=0)
+    assert S.is_stable() is True
+    # with 0.5 exp(-s) fed back: + 0.5 (2 s + a + 1/a) exp(-s), again by hand
+    q = feedback(0.5 * delay(1.0) * S, 1).characteristic()
+    assert q.delays == (0.0, 1.0)
+    assert np.allclose(q.polys[1], [1.0, 0.5 * (a + 1 / a)], rtol=1e-9, atol=0)
