@@ -256,3 +256,17 @@ def test_characteristic_of_time_scales_far_apart(a):
     q = feedback(0.5 * delay(1.0) * S, 1).characteristic()
     assert q.delays == (0.0, 1.0)
     assert np.allclose(q.polys[1], [1.0, 0.5 * (a + 1 / a)], rtol=1e-9, atol=0)
+
+
+def test_delay_margin_sweeps_the_gain_to_1e300():
+    # s + 1 + k exp(-tau s): the closed form of _first_order_boundary; a gain of 1e300 overflowed |P(jw)|^2 into a
+    # numpy LinAlgError
+    from delaykit import Controller, Loop
+    from delaykit.spectrum.stability import delay_margin
+
+    for j in range(1, 301, 11):
+        k = 10.0 ** j
+        m = delay_margin(Loop("1/(s+1)", Controller.p(k), delay=0.3).characteristic())
+        assert abs(m.delay / _first_order_boundary(k) - 1) < 1e-12, (k, m)
+        assert abs(m.frequency / (k * math.sqrt(1 - 1 / k / k)) - 1) < 1e-12, (k, m)
+    assert math.isinf(delay_margin(Loop("1/(s+1)", Controller.p(1e-300), delay=0.3).characteristic()).delay)

@@ -420,6 +420,15 @@ def delay_margin(q: QuasiPolynomial | AltitudeLoop) -> DelayMargin:
     p1 = np.array(q.polys[-1]) if q.delays[-1] > 0 else np.zeros(1, complex)
     if not taus:  # no delay in it: just the polynomial
         p1 = np.zeros(1, complex)
+    # s = sigma z with sigma the roots' scale, both polynomials divided by their largest coefficient: |P(jw)|^2
+    # below squares the coefficients (a gain of 1e300 overflowed); crossings w = sigma nu, delays tau = t / sigma
+    # (only for coefficients outside 1e-100..1e100: other loops' margins are computed as they always were)
+    mags = np.abs(np.concatenate([p0, p1]))
+    mags = mags[mags > 0]
+    sigma = 1.0
+    if mags.size and (mags.max() > 1e100 or mags.min() < 1e-100):
+        sigma = _root_scale(np.polyadd(p0, p1))
+        p0, p1 = _unit_scaled(p0, p1, sigma)
     # stability without delay
     r0 = np.roots(np.polyadd(p0, p1))
     if r0.size and np.max(r0.real) >= 0:
@@ -437,11 +446,40 @@ def delay_margin(q: QuasiPolynomial | AltitudeLoop) -> DelayMargin:
         # P0(jw) + P1(jw) exp(-j w tau) = 0  =>  exp(-j w tau) = z = -P0(jw) / P1(jw), |z| = 1
         z = -np.polyval(p0, 1j * w) / np.polyval(p1, 1j * w)
         tau = (-np.angle(z)) % (2 * math.pi) / w
-        crossings.append((float(w), float(tau if tau > 0 else 2 * math.pi / w)))
+        crossings.append((float(w * sigma), float(tau if tau > 0 else 2 * math.pi / w) / sigma))
     if not crossings:
         return DelayMargin(math.inf, None, ())
     w, tau = min(crossings, key=lambda c: c[1])
     return DelayMargin(tau, w, tuple(crossings))
+
+
+def _root_scale(p: np.ndarray) -> float:
+    """The geometric mean of the nonzero roots' moduli of the polynomial ``p`` (highest degree first), from its
+    coefficients' logarithms (no overflow): ``|a_j / a_n|^(1/(n-j))`` with ``a_j`` the lowest nonzero coefficient;
+    1 for a constant or a monomial."""
+    a = np.abs(np.asarray(p, complex))
+    nz = np.flatnonzero(a)
+    if nz.size < 2:
+        return 1.0
+    first, last = nz[0], nz[-1]
+    return float(math.exp((math.log(a[last]) - math.log(a[first])) / (last - first)))
+
+
+def _unit_scaled(p0: np.ndarray, p1: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """``p0(sigma z)`` and ``p1(sigma z)``, both divided by the largest coefficient of the two (in logarithms: no
+    overflow; a coefficient below 1e-308 of the largest underflows to 0)."""
+    ls = math.log(sigma)
+    out, logs = [], []
+    for p in (p0, p1):
+        a = np.asarray(p, complex)
+        with np.errstate(divide="ignore"):
+            logs.append(np.log(np.abs(a)) + ls * np.arange(a.size - 1, -1, -1))
+    top = max(float(np.max(lg)) for lg in logs)
+    for p, lg in zip((p0, p1), logs):
+        a = np.asarray(p, complex)
+        unit = np.divide(a, np.abs(a), out=np.zeros_like(a), where=a != 0)
+        out.append(unit * np.exp(lg - top))
+    return out[0], out[1]
 
 
 @dataclass(frozen=True, repr=False, eq=False)
