@@ -270,3 +270,18 @@ def test_delay_margin_sweeps_the_gain_to_1e300():
         assert abs(m.delay / _first_order_boundary(k) - 1) < 1e-12, (k, m)
         assert abs(m.frequency / (k * math.sqrt(1 - 1 / k / k)) - 1) < 1e-12, (k, m)
     assert math.isinf(delay_margin(Loop("1/(s+1)", Controller.p(1e-300), delay=0.3).characteristic()).delay)
+
+
+@pytest.mark.parametrize("k", [1e20, 1e300])
+def test_rightmost_root_of_a_huge_gain_loop(k):
+    # s + 1 + k exp(-0.3 s): s = W_b(-0.3 k e^0.3)/0.3 - 1 (scipy's Lambert W, branches 0 and -1 the rightmost
+    # pair); the search from the loop's own scale gave "not certified" with an abscissa of 5e20
+    from scipy.special import lambertw
+
+    from delaykit import Controller, Loop
+    from delaykit.spectrum.stability import rightmost
+
+    rm = rightmost(Loop("1/(s+1)", Controller.p(k), delay=0.3))
+    ref = max((complex(lambertw(-0.3 * k * math.exp(0.3), b)) / 0.3 - 1 for b in (0, -1)), key=lambda z: z.real)
+    assert rm.certified and not rm.stable
+    assert abs(rm.root - complex(ref.real, abs(ref.imag))) <= 1e-9 * abs(ref)

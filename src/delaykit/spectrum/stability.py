@@ -266,6 +266,10 @@ def rightmost(q: QuasiPolynomial | AltitudeLoop | Loop, *, re_min: float | None 
     right = max(R, x + step)  # no root lies right of R
     sp = search(q, (x, right, lower(R), R), lines)
     for _ in range(_MAX_STRIPS):
+        if not sp.certified and not sp.roots.size and not lines and not kept:
+            far = _rightmost_from_right(q)  # too large a region here (a huge gain): searched from the right
+            if far is not None:
+                return result(far)
         if sp.roots.size or not sp.certified:
             return result(sp, right)
         if lines and x - closest <= 1e-12 * unit:
@@ -334,6 +338,35 @@ def in_delay_units(q: QuasiPolynomial) -> QuasiPolynomial:
     return QuasiPolynomial(polys, [t / tmax if tmax > 0 else t for t in q.delays])
 
 
+def _first_strip_from_right(q: QuasiPolynomial, stop: float) -> tuple[str, Any]:
+    """Walk strips ``[x - 1, x] x [-R(x - 1), R(x - 1)]`` of a retarded quasi-polynomial in delay units (its
+    longest delay 1) leftwards from where no root can lie, down to ``Re s = stop``, counting each by the argument
+    principle.  Returns ``("roots", box)`` for the first strip that holds a root, ``("none", None)`` when none
+    down to ``stop`` does, ``("fail", None)`` when a strip cannot be counted (too long a boundary, a root on it)."""
+    ev = _Eval(q)
+    x = max(1.0, stop + 1.0)
+    while root_bound(q, x) > x:
+        x *= 2.0
+        if x > 1e6:
+            return "fail", None
+    right = x
+    for _ in range(int(x - stop) + 1 if math.isfinite(stop) else _MAX_STRIPS):
+        if right <= stop:
+            return "none", None
+        left = max(stop, right - 1.0)
+        R = root_bound(q, left)
+        box = (left, right, -R, R)
+        if _contour_samples(box, 1.0) > _CAP:
+            return "fail", None
+        c = _count(ev, box)
+        if not c.ok:
+            return "fail", None
+        if c.n > 0:
+            return "roots", box
+        right = left
+    return "fail", None
+
+
 def far_right_verdict(q: QuasiPolynomial) -> bool | None:
     """Stability of a retarded quasi-polynomial whose right half-plane is too large to search directly (a huge
     loop gain): True when no root has ``Re s >= 0``, False when one has, None when it cannot be decided.
@@ -357,25 +390,26 @@ def far_right_verdict(q: QuasiPolynomial) -> bool | None:
     n = right_half_plane_count(q)
     if n is not None:
         return n == 0
-    ev = _Eval(q)
-    x = 1.0
-    while root_bound(q, x) > x:
-        x *= 2.0
-        if x > 1e6:
-            return None
-    right = x
-    while right > 0.0:
-        left = max(0.0, right - 1.0)
-        R = root_bound(q, left)
-        if _contour_samples((left, right, -R, R), 1.0) > _CAP:
-            return None
-        c = _count(ev, (left, right, -R, R))
-        if not c.ok:
-            return None
-        if c.n > 0:
-            return False
-        right = left
-    return True
+    found, _ = _first_strip_from_right(q, 0.0)
+    return {"roots": False, "none": True}.get(found)
+
+
+def _rightmost_from_right(q: QuasiPolynomial) -> Spectrum | None:
+    """The roots of a retarded quasi-polynomial in the first strip from the right that holds any
+    (:func:`_first_strip_from_right`, in delay units, scaled back): the rightmost root among them, certified; None
+    when not found so.  For a loop gain so large that the search from the loop's own time scale cannot be
+    certified (the right half-plane up to ``|s| ~ gain``)."""
+    if q.kind != "retarded" or max(q.delays) == 0.0:
+        return None
+    t = max(q.delays)
+    qs = in_delay_units(q)
+    found, box = _first_strip_from_right(qs, -math.inf)
+    if found != "roots":
+        return None
+    sp = _search(qs, box, ())
+    if not sp.certified:
+        return None
+    return dataclasses.replace(sp, roots=sp.roots / t, region=tuple(v / t for v in box))
 
 
 @dataclass(frozen=True, repr=False)
