@@ -285,3 +285,36 @@ def test_rightmost_root_of_a_huge_gain_loop(k):
     ref = max((complex(lambertw(-0.3 * k * math.exp(0.3), b)) / 0.3 - 1 for b in (0, -1)), key=lambda z: z.real)
     assert rm.certified and not rm.stable
     assert abs(rm.root - complex(ref.real, abs(ref.imag))) <= 1e-9 * abs(ref)
+
+
+def test_loop_simulation_refuses_a_horizon_below_its_time_resolution():
+    # the loop simulator's tolerance is 1e-12 max(1, t_end) s: t_end = 1e-16 ran no piece, its metrics were of
+    # nothing and reading its output raised an IndexError; now one line, and 1e-10 s still runs
+    from delaykit import Controller, InvalidValueError, Loop, simulate
+
+    L = Loop("1/(s+1)", Controller.p(1.0), delay=0.3)
+    with pytest.raises(InvalidValueError, match="t_end .* at least 1e-10 s"):
+        simulate(L, t_end=1e-16)
+    r = simulate(L, t_end=1e-10)
+    assert r.output(np.array([0.0, 1e-10])).tolist() == [0.0, 0.0]   # the delay (0.3 s) has not passed yet
+
+
+def test_cli_simulate_tiny_horizons(tmp_path):
+    # a system's step over 1e-16 s: 1 - exp(-t) (closed form), no nulls, exit 0; a loop's: refused, exit 2
+    import json
+
+    from typer.testing import CliRunner
+
+    from delaykit.cli.app import app
+
+    res = CliRunner().invoke(app, ["simulate", "--kp", "1", "--delay", "0.3", "--t-end", "1e-16"])
+    assert res.exit_code == 2 and res.output.startswith("error:") and "1e-10" in res.output
+    path = tmp_path / "F.toml"
+    path.write_text('inputs = ["r"]\noutputs = ["y"]\n[[blocks]]\ntf = "1/(s+1)"\ninputs = "r"\noutputs = "y"\n')
+    res = CliRunner().invoke(app, ["simulate", "--system", str(path), "--t-end", "1e-16", "--json"])
+    assert res.exit_code == 0, res.output
+    got = json.loads(res.stdout)
+    y = np.array(got["outputs"], dtype=float).ravel()
+    t = np.array(got["time"])
+    assert got["status"] == "exact" and np.all(np.isfinite(y))
+    assert np.allclose(y, -np.expm1(-t), rtol=1e-12, atol=0)
