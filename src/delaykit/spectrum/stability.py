@@ -19,7 +19,7 @@ import threading
 from concurrent.futures import ThreadPoolExecutor
 import dataclasses
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -322,19 +322,7 @@ def in_delay_units(q: QuasiPolynomial) -> QuasiPolynomial:
     """
     q = _as_qp(q)
     tmax = max(q.delays)
-    log_sigma = -math.log(tmax) if tmax > 0 else 0.0
-    logs = []
-    for p in q.polys:
-        a = np.asarray(p, dtype=complex)
-        n = a.size - 1
-        with np.errstate(divide="ignore"):
-            logs.append(np.log(np.abs(a)) + log_sigma * np.arange(n, -1, -1))
-    top = max(float(np.max(lg)) for lg in logs)
-    polys = []
-    for p, lg in zip(q.polys, logs):
-        a = np.asarray(p, dtype=complex)
-        unit = np.divide(a, np.abs(a), out=np.zeros_like(a), where=a != 0)
-        polys.append(unit * np.exp(lg - top))
+    polys = _unit_scaled(q.polys, 1.0 / tmax if tmax > 0 else 1.0)
     return QuasiPolynomial(polys, [t / tmax if tmax > 0 else t for t in q.delays])
 
 
@@ -462,7 +450,7 @@ def delay_margin(q: QuasiPolynomial | AltitudeLoop) -> DelayMargin:
     sigma = 1.0
     if mags.size and (mags.max() > 1e100 or mags.min() < 1e-100):
         sigma = _root_scale(np.polyadd(p0, p1))
-        p0, p1 = _unit_scaled(p0, p1, sigma)
+        p0, p1 = _unit_scaled([p0, p1], sigma)
     # stability without delay
     r0 = np.roots(np.polyadd(p0, p1))
     if r0.size and np.max(r0.real) >= 0:
@@ -499,21 +487,22 @@ def _root_scale(p: np.ndarray) -> float:
     return float(math.exp((math.log(a[last]) - math.log(a[first])) / (last - first)))
 
 
-def _unit_scaled(p0: np.ndarray, p1: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
-    """``p0(sigma z)`` and ``p1(sigma z)``, both divided by the largest coefficient of the two (in logarithms: no
-    overflow; a coefficient below 1e-308 of the largest underflows to 0)."""
+def _unit_scaled(polys: Sequence[Any], sigma: float) -> list[np.ndarray]:
+    """Each polynomial (highest degree first) at ``sigma z``, all divided by the largest coefficient among them,
+    computed on the coefficients' logarithms (no overflow; a coefficient below 1e-308 of the largest underflows
+    to 0)."""
     ls = math.log(sigma)
     out, logs = [], []
-    for p in (p0, p1):
+    for p in polys:
         a = np.asarray(p, complex)
         with np.errstate(divide="ignore"):
             logs.append(np.log(np.abs(a)) + ls * np.arange(a.size - 1, -1, -1))
     top = max(float(np.max(lg)) for lg in logs)
-    for p, lg in zip((p0, p1), logs):
+    for p, lg in zip(polys, logs):
         a = np.asarray(p, complex)
         unit = np.divide(a, np.abs(a), out=np.zeros_like(a), where=a != 0)
         out.append(unit * np.exp(lg - top))
-    return out[0], out[1]
+    return out
 
 
 @dataclass(frozen=True, repr=False, eq=False)
