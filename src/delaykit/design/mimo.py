@@ -381,6 +381,54 @@ def _bracket(excess: Any) -> tuple[float, float]:
         F = lower
 
 
+def _element(G: DelayLTI, i: int, j: int) -> DelayLTI:
+    """``G[i, j]`` with only the states and delay channels that input ``j`` reaches and output ``i`` sees (by the
+    matrices' nonzero pattern): a matrix of transfer functions realised element by element keeps every element's
+    states in ``G[i, j]``, whose poles would then be the other elements' too."""
+    n, m = G.nstates, G.ndelays
+    # a graph on the states (0..n-1) and the delay channels (n..n+m-1): an edge k -> l when k drives l
+    drive = np.zeros((n + m, n + m), bool)
+    drive[:n, :n] = G.A.T != 0
+    drive[n:, :n] = G.B2.T != 0
+    drive[:n, n:] = G.C2.T != 0
+    drive[n:, n:] = G.D22.T != 0
+    src = np.concatenate([G.B1[:, j] != 0, G.D21[:, j] != 0])
+    dst = np.concatenate([G.C1[i, :] != 0, G.D12[i, :] != 0])
+
+    def closure(start: np.ndarray, M: np.ndarray) -> np.ndarray:
+        seen = start.copy()
+        while True:
+            more = seen | M[seen].any(axis=0)
+            if (more == seen).all():
+                return seen
+            seen = more
+
+    keep = closure(src, drive) & closure(dst, drive.T)
+    x, c = np.flatnonzero(keep[:n]), np.flatnonzero(keep[n:])
+    ix = np.ix_
+    return DelayLTI(G.A[ix(x, x)], G.B1[ix(x, [j])], G.B2[ix(x, c)], G.C1[ix([i], x)], G.C2[ix(c, x)],
+                    G.D11[ix([i], [j])], G.D12[ix([i], c)], G.D21[ix(c, [j])], G.D22[ix(c, c)],
+                    delays=[G.delays[k] for k in c])
+
+
+def _check_elements(G: DelayLTI, pairing: Sequence[int]) -> None:
+    """Refuse a paired element with a pole right of the imaginary axis: its ultimate point is not a gain margin
+    (the element is unstable at small gains), so the Ziegler-Nichols settings and the detuning mean nothing."""
+    from ..spectrum.stability import rightmost
+
+    for i, j in enumerate(pairing):
+        e = _element(G, i, j)
+        if not e.nstates:
+            continue
+        rm = rightmost(e.characteristic())
+        if rm.certified and rm.root is not None and rm.root.real > 1e-9 * max(1.0, abs(rm.root)):
+            r = rm.root
+            where = f"{r.real:.4g}" if r.imag == 0 else f"{r.real:.4g}{abs(r.imag):+.4g}j"
+            raise InvalidValueError(f"the paired element G[{i}, {j}] is unstable (a pole at {where}): BLT tuning "
+                                    "needs each paired "
+                                    "element stable or integrating (its ultimate point a gain margin)")
+
+
 def blt(G: DelayLTI, *, pairing: Sequence[int] | None = None, detune_target_db: float | None = None,
         zn: tuple[float, float] = (2.2, 1.2), check_stability: bool = True) -> BLTResult:
     """Luyben's biggest-log-modulus (BLT) tuning of decentralised PI control for a square delay system.
@@ -417,8 +465,8 @@ def blt(G: DelayLTI, *, pairing: Sequence[int] | None = None, detune_target_db: 
     Raises
     ------
     InvalidValueError
-        For a non-square system, a bad pairing or target, an element without an ultimate point, or no detuning
-        factor between 1e-4 and 1e4 that reaches the target.
+        For a non-square system, a bad pairing or target, an unstable paired element, an element without an
+        ultimate point, or no detuning factor between 1e-4 and 1e4 that reaches the target.
 
     See Also
     --------
@@ -446,6 +494,7 @@ def blt(G: DelayLTI, *, pairing: Sequence[int] | None = None, detune_target_db: 
         raise InvalidValueError(f"zn must be two divisors (of Ku and of Pu), got {zn!r}")
     a = check_real("zn[0]", zn[0], minimum=1e-6)
     b = check_real("zn[1]", zn[1], minimum=1e-6)
+    _check_elements(G, p)
     loops = _Loops(G, p)
     ult = [loops.ultimate(i) for i in range(n)]
     ku = np.array([u[0] for u in ult])

@@ -370,8 +370,10 @@ def tune(plant: Any, controller: str = "pi", *, delay: float | None = None, rule
     Raises
     ------
     InvalidValueError
-        A negative delay, ``ms <= 1`` or ``mt <= 1``, an unknown rule, method or objective, both a rule and a
-        method, a rule outside its plant family or structure, a robust range with a rule.
+        A negative delay, ``ms <= 1`` or ``mt <= 1`` (or above 100), an unknown rule, method or objective, both a
+        rule and a method, a rule outside its plant family or structure, a robust range with a rule; an
+        optimisation on an unstable plant, one whose gains have no largest value (no delay), or one that finds no
+        stable loop.
 
     See Also
     --------
@@ -448,9 +450,14 @@ def tune(plant: Any, controller: str = "pi", *, delay: float | None = None, rule
         ctrl = ctrl.replace(derivative_weight=check_real("derivative_weight (c)", derivative_weight, minimum=0.0))
     loop = (base.replace(controller=ctrl, umin=lo, umax=hi) if base is not None
             else Loop(tf, ctrl, delay=theta, umin=lo, umax=hi))
-    return _report(loop, how=how, kind=kind, step=step, size=size, t_end=t_end, overshoot=overshoot, notes=notes,
-                   ms_limit=None if rule is not None else ms_, mt_limit=None if rule is not None else mt_,
-                   model=model, ultimate=ult, points=(ds, gs))
+    result = _report(loop, how=how, kind=kind, step=step, size=size, t_end=t_end, overshoot=overshoot, notes=notes,
+                     ms_limit=None if rule is not None else ms_, mt_limit=None if rule is not None else mt_,
+                     model=model, ultimate=ult, points=(ds, gs))
+    if rule is None and not result.stable:  # the optimisation asked for a stable loop within the limits
+        raise InvalidValueError(f"the optimisation found no stabilising {kind} gains within Ms <= {ms_:g} for "
+                                f"{tf.to_string(times=' ')} with delay {theta:g} s (its best, kp={result.kp:.4g}, "
+                                f"ki={result.ki:.4g}, leaves the loop UNSTABLE by its certified roots)")
+    return result
 
 
 def assess(loop: Any, *, step: float = 1.0, load: float | None = None, t_end: float | None = None,

@@ -53,6 +53,9 @@ __all__ = ["OBJECTIVES", "Solution", "ms_map", "load_iae", "optimise", "plant_po
 
 OBJECTIVES = ("ki", "iae-load", "abscissa")
 KINDS = ("p", "pi", "pd", "pid", "pv")
+MAX_PEAK = 100.0
+"""The largest Ms or Mt limit the optimisation takes: a limit above it keeps ``L`` within 1 % of -1, closer than the
+design's frequency grid (about 1 % apart) resolves."""
 
 PlantPoint = tuple[TransferFunction, float]
 """One plant of a robust design: the transfer function (its gain factor applied) and its delay (s)."""
@@ -334,6 +337,12 @@ def _migo(pb: _Problem) -> tuple[float, float, float, float | None]:
     K, D = kps, np.broadcast_to(tds[:, None], kps.shape)
     with np.errstate(invalid="ignore"):
         x, _ = pb.best_x(np.nan_to_num(K, nan=0.0), D)
+    unbounded = (pb.kind in ("pi", "pid") and not np.isfinite(K).any()) or np.isposinf(x).all()
+    if unbounded:
+        raise InvalidValueError(
+            f"the {pb.kind} gains have no largest value: the loop keeps Ms <= {pb.ms:g}"
+            + (f" and Mt <= {pb.mt:g}" if pb.mt else "") + " however large its proportional gain (these plants' "
+            "phase never reaches -180 degrees: no delay); give the plant's delay, even a small one")
     x = np.where(np.isfinite(K), x, -np.inf)
     if not np.isfinite(x).any() or np.nanmax(x) <= 0:
         raise InvalidValueError(
@@ -506,6 +515,19 @@ def optimise(kind: str, points: Sequence[PlantPoint], *, ms: float = 1.4, mt: fl
                                 "leaves a steady error after a load step, so its IAE grows without bound")
     if kind in ("pv",) and any(not p.is_strictly_proper for p, _ in points):
         raise InvalidValueError("the PV law needs a strictly proper plant")
+    for name, peak in (("ms", ms), ("mt", mt)):
+        if peak is not None and not peak <= MAX_PEAK:
+            raise InvalidValueError(f"{name} must be at most {MAX_PEAK:g}, got {peak:g}: a larger limit lets the loop "
+                                    "pass within 1 % of instability, closer than the design's frequency grid resolves")
+    for p, d in points:
+        unstable = [complex(r) for r in p.poles() if r.real > 1e-9 * max(1.0, abs(r))]
+        if unstable:
+            r = max(unstable, key=lambda z: z.real)
+            where = f"{r.real:.4g}" if r.imag == 0 else f"{r.real:.4g}{abs(r.imag):+.4g}j"
+            raise InvalidValueError(
+                f"the plant {p.to_string(times=' ')} is unstable (a pole at {where}): "
+                "the optimisation grows the gains from zero, where the loop must be stable, so it tunes stable and "
+                "integrating plants only")
     pb = _Problem(kind, points, ms, mt, filter_ratio)
     kp, ki, td, where = _migo(pb)
     if objective == "ki":

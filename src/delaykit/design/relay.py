@@ -113,13 +113,16 @@ def relay_cycle(plant: Any, delay: float, amplitude: float = 1.0, hysteresis: fl
     Raises
     ------
     InvalidValueError
-        Bad values, or no limit cycle in the range searched.
+        Bad values, or no stable limit cycle in the range searched (periodic solutions the relay does not settle
+        into, by their multipliers, are passed over).
 
     References
     ----------
     .. [1] K. J. Astrom and T. Hagglund, "Automatic tuning of simple regulators with specifications on phase and
        amplitude margins", *Automatica* 20 (1984) 645-651.
     .. [2] Ya. Z. Tsypkin, *Relay Control Systems*, Cambridge University Press, 1984 (the exact periodic solution).
+    .. [3] K. J. Astrom, "Oscillations in systems with relay feedback", in *Adaptive Control, Filtering, and Signal
+       Processing*, IMA Vol. Math. Appl. 74, Springer, 1995, 1-25 (the cycle's stability from its multipliers).
 
     Examples
     --------
@@ -143,6 +146,9 @@ def relay_cycle(plant: Any, delay: float, amplitude: float = 1.0, hysteresis: fl
         raise InvalidValueError(f"the relay's time scale (delay {theta:g} s plus the slowest lag) is beyond what the "
                                 "scan of half-periods can cover: give a shorter delay")
     hi = 50.0 * scale if h_max is None else check_real("h_max (s)", h_max, minimum=0.0, strict=True)
+    if hi <= theta:
+        raise InvalidValueError(f"h_max (s) must exceed the delay {theta:g} s (a relay's half-period is longer than "
+                                f"its loop's delay), got {hi:g}")
     # the relay's own cycle has h > θ: after a switch the output keeps its course for a delay before it turns
     # (shorter roots are the delay's high-frequency cycles, which the relay does not settle into)
     hs = np.geomspace(theta * (1 + 1e-9) if theta > 0 else 1e-4 * scale, hi, 120)
@@ -156,7 +162,9 @@ def relay_cycle(plant: Any, delay: float, amplitude: float = 1.0, hysteresis: fl
     for i in np.flatnonzero(np.sign(vals[:-1]) * np.sign(vals[1:]) < 0):
         h = brentq(f, hs[i], hs[i + 1], xtol=1e-14, rtol=1e-15)
         y = _output_over(A, B, C, d, theta, h)
-        if np.all(y[1:-1] < eps + 1e-12 * max(1.0, abs(eps))):  # no earlier switch: the cycle is consistent
+        # no earlier switch (the cycle is consistent), and the relay settles into it (an unstable periodic
+        # solution, as the tiny fast ones of a high-order lag, is not the cycle an experiment shows)
+        if np.all(y[1:-1] < eps + 1e-12 * max(1.0, abs(eps))) and _multiplier(A, B, C, d, theta, h) < 1.0:
             a = _amplitude(A, B, C, d, theta, h, y)  # the other half-period is -y
             try:
                 ult = ultimate_point(tf, theta)
@@ -165,7 +173,22 @@ def relay_cycle(plant: Any, delay: float, amplitude: float = 1.0, hysteresis: fl
             w = math.pi / h
             mag = abs(complex(tf(1j * w)))
             return RelayCycle(d, eps, 2 * h, a, 4 * d / (math.pi * a), 1.0 / mag, ult)
-    raise InvalidValueError(f"no relay limit cycle with half-period below {hi:g} s for this plant and delay")
+    raise InvalidValueError(f"no stable relay limit cycle with half-period below {hi:g} s for this plant and delay")
+
+
+def _multiplier(A: np.ndarray, B: np.ndarray, C: np.ndarray, d: float, theta: float, h: float) -> float:
+    """The largest modulus of the cycle's multipliers: the eigenvalues of the half-period's switch-to-switch map's
+    Jacobian ``W = (I - xdot C / (C xdot)) e^{A h}`` (``xdot`` at the switch; Astrom 1995, valid for ``h > θ``,
+    where the delay line holds only the latest switch).  Below 1: the relay settles into the cycle."""
+    x0 = _start_state(A, B, d, theta, h)
+    t_break, v0 = _switch(theta, h, d)
+    xdot = A @ (-x0) + B * (-v0 if t_break < h else v0)
+    slope = float(C @ xdot)
+    if slope == 0.0:
+        return math.inf  # a tangent crossing: not a transversal switch
+    E, _ = hold_matrices(A, B, h)
+    W = (np.eye(A.shape[0]) - np.outer(xdot, C) / slope) @ E
+    return float(np.max(np.abs(np.linalg.eigvals(W))))
 
 
 def _output_over(A: np.ndarray, B: np.ndarray, C: np.ndarray, d: float, theta: float, h: float,

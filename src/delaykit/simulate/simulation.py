@@ -132,8 +132,17 @@ def _stall_message(row: np.ndarray, t_stop: float) -> str:
     return f"{where}: its pieces shrink to nothing (report the loop)"
 
 
+_SHORTEST = 1e-10
+"""s: the shortest t_end a loop is simulated over.  The kernel resolves times to 1e-12 s (its tolerance is
+``1e-12 max(1, t_end)``): a horizon of 1e-12 s or less ran no piece at all (metrics of nothing, an output that
+could not be read), and one below 1e-10 s is resolved to no better than 1 %."""
+
+
 def _check_run(t_end: float, band: float) -> tuple[float, float]:
     t_end = check_real("t_end (s)", t_end, minimum=0.0, strict=True)
+    if t_end < _SHORTEST:
+        raise InvalidValueError(f"t_end (s) must be at least {_SHORTEST:g} s (the simulator resolves times to 1e-12 s), "
+                                f"got {t_end:g}; a system's own responses (delaykit.tf(...).step) take shorter times")
     band = check_real("band", band, minimum=0.0, strict=True, maximum=1.0)
     return t_end, band
 

@@ -519,6 +519,29 @@ def _check_horizon(red: _Reduced, t_end: float) -> None:
 # -- one run ---------------------------------------------------------------------------------------------------
 
 _STATUS = {0: "exact", 2: "stalled", 3: "overflow"}
+_SHORTEST = 1e-12
+"""s: the shortest horizon a run is made to (the kernel resolves times to 1.4e-14 s); the outputs at earlier times
+are read from it."""
+
+
+def _horizon(t_end: float) -> tuple[float, float]:
+    """The horizon the kernel runs to for outputs up to ``t_end``, and its time tolerance.
+
+    The kernel takes times within the tolerance (1.4e-14 s up to 1 s) as equal: a horizon that short was "reached"
+    before the first piece (no outputs, all NaN, yet "exact"); such a run goes on to :data:`_SHORTEST` and the
+    outputs are read at the times asked (a horizon of 0, times at 0 only, runs a first piece for the right limits).
+    """
+    t_end = t_end if t_end > 0.0 else 1.0
+    t_end = max(t_end, _SHORTEST)
+    return t_end, 64.0 * np.finfo(float).eps * max(1.0, t_end)
+
+
+def _honest(status: str, reached: float, out: np.ndarray, tq: np.ndarray) -> tuple[str, float]:
+    """Never NaN labelled exact: an "exact" run with an output missing at a time asked stalled there."""
+    lost = np.isnan(out).reshape(-1, tq.size).any(axis=0)
+    if status == "exact" and lost.any():
+        return "stalled", float(tq[np.argmax(lost)])
+    return status, reached
 
 
 def _run(red: _Reduced, ut: np.ndarray, uvs: np.ndarray, x0: np.ndarray, tq: np.ndarray, t_end: float,
@@ -538,9 +561,7 @@ def _run(red: _Reduced, ut: np.ndarray, uvs: np.ndarray, x0: np.ndarray, tq: np.
             hit = (np.abs(red.C2L @ v) > 0.0) & (R0 > r)
             R0[hit] = r
             v = red.AL @ v
-    if not t_end > 0.0:
-        t_end = 1.0  # (times at 0 only: the right limits there, from a first piece)
-    tol = 64.0 * np.finfo(float).eps * max(1.0, t_end)
+    t_end, tol = _horizon(t_end)
     hmax = min(red.hmax, t_end)
     cap = min(1024, MAX_PIECES)
     while True:
@@ -562,8 +583,9 @@ def _run(red: _Reduced, ut: np.ndarray, uvs: np.ndarray, x0: np.ndarray, tq: np.
         res = []
         for k in range(ncol):
             status, nj = int(info[k, 0]), int(info[k, 2])
-            res.append((out[k], "truncated" if status == K.STATUS_CAPACITY else _STATUS[status], int(info[k, 1]),
-                        float(info[k, 3]), jump_t[k, :nj], jump_v[k, :nj]))
+            st, reached = "truncated" if status == K.STATUS_CAPACITY else _STATUS[status], float(info[k, 3])
+            st, reached = _honest(st, reached, out[k], tq)
+            res.append((out[k], st, int(info[k, 1]), reached, jump_t[k, :nj], jump_v[k, :nj]))
         return res
 
 
@@ -854,8 +876,7 @@ def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
     ns, nu, ny = len(systems), first.ninputs, first.noutputs
     out = np.full((ns * nu, ny, t.size), np.nan)
     info = np.zeros((ns * nu, K.NINFO))
-    t_end = float(t[-1]) if t[-1] > 0 else 1.0  # (times at 0 only: the right limits there, from a first piece)
-    tol = 64.0 * np.finfo(float).eps * max(1.0, t_end)
+    t_end, tol = _horizon(float(t[-1]))
     stack = {k: np.ascontiguousarray(np.stack([getattr(r, k) for r in reds]))
              for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21", "D22", "tau", "lo", "hi", "Rw", "Ru")}
     hmax = np.array([min(r.hmax, t_end) for r in reds])
@@ -899,6 +920,7 @@ def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
             out[k] = y
         else:
             st, p = _STATUS[int(info[k, 0])], int(info[k, 1])
+            st, _ = _honest(st, t_end, out[k], t)
         pieces[s_] += p
         if st != "exact" and status[s_] == "exact":
             status[s_] = st

@@ -19,7 +19,7 @@ import threading
 from concurrent.futures import ThreadPoolExecutor
 import dataclasses
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -29,11 +29,11 @@ from ..models.altitude import AltitudeLoop
 from ..models.loop import Loop
 from ..models.quasipolynomial import QuasiPolynomial
 from .lambert import lambert_roots
-from .roots import (RK, _CAP, _MAX_PHASE, _RELIABLE, RootStatus, Spectrum, _Eval, _nudged_count, find_roots,
-                    neutral_lines, root_bound)
+from .roots import (RK, _CAP, _MAX_PHASE, _RELIABLE, RootStatus, Spectrum, _count, _Eval, _nudged_count,
+                    find_roots, neutral_lines, root_bound)
 
 __all__ = ["Rightmost", "DelayMargin", "StabilityMap", "rightmost", "delay_margin", "stability_map",
-           "right_half_plane_count"]
+           "right_half_plane_count", "in_delay_units", "far_right_verdict"]
 
 
 @dataclass(frozen=True, repr=False)
@@ -266,6 +266,10 @@ def rightmost(q: QuasiPolynomial | AltitudeLoop | Loop, *, re_min: float | None 
     right = max(R, x + step)  # no root lies right of R
     sp = search(q, (x, right, lower(R), R), lines)
     for _ in range(_MAX_STRIPS):
+        if not sp.certified and not sp.roots.size and not lines and not kept:
+            far = _rightmost_from_right(q)  # too large a region here (a huge gain): searched from the right
+            if far is not None:
+                return result(far)
         if sp.roots.size or not sp.certified:
             return result(sp, right)
         if lines and x - closest <= 1e-12 * unit:
@@ -301,6 +305,113 @@ def _delay_free_scale(q: QuasiPolynomial) -> float:
     r = np.roots(total[nz[0]:])
     r = r[np.isfinite(r)]
     return 1.0 + 2.0 * float(np.max(np.abs(r))) if r.size else 1.0
+
+
+def in_delay_units(q: QuasiPolynomial) -> QuasiPolynomial:
+    """``Q(s / tau_max)`` divided by its largest coefficient: the same roots times ``tau_max`` (the longest delay
+    becomes 1), with coefficients of order one however large the loop gain or the time scales.
+
+    The scaling is done on the logarithms of the coefficients, so ``1e300 exp(-1e-300 s)`` is no overflow; only a
+    coefficient below 1e-308 of the largest (negligible wherever a root can be represented) underflows to 0.  A
+    polynomial (no delay) is only divided by its largest coefficient.
+
+    Examples
+    --------
+    >>> in_delay_units(QuasiPolynomial([[1, 1], [1e20]], [0.0, 0.3]))   # s + 1 + 1e20 exp(-0.3 s), s = z / 0.3
+    QuasiPolynomial(3.33333e-20·s + 1e-20 + 1·exp(-1 s))
+    """
+    q = _as_qp(q)
+    tmax = max(q.delays)
+    polys = _unit_scaled(q.polys, 1.0 / tmax if tmax > 0 else 1.0)
+    return QuasiPolynomial(polys, [t / tmax if tmax > 0 else t for t in q.delays])
+
+
+def _first_strip_from_right(q: QuasiPolynomial, stop: float) -> tuple[str, Any]:
+    """Walk strips ``[x - 1, x] x [-R(x - 1), R(x - 1)]`` of a retarded quasi-polynomial in delay units (its
+    longest delay 1) leftwards from where no root can lie, down to ``Re s = stop``, counting each by the argument
+    principle.  Returns ``("roots", box)`` for the first strip that holds a root, ``("none", None)`` when none
+    down to ``stop`` does, ``("fail", None)`` when a strip cannot be counted (too long a boundary, a root on it)."""
+    ev = _Eval(q)
+    x = max(1.0, stop + 1.0)
+    while root_bound(q, x) > x:
+        x *= 2.0
+        if x > 1e6:
+            return "fail", None
+    lo = max(stop, 0.5 * x) if x > 1.0 else stop
+    for _ in range(60):  # no root right of x: brought down to where the bound meets the line (R(x) = x)
+        if not math.isfinite(lo) or x - lo <= 0.5:
+            break
+        mid = 0.5 * (lo + x)
+        lo, x = (lo, mid) if root_bound(q, mid) <= mid else (mid, x)
+    right = x
+    spent = 0.0  # boundary samples, all strips together: at most 4 single searches' budget (seconds, not minutes)
+    for _ in range(_MAX_STRIPS):
+        if right <= stop:
+            return "none", None
+        left = max(stop, right - 1.0)
+        R = root_bound(q, left)
+        box = (left, right, -R, R)
+        spent += _contour_samples(box, 1.0)
+        if spent > 4 * _CAP:
+            return "fail", None
+        c = _count(ev, box)
+        if not c.ok:
+            return "fail", None
+        if c.n > 0:
+            return "roots", box
+        right = left
+    return "fail", None
+
+
+def far_right_verdict(q: QuasiPolynomial) -> bool | None:
+    """Stability of a retarded quasi-polynomial whose right half-plane is too large to search directly (a huge
+    loop gain): True when no root has ``Re s >= 0``, False when one has, None when it cannot be decided.
+
+    Worked in :func:`in_delay_units`.  First one argument-principle count of the right half-plane
+    (:func:`right_half_plane_count`); if its boundary is too long, the roots are sought from the right: every
+    root lies left of the first ``x`` with ``R(x) <= x`` (:func:`~delaykit.spectrum.roots.root_bound`), and strips
+    ``[x - 1, x] x [-R(x - 1), R(x - 1)]`` are counted moving left down to the axis; the first strip right of the
+    axis that holds a root proves instability (a high-gain loop's rightmost roots lie near ``ln(gain) / tau``, where
+    these strips are small, while its root chain up the axis reaches ``|s| ~ gain``).  With one delay, a delay
+    below the exact delay margin (:func:`delay_margin`: no root has crossed the axis yet) proves stability, as for
+    a loop whose fast modes and long delay put its roots too far apart to count.
+
+    Examples
+    --------
+    >>> q = QuasiPolynomial([[1, 1], [1e20]], [0.0, 0.3])     # 1e20 exp(-0.3 s) / (s + 1), unity feedback
+    >>> far_right_verdict(q)
+    False
+    """
+    q = in_delay_units(q)
+    if q.kind != "retarded" or max(q.delays) == 0.0:
+        return None
+    n = right_half_plane_count(q)
+    if n is not None:
+        return n == 0
+    if len(q.delays) == 2:  # one delay (1 in these units): stable below its exact delay margin
+        dm = delay_margin(q)
+        if dm.delay > 1.0 + 1e-9:
+            return True
+    found, _ = _first_strip_from_right(q, 0.0)
+    return {"roots": False, "none": True}.get(found)
+
+
+def _rightmost_from_right(q: QuasiPolynomial) -> Spectrum | None:
+    """The roots of a retarded quasi-polynomial in the first strip from the right that holds any
+    (:func:`_first_strip_from_right`, in delay units, scaled back): the rightmost root among them, certified; None
+    when not found so.  For a loop gain so large that the search from the loop's own time scale cannot be
+    certified (the right half-plane up to ``|s| ~ gain``)."""
+    if q.kind != "retarded" or max(q.delays) == 0.0:
+        return None
+    t = max(q.delays)
+    qs = in_delay_units(q)
+    found, box = _first_strip_from_right(qs, -math.inf)
+    if found != "roots":
+        return None
+    sp = _search(qs, box, ())
+    if not sp.certified:
+        return None
+    return dataclasses.replace(sp, roots=sp.roots / t, region=tuple(v / t for v in box))
 
 
 @dataclass(frozen=True, repr=False)
@@ -345,6 +456,15 @@ def delay_margin(q: QuasiPolynomial | AltitudeLoop) -> DelayMargin:
     p1 = np.array(q.polys[-1]) if q.delays[-1] > 0 else np.zeros(1, complex)
     if not taus:  # no delay in it: just the polynomial
         p1 = np.zeros(1, complex)
+    # s = sigma z with sigma the roots' scale, both polynomials divided by their largest coefficient: |P(jw)|^2
+    # below squares the coefficients (a gain of 1e300 overflowed); crossings w = sigma nu, delays tau = t / sigma
+    # (only for coefficients outside 1e-100..1e100: other loops' margins are computed as they always were)
+    mags = np.abs(np.concatenate([p0, p1]))
+    mags = mags[mags > 0]
+    sigma = 1.0
+    if mags.size and (mags.max() > 1e100 or mags.min() < 1e-100):
+        sigma = _root_scale(np.polyadd(p0, p1))
+        p0, p1 = _unit_scaled([p0, p1], sigma)
     # stability without delay
     r0 = np.roots(np.polyadd(p0, p1))
     if r0.size and np.max(r0.real) >= 0:
@@ -362,11 +482,41 @@ def delay_margin(q: QuasiPolynomial | AltitudeLoop) -> DelayMargin:
         # P0(jw) + P1(jw) exp(-j w tau) = 0  =>  exp(-j w tau) = z = -P0(jw) / P1(jw), |z| = 1
         z = -np.polyval(p0, 1j * w) / np.polyval(p1, 1j * w)
         tau = (-np.angle(z)) % (2 * math.pi) / w
-        crossings.append((float(w), float(tau if tau > 0 else 2 * math.pi / w)))
+        crossings.append((float(w * sigma), float(tau if tau > 0 else 2 * math.pi / w) / sigma))
     if not crossings:
         return DelayMargin(math.inf, None, ())
     w, tau = min(crossings, key=lambda c: c[1])
     return DelayMargin(tau, w, tuple(crossings))
+
+
+def _root_scale(p: np.ndarray) -> float:
+    """The geometric mean of the nonzero roots' moduli of the polynomial ``p`` (highest degree first), from its
+    coefficients' logarithms (no overflow): ``|a_j / a_n|^(1/(n-j))`` with ``a_j`` the lowest nonzero coefficient;
+    1 for a constant or a monomial."""
+    a = np.abs(np.asarray(p, complex))
+    nz = np.flatnonzero(a)
+    if nz.size < 2:
+        return 1.0
+    first, last = nz[0], nz[-1]
+    return float(math.exp((math.log(a[last]) - math.log(a[first])) / (last - first)))
+
+
+def _unit_scaled(polys: Sequence[Any], sigma: float) -> list[np.ndarray]:
+    """Each polynomial (highest degree first) at ``sigma z``, all divided by the largest coefficient among them,
+    computed on the coefficients' logarithms (no overflow; a coefficient below 1e-308 of the largest underflows
+    to 0)."""
+    ls = math.log(sigma)
+    out, logs = [], []
+    for p in polys:
+        a = np.asarray(p, complex)
+        with np.errstate(divide="ignore"):
+            logs.append(np.log(np.abs(a)) + ls * np.arange(a.size - 1, -1, -1))
+    top = max(float(np.max(lg)) for lg in logs)
+    for p, lg in zip(polys, logs):
+        a = np.asarray(p, complex)
+        unit = np.divide(a, np.abs(a), out=np.zeros_like(a), where=a != 0)
+        out.append(unit * np.exp(lg - top))
+    return out
 
 
 @dataclass(frozen=True, repr=False, eq=False)

@@ -40,8 +40,8 @@ from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..systems.build import system_of
 from ..systems.difference import ChannelAbscissa, channel_abscissa
 from ..systems.lti import DelayLTI
-from .roots import Spectrum, find_roots, root_bound
-from .stability import right_half_plane_count, rightmost
+from .roots import RootStatus, Spectrum, find_roots, root_bound
+from .stability import far_right_verdict, in_delay_units, right_half_plane_count, rightmost
 
 __all__ = ["poles", "neutral_spectrum", "is_stable", "hinfnorm", "HinfNorm", "nyquist_count", "NyquistCount", "loop_margins",
            "LoopMargins", "zeros", "zero_function", "is_minimum_phase"]
@@ -83,10 +83,19 @@ def poles(sys: DelayLTI, region: Sequence[float] | None = None) -> Spectrum:
     >>> round(r.real, 6), round(r.imag, 6)
     (-1.588047, 1.540224)
     """
+    import dataclasses
+
     sys = _system(sys)
     q = sys.characteristic()
     if region is not None:
         sp = find_roots(q, region)
+        if sp.status is RootStatus.SAMPLE_BUDGET and q.kind == "retarded" and max(q.delays) > 0:
+            # a region far larger than 1 s (a huge gain's poles): searched again in the delays' units, where the
+            # boundary's samples do not grow with the scale
+            t = max(q.delays)
+            scaled = find_roots(in_delay_units(q), tuple(float(v) * t for v in region))
+            if scaled.certified:
+                sp = dataclasses.replace(scaled, roots=scaled.roots / t, region=sp.region)
     elif q.degree == 0 and len(q.polys) == 1:  # a constant: no poles at all (a static system, pure delays)
         sp = find_roots(q, (-1.0, 1.0, 0.0, 1.0))
     elif q.degree == 0:
@@ -95,8 +104,6 @@ def poles(sys: DelayLTI, region: Sequence[float] | None = None) -> Spectrum:
     else:
         sp = _rightmost(sys, q).spectrum
     if q.kind == "neutral" and q.degree > 0:
-        import dataclasses
-
         sp = dataclasses.replace(sp, neutral_lines=(neutral_spectrum(sys).lines,))
     return sp
 
@@ -182,7 +189,11 @@ def is_stable(sys: DelayLTI) -> bool:
         return True  # a constant: no poles at all (a static system, pure delays)
     rm = _rightmost(sys, q)
     if not rm.certified and not rm.abscissa < 0:
-        raise InvalidValueError(f"the stability of {sys!r} could not be certified: {rm!r}")
+        # too large a region from the loop's own time scale (a huge gain): decided in the delays' units instead
+        verdict = far_right_verdict(q) if q.kind == "retarded" else None
+        if verdict is None:
+            raise InvalidValueError(f"the stability of {sys!r} could not be certified: {rm!r}")
+        return verdict
     return rm.stable
 
 

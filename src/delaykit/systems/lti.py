@@ -510,8 +510,11 @@ class DelayLTI:
         The determinant is multilinear in the channels' ``exp(-s tau_j)``, so it is the sum over the subsets
         ``S`` of channels of ``exp(-s sum_S tau_j)`` times ``det([[sI - A, -B2_S], [-C2_S, -D22_SS]])``; each such
         polynomial is found by interpolation on a circle whose radius is the geometric mean of ``A``'s nonzero
-        eigenvalues (rounding relative to the largest scaled coefficient, so a wide spread of time scales costs
-        digits).  Its roots are the system's internal
+        eigenvalues, or, when these spread over more than four decades, on circles spanning them, each coefficient
+        from the circle where it stands highest above its rounding floor.  A coefficient is dropped only at the
+        rounding level of its own term (the elimination's error bound, :func:`_det_scale`), never because another
+        term is larger: a loop gain of 1e300, or time constants of 1e-13 and 1e13 s, keep every term.  Its roots
+        are the system's internal
         poles, hidden modes included (as MATLAB's ``pole`` of a state-space model, but with the delays kept).
 
         Examples
@@ -535,8 +538,15 @@ class DelayLTI:
             radius = float(np.exp(np.mean(np.log(mags)))) if mags.size else 1.0  # balances the coefficients' sizes
         if not (math.isfinite(radius) and radius > 0):
             raise overflow
+        radii = [radius]
+        if mags.size and mags.max() > _SPREAD * mags.min():
+            # time scales far apart: no one circle gives every coefficient to full precision (s^2 + 1e13 s + 1 on
+            # the unit circle loses its 1 and its s^2), so circles from the smallest to the largest eigenvalue
+            # magnitude, each coefficient taken from the one where it stands highest above the rounding floor
+            spread = math.log10(float(mags.max() / mags.min()))
+            radii += list(np.geomspace(float(mags.min()), float(mags.max()), int(math.ceil(spread / 2)) + 1))
         k = np.arange(n + 1)
-        pts = radius * np.exp(2j * np.pi * k / (n + 1))
+        unity = np.exp(2j * np.pi * k / (n + 1))
         terms = []
         for mask in range(1 << m):
             S = [j for j in range(m) if mask >> j & 1]
@@ -547,16 +557,29 @@ class DelayLTI:
             G = np.vstack([top, bottom])
             F = np.zeros_like(G)
             F[:n, :n] = np.eye(n)
-            with np.errstate(all="ignore"):  # (checked just below)
-                vals = np.array([np.linalg.det(p * F + G) for p in pts])
-            if not np.all(np.isfinite(vals)):
-                raise overflow
-            terms.append((np.fft.fft(vals).real / (n + 1), sum(self.delays[j] for j in S)))
-        # coefficients at rounding level of the largest (scaled) one are noise of the interpolation
-        big = max(float(np.max(np.abs(c))) for c, _ in terms)
+            per = []
+            for r in radii:
+                mats = [p * F + G for p in r * unity]
+                with np.errstate(all="ignore"):  # (checked just below)
+                    vals = np.array([np.linalg.det(M) for M in mats])
+                if not np.all(np.isfinite(vals)):
+                    raise overflow
+                noise = max(_det_scale(M) for M in mats)  # this term's own floor, whatever the others' scale
+                per.append((np.fft.fft(vals).real / (n + 1), noise))
+            terms.append((per, sum(self.delays[j] for j in S)))
+        # coefficients at rounding level of a term's (scaled) size are noise of the interpolation; each term is
+        # judged against its own floor (never above the largest coefficient's), so a term far smaller than
+        # another (a loop gain of 1e20 against the plant's own s + 1) is kept, not dropped
+        bigs = [max(float(np.max(np.abs(per[i][0]))) for per, _ in terms) for i in range(len(radii))]
         polys, delays = [], []
-        for c, tau in terms:
-            c = np.where(np.abs(c) <= 1e-12 * big, 0.0, c) / radius ** k  # ascending powers
+        for per, tau in terms:
+            best, snr = np.zeros(n + 1), np.zeros(n + 1)
+            for r, big, (c, noise) in zip(radii, bigs, per):
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    here = np.abs(c) / (1e-12 * min(big, noise))
+                take = here > snr
+                best[take], snr[take] = c[take] / r ** k[take], here[take]  # ascending powers
+            c = np.where(snr > 1.0, best, 0.0)
             if c.any():
                 polys.append(c[::-1])
                 delays.append(tau)
@@ -817,7 +840,32 @@ class DelayLTI:
                    else "") + ("" if self.is_retarded else ", neutral") + ")")
 
 
+def _det_scale(M: np.ndarray) -> float:
+    """A size whose eps-multiple bounds the rounding error of ``det(M)`` by Gaussian elimination (partial
+    pivoting): ``|det M|`` times the sum over the pivots of ``(|L||U|)_ii / |U_ii|`` (each pivot's error relative
+    to it), at least ``|det M|``; Hadamard's bound (the product of the rows' 1-norms) when a pivot is zero."""
+    import warnings
+
+    from scipy.linalg import LinAlgWarning, lu_factor
+
+    if not M.size:
+        return 1.0
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", LinAlgWarning)  # a singular M: handled below
+        lu, _ = lu_factor(M, check_finite=False)
+        d = np.abs(np.diag(lu))
+        if not np.all(d > 0) or not np.all(np.isfinite(lu)):
+            return float(np.prod(np.abs(M).sum(axis=1)))
+        L = np.tril(lu, -1) + np.eye(M.shape[0])
+        growth = np.einsum("ij,ji->i", np.abs(L), np.abs(np.triu(lu))) / d
+        logdet = float(np.sum(np.log(d)))
+        return float(np.exp(logdet + math.log(max(1.0, float(growth.sum())))))
+
+
 _MAX_CHANNELS = 14
+_SPREAD = 1e4
+"""The ratio of ``A``'s largest to smallest nonzero eigenvalue magnitude above which :meth:`DelayLTI.characteristic`
+interpolates on several circles (below it one circle gives every coefficient to about 12 digits)."""
 _PARTS = ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21", "D22")
 _FLOAT = np.dtype(float)
 
