@@ -653,9 +653,14 @@ def read_delay_trace(path: Path) -> Any:
     """``--delay-trace``: a CSV of ``t,delay`` (s), or a flight log with ``latency_ms``, chosen by the header."""
     from ..simulate.varying import DelayTrace
 
+    import io
+
+    from ..models.budget import MAX_FILE_BYTES, open_regular
+
     header: list[str] = []
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
+    try:  # (a regular file only: a FIFO would block, /dev/zero never end; refused here before a byte is read)
+        with io.TextIOWrapper(open_regular(path, "--delay-trace", MAX_FILE_BYTES), newline="",
+                              encoding="utf-8-sig") as fh:
             header = [c.strip() for c in next(csv.reader(fh), [])]
     except (OSError, UnicodeDecodeError, csv.Error):
         return DelayTrace.from_csv(path)  # it says what is wrong with the file

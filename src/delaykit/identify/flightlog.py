@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import array
 import csv
+import io
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,6 +40,7 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 
 from ..errors import InvalidValueError, check_real
+from ..models.budget import MAX_LOG_BYTES, open_regular
 from ..models.ranges import parse_number
 
 __all__ = ["FlightLog", "LogError", "REQUIRED", "MAX_ALTITUDE", "MAX_TIME", "read_csv_rows", "iter_csv_rows", "write_log",
@@ -92,8 +94,9 @@ def iter_csv_rows(path: Path) -> tuple[list[str], Iterator[tuple[list[str], int]
         (the header's problems at once, a later row's when the iterator reaches it).
     """
     name = str(path)
-    try:
-        fh = open(path, encoding="utf-8-sig", newline="")  # (newline="": the reader takes \n, \r\n and \r)
+    try:  # a regular file of bounded size only: /dev/zero never ends, a FIFO blocks the reader
+        fh = io.TextIOWrapper(open_regular(path, "CSV log", MAX_LOG_BYTES, error=LogError), encoding="utf-8-sig",
+                              newline="")  # (newline="": the reader takes \n, \r\n and \r)
     except OSError as exc:
         raise LogError(f"{name}: cannot be read ({exc.strerror or exc})") from None
 

@@ -378,8 +378,11 @@ class DelayTrace(DelayModel):
         if unit not in ("s", "ms"):
             raise InvalidValueError(f"unit must be 's' or 'ms', got {unit!r}")
         name = str(path)
+        from ..models.budget import read_regular
+
         try:  # (read as identify.flightlog reads a log; this layer may not import it)
-            rows = list(csv.reader(io.StringIO(Path(path).read_bytes().decode("utf-8-sig"), newline="")))
+            data = read_regular(path, "delay trace")  # (a regular file of bounded size only)
+            rows = list(csv.reader(io.StringIO(data.decode("utf-8-sig"), newline="")))
         except OSError as exc:
             raise InvalidValueError(f"{name}: cannot be read ({exc.strerror or exc})") from None
         except (UnicodeDecodeError, csv.Error) as exc:
