@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
+from ..models.budget import MAX_MATRIX_ELEMENTS, check_count
 from ..models.hold import hold_matrices, split_delay
 from ..models.interop import require_control
 from .algebra import blockdiag, close_parts
@@ -137,10 +138,13 @@ def c2d(sys: DelayLTI, period: float, *, thiran_order: int | None = None) -> Dis
                                 "loop has no finite exact zero-order-hold discretisation; give thiran_order=N for an "
                                 "approximation, or discretise the open-loop blocks and close the loop in discrete time")
     n, nu, ny = sys.nstates, sys.ninputs, sys.noutputs
+    tau = max(sys.delays, default=0.0)
+    _check_states(n + nu * max(tau / h - 1.0, 0.0), h, tau)  # (a lower bound, before the counts are made)
     splits = [split_delay(t, h) for t in sys.delays]
     M = max([m + (1 if f > 0 else 0) for m, f in splits], default=0)
     # state: [x; u[k-1]; ...; u[k-M]]
     N = n + M * nu
+    _check_states(N, h, tau)
     Ad, Bd = np.zeros((N, N)), np.zeros((N, nu))
     Cd, Dd = np.zeros((ny, N)), sys.D11.copy()
     Phi, Gam = hold_matrices(sys.A, np.hstack([sys.B1, sys.B2]), h) if n else (np.zeros((0, 0)), np.zeros((0, nu)))
@@ -209,6 +213,13 @@ def thiran(D: float, order: int) -> tuple[np.ndarray, np.ndarray]:
     return a[::-1].copy(), a.copy()
 
 
+def _check_states(N: float, h: float, tau: float) -> None:
+    """Refuse a discretisation of ``N`` states whose state matrix (``N x N``) is beyond the matrix budget, before
+    it is built: a delay of ``tau`` s sampled every ``h`` s adds some ``tau / h`` states per input."""
+    check_count(f"the discretised system of {N:.6g} states (a delay of {tau:g} s over a period of {h:g} s)", float(N) ** 2,
+                MAX_MATRIX_ELEMENTS, "state-matrix elements", "sample with a longer period")
+
+
 def _filter(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, ...]:
     """A proper rational ``num/den`` in ``z`` realised in controllable canonical form: ``(A, B, C, D)``."""
     from ..models.transfer import TransferFunction
@@ -246,11 +257,17 @@ def _thiran_c2d(sys: DelayLTI, h: float, order: Any) -> DiscreteLTI:
     P = (Phi, Gam, np.zeros((n, 0)), np.vstack([sys.C1, sys.C2]), np.zeros((0, n)),
          np.block([[sys.D11, sys.D12], [sys.D21, sys.D22]]), np.zeros((ny + m, 0)), np.zeros((0, nu + m)),
          np.zeros((0, 0)))
-    filters = []
+    longest = max(sys.delays, default=0.0)
+    _check_states(n + sum(max(t / h - 1.0, 0.0) for t in sys.delays), h, longest)  # (a lower bound, first)
+    sizes = []
     for tau in sys.delays:
         D = tau / h
         N = min(int(order), max(int(math.floor(D + 0.5)), 0))  # an order the delay supports (D > N - 1)
         k = max(int(math.floor(D - N + 0.5)), 0) if N else int(round(D))
+        sizes.append((D, N, k))
+    _check_states(n + sum(N + k for _, N, k in sizes), h, longest)
+    filters = []
+    for D, N, k in sizes:
         f = _shift(k)
         if N:
             f = _series(f, _filter(*thiran(D - k, N)))
