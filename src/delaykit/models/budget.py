@@ -38,14 +38,14 @@ from __future__ import annotations
 import math
 import os
 import stat
-from typing import IO, Any
+from typing import IO, Any, Iterator
 
 from ..errors import InvalidValueError
 
 __all__ = ["MAX_RANGE_POINTS", "MAX_GRID_POINTS", "MAX_ROOT_GRID_POINTS", "MAX_FREQUENCY_DECADES", "MAX_SAMPLES",
            "MAX_PIECES", "MAX_PIECE_CHANNELS", "MAX_MATRIX_ELEMENTS", "MAX_RESPONSE_POINTS", "MAX_TEXT_CHARS",
-           "MAX_FLIGHT_SECONDS", "MAX_CONFIG_BYTES", "MAX_FILE_BYTES", "MAX_LOG_BYTES", "check_count", "sample_count",
-           "shorten", "open_regular", "read_regular"]
+           "MAX_FLIGHT_SECONDS", "MAX_CONFIG_BYTES", "MAX_FILE_BYTES", "MAX_LOG_BYTES", "BLOCK_ELEMENTS", "check_count",
+           "sample_count", "check_response", "blocks", "shorten", "open_regular", "read_regular"]
 
 MAX_RANGE_POINTS = 10_000
 """Values in one range (a sweep of delays or gains, Lambert branches)."""
@@ -105,6 +105,10 @@ _LIMITS = ("MAX_RANGE_POINTS", "MAX_GRID_POINTS", "MAX_ROOT_GRID_POINTS", "MAX_F
            "MAX_FLIGHT_SECONDS", "MAX_CONFIG_BYTES", "MAX_FILE_BYTES", "MAX_LOG_BYTES")
 _NAMES = {globals()[k]: k for k in _LIMITS}  # a refusal names its limit, found by value: the values differ
 assert len(_NAMES) == len(_LIMITS), "two limits of one value: a refusal could name the wrong one"
+BLOCK_ELEMENTS = 1 << 21
+"""Not a limit: the elements (complex, 32 MiB) of the work arrays of one block of a computation done in blocks
+(a frequency response, :func:`blocks`), so that its work memory does not grow with the number of points."""
+
 _MAX_WHAT = 120  # characters of ``what`` quoted in a refusal (a refusal stays one short line)
 
 
@@ -145,6 +149,36 @@ def check_count(what: str, count: float, limit: int, unit: str, hint: str = "") 
         raise InvalidValueError(f"{shorten(what)}: {shown} {unit}, above the limit of {limit:.15g}{_where(limit)}"
                                 + (f"; {hint}" if hint else ""))
     return int(count)
+
+
+def check_response(points: int, outputs: int = 1, inputs: int = 1) -> None:
+    """Refuse a frequency response of ``points`` frequencies of a system of ``outputs`` x ``inputs`` beyond
+    :data:`MAX_RESPONSE_POINTS` values.
+
+    Examples
+    --------
+    >>> check_response(10**7, 2, 2)
+    Traceback (most recent call last):
+    ...
+    delaykit.errors.InvalidValueError: a frequency response at 10000000 frequencies of 2 outputs x 2 inputs: 40000000 values, above the limit of 16000000 (delaykit.models.budget.MAX_RESPONSE_POINTS); ask for fewer frequencies
+    """
+    check_count(f"a frequency response at {points} frequencies of {outputs} output{'s' * (outputs != 1)} x {inputs} "
+                f"input{'s' * (inputs != 1)}", float(points) * outputs * inputs, MAX_RESPONSE_POINTS, "values",
+                "ask for fewer frequencies")
+
+
+def blocks(count: int, per_item: int) -> Iterator[slice]:
+    """Slices of ``range(count)`` in blocks of work arrays of about :data:`BLOCK_ELEMENTS` elements, ``per_item``
+    of them for each item (at least one item per block).
+
+    Examples
+    --------
+    >>> [(b.start, b.stop) for b in blocks(5, BLOCK_ELEMENTS // 2)]
+    [(0, 2), (2, 4), (4, 5)]
+    """
+    step = max(1, BLOCK_ELEMENTS // max(int(per_item), 1))
+    for i in range(0, count, step):
+        yield slice(i, min(i + step, count))
 
 
 def _where(limit: float, name: str | None = None) -> str:

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
+from ..models import budget
 from ..models.budget import MAX_MATRIX_ELEMENTS, check_count
 from ..models.hold import hold_matrices, split_delay
 from ..models.interop import require_control
@@ -56,12 +57,15 @@ class DiscreteLTI:
     def frequency_response(self, w: Any) -> SystemResponse:
         """``C (zI - A)^-1 B + D`` at ``z = exp(j w h)``, shaped ``(outputs, inputs, len(w))``."""
         w = as_frequencies(w)
-        z = np.exp(1j * w * self.period)
-        n = self.A.shape[0]
-        with np.errstate(all="ignore"):
-            X = np.linalg.solve(z[:, None, None] * np.eye(n) - self.A,
-                                np.broadcast_to(self.B, (w.size,) + self.B.shape))
-            H = self.C @ X + self.D
+        n, (ny, nu) = self.A.shape[0], self.D.shape
+        budget.check_response(w.size, ny, nu)
+        H = np.empty((w.size, ny, nu), complex)
+        for b in budget.blocks(w.size, n * (n + nu) + ny * nu):  # bounded work memory
+            z = np.exp(1j * w[b] * self.period)
+            with np.errstate(all="ignore"):
+                X = np.linalg.solve(z[:, None, None] * np.eye(n) - self.A,
+                                    np.broadcast_to(self.B, (z.size,) + self.B.shape))
+                H[b] = self.C @ X + self.D
         return SystemResponse(w, np.moveaxis(H, 0, -1), self.inputs, self.outputs)
 
     def to_control(self) -> Any:
