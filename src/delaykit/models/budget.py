@@ -16,7 +16,8 @@ generous (each is far beyond what the paper or a flight needs) and come from mem
   :data:`MAX_PIECE_CHANNELS` pieces times delay channels (each piece keeps a polynomial per channel);
 * :data:`MAX_MATRIX_ELEMENTS` elements of one matrix a call builds (a discretised system's state matrix, the
   matrices of a frequency response's solve);
-* :data:`MAX_RESPONSE_POINTS` values of one frequency response (frequencies x outputs x inputs);
+* :data:`MAX_RESPONSE_POINTS` values of one frequency response (frequencies x outputs x inputs), and
+  :data:`MAX_SOLVE_WORK` operations of its solves;
 * :data:`MAX_TEXT_CHARS` characters of one transfer function written as text;
 * :data:`MAX_FLIGHT_SECONDS` seconds of one flight plan;
 * :data:`MAX_CONFIG_BYTES` bytes of a loop, system or model file, :data:`MAX_FILE_BYTES` of a data file read
@@ -43,8 +44,8 @@ from typing import IO, Any, Iterator
 from ..errors import InvalidValueError
 
 __all__ = ["MAX_RANGE_POINTS", "MAX_GRID_POINTS", "MAX_ROOT_GRID_POINTS", "MAX_FREQUENCY_DECADES", "MAX_SAMPLES",
-           "MAX_PIECES", "MAX_PIECE_CHANNELS", "MAX_MATRIX_ELEMENTS", "MAX_RESPONSE_POINTS", "MAX_TEXT_CHARS",
-           "MAX_FLIGHT_SECONDS", "MAX_CONFIG_BYTES", "MAX_FILE_BYTES", "MAX_LOG_BYTES", "BLOCK_ELEMENTS", "check_count",
+           "MAX_PIECES", "MAX_PIECE_CHANNELS", "MAX_MATRIX_ELEMENTS", "MAX_RESPONSE_POINTS", "MAX_SOLVE_WORK",
+           "MAX_TEXT_CHARS", "MAX_FLIGHT_SECONDS", "MAX_CONFIG_BYTES", "MAX_FILE_BYTES", "MAX_LOG_BYTES", "BLOCK_ELEMENTS", "check_count",
            "sample_count", "check_response", "blocks", "shorten", "open_regular", "read_regular"]
 
 MAX_RANGE_POINTS = 10_000
@@ -82,6 +83,11 @@ MAX_RESPONSE_POINTS = 16_000_000
 16 million frequencies of a single-input single-output one.  The response is computed in blocks of frequencies,
 so the work memory stays some 32 MiB whatever the count."""
 
+MAX_SOLVE_WORK = 10**11
+"""Operations of one frequency response's solves, counted as ``len(w) x (states + delay channels)^3``: some
+minutes of work at most.  A transfer matrix is realised entry by entry, so a 10 x 10 one of first-order entries
+with delays has 200 such unknowns, 8e6 operations at each frequency."""
+
 MAX_TEXT_CHARS = 2000
 """Characters of one transfer function written as text (``"12.8*exp(-s)/(16.7*s+1)"``): parsing is quadratic
 at worst, and a text this long is no transfer function anyone writes."""
@@ -101,8 +107,8 @@ MAX_LOG_BYTES = 1 << 30
 :data:`MAX_SAMPLES` rows."""
 
 _LIMITS = ("MAX_RANGE_POINTS", "MAX_GRID_POINTS", "MAX_ROOT_GRID_POINTS", "MAX_FREQUENCY_DECADES", "MAX_SAMPLES",
-           "MAX_PIECES", "MAX_PIECE_CHANNELS", "MAX_MATRIX_ELEMENTS", "MAX_RESPONSE_POINTS", "MAX_TEXT_CHARS",
-           "MAX_FLIGHT_SECONDS", "MAX_CONFIG_BYTES", "MAX_FILE_BYTES", "MAX_LOG_BYTES")
+           "MAX_PIECES", "MAX_PIECE_CHANNELS", "MAX_MATRIX_ELEMENTS", "MAX_RESPONSE_POINTS", "MAX_SOLVE_WORK",
+           "MAX_TEXT_CHARS", "MAX_FLIGHT_SECONDS", "MAX_CONFIG_BYTES", "MAX_FILE_BYTES", "MAX_LOG_BYTES")
 _NAMES = {globals()[k]: k for k in _LIMITS}  # a refusal names its limit, found by value: the values differ
 assert len(_NAMES) == len(_LIMITS), "two limits of one value: a refusal could name the wrong one"
 BLOCK_ELEMENTS = 1 << 21

@@ -421,6 +421,9 @@ class DelayLTI:
         budget.check_response(s.size, ny, nu)
         budget.check_count(f"the {n + m} x {n + m} matrix solved at each point ({n} states, {m} delay channels)",
                            float(n + m) ** 2, budget.MAX_MATRIX_ELEMENTS, "elements")
+        budget.check_count(f"a response at {s.size} points of a system of {n} states and {m} delay channels",
+                           float(s.size) * float(n + m) ** 3, budget.MAX_SOLVE_WORK, "operations",
+                           "ask for fewer frequencies or a smaller system")
         out = np.empty((s.size, ny, nu), complex)
         CD = np.hstack([self.C1, self.D12])
         for b in budget.blocks(s.size, (n + m) * (n + m + 2 * nu + 2) + ny * nu):  # bounded work memory
