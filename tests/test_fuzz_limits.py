@@ -196,6 +196,8 @@ def test_a_regular_log_reads_as_before(tmp_path):
 _WORK = """
 from delaykit.design.mimo import blt, rga
 from delaykit.design.pid import tune
+from delaykit.simulate.montecarlo import monte_carlo
+from delaykit.simulate.simulation import simulate_many
 from delaykit.systems.discrete import c2d
 
 W = dk.tf([["exp(-s)/(s+1)", "1/(s+2)"], ["1/(s+3)", "exp(-2*s)/(s+1)"]])
@@ -224,6 +226,10 @@ CASES.update(
     cli_fly=lambda: cli("fly", "--kp", "1", "--duration", "1e300", "--host", "127.0.0.1", "--at-port", "1",
                         "--navdata-port", "2", "--log", {log!r}),
     cli_plant=lambda: cli("simulate", "--plant", "+".join(["exp(-0.1*s)/(s+1)"] * 1200), "--kp", "1"),
+    monte_carlo=lambda: lib(lambda: monte_carlo(dk.AltitudeLoop(kp=1.31, delay=0.368), 0.368, n=10**9)),
+    sweep=lambda: lib(lambda: simulate_many(dk.AltitudeLoop(kp=1.31, delay=0.368), kp=np.broadcast_to(1.0, (10**8,)))),
+    sweep_shape=lambda: lib(lambda: simulate_many(dk.AltitudeLoop(kp=1.31, delay=0.368), kp=np.ones((10**4, 1)),
+                                                  delay=np.full(10**4, 0.3))),
 )
 """
 
@@ -276,6 +282,13 @@ def test_long_transfer_function_texts_are_refused_at_once_in_a_short_line(work):
         msg = _refused(work[case], "longer than 2000 characters", "MAX_TEXT_CHARS")
         assert len(msg) < 300
     _cli_refused(work["cli_plant"], "MAX_TEXT_CHARS")
+
+
+def test_monte_carlo_runs_and_sweeps_are_bounded(work):
+    # before: 7.45 GiB for a billion runs' delays; a MemoryError for a sweep of 1e8 gains
+    _refused(work["monte_carlo"], "1000000000 runs", "MAX_GRID_POINTS")
+    _refused(work["sweep"], "kp: 100000000 values", "MAX_GRID_POINTS")
+    _refused(work["sweep_shape"], "(10000, 10000): 100000000 loops", "MAX_GRID_POINTS")
 
 
 @pytest.mark.slow

@@ -52,7 +52,8 @@ MAX_RANGE_POINTS = 10_000
 """Values in one range (a sweep of delays or gains, Lambert branches)."""
 
 MAX_GRID_POINTS = 1_000_000
-"""Candidates in one gain search (Kp values x Kv values x delays)."""
+"""Candidates in one gain search (Kp values x Kv values x delays); also the loops of one batch simulation
+(``simulate_many``), the runs of one Monte Carlo study and a robust design's plants x grid frequencies."""
 
 MAX_ROOT_GRID_POINTS = 20_000_000
 """Points of one root search's candidate grid (some six per ``2 pi / delay`` along Im, 24 or more across the

@@ -37,6 +37,7 @@ import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import as_loop
+from ..models.budget import MAX_GRID_POINTS, check_count
 from ..models.compensators import Compensator
 from .simulation import simulate_many
 from .varying import DelayModel, _check_seed, _checked_delays, as_delay_model, simulate_varying
@@ -263,6 +264,7 @@ def _check_runs(n: Any, model: Any) -> int:
         return size if size is not None else _DEFAULT_RUNS
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise InvalidValueError(f"n (number of runs) must be a positive integer, got {n!r}")
+    check_count("n (number of runs)", int(n), MAX_GRID_POINTS, "runs")
     if size is not None and int(n) != size:
         raise InvalidValueError(f"n (number of runs) must be None or {size} for an array of {size} delays "
                                 f"(one run each), got {n}")
