@@ -21,8 +21,9 @@ generous (each is far beyond what the paper or a flight needs) and come from mem
 * :data:`MAX_TEXT_CHARS` characters of one transfer function written as text;
 * :data:`MAX_FLIGHT_SECONDS` seconds of one flight plan;
 * :data:`MAX_CONFIG_BYTES` bytes of a loop, system or model file, :data:`MAX_FILE_BYTES` of a data file read
-  whole (a delay trace, a reference) and :data:`MAX_LOG_BYTES` of a CSV log read row by row; only regular files are read (:func:`open_regular`): a
-  device such as ``/dev/zero`` never ends and a FIFO blocks the reader, so both are refused before the read.
+  whole (a delay trace, a reference) and :data:`MAX_LOG_BYTES` of a CSV log read row by row; only regular files
+  are read (:func:`open_regular`): a device such as ``/dev/zero`` never ends and a FIFO blocks the reader, so
+  both are refused before the read.
 
 The user documentation lists them (``docs/guide/limits.md``).
 
@@ -45,8 +46,9 @@ from ..errors import InvalidValueError
 
 __all__ = ["MAX_RANGE_POINTS", "MAX_GRID_POINTS", "MAX_ROOT_GRID_POINTS", "MAX_FREQUENCY_DECADES", "MAX_SAMPLES",
            "MAX_PIECES", "MAX_PIECE_CHANNELS", "MAX_MATRIX_ELEMENTS", "MAX_RESPONSE_POINTS", "MAX_SOLVE_WORK",
-           "MAX_TEXT_CHARS", "MAX_FLIGHT_SECONDS", "MAX_CONFIG_BYTES", "MAX_FILE_BYTES", "MAX_LOG_BYTES", "BLOCK_ELEMENTS", "check_count",
-           "sample_count", "check_response", "blocks", "shorten", "open_regular", "read_regular"]
+           "MAX_TEXT_CHARS", "MAX_FLIGHT_SECONDS", "MAX_CONFIG_BYTES", "MAX_FILE_BYTES", "MAX_LOG_BYTES",
+           "BLOCK_ELEMENTS", "check_count", "sample_count", "check_response", "blocks", "shorten", "open_regular",
+           "read_regular"]
 
 MAX_RANGE_POINTS = 10_000
 """Values in one range (a sweep of delays or gains, Lambert branches)."""
@@ -112,6 +114,7 @@ _LIMITS = ("MAX_RANGE_POINTS", "MAX_GRID_POINTS", "MAX_ROOT_GRID_POINTS", "MAX_F
            "MAX_TEXT_CHARS", "MAX_FLIGHT_SECONDS", "MAX_CONFIG_BYTES", "MAX_FILE_BYTES", "MAX_LOG_BYTES")
 _NAMES = {globals()[k]: k for k in _LIMITS}  # a refusal names its limit, found by value: the values differ
 assert len(_NAMES) == len(_LIMITS), "two limits of one value: a refusal could name the wrong one"
+
 BLOCK_ELEMENTS = 1 << 21
 """Not a limit: the elements (complex, 32 MiB) of the work arrays of one block of a computation done in blocks
 (a frequency response, :func:`blocks`), so that its work memory does not grow with the number of points."""

@@ -220,8 +220,8 @@ def thiran(D: float, order: int) -> tuple[np.ndarray, np.ndarray]:
 def _check_states(N: float, h: float, tau: float) -> None:
     """Refuse a discretisation of ``N`` states whose state matrix (``N x N``) is beyond the matrix budget, before
     it is built: a delay of ``tau`` s sampled every ``h`` s adds some ``tau / h`` states per input."""
-    check_count(f"the discretised system of {N:.6g} states (a delay of {tau:g} s over a period of {h:g} s)", float(N) ** 2,
-                MAX_MATRIX_ELEMENTS, "state-matrix elements", "sample with a longer period")
+    check_count(f"the discretised system of {N:.6g} states (a delay of {tau:g} s over a period of {h:g} s)",
+                float(N) ** 2, MAX_MATRIX_ELEMENTS, "state-matrix elements", "sample with a longer period")
 
 
 def _filter(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, ...]:
