@@ -356,3 +356,14 @@ def test_a_refusal_quotes_a_long_value_shortened():
     with pytest.raises(InvalidValueError) as err:
         parse_range(spec, "--kp")
     assert "MAX_RANGE_POINTS" in str(err.value) and len(str(err.value)) < 300
+
+
+@pytest.mark.parametrize("spec", ["x" * 100_000, "1:2:" + "9" * 100_000, ",".join(["1"] * 5000) + ",x"])
+def test_a_range_spec_that_is_not_one_is_refused_in_a_short_line(spec):
+    from delaykit.errors import RangeSpecError
+    from delaykit.models.ranges import parse_range
+
+    # before: the refusal quoted the whole text (100 kB)
+    with pytest.raises(RangeSpecError, match="must be START:STOP:N") as err:
+        parse_range(spec, "--kp")
+    assert len(str(err.value)) < 200 and "..." in str(err.value)
