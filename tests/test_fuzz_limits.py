@@ -196,7 +196,11 @@ def test_a_regular_log_reads_as_before(tmp_path):
 _WORK = """
 from delaykit.design.mimo import blt, rga
 from delaykit.design.pid import tune
+from delaykit.design.compensators import disturbance_recovery
+from delaykit.design.pid_optimise import ms_map
 from delaykit.simulate.montecarlo import monte_carlo
+from delaykit.spectrum.frequency import frequency_grid
+from delaykit.spectrum.stability import stability_map
 from delaykit.simulate.simulation import simulate_many
 from delaykit.systems.discrete import c2d
 
@@ -230,6 +234,12 @@ CASES.update(
     sweep=lambda: lib(lambda: simulate_many(dk.AltitudeLoop(kp=1.31, delay=0.368), kp=np.broadcast_to(1.0, (10**8,)))),
     sweep_shape=lambda: lib(lambda: simulate_many(dk.AltitudeLoop(kp=1.31, delay=0.368), kp=np.ones((10**4, 1)),
                                                   delay=np.full(10**4, 0.3))),
+    grid=lambda: lib(lambda: frequency_grid(dk.AltitudeLoop(kp=1.31, delay=0.368), 10**9)),
+    recovery=lambda: lib(lambda: disturbance_recovery(dk.Loop("1/s", dk.Controller.p(1.31), delay=0.368), n=10**9)),
+    stability_map=lambda: lib(lambda: stability_map(dk.AltitudeLoop(kp=1.31, delay=0.368), "kp",
+                                                    np.linspace(0.1, 1, 10**5), "kv", np.linspace(0, 1, 10**5))),
+    ms_map=lambda: lib(lambda: ms_map(dk.Loop("1/(s+1)", dk.Controller.pi(1.0, 1.0), delay=0.2),
+                                      np.linspace(0.1, 1, 10**5), np.linspace(0.1, 1, 10**5))),
 )
 """
 
@@ -289,6 +299,14 @@ def test_monte_carlo_runs_and_sweeps_are_bounded(work):
     _refused(work["monte_carlo"], "1000000000 runs", "MAX_GRID_POINTS")
     _refused(work["sweep"], "kp: 100000000 values", "MAX_GRID_POINTS")
     _refused(work["sweep_shape"], "(10000, 10000): 100000000 loops", "MAX_GRID_POINTS")
+
+
+def test_grid_sizes_are_bounded(work):
+    # before: 7.45 GiB for 1e9 grid frequencies or samples, 74.5 GiB for a 99999 x 99999 stability map
+    _refused(work["grid"], "1000000000 frequencies", "MAX_RESPONSE_POINTS")
+    _refused(work["recovery"], "1000000000 samples", "MAX_SAMPLES")
+    for case in ("stability_map", "ms_map"):
+        _refused(work[case], "a map of 100000 x 100000 values", "MAX_GRID_POINTS")
 
 
 @pytest.mark.slow

@@ -579,6 +579,8 @@ def ms_map(loop: Loop, kps: Any, kis: Any) -> np.ndarray:
     [[1.4]]
     """
     kps, kis = np.asarray(kps, float).ravel(), np.asarray(kis, float).ravel()
+    check_count(f"a map of {kps.size} x {kis.size} values", float(kps.size) * kis.size, MAX_GRID_POINTS, "loops",
+                "map fewer values")
     pts = [(loop.plant, loop.total_delay)]
     t, _ = _scales(pts)
     w = _grid(pts, t)

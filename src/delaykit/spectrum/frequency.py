@@ -55,7 +55,7 @@ import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop, as_loop
-from ..models.budget import MAX_FREQUENCY_DECADES, check_count
+from ..models.budget import MAX_FREQUENCY_DECADES, MAX_RESPONSE_POINTS, check_count
 from ..models.loop import Loop
 from ._openloop import (TWO_PI, OpenLoop, PhaseScan, cutoff_frequency, dense_grid, gain_crossovers, scan_phase,
                         newton_bracketed, snap_half_turns)
@@ -157,6 +157,7 @@ def frequency_grid(loop: Loop | AltitudeLoop, n: int = 500, *, wmin: float | Non
     loop = _continuous(loop)
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
         raise InvalidValueError(f"n (number of frequencies) must be an integer of at least 2, got {n!r}")
+    check_count("n (number of frequencies)", int(n), MAX_RESPONSE_POINTS, "frequencies")
     if _compensated(loop):
         from .compensated import compensated_grid
 
