@@ -651,11 +651,10 @@ def print_rms(title: str, rows: list[tuple[str, float, Optional[float]]]) -> Non
 
 def read_delay_trace(path: Path) -> Any:
     """``--delay-trace``: a CSV of ``t,delay`` (s), or a flight log with ``latency_ms``, chosen by the header."""
-    from ..simulate.varying import DelayTrace
-
     import io
 
     from ..models.budget import MAX_FILE_BYTES, open_regular
+    from ..simulate.varying import DelayTrace
 
     header: list[str] = []
     try:  # (a regular file only: a FIFO would block, /dev/zero never end; refused here before a byte is read)

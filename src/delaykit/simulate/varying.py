@@ -46,6 +46,7 @@ import numpy as np
 
 from .. import _native
 from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..models.budget import read_regular
 from ..models.ranges import parse_number
 from ..models.altitude import as_loop
 from ..models.closed_loop import loop_realisation
@@ -378,8 +379,6 @@ class DelayTrace(DelayModel):
         if unit not in ("s", "ms"):
             raise InvalidValueError(f"unit must be 's' or 'ms', got {unit!r}")
         name = str(path)
-        from ..models.budget import read_regular
-
         try:  # (read as identify.flightlog reads a log; this layer may not import it)
             data = read_regular(path, "delay trace")  # (a regular file of bounded size only)
             rows = list(csv.reader(io.StringIO(data.decode("utf-8-sig"), newline="")))
