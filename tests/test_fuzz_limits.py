@@ -385,3 +385,22 @@ def test_a_range_spec_that_is_not_one_is_refused_in_a_short_line(spec):
     with pytest.raises(RangeSpecError, match="must be START:STOP:N") as err:
         parse_range(spec, "--kp")
     assert len(str(err.value)) < 200 and "..." in str(err.value)
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["simulate", "--kp", "1", "--delay", "0.3", "--period", "0.05", "--delay-schedule", "x" * 100_000],
+     "--delay-schedule item 1 'xxx"),
+    (["simulate", "--kp", "1", "--delay", "0.3", "--period", "0.05", "--delay-schedule",
+      ",".join(f"{k}:0.3" for k in range(20_000))], "--delay-schedule: 20000 items, above the limit of 10000"),
+    (["fly", "--kp", "1", "--steps", "y" * 100_000], "--steps item 1 'yyy"),
+    (["fly", "--kp", "1", "--steps", ",".join(["1"] * 20_000)], "--steps: 20000 steps, above the limit of 10000"),
+])
+def test_long_option_texts_are_refused_in_a_short_line(tmp_path, args, fragment):
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+
+    # before: the refusal quoted the whole 100 kB text
+    res = CliRunner().invoke(app, args + (["--log", str(tmp_path / "f.csv")] if args[0] == "fly" else []))
+    _cli_refused({"code": res.exit_code, "out": res.output, "exc": None if isinstance(res.exception, SystemExit)
+                  or res.exception is None else type(res.exception).__name__}, fragment)
