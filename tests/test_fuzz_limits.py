@@ -238,6 +238,7 @@ CASES.update(
     recovery=lambda: lib(lambda: disturbance_recovery(dk.Loop("1/s", dk.Controller.p(1.31), delay=0.368), n=10**9)),
     stability_map=lambda: lib(lambda: stability_map(dk.AltitudeLoop(kp=1.31, delay=0.368), "kp",
                                                     np.linspace(0.1, 1, 10**5), "kv", np.linspace(0, 1, 10**5))),
+    algebra=lambda: lib(lambda: dk.append(*[dk.delay(0.1)] * 5000)),
     ms_map=lambda: lib(lambda: ms_map(dk.Loop("1/(s+1)", dk.Controller.pi(1.0, 1.0), delay=0.2),
                                       np.linspace(0.1, 1, 10**5), np.linspace(0.1, 1, 10**5))),
 )
@@ -307,6 +308,11 @@ def test_grid_sizes_are_bounded(work):
     _refused(work["recovery"], "1000000000 samples", "MAX_SAMPLES")
     for case in ("stability_map", "ms_map"):
         _refused(work[case], "a map of 100000 x 100000 values", "MAX_GRID_POINTS")
+
+
+def test_a_system_built_beyond_the_matrix_budget_is_refused(work):
+    # before: products of large delay systems ran out of memory (a 4200 x 4200 stack of parts, and more)
+    _refused(work["algebra"], "a system of 0 states and 5000 delay channels", "MAX_MATRIX_ELEMENTS")
 
 
 @pytest.mark.slow

@@ -79,7 +79,7 @@ pieces (500 channels: 8,388 pieces)."""
 MAX_MATRIX_ELEMENTS = 1 << 24
 """Elements of one matrix built by a call (a 4096 x 4096 matrix, 128 MiB of floats): the state matrix of a
 discretised system (its states plus the inputs held over the longest delay), the matrix solved at each point of a
-frequency response (states plus delay channels, squared)."""
+frequency response and the parts of a system built by the algebra (states plus delay channels, squared)."""
 
 MAX_RESPONSE_POINTS = 16_000_000
 """Values of one frequency response (``len(w) x outputs x inputs``, 16 bytes each: 256 MB), and so at most
