@@ -410,3 +410,13 @@ def test_long_option_texts_are_refused_in_a_short_line(tmp_path, args, fragment)
     res = CliRunner().invoke(app, args + (["--log", str(tmp_path / "f.csv")] if args[0] == "fly" else []))
     _cli_refused({"code": res.exit_code, "out": res.output, "exc": None if isinstance(res.exception, SystemExit)
                   or res.exception is None else type(res.exception).__name__}, fragment)
+
+
+def test_a_log_line_without_end_is_refused_as_it_is_read(tmp_path):
+    from delaykit.identify.flightlog import LogError
+    from delaykit.identify.iodata import read_experiment
+
+    p = tmp_path / "blob.csv"  # a header, then 3 MB without a line end (a binary or garbled file)
+    p.write_bytes(b"t,u,z\n" + b"7" * (3 << 20))
+    with pytest.raises(LogError, match="line 2 is longer than 1048576 characters"):
+        read_experiment(p, input="u")

@@ -62,6 +62,10 @@ def _out_of_range(key: str, v: float) -> str | None:
     return None
 
 
+_MAX_LINE = 1 << 20
+"""Characters of one line of a CSV log (a row of a log is some 100): a longer one is refused as it is read."""
+
+
 class LogError(InvalidValueError):
     """A flight log that cannot be used, with the file and row named."""
 
@@ -101,10 +105,16 @@ def iter_csv_rows(path: Path) -> tuple[list[str], Iterator[tuple[list[str], int]
         raise LogError(f"{name}: cannot be read ({exc.strerror or exc})") from None
 
     def lines() -> Iterator[str]:
-        for line in fh:
+        while True:
+            line = fh.readline(_MAX_LINE)  # (capped: a binary file without line ends is not read whole)
+            if not line:
+                break
             if "\x00" in line:
                 raise LogError(f"{name} is not a UTF-8 text CSV (it holds NUL bytes at byte "
                                f"{_bad_byte(path, True)[0]}): a binary file?")
+            if len(line) >= _MAX_LINE and not line.endswith(("\n", "\r")):
+                raise LogError(f"{name}: line {reader.line_num + 1} is longer than {_MAX_LINE} characters: not a "
+                               "CSV log (a binary file?)")
             yield line
 
     reader = csv.reader(lines())
