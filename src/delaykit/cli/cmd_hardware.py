@@ -176,13 +176,17 @@ def _parse_steps(spec: str) -> tuple[float, ...]:
     >>> _parse_steps("1, -1,0.5")
     (1.0, -1.0, 0.5)
     """
+    from ..models.budget import MAX_RANGE_POINTS, check_count, shorten
+
     items = [x.strip() for x in spec.split(",")]
+    check_count("--steps", len(items), MAX_RANGE_POINTS, "steps")
     steps = []
     for k, item in enumerate(items):
         try:
             steps.append(float(item))
         except ValueError:
-            raise InvalidValueError(f"--steps item {k + 1} {item!r} of {spec!r} is not a number: give steps in "
+            raise InvalidValueError(f"--steps item {k + 1} {shorten(item, 40)!r} of {shorten(spec, 80)!r} is not a "
+                                    "number: give steps in "
                                     "metres separated by commas, e.g. 1,-1,1") from None
     return tuple(steps)
 

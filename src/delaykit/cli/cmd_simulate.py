@@ -350,8 +350,10 @@ def _read_reference(path: Path, hold: str) -> Any:
     """A reference from a CSV file with columns t and r (a header row naming them)."""
     from ..models.signals import Samples
 
+    from ..models.budget import read_regular
+
     try:
-        text = Path(path).read_bytes().decode("utf-8-sig")
+        text = read_regular(path, "reference file").decode("utf-8-sig")
     except OSError as exc:
         raise InvalidValueError(f"cannot read the reference file {str(path)!r}: {exc.strerror or exc}") from None
     except UnicodeDecodeError:

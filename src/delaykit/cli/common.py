@@ -494,8 +494,12 @@ def parse_schedule(spec: str) -> list[tuple[float, float]]:
     >>> parse_schedule("20:0.40, 40:0.25")
     [(20.0, 0.4), (40.0, 0.25)]
     """
+    from ..models.budget import MAX_RANGE_POINTS, check_count, shorten
+
     pairs: list[tuple[float, float]] = []
     items = [x.strip() for x in spec.split(",")]
+    check_count("--delay-schedule", len(items), MAX_RANGE_POINTS, "items")
+    q = lambda x: repr(shorten(x, 40))  # noqa: E731  (an item quoted in a refusal stays short)
     for k, item in enumerate(items):
         parts = item.split(":")
         try:
@@ -505,17 +509,17 @@ def parse_schedule(spec: str) -> list[tuple[float, float]]:
 
             t, d = parse_number(parts[0]), parse_number(parts[1])
         except ValueError:
-            raise InvalidValueError(f"--delay-schedule item {k + 1} {item!r} is not T:DELAY (seconds since "
+            raise InvalidValueError(f"--delay-schedule item {k + 1} {q(item)} is not T:DELAY (seconds since "
                                     "start, delay in seconds), e.g. 20:0.40") from None
         if not (math.isfinite(t) and math.isfinite(d)):
-            raise InvalidValueError(f"--delay-schedule item {k + 1} {item!r}: the time and the delay must be "
+            raise InvalidValueError(f"--delay-schedule item {k + 1} {q(item)}: the time and the delay must be "
                                     "finite numbers")
         if d < 0:
-            raise InvalidValueError(f"--delay-schedule item {k + 1} {item!r}: the delay {d:g} s is negative "
+            raise InvalidValueError(f"--delay-schedule item {k + 1} {q(item)}: the delay {d:g} s is negative "
                                     "(a delay is at least 0 s)")
         if pairs and not t > pairs[-1][0]:
-            raise InvalidValueError(f"--delay-schedule times must increase: item {k + 1} {item!r} (t = {t:g} s) "
-                                    f"is not after item {k} {items[k - 1]!r} (t = {pairs[-1][0]:g} s)")
+            raise InvalidValueError(f"--delay-schedule times must increase: item {k + 1} {q(item)} (t = {t:g} s) "
+                                    f"is not after item {k} {q(items[k - 1])} (t = {pairs[-1][0]:g} s)")
         pairs.append((t, d))
     return pairs
 
@@ -699,11 +703,15 @@ def print_rms(title: str, rows: list[tuple[str, float, Optional[float]]]) -> Non
 
 def read_delay_trace(path: Path) -> Any:
     """``--delay-trace``: a CSV of ``t,delay`` (s), or a flight log with ``latency_ms``, chosen by the header."""
+    import io
+
+    from ..models.budget import MAX_FILE_BYTES, open_regular
     from ..simulate.varying import DelayTrace
 
     header: list[str] = []
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
+    try:  # (a regular file only: a FIFO would block, /dev/zero never end; refused here before a byte is read)
+        with io.TextIOWrapper(open_regular(path, "--delay-trace", MAX_FILE_BYTES), newline="",
+                              encoding="utf-8-sig") as fh:
             header = [c.strip() for c in next(csv.reader(fh), [])]
     except (OSError, UnicodeDecodeError, csv.Error):
         return DelayTrace.from_csv(path)  # it says what is wrong with the file

@@ -26,6 +26,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..models.budget import MAX_SAMPLES, check_count
 from ..models.compensators import COMPENSATOR_KINDS, Compensator
 from ..models.controllers import Controller
 from ..models.loop import Loop
@@ -193,6 +194,9 @@ def disturbance_recovery(loop: Loop, size: float = 0.2, t_end: float = 20.0, n: 
     0.1
     """
     size = check_real("size (load disturbance)", size)
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
+        raise InvalidValueError(f"n (number of samples) must be an integer of at least 2, got {n!r}")
+    check_count("n (number of samples)", int(n), MAX_SAMPLES, "samples")
     resp = simulate(loop, step=0.0, disturbance=LoadStep(size, 0.0), t_end=t_end)
     t = np.linspace(0.0, t_end, n)
     y = np.abs(np.asarray(resp.altitude(t)))

@@ -48,6 +48,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..models.budget import blocks
 from ..spectrum.systems import _features, _grid, is_stable
 from ..systems.algebra import feedback
 from ..systems.build import tf
@@ -134,15 +135,22 @@ def rga(G: DelayLTI, w: Any) -> np.ndarray:
     w = as_frequencies(w)
     h = np.moveaxis(G.evaluate(1j * w), -1, 0)  # (len(w), n, n)
     out = np.empty_like(h)
-    for k, m in enumerate(h):
-        if not np.all(np.isfinite(m)):
+    n = h.shape[1]
+    for b in blocks(w.size, 8 * n * n):  # a block of frequencies at a time: the work memory stays bounded
+        m = h[b]
+        bad = ~np.isfinite(m).all(axis=(1, 2))
+        if bad.any():
+            k = b.start + int(np.argmax(bad))
             raise InvalidValueError(f"G(jw) is infinite at w={w[k]:g} rad/s (a pole on the imaginary axis): no "
                                     "relative gain array there")
-        cond = np.linalg.cond(m)
-        if not np.isfinite(cond) or cond > 1e14:
-            raise InvalidValueError(f"G(jw) is singular at w={w[k]:g} rad/s (condition number {cond:.3g}): no "
-                                    "relative gain array there")
-        out[k] = m * np.linalg.inv(m).T
+        with np.errstate(all="ignore"):
+            cond = np.linalg.cond(m)
+        bad = ~(cond <= 1e14)
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise InvalidValueError(f"G(jw) is singular at w={w[b.start + k]:g} rad/s (condition number "
+                                    f"{cond[k]:.3g}): no relative gain array there")
+        out[b] = m * np.swapaxes(np.linalg.inv(m), 1, 2)
     return np.moveaxis(out, 0, -1)
 
 

@@ -44,6 +44,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from ..errors import InvalidValueError
+from ..models.budget import BLOCK_ELEMENTS, MAX_GRID_POINTS, blocks, check_count
 from ..models.controllers import Controller, feedback_response
 from ..models.loop import Loop
 from ..models.transfer import TransferFunction
@@ -107,6 +108,8 @@ def plant_points(plant: TransferFunction, delay: float, delays: Sequence[float] 
     for g in gs:
         if not (math.isfinite(g) and g > 0):
             raise InvalidValueError(f"every gain factor must be finite and above 0, got {g:g}")
+    check_count(f"{len(ds)} delays x {len(gs)} gain factors", float(len(ds)) * len(gs), MAX_GRID_POINTS, "plants",
+                "give fewer delays or gains")
     return [(plant if g == 1.0 else TransferFunction(plant.num * g, plant.den), d) for d in ds for g in gs]
 
 
@@ -184,9 +187,21 @@ def _scales(points: Sequence[PlantPoint]) -> tuple[float, float]:
     return t, k0
 
 
-def _grid(points: Sequence[PlantPoint], t: float, n: int = 700) -> np.ndarray:
+_GRID_N = 700  # frequencies of each of the grid's two base ranges
+
+
+def _check_design(plants: int, frequencies: int, least: str = "") -> None:
+    """Refuse a design whose plants' responses on the grid exceed :data:`~delaykit.models.budget.MAX_GRID_POINTS`
+    (its work and memory grow with their number)."""
+    check_count(f"a design for {plants} plants at {least}{frequencies} frequencies each", float(plants) * frequencies,
+                MAX_GRID_POINTS, "plant responses", "give fewer delays or gains (a robust design's work grows with "
+                "their product)")
+
+
+def _grid(points: Sequence[PlantPoint], t: float, n: int = _GRID_N) -> np.ndarray:
     """Frequencies (rad/s) from 1e-4/T to 300/T, denser around 1/T, plus every pole and zero's magnitude."""
-    feats = [abs(r) for pp, _ in points for r in np.concatenate([pp.poles(), pp.zeros()]) if abs(r) > 0]
+    plants = {id(pp): pp for pp, _ in points}.values()  # (the points of a robust design share their plants)
+    feats = [abs(r) for pp in plants for r in np.concatenate([pp.poles(), pp.zeros()]) if abs(r) > 0]
     w = np.geomspace(1e-4 / t, 300.0 / t, n)
     extra = [np.geomspace(f / 3, f * 3, 60) for f in feats if 1e-4 / t < f < 300 / t]
     return np.unique(np.concatenate([w, np.geomspace(0.05 / t, 20.0 / t, n), *extra]))
@@ -223,11 +238,14 @@ class _Problem:
 
     def __init__(self, kind: str, points: Sequence[PlantPoint], ms: float, mt: float | None, filter_ratio: float):
         self.kind, self.points, self.ms, self.mt, self.n = kind, list(points), ms, mt, filter_ratio
+        _check_design(len(self.points), 2 * _GRID_N, "at least ")  # (the grid has at least 2 * _GRID_N)
         self.t, self.k0 = _scales(self.points)
         self.w = _grid(self.points, self.t)
+        _check_design(len(self.points), self.w.size)
         self.s = 1j * self.w
         self.P = _values(self.points, self.w)  # (points, w)
         self.evaluations = 0
+
 
     def tf_of(self, td: float) -> float:
         """The derivative filter's time constant ``Td / N`` (a small one, ``T / 1000``, when ``Td = 0``)."""
@@ -255,6 +273,18 @@ class _Problem:
         s = self.s if s is None else s
         kp, td = np.broadcast_arrays(np.asarray(kp, float), np.asarray(td, float))
         self.evaluations += kp.size
+        per = 16 * P.size  # the work arrays of one outer point (a dozen of the plants' responses' size)
+        if kp.ndim and kp.size > 1 and kp.size * per > BLOCK_ELEMENTS:  # in blocks: the memory stays bounded
+            x, idx = np.empty(kp.shape), np.empty(kp.shape, dtype=np.intp)
+            fk, ft, fx, fi = kp.ravel(), td.ravel(), x.reshape(-1), idx.reshape(-1)
+            for b in blocks(kp.size, per):
+                fx[b], fi[b] = self._best_x(fk[b], ft[b], P, s, integral)
+            return x, idx
+        return self._best_x(kp, td, P, s, integral)
+
+    def _best_x(self, kp: np.ndarray, td: np.ndarray, P: np.ndarray, s: np.ndarray,
+                integral: bool) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`best_x` at outer parameters of one shape, all at once."""
         tdx = td[..., None]
         if self.kind in ("pd", "pid"):
             d = 1.0 + tdx * s / (np.where(tdx > 0, tdx / self.n, 1.0) * s + 1.0)
@@ -571,6 +601,8 @@ def ms_map(loop: Loop, kps: Any, kis: Any) -> np.ndarray:
     [[1.4]]
     """
     kps, kis = np.asarray(kps, float).ravel(), np.asarray(kis, float).ravel()
+    check_count(f"a map of {kps.size} x {kis.size} values", float(kps.size) * kis.size, MAX_GRID_POINTS, "loops",
+                "map fewer values")
     pts = [(loop.plant, loop.total_delay)]
     t, _ = _scales(pts)
     w = _grid(pts, t)

@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterator
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_path, check_real, writing
+from ..models.budget import MAX_FLIGHT_SECONDS, check_count
 from ..models.compensators import Compensator
 from ..models.controllers import Controller
 from .ardrone_link import VZ_MAX_LIMIT, DroneLink
@@ -190,6 +191,10 @@ class FlightPlan:
         for s in self.steps:
             if check_real("step (m)", s) == 0:
                 raise InvalidValueError("a step of zero cannot be measured")
+        n = len(self.steps)
+        check_count(f"a flight of {self.hover_time:g} s of hover and {n} step{'s' * (n != 1)} of "
+                    f"{self.step_duration:g} s", self.hover_time + n * self.step_duration, MAX_FLIGHT_SECONDS,
+                    "seconds", "fly shorter steps (a battery lasts some 15 minutes)")
         if not self.z_min < self.z_max:
             raise InvalidValueError(f"z_min must be below z_max, got {self.z_min:g} and {self.z_max:g}")
         if isinstance(self.controller, Relay) and self.controller.amplitude > self.vmax:

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import array
 import csv
+import io
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,6 +40,7 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 
 from ..errors import InvalidValueError, check_path, check_real, writing
+from ..models.budget import MAX_LOG_BYTES, open_regular
 from ..models.ranges import parse_number
 
 __all__ = ["FlightLog", "LogError", "REQUIRED", "MAX_ALTITUDE", "MAX_TIME", "read_csv_rows", "iter_csv_rows", "write_log",
@@ -58,6 +60,10 @@ def _out_of_range(key: str, v: float) -> str | None:
     if abs(v) > bound:
         return f"{key} is {v:g} {unit}, outside [-{bound:g}, {bound:g}] {unit}"
     return None
+
+
+_MAX_LINE = 1 << 20
+"""Characters of one line of a CSV log (a row of a log is some 100): a longer one is refused as it is read."""
 
 
 class LogError(InvalidValueError):
@@ -92,16 +98,23 @@ def iter_csv_rows(path: Path) -> tuple[list[str], Iterator[tuple[list[str], int]
         (the header's problems at once, a later row's when the iterator reaches it).
     """
     name = str(path)
-    try:
-        fh = open(path, encoding="utf-8-sig", newline="")  # (newline="": the reader takes \n, \r\n and \r)
+    try:  # a regular file of bounded size only: /dev/zero never ends, a FIFO blocks the reader
+        fh = io.TextIOWrapper(open_regular(path, "CSV log", MAX_LOG_BYTES, error=LogError), encoding="utf-8-sig",
+                              newline="")  # (newline="": the reader takes \n, \r\n and \r)
     except OSError as exc:
         raise LogError(f"{name}: cannot be read ({exc.strerror or exc})") from None
 
     def lines() -> Iterator[str]:
-        for line in fh:
+        while True:
+            line = fh.readline(_MAX_LINE)  # (capped: a binary file without line ends is not read whole)
+            if not line:
+                break
             if "\x00" in line:
                 raise LogError(f"{name} is not a UTF-8 text CSV (it holds NUL bytes at byte "
                                f"{_bad_byte(path, True)[0]}): a binary file?")
+            if len(line) >= _MAX_LINE and not line.endswith(("\n", "\r")):
+                raise LogError(f"{name}: line {reader.line_num + 1} is longer than {_MAX_LINE} characters: not a "
+                               "CSV log (a binary file?)")
             yield line
 
     reader = csv.reader(lines())

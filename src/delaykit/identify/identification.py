@@ -815,11 +815,15 @@ def load_model(path: str | Path) -> IdentifiedModel:
     IdentificationError
         A file that cannot be read or is not a model.
     """
+    from ..models.budget import MAX_CONFIG_BYTES, read_regular
+
     p = check_path("model file", path)
-    try:
-        d = json.loads(p.read_text(encoding="utf-8"))
+    try:  # (a regular file only, of bounded size: /dev/zero or a FIFO is refused before a byte is read)
+        d = json.loads(read_regular(p, "model file", MAX_CONFIG_BYTES, error=IdentificationError).decode("utf-8"))
     except OSError as exc:
         raise IdentificationError(f"{p}: cannot be read ({exc.strerror or exc})") from None
+    except IdentificationError:  # not a regular file, or too large: already said
+        raise
     except RecursionError:
         raise IdentificationError(f"{p}: not a delaykit model file (nested too deeply to read)") from None
     except ValueError as exc:  # not UTF-8, not JSON, an integer of thousands of digits

@@ -390,6 +390,8 @@ def load_loop(path: str | Path) -> Loop:
 def read_toml(path: str | Path, what: str, *, max_bytes: int | None = None) -> dict[str, Any]:
     """The contents of a TOML file; every failure an :class:`InvalidValueError` naming ``what`` and the path.
 
+    Only a regular file of at most ``max_bytes`` (default :data:`~delaykit.models.budget.MAX_CONFIG_BYTES`) is read.
+
     Examples
     --------
     >>> read_toml("/nonexistent.toml", "loop file")
@@ -399,11 +401,11 @@ def read_toml(path: str | Path, what: str, *, max_bytes: int | None = None) -> d
     """
     import tomllib
 
+    from .budget import MAX_CONFIG_BYTES, read_regular
+
     p = Path(path)
-    try:
-        if max_bytes is not None and p.stat().st_size > max_bytes:
-            raise InvalidValueError(f"the {what} {str(p)!r} is larger than {max_bytes} bytes")
-        text = p.read_bytes().decode("utf-8-sig")
+    try:  # (a regular file only, of bounded size: /dev/zero or a FIFO is refused before a byte is read)
+        text = read_regular(p, what, MAX_CONFIG_BYTES if max_bytes is None else max_bytes).decode("utf-8-sig")
     except OSError as exc:
         raise InvalidValueError(f"cannot read the {what} {str(p)!r}: {exc.strerror or exc}") from None
     except UnicodeDecodeError:

@@ -21,7 +21,7 @@ from __future__ import annotations
 from typing import Sequence
 
 from ..errors import InvalidTypeError, InvalidValueError, RangeSpecError, check_real
-from .budget import MAX_RANGE_POINTS, check_count
+from .budget import MAX_RANGE_POINTS, check_count, shorten
 
 __all__ = ["parse_range", "parse_number", "parse_integer"]
 
@@ -79,6 +79,7 @@ def parse_range(spec: str | Sequence[float], name: str = "range") -> list[float]
     [0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]
     """
     hint = "sweep fewer values, or split the sweep into several runs"
+    shown = repr(shorten(spec, 80)) if isinstance(spec, str) else ""  # (a refusal quotes a long text shortened)
     if not isinstance(spec, str):
         try:
             if isinstance(spec, (bytes, bytearray)):
@@ -94,12 +95,12 @@ def parse_range(spec: str | Sequence[float], name: str = "range") -> list[float]
             a_s, b_s, n_s = spec.split(":")
             a, b, n = parse_number(a_s), parse_number(b_s), parse_integer(n_s)
         except ValueError:
-            raise RangeSpecError(f"{name} {spec!r} must be START:STOP:N, a comma list or a number") from None
+            raise RangeSpecError(f"{name} {shown} must be START:STOP:N, a comma list or a number") from None
         if n < 1:
-            raise InvalidValueError(f"{name} {spec!r}: N must be at least 1")
-        check_count(f"{name} {spec!r}", n, MAX_RANGE_POINTS, "values", hint)
+            raise InvalidValueError(f"{name} {shown}: N must be at least 1")
+        check_count(f"{name} {shown}", n, MAX_RANGE_POINTS, "values", hint)
         if n > 1 and not b > a:
-            raise InvalidValueError(f"{name} {spec!r}: the range is empty or reversed (STOP must exceed START)")
+            raise InvalidValueError(f"{name} {shown}: the range is empty or reversed (STOP must exceed START)")
         vals = [a] if n == 1 else [round(a + (b - a) * i / (n - 1), 12) for i in range(n)]
     else:
         items = spec.split(",")
@@ -107,7 +108,7 @@ def parse_range(spec: str | Sequence[float], name: str = "range") -> list[float]
         try:
             vals = [parse_number(x) for x in items]
         except ValueError:
-            raise RangeSpecError(f"{name} {spec!r} must be START:STOP:N, a comma list or a number") from None
+            raise RangeSpecError(f"{name} {shown} must be START:STOP:N, a comma list or a number") from None
     if not vals:
         raise InvalidValueError(f"{name} is empty")
     for v in vals:

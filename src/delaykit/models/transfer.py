@@ -52,13 +52,14 @@ from typing import Any, NamedTuple, NoReturn
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, MissingDependencyError, check_real
+from .budget import MAX_TEXT_CHARS
 
 __all__ = ["TransferFunction", "MAX_ORDER", "check_control_system"]
 
 MAX_ORDER = 12
 """The highest order (denominator degree) a :class:`TransferFunction` may have."""
 _MAX_COEFF = 1e100  # larger numbers, or normalised coefficients, are refused as badly scaled
-_MAX_TEXT = 2000  # characters
+_MAX_TEXT = MAX_TEXT_CHARS  # characters
 _MAX_WORK_DEGREE = 4 * MAX_ORDER  # degree allowed in intermediate results while parsing
 _ONE = np.ones(1)
 _S = np.array([1.0, 0.0])
@@ -283,7 +284,7 @@ def _read(text: Any) -> tuple[_Val, str]:
         raise InvalidTypeError(f"a transfer function must be text, got {reprlib.repr(text)} ({type(text).__name__})")
     if len(text) > _MAX_TEXT:
         raise InvalidValueError(f"could not read the transfer function {_quoted(text)}: longer than {_MAX_TEXT} "
-                                "characters")
+                                "characters (delaykit.models.budget.MAX_TEXT_CHARS)")
     src = text.replace("^", "**").strip()
     reader = _Reader(text, src)
     if not src:

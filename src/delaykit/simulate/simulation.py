@@ -30,7 +30,7 @@ import numpy as np
 from .. import _native
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop, as_loop
-from ..models.budget import sample_count
+from ..models.budget import MAX_GRID_POINTS, check_count, sample_count
 from ..models.compensators import Compensator
 from ..models.controllers import controller_branches, parallel
 from ..models.loop import Loop
@@ -515,6 +515,7 @@ def simulate_many(loop: Any, *, t_end: float = 15.0, band: float = 0.02, **sweep
         raise InvalidValueError("sweep vmax or umin/umax, not both")
     arrays: dict[str, np.ndarray] = {}
     for name, v in sweep.items():
+        check_count(name, np.size(v), MAX_GRID_POINTS, "values", "sweep fewer loops at once")  # (before any copy)
         if name in ("kp", "ki", "kd", "kv", "step"):
             arrays[name] = _check_array(name, v)
         elif name in ("delay", "output_delay", "sample_offset"):
@@ -533,6 +534,7 @@ def simulate_many(loop: Any, *, t_end: float = 15.0, band: float = 0.02, **sweep
         shape = np.broadcast_shapes(*(a.shape for a in arrays.values()))
     except ValueError as exc:
         raise InvalidValueError(f"{', '.join(arrays)} do not broadcast together: {exc}") from None
+    check_count(f"a sweep of shape {shape}", math.prod(shape), MAX_GRID_POINTS, "loops", "sweep fewer loops at once")
     flat = {k: np.broadcast_to(a, shape).ravel() for k, a in arrays.items()}
     m = int(np.prod(shape))
     if not isinstance(c, Compensator) and c.filtered and "kv" in flat and np.any(flat["kv"] == 0):

@@ -45,6 +45,7 @@ import numpy as np
 from .. import _native
 from ..errors import InvalidTypeError, InvalidValueError, check_finite_array
 from ..models.budget import MAX_PIECES  # the most pieces one run may use (the kernel's history grows to it)
+from ..models.budget import MAX_PIECE_CHANNELS, MAX_SAMPLES, check_count  # (its history: a polynomial per channel)
 
 __all__ = ["SystemTimeResponse", "BatchTimeResponse", "step_response", "impulse_response", "initial_response",
            "forced_response", "step_response_many", "default_horizon", "STATUSES"]
@@ -441,6 +442,7 @@ def _times(T: Any, name: str = "T") -> np.ndarray:
         raise InvalidTypeError(f"{name} must be an array of times in seconds, got {reprlib.repr(T)}") from exc
     if arr.dtype.kind not in "iuf":
         raise InvalidTypeError(f"{name} must be real times in seconds, got an array of dtype {arr.dtype}")
+    check_count(f"{name}: a response", arr.size, MAX_SAMPLES, "times", "ask for fewer times")  # (before the copy)
     arr = np.atleast_1d(arr.astype(float))
     if arr.ndim != 1 or arr.size == 0:
         raise InvalidValueError(f"{name} must be a non-empty one-dimensional array of times, got shape {arr.shape}")
@@ -514,6 +516,12 @@ def _check_horizon(red: _Reduced, t_end: float) -> None:
         budget.check_count(f"T: a horizon of {t_end:g} s", pieces, budget.MAX_PIECES, "pieces at least",
                            f"each piece is at most {red.hmax:.3g} s (the system's fastest time scale); ask for a "
                            "shorter horizon")
+        m = len(red.tau)
+        if m:  # each piece keeps a polynomial per delay channel
+            budget.check_count(f"T: a horizon of {t_end:g} s with {m} delay channels", t_end / red.hmax * m,
+                               budget.MAX_PIECE_CHANNELS, "pieces x channels at least",
+                               f"each piece is at most {red.hmax:.3g} s (the system's fastest time scale); ask for "
+                               "a shorter horizon or use fewer delays")
 
 
 # -- one run ---------------------------------------------------------------------------------------------------
@@ -554,6 +562,9 @@ def _run(red: _Reduced, ut: np.ndarray, uvs: np.ndarray, x0: np.ndarray, tq: np.
     deg = K.DEG
     m, ny = len(red.tau), red.C1.shape[0]
     ncol = uvs.shape[0]
+    check_count(f"a response at {tq.size} times x {ny} outputs x {ncol} runs", float(tq.size) * ny * ncol,
+                MAX_SAMPLES, "values", "ask for fewer times")
+    most = max(1024, MAX_PIECE_CHANNELS // max(m, 1))  # the history's pieces x channels stay within the budget
     R0 = red.R0 if not x0.any() else np.full(m, deg + 1, dtype=np.int64)
     if x0.any() and m:
         v = x0.copy()
@@ -563,7 +574,8 @@ def _run(red: _Reduced, ut: np.ndarray, uvs: np.ndarray, x0: np.ndarray, tq: np.
             v = red.AL @ v
     t_end, tol = _horizon(t_end)
     hmax = min(red.hmax, t_end)
-    cap = min(1024, MAX_PIECES)
+    most = min(most, MAX_PIECES)
+    cap = min(1024, most)
     while True:
         out = np.full((ncol, ny, tq.size), np.nan)
         hist_t, hist_h, hist_n = np.zeros(cap), np.zeros(cap), np.zeros(cap, dtype=np.int64)
@@ -577,8 +589,8 @@ def _run(red: _Reduced, ut: np.ndarray, uvs: np.ndarray, x0: np.ndarray, tq: np.
               red.lo, red.hi, c_(ut), c_(uvs), c_(x0), red.Rw, red.Ru, R0, c_(tq), bool(deriv), float(t_end),
               float(hmax), red.anorm, red.bw, red.iw, float(tol), out, hist_t, hist_h, hist_n, hist_c, bp_t, bp_o, bp_n,
               jump_t, jump_v, info)
-        if (info[:, 0] == K.STATUS_CAPACITY).any() and cap < MAX_PIECES:
-            cap *= 4
+        if (info[:, 0] == K.STATUS_CAPACITY).any() and cap < most:
+            cap = min(cap * 4, most)
             continue
         res = []
         for k in range(ncol):
@@ -874,6 +886,8 @@ def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
     if len({len(r.tau) for r in reds}) > 1 or len({tuple(np.isfinite(r.lo) | np.isfinite(r.hi)) for r in reds}) > 1:
         raise InvalidValueError("the systems' saturation channels differ: give systems of one structure")
     ns, nu, ny = len(systems), first.ninputs, first.noutputs
+    check_count(f"{ns} responses at {t.size} times x {ny} outputs x {nu} inputs", float(ns) * nu * ny * t.size,
+                MAX_SAMPLES, "values", "ask for fewer times or systems")
     out = np.full((ns * nu, ny, t.size), np.nan)
     info = np.zeros((ns * nu, K.NINFO))
     t_end, tol = _horizon(float(t[-1]))
@@ -888,7 +902,7 @@ def step_response_many(systems: Any, T: Any = None) -> BatchTimeResponse:
 
         nth = max(1, os.cpu_count() or 1)
         rows, nf, ni = K.work_sizes(n, nu, m, ny)
-        cap = _BATCH_CAP
+        cap = max(16, min(_BATCH_CAP, MAX_PIECE_CHANNELS // (nth * max(m, 1))))  # (a run needing more is redone)
         csrs = [r.csr for r in reds]
         packed = []  # each system's compressed rows, the columns and values padded to the longest
         for q in range(9):

@@ -47,6 +47,7 @@ import numpy as np
 
 from .. import _native
 from ..errors import InvalidTypeError, InvalidValueError, check_path, check_real
+from ..models.budget import read_regular
 from ..models.ranges import parse_number
 from ..models.altitude import as_loop
 from ..models.closed_loop import loop_realisation
@@ -383,7 +384,8 @@ class DelayTrace(DelayModel):
             raise InvalidValueError(f"unit must be 's' or 'ms', got {unit!r}")
         name = str(check_path("delay trace", path))
         try:  # (read as identify.flightlog reads a log; this layer may not import it)
-            rows = list(csv.reader(io.StringIO(Path(path).read_bytes().decode("utf-8-sig"), newline="")))
+            data = read_regular(path, "delay trace")  # (a regular file of bounded size only)
+            rows = list(csv.reader(io.StringIO(data.decode("utf-8-sig"), newline="")))
         except OSError as exc:
             raise InvalidValueError(f"{name}: cannot be read ({exc.strerror or exc})") from None
         except (UnicodeDecodeError, csv.Error) as exc:

@@ -55,6 +55,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidValueError
+from ..models.budget import MAX_RESPONSE_POINTS, check_count
 from ..models.compensators import Compensator
 from ..models.loop import Loop
 from ..models.quasipolynomial import QuasiPolynomial
@@ -280,6 +281,7 @@ def compensated_grid(loop: Loop, n: int = 500, *, wmin: float | None = None, wma
     if not b > a:
         raise InvalidValueError(f"the frequency range is empty or reversed: wmin = {a:g} rad/s must be below "
                                 f"wmax = {b:g} rad/s")
+    check_count("n (number of frequencies)", int(n), MAX_RESPONSE_POINTS, "frequencies")
     return np.geomspace(a, b, int(n))
 
 

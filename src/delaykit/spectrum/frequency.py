@@ -55,7 +55,7 @@ import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop, as_loop
-from ..models.budget import MAX_FREQUENCY_DECADES, MAX_SAMPLES, check_count
+from ..models.budget import MAX_FREQUENCY_DECADES, MAX_RESPONSE_POINTS, check_count
 from ..models.loop import Loop
 from ._openloop import (TWO_PI, OpenLoop, PhaseScan, cutoff_frequency, dense_grid, gain_crossovers, scan_phase,
                         newton_bracketed, snap_half_turns)
@@ -202,7 +202,7 @@ def frequency_grid(loop: Loop | AltitudeLoop | DelayLTI, n: int = 500, *, wmin: 
     sys = _system(loop)
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
         raise InvalidValueError(f"n (number of frequencies) must be an integer of at least 2, got {n!r:.40}")
-    check_count("frequency_grid", n, MAX_SAMPLES, "frequencies", "give fewer (n)")
+    check_count("n (number of frequencies)", int(n), MAX_RESPONSE_POINTS, "frequencies")
     if sys is not None:
         from .system_margins import as_exact_loop, system_frequency_grid
 

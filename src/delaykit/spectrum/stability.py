@@ -26,6 +26,7 @@ import numpy as np
 from .. import _native
 from ..errors import InvalidTypeError, InvalidValueError, check_real
 from ..models.altitude import AltitudeLoop
+from ..models.budget import MAX_GRID_POINTS, check_count
 from ..models.loop import Loop
 from ..models.quasipolynomial import QuasiPolynomial
 from .lambert import lambert_roots
@@ -738,6 +739,8 @@ def stability_map(
     """
     xs = np.asarray(x, dtype=float).ravel()
     ys = np.asarray(y, dtype=float).ravel()
+    check_count(f"a map of {xs.size} x {ys.size} values", float(xs.size) * ys.size, MAX_GRID_POINTS, "loops",
+                "map fewer values")
     if xs.size == 0 or ys.size == 0:
         raise InvalidValueError("the grid is empty: give at least one value for each parameter")
     out = np.empty((ys.size, xs.size))

@@ -27,6 +27,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
+from ..models.budget import MAX_MATRIX_ELEMENTS, check_count
 from .lti import DelayLTI
 
 __all__ = ["as_system", "close", "close_parts", "blockdiag", "append", "product", "sum_of", "series", "parallel",
@@ -259,6 +260,9 @@ def append(*systems: Any) -> DelayLTI:
 
 def _stack(ss: Sequence[DelayLTI]) -> _Stack:
     """The parts, delays and limits of :func:`append`'s result, without making it a system."""
+    n, m = sum(s.nstates for s in ss), sum(s.ndelays for s in ss)
+    check_count(f"a system of {n} states and {m} delay channels", float(n + m) ** 2, MAX_MATRIX_ELEMENTS,
+                "matrix elements", "build a smaller system")  # (its parts are (n + m) x (n + m) at most, dense)
     parts = [_partitions(s) for s in ss]
     return (tuple(blockdiag(*(p[k] for p in parts)) for k in range(9)), tuple(t for s in ss for t in s.delays),
             tuple(p for s in ss for p in s.limits))

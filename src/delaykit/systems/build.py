@@ -25,7 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
+from ..models.budget import MAX_TEXT_CHARS, shorten
 from ..models.interop import check_pade_order, require_control
 from ..models.transfer import TransferFunction, check_control_system
 from .algebra import _closed, _partitions, _stack, feedback, gain, interconnect, summing_junction
@@ -89,6 +90,8 @@ def _text(text: str) -> DelayLTI:
         return _rational(g, T)
     except (InvalidValueError, InvalidTypeError) as exc:
         first = exc
+    if len(text) > MAX_TEXT_CHARS:  # refused for its length: not split into parts either (each would be read)
+        raise first
     src = text.replace("^", "**").strip()
     try:
         node = ast.parse(src, mode="eval").body
@@ -130,9 +133,9 @@ class _PartError(InvalidValueError):
     quotes the whole text the user gave and names the part of it that fails (its top-level numerator, term...)."""
 
     def __init__(self, whole: str, part: str, role: str, reason: str) -> None:
-        super().__init__(f"cannot build {whole!r}: with a delay exp(-T*s) in a sum or in a denominator, it is built "
-                         f"from its parts as systems of their own (internal delays), and its {role} {part!r} is not one: "
-                         f"{reason}")
+        super().__init__(f"cannot build {shorten(whole, 80)!r}: with a delay exp(-T*s) in a sum or in a denominator, "
+                         f"it is built from its parts as systems of their own (internal delays), and its {role} "
+                         f"{shorten(part, 80)!r} is not one: {shorten(reason, 400)}")
         self.part, self.role, self.reason = part, role, reason
 
     @classmethod

@@ -32,6 +32,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real, plain
+from ..models import budget
+from ..models.budget import MAX_MATRIX_ELEMENTS, check_count
 from ..models.hold import hold_matrices, split_delay
 from ..models.interop import require_control
 from .algebra import blockdiag, close_parts
@@ -86,11 +88,15 @@ class DiscreteLTI:
         ``z^-d`` for the input and output delays."""
         w = as_frequencies(w)
         z = np.exp(1j * w * self.period)
-        n = self.A.shape[0]
-        with np.errstate(all="ignore"):
-            X = np.linalg.solve(z[:, None, None] * np.eye(n) - self.A,
-                                np.broadcast_to(self.B, (w.size,) + self.B.shape))
-            H = np.moveaxis(self.C @ X + self.D, 0, -1)
+        n, (ny, nu) = self.A.shape[0], self.D.shape
+        budget.check_response(w.size, ny, nu)
+        H = np.empty((w.size, ny, nu), complex)
+        for b in budget.blocks(w.size, n * (n + nu) + ny * nu):  # bounded work memory
+            with np.errstate(all="ignore"):
+                X = np.linalg.solve(z[b][:, None, None] * np.eye(n) - self.A,
+                                    np.broadcast_to(self.B, (z[b].size,) + self.B.shape))
+                H[b] = self.C @ X + self.D
+        H = np.moveaxis(H, 0, -1)
         if self.input_delay:
             H = H * z ** -np.array(self.input_delay, float)[None, :, None]
         if self.output_delay:
@@ -207,7 +213,6 @@ def c2d(sys: DelayLTI, period: float, *, thiran_order: int | None = None) -> Dis
         raise InvalidValueError(f"the channels {list(sys.saturations)} saturate: c2d samples linear systems only; "
                                 "discretise sys.without_limits() for the small-signal system")
     if thiran_order is not None:
-        _check_size(sys, h, sum(t / h for t in sys.delays))
         return _thiran_c2d(sys, h, thiran_order)
     internal = [j for j in range(sys.ndelays) if sys.C2[j].any() or sys.D22[j].any()]
     if internal:
@@ -216,11 +221,13 @@ def c2d(sys: DelayLTI, period: float, *, thiran_order: int | None = None) -> Dis
                                 "loop has no finite exact zero-order-hold discretisation; give thiran_order=N for an "
                                 "approximation, or discretise the open-loop blocks and close the loop in discrete time")
     n, nu, ny = sys.nstates, sys.ninputs, sys.noutputs
-    _check_size(sys, h, max([t / h for t in sys.delays], default=0.0) * nu)
+    tau = max(sys.delays, default=0.0)
+    _check_states(n + nu * max(tau / h - 1.0, 0.0), h, tau)  # (a lower bound, before the counts are made)
     splits = [split_delay(t, h) for t in sys.delays]
     M = max([m + (1 if f > 0 else 0) for m, f in splits], default=0)
     # state: [x; u[k-1]; ...; u[k-M]]
     N = n + M * nu
+    _check_states(N, h, tau)
     Ad, Bd = np.zeros((N, N)), np.zeros((N, nu))
     Cd, Dd = np.zeros((ny, N)), sys.D11.copy()
     Phi, Gam = hold_matrices(sys.A, np.hstack([sys.B1, sys.B2]), h) if n else (np.zeros((0, 0)), np.zeros((0, nu)))
@@ -262,21 +269,6 @@ def c2d(sys: DelayLTI, period: float, *, thiran_order: int | None = None) -> Dis
         mat.setflags(write=False)
     return DiscreteLTI(Ad, Bd, Cd, Dd, h, sys.inputs, sys.outputs)
 
-
-
-MAX_STATES = 5000
-"""The most states :func:`c2d` makes (the system's own and one per input per period of delay): a dense matrix of
-5000 x 5000 floats is 200 MB."""
-
-
-def _check_size(sys: DelayLTI, h: float, delay_states: float) -> None:
-    """Refuse, before any work, a discretisation with more than :data:`MAX_STATES` states (``delay_states``, a
-    float, the states the delays need: a delay of 1e100 s sampled every 0.1 s would need 1e101)."""
-    need = sys.nstates + delay_states
-    if not need <= MAX_STATES:
-        longest = max(sys.delays)
-        raise InvalidValueError(f"c2d: the delay {longest:g} s sampled every {h:g} s needs {need:.3g} states (at most "
-                                f"{MAX_STATES}): sample more slowly, or leave the delay continuous")
 
 
 def thiran_coefficients(D: float, order: int) -> tuple[np.ndarray, np.ndarray]:
@@ -372,6 +364,13 @@ def thiran(delay: float, period: float, order: int) -> DiscreteLTI:
     return DiscreteLTI(A, B, C, Dm, h, ("u[0]",), ("y[0]",))
 
 
+def _check_states(N: float, h: float, tau: float) -> None:
+    """Refuse a discretisation of ``N`` states whose state matrix (``N x N``) is beyond the matrix budget, before
+    it is built: a delay of ``tau`` s sampled every ``h`` s adds some ``tau / h`` states per input."""
+    check_count(f"the discretised system of {N:.6g} states (a delay of {tau:g} s over a period of {h:g} s)",
+                float(N) ** 2, MAX_MATRIX_ELEMENTS, "state-matrix elements", "sample with a longer period")
+
+
 def _filter(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, ...]:
     """A proper rational ``num/den`` in ``z`` realised in controllable canonical form: ``(A, B, C, D)``."""
     from ..models.transfer import TransferFunction
@@ -409,11 +408,17 @@ def _thiran_c2d(sys: DelayLTI, h: float, order: Any) -> DiscreteLTI:
     P = (Phi, Gam, np.zeros((n, 0)), np.vstack([sys.C1, sys.C2]), np.zeros((0, n)),
          np.block([[sys.D11, sys.D12], [sys.D21, sys.D22]]), np.zeros((ny + m, 0)), np.zeros((0, nu + m)),
          np.zeros((0, 0)))
-    filters = []
+    longest = max(sys.delays, default=0.0)
+    _check_states(n + sum(max(t / h - 1.0, 0.0) for t in sys.delays), h, longest)  # (a lower bound, first)
+    parts = []
     for tau in sys.delays:
         D = tau / h
         N = min(int(order), max(int(math.floor(D + 0.5)), 0))  # an order the delay supports (D > N - 1)
-        filters.append(_thiran_parts(D, N))
+        parts.append((D, N))
+    # the filters' states counted before any is built: whole periods k plus the filter's order N each
+    _check_states(n + sum(N + (max(int(math.floor(D - N + 0.5)), 0) if N else int(round(D))) for D, N in parts),
+                  h, longest)
+    filters = [_thiran_parts(D, N) for D, N in parts]
     Fa = blockdiag(*(f[0] for f in filters)) if filters else np.zeros((0, 0))
     Fb = blockdiag(*(f[1] for f in filters)) if filters else np.zeros((0, 0))
     Fc = blockdiag(*(f[2] for f in filters)) if filters else np.zeros((0, 0))

@@ -79,7 +79,6 @@ from .lti import DelayLTI
 
 __all__ = ["SystemFile", "read_system_file", "load_system", "system_from_dict"]
 
-_MAX_BYTES = 1_000_000
 _MAX_BLOCKS = 1000
 _MAX_DEPTH = 3  # a matrix is a list of rows of numbers: the deepest value a system file has
 _TOP_KEYS = ("name", "inputs", "outputs", "break", "blocks")
@@ -328,7 +327,7 @@ def read_system_file(path: str | Path) -> SystemFile:
     --------
     See the module's.
     """
-    data = read_toml(check_path("system file", path), "system file", max_bytes=_MAX_BYTES)
+    data = read_toml(check_path("system file", path), "system file")  # (at most budget.MAX_CONFIG_BYTES)
     return system_from_dict(data, source=str(path))
 
 

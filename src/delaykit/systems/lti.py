@@ -48,6 +48,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
+from ..models import budget
 
 __all__ = ["DelayLTI", "SystemResponse", "as_frequencies"]
 
@@ -173,6 +174,7 @@ def as_frequencies(w: Any, name: str = "w") -> np.ndarray:
         arr = np.asarray(w)
     except (TypeError, ValueError) as exc:
         raise InvalidTypeError(f"{name} must be an array of frequencies in rad/s, got {reprlib.repr(w)}") from exc
+    budget.check_response(arr.size)  # (before the copies below)
     if arr.dtype.kind not in "iuf":
         raise InvalidTypeError(f"{name} must be real frequencies in rad/s, got an array of dtype {arr.dtype}")
     arr = np.atleast_1d(arr.astype(float))
@@ -441,22 +443,31 @@ class DelayLTI:
         """
         s = _points(s)
         n, nu, ny, m = self.nstates, self.ninputs, self.noutputs, self.ndelays
-        N = s.size
-        # the states and the delayed signals at once: [[sI - A, -B2], [-E C2, I - E D22]] [x; w] = [B1; E D21] u,
-        # singular exactly at the poles of the system (not at those of its delay-free part)
-        E = np.exp(-np.outer(s, self.delays)) if m else np.zeros((N, 0))
-        M = np.zeros((N, n + m, n + m), complex)
-        M[:, :n, :n] = s[:, None, None] * np.eye(n) - self.A
-        M[:, :n, n:] = -self.B2
-        M[:, n:, :n] = -E[:, :, None] * self.C2
-        M[:, n:, n:] = np.eye(m) - E[:, :, None] * self.D22
-        rhs = np.zeros((N, n + m, nu), complex)
-        rhs[:, :n] = self.B1
-        rhs[:, n:] = E[:, :, None] * self.D21
-        out = np.empty((N, ny, nu), complex)
-        with np.errstate(all="ignore"):
-            X = _solve(M, rhs) if n + m else rhs
-            out[:] = self.D11 + np.hstack([self.C1, self.D12]) @ X
+        budget.check_response(s.size, ny, nu)
+        budget.check_count(f"the {n + m} x {n + m} matrix solved at each point ({n} states, {m} delay channels)",
+                           float(n + m) ** 2, budget.MAX_MATRIX_ELEMENTS, "elements")
+        budget.check_count(f"a response at {s.size} points of a system of {n} states and {m} delay channels",
+                           float(s.size) * float(n + m) ** 3, budget.MAX_SOLVE_WORK, "operations",
+                           "ask for fewer frequencies or a smaller system")
+        out = np.empty((s.size, ny, nu), complex)
+        CD = np.hstack([self.C1, self.D12])
+        for b in budget.blocks(s.size, (n + m) * (n + m + 2 * nu + 2) + ny * nu):  # bounded work memory
+            sb = s[b]
+            N = sb.size
+            # the states and the delayed signals at once: [[sI - A, -B2], [-E C2, I - E D22]] [x; w] = [B1; E D21]
+            # u, singular exactly at the poles of the system (not at those of its delay-free part)
+            E = np.exp(-np.outer(sb, self.delays)) if m else np.zeros((N, 0))
+            M = np.zeros((N, n + m, n + m), complex)
+            M[:, :n, :n] = sb[:, None, None] * np.eye(n) - self.A
+            M[:, :n, n:] = -self.B2
+            M[:, n:, :n] = -E[:, :, None] * self.C2
+            M[:, n:, n:] = np.eye(m) - E[:, :, None] * self.D22
+            rhs = np.zeros((N, n + m, nu), complex)
+            rhs[:, :n] = self.B1
+            rhs[:, n:] = E[:, :, None] * self.D21
+            with np.errstate(all="ignore"):
+                X = _solve(M, rhs) if n + m else rhs
+                out[b] = self.D11 + CD @ X
         out[~np.isfinite(out)] = complex(math.inf, 0.0)
         return np.moveaxis(out, 0, -1)
 
