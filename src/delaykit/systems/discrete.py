@@ -368,7 +368,8 @@ def _check_states(N: float, h: float, tau: float) -> None:
     """Refuse a discretisation of ``N`` states whose state matrix (``N x N``) is beyond the matrix budget, before
     it is built: a delay of ``tau`` s sampled every ``h`` s adds some ``tau / h`` states per input."""
     check_count(f"the discretised system of {N:.6g} states (a delay of {tau:g} s over a period of {h:g} s)",
-                float(N) ** 2, MAX_MATRIX_ELEMENTS, "state-matrix elements", "sample with a longer period")
+                float(N) ** 2 if float(N) < 1e150 else math.inf,  # (a float's square past 1e154 overflows)
+                MAX_MATRIX_ELEMENTS, "state-matrix elements", "sample with a longer period")
 
 
 def _filter(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, ...]:
