@@ -263,7 +263,7 @@ def identify(
     drive_col = reference if closed_loop else input_col
     for p, unit in zip(m.structure.params, m.structure.units):
         table.add_row(p, _unit(unit, output, drive_col), f"{m.params[p]:.5g}", f"{m.stderr[p]:.2g}",
-                      fmt_ci(m.ci[p]))
+                      fmt_ci(m.ci[p]) if m.is_determined(p) else "not determined")
     out.print(table, highlight=False)
     if m.candidates:
         ct = Table(title=f"candidates (chosen by {m.criterion} among those whose status is ok)")

@@ -50,7 +50,7 @@ from .structures import STRUCTURES, Structure, structure
 
 __all__ = ["IdentifiedModel", "Candidate", "LogFit", "Prediction", "identify", "predict", "simulate_experiment",
            "load_model", "IdentificationError", "CORRELATION_WARNING", "candidate_status", "PLAUSIBLE_SPAN",
-           "PLAUSIBLE_TIME"]
+           "PLAUSIBLE_TIME", "UNDETERMINED_PERIODS", "undetermined_reason"]
 
 CORRELATION_WARNING = 0.9
 """Above this absolute correlation two time parameters are reported as traded against each other."""
@@ -146,6 +146,56 @@ def candidate_status(st: Structure, p: np.ndarray, cov: np.ndarray, preps: list[
 
 
 
+UNDETERMINED_PERIODS = 10.0
+"""A time parameter whose 95 % interval, before it is cut at 0, reaches more than this many sample periods below 0
+is not determined (see :func:`undetermined_reason`)."""
+
+
+def undetermined_reason(name: str, unit: str, value: float, stderr: float, longest: float,
+                        period: float) -> str | None:
+    """Why the data do not determine a fitted parameter, or ``None`` when its 95 % interval stands.
+
+    The rule reads only the fit's own information (its value ``value``, its standard error ``stderr``, the
+    longest log's duration ``longest`` and the sample period ``period``, in seconds):
+
+    * the standard error is not finite: the sensitivities (the information matrix) are singular in that
+      direction, so no interval exists;
+    * a time (unit ``"s"``: the delay, a lag, a time constant, a zero) whose 95 % Wald interval is wider than the
+      longest log: the data say nothing a log can show;
+    * a time whose interval, before it is cut at the bound 0, reaches more than :data:`UNDETERMINED_PERIODS`
+      sample periods below 0 (``value - 1.96 stderr < -10 period``): the data cannot tell it from 0 and the
+      linear approximation behind the interval fails at its ends (a delay of ``0.2 ± 4 s`` in a 20 Hz log);
+    * any other parameter (a gain, a frequency, a damping) whose interval contains 0 and reaches below it by
+      more than the value itself (``1.96 stderr > 2 |value|``): not even its size is known.
+
+    Such a parameter is reported as not determined (:attr:`IdentifiedModel.undetermined`, its interval
+    ``None``), never as a huge interval.
+
+    Examples
+    --------
+    >>> undetermined_reason("delay", "s", 0.26, 0.01, 60.0, 0.05) is None
+    True
+    >>> undetermined_reason("delay", "s", 0.0, 2558.0, 60.0, 0.05)
+    'delay: its 95 % interval (0 to 5014 s) is wider than the longest log (60 s)'
+    >>> print(undetermined_reason("delay", "s", 0.22, 4.1, 60.0, 0.05))
+    delay = 0.22 ± 4.1 s cannot be told from 0: its 95 % interval reaches 7.82 s below 0, over 10 sample periods
+    """
+    if not math.isfinite(stderr) or not math.isfinite(value):
+        return f"{name}: the data do not determine it (its sensitivities are singular: no standard error)"
+    half = Z95 * stderr
+    if unit == "s":
+        if 2.0 * half > longest:
+            return (f"{name}: its 95 % interval ({max(value - half, 0.0):.4g} to {value + half:.4g} s) is wider "
+                    f"than the longest log ({longest:.4g} s)")
+        if value - half < -UNDETERMINED_PERIODS * period:
+            return (f"{name} = {value:.4g} ± {stderr:.2g} s cannot be told from 0: its 95 % interval reaches "
+                    f"{half - value:.3g} s below 0, over {UNDETERMINED_PERIODS:g} sample periods")
+        return None
+    if half > 2.0 * abs(value):
+        return f"{name} = {value:.4g} ± {stderr:.2g}: its 95 % interval reaches below 0 by more than its size"
+    return None
+
+
 def _nulls(v: Any) -> Any:
     """``v`` with every float that is not finite replaced by ``None`` (JSON's null), in dicts and lists."""
     if isinstance(v, float):
@@ -167,12 +217,14 @@ class IdentifiedModel:
 
     ``params``, ``stderr`` and ``ci`` are keyed by the structure's parameter names (``gain``, ``delay``,
     ``time_constant``...).  ``closed_loop`` holds the controller of a closed-loop fit (``None`` for open loop).
+    A parameter the data do not determine (:func:`undetermined_reason`) is in ``undetermined`` with the reason,
+    and its interval in ``ci`` is ``None`` (JSON: null, and ``ci_status`` ``"not determined"``).
     """
 
     model: str
     params: dict[str, float]
     stderr: dict[str, float]
-    ci: dict[str, tuple[float, float]]
+    ci: dict[str, tuple[float, float] | None]
     cov: np.ndarray
     rms: float
     aic: float
@@ -188,6 +240,13 @@ class IdentifiedModel:
     per_log: tuple[dict[str, Any], ...] = ()
     combinations: tuple[dict[str, Any], ...] = field(default=())
     drive_column: str = "u"
+    undetermined: dict[str, str] = field(default_factory=dict)
+    """The parameters the data do not determine, each with the reason (:func:`undetermined_reason`)."""
+
+    def is_determined(self, name: str) -> bool:
+        """Whether the data determine parameter ``name`` (its 95 % interval in :attr:`ci` is not ``None``)."""
+        ci = self.ci.get(name)
+        return name not in self.undetermined and ci is not None and all(math.isfinite(x) for x in ci)
 
     @property
     def structure(self) -> Structure:
@@ -215,7 +274,9 @@ class IdentifiedModel:
         """JSON-ready form (the contract of ``delaykit identify --json``), enough to :func:`load_model` it."""
         return {
             "model": self.model, "params": dict(self.params), "stderr": dict(self.stderr),
-            "ci": {k: [lo, hi] for k, (lo, hi) in self.ci.items()},
+            "ci": {k: None if v is None else [v[0], v[1]] for k, v in self.ci.items()},
+            "ci_status": {k: "determined" if self.is_determined(k) else "not determined" for k in self.ci},
+            "undetermined": dict(self.undetermined),
             "correlation": {f"{a},{b}": self.correlation(a, b) for i, a in enumerate(self.structure.params)
                             for b in self.structure.params[i + 1:]},
             "cov": self.cov.tolist(), "rms": self.rms, "aic": self.aic, "bic": self.bic, "n": self.n,
@@ -241,7 +302,8 @@ class IdentifiedModel:
             st = structure(name)
             params = {k: float(d["params"][k]) for k in st.params}
             stderr = {k: _number(d["stderr"][k]) for k in st.params}
-            ci = {k: (_number(v[0]), _number(v[1])) for k, v in d["ci"].items()}
+            ci = {k: None if v is None else (_number(v[0]), _number(v[1])) for k, v in d["ci"].items()}
+            undetermined = {str(k): str(v) for k, v in (d.get("undetermined") or {}).items()}
             cov = np.array([[_number(x) for x in row] for row in d["cov"]], dtype=float).reshape(st.size, st.size)
             logs = tuple(LogFit(g["file"], {k: _number(v) for k, v in g["rms_by_output"].items()},
                                 {k: math.nan for k in g["rms_by_output"]}, int(g["samples"]), int(g["noise_order"]))
@@ -264,7 +326,7 @@ class IdentifiedModel:
                        aic=float(d["aic"]), bic=float(d["bic"]), n=int(d["n"]), outputs=tuple(d["outputs"]),
                        rate=d.get("rate"), closed_loop=closed, logs=logs,
                        criterion=d.get("criterion", "bic"), warnings=tuple(d.get("warnings", ())),
-                       drive_column=str(d.get("drive_column", "u")))
+                       drive_column=str(d.get("drive_column", "u")), undetermined=undetermined)
         except (KeyError, TypeError, ValueError, IndexError, OverflowError) as exc:
             what = str(exc) if isinstance(exc, DelaykitError) else f"{type(exc).__name__}: {exc}"
             raise IdentificationError(f"{source}: not a usable delaykit model file ({what})") from None
@@ -273,7 +335,8 @@ class IdentifiedModel:
         parts = []
         for p, u in zip(self.structure.params, self.structure.units):
             unit = " s" if u == "s" else (" rad/s" if u == "rad/s" else "")
-            parts.append(f"{p}={self.params[p]:.4g} ± {self.stderr[p]:.2g}{unit}")
+            parts.append(f"{p}={self.params[p]:.4g} ± {self.stderr[p]:.2g}{unit}"
+                         + ("" if self.is_determined(p) else " (not determined)"))
         return (f"IdentifiedModel({self.model}: {', '.join(parts)}; rms={self.rms:.4g}, "
                 f"{len(self.logs)} log{'s' if len(self.logs) != 1 else ''})")
 
@@ -625,8 +688,18 @@ def _assemble(o: _Outcome, preps: list[_Prepared], law: _Law | None, crit: tuple
     stderr = {nm: float(s) for nm, s in zip(st.params, se)}
     # Wald intervals, cut at the parameters' bounds (a time constant or a delay is not negative)
     floor = [0.0 if (pos or nm == "delay") else -math.inf for nm, pos in zip(st.params, st.positive)]
-    ci = {nm: (float(max(v - Z95 * s, f)), float(v + Z95 * s)) for nm, v, s, f in zip(st.params, o.p, se, floor)}
-    warnings: list[str] = []
+    ci: dict[str, tuple[float, float] | None] = {
+        nm: (float(max(v - Z95 * s, f)), float(v + Z95 * s)) for nm, v, s, f in zip(st.params, o.p, se, floor)}
+    # an interval the data do not support is reported as not determined, never as a huge interval
+    longest = max(p.exp.duration for p in preps)
+    period = max(p.exp.period for p in preps)
+    undetermined: dict[str, str] = {}
+    for nm, unit, v, var in zip(st.params, st.units, o.p, np.diag(o.cov)):
+        why = undetermined_reason(nm, unit, float(v), math.sqrt(var) if var >= 0 else math.nan, longest, period)
+        if why is not None:
+            undetermined[nm] = why
+            ci[nm] = None
+    warnings: list[str] = [f"not determined: {why}" for why in undetermined.values()]
     single = [p.exp.name for p in preps if p.exp.starts_moving]
     if single and not fit_offset:
         warnings.append(f"{', '.join(single[:3])}{', ...' if len(single) > 3 else ''}: the log starts with the drive "
@@ -638,7 +711,8 @@ def _assemble(o: _Outcome, preps: list[_Prepared], law: _Law | None, crit: tuple
     combos, w = _combinations(st, o.p, o.cov)
     warnings += w
     for nm, v, s in zip(st.params, o.p, se):
-        if v != 0 and s > 0.5 * abs(v) and not any(nm in c["sum"].split("+") for c in combos):
+        if (v != 0 and s > 0.5 * abs(v) and nm not in undetermined
+                and not any(nm in c["sum"].split("+") for c in combos)):
             warnings.append(f"{nm} is poorly determined by these data ({v:.4g} ± {s:.2g})")
     logs = []
     for prep in preps:
@@ -702,7 +776,7 @@ def _assemble(o: _Outcome, preps: list[_Prepared], law: _Law | None, crit: tuple
         outputs=preps[0].outputs, rate=preps[0].rate,
         closed_loop=_law_dict(law),
         logs=tuple(logs), candidates=cands, criterion=criterion, warnings=tuple(warnings), per_log=tuple(per),
-        combinations=tuple(combos),
+        combinations=tuple(combos), undetermined=undetermined,
         drive_column=preps[0].exp.reference_name if law is not None else preps[0].exp.input_name)
 
 
