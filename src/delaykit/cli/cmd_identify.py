@@ -192,7 +192,7 @@ def identify(
     output: str = typer.Option("z", "--output", help="The output column."),
     rate: Optional[str] = typer.Option(None, "--rate", help="A column holding the output's rate (e.g. vz), fitted jointly."),
     time_col: str = typer.Option("t", "--time", help="The time column (s)."),
-    model: str = typer.Option("auto", "--model", help="auto | ipdt | ipdt_lag | ipdt_speed | fopdt | sopdt."),
+    model: str = typer.Option("auto", "--model", help="auto | ipdt | ipdt_lag | ipdt_speed | fopdt | sopdt | ipdt_accel (an acceleration limit: open loop only)."),
     baseline: str = typer.Option("initial", "--baseline", help="initial (mean before the drive moves) | fit (an offset per log)."),
     u_before: Optional[float] = typer.Option(None, "--u-before", help="The input before the log, when the log starts with the step (default 0)."),
     u0: Optional[float] = typer.Option(None, "--u0", help="With --closed-loop: the absolute command at rest before the logs, which places the limits (needed for an integrating controller, limits and a self-regulating plant)."),

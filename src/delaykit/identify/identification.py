@@ -50,7 +50,7 @@ from .structures import STRUCTURES, Structure, structure
 
 __all__ = ["IdentifiedModel", "Candidate", "LogFit", "Prediction", "identify", "predict", "simulate_experiment",
            "load_model", "IdentificationError", "CORRELATION_WARNING", "candidate_status", "PLAUSIBLE_SPAN",
-           "PLAUSIBLE_TIME", "UNDETERMINED_PERIODS", "undetermined_reason"]
+           "PLAUSIBLE_TIME", "UNDETERMINED_PERIODS", "UNREACHED_LIMIT", "undetermined_reason"]
 
 CORRELATION_WARNING = 0.9
 """Above this absolute correlation two time parameters are reported as traded against each other."""
@@ -149,6 +149,11 @@ def candidate_status(st: Structure, p: np.ndarray, cov: np.ndarray, preps: list[
 UNDETERMINED_PERIODS = 10.0
 """A time parameter whose 95 % interval, before it is cut at 0, reaches more than this many sample periods below 0
 is not determined (see :func:`undetermined_reason`)."""
+
+
+UNREACHED_LIMIT = 0.01
+"""An acceleration limit (``ipdt_accel``) whose ramp over the command's whole range takes less than this fraction
+of a sample period is one the log never shows: not determined."""
 
 
 def undetermined_reason(name: str, unit: str, value: float, stderr: float, longest: float,
@@ -581,7 +586,8 @@ def identify(
                                       f"{e.name} every {e.period:.6g} s; resample them onto one clock")
     if baseline not in ("initial", "fit"):
         raise IdentificationError(f"baseline must be 'initial' or 'fit', got {baseline!r}")
-    names = [model] if model != "auto" else list(candidates or STRUCTURES)
+    names = [model] if model != "auto" else list(candidates or (nm for nm in STRUCTURES
+                                                                 if loop is None or not STRUCTURES[nm].limited))
     for nm in names:
         structure(nm)
     if (u0 is not None or command is not None) and loop is None:
@@ -639,7 +645,7 @@ def identify(
     return _assemble(best, preps, law, crit[chosen], cands, criterion, per_log, fit_offset, say)
 
 
-_FIT_ORDER = ("ipdt", "ipdt_lag", "fopdt", "sopdt", "ipdt_speed")
+_FIT_ORDER = ("ipdt", "ipdt_lag", "fopdt", "sopdt", "ipdt_speed", "ipdt_accel")
 
 
 def _nested_starts(st: Structure, done: dict[str, _Outcome]) -> list[np.ndarray]:
@@ -656,11 +662,27 @@ def _nested_starts(st: Structure, done: dict[str, _Outcome]) -> list[np.ndarray]
         g, t1, t2, d = done["sopdt"].p
         tz = 1e3 * (t1 + t2 + d)
         out.append(np.array([g / tz, 1.0 / math.sqrt(t1 * t2), 0.5 * (t1 + t2) / math.sqrt(t1 * t2), tz, d]))
+    if st.name == "ipdt_accel" and "ipdt_lag" in done:  # a limit the ramps never reach, then ones they do
+        g, lag, d = done["ipdt_lag"].p
+        h = done["ipdt_lag"].prob.h
+        span = max(float(np.ptp(q.drive)) for q in done["ipdt_lag"].prob.preps) or 1.0
+        for reach in (h, 10 * h, 30 * h):  # the time a full-range ramp takes
+            out.append(np.array([g, span / reach, max(0.5 * lag, 1e-3), d]))
     if st.name == "sopdt" and "fopdt" in done:
         g, tau, d = done["fopdt"].p
         out.append(np.array([g, 0.9 * tau, 0.1 * tau + 0.2 * d, 0.5 * d]))
         out.append(np.array([g, 0.7 * tau, 0.3 * tau, 0.1 * d]))
     return out
+
+
+def _free_run(prep: _Prepared, st: Structure, p: np.ndarray, law: Any) -> dict[str, np.ndarray]:
+    """A structure's free-run outputs (deviations) over a prepared log: the rate-limited structure by its own
+    closed form, the linear ones by the exact discrete simulator."""
+    if st.limited:
+        from ._accel import simulate
+
+        return simulate(prep, p)
+    return _simulate(prep, st.plant(p), float(p[-1]), law)
 
 
 def _leave_one_out(o: _Outcome, preps: list[_Prepared], law: _Law | None, fit_offset: bool) -> float:
@@ -669,7 +691,7 @@ def _leave_one_out(o: _Outcome, preps: list[_Prepared], law: _Law | None, fit_of
         rest = preps[:i] + preps[i + 1:]
         sub = _Problem(o.st, rest, law, o.prob.w, fit_offset)
         p = _fit(sub, [o.p], explore=False)
-        sim = _simulate(held, o.st.plant(p), float(p[-1]), law)
+        sim = _free_run(held, o.st, p, law)
         first = held.outputs[0]
         k = held.keep[first]
         r = held.meas[first][k] - sim[first][k]
@@ -699,6 +721,14 @@ def _assemble(o: _Outcome, preps: list[_Prepared], law: _Law | None, crit: tuple
         if why is not None:
             undetermined[nm] = why
             ci[nm] = None
+    if st.limited:  # a limit no ramp of the log reaches: the data show no limit, not its value
+        span = max(float(np.ptp(q.drive)) for q in preps)
+        ramp = span / params["accel"] if params["accel"] > 0 else math.inf
+        if ramp < UNREACHED_LIMIT * period:
+            undetermined["accel"] = (f"accel = {params['accel']:.4g}: a ramp over the command's whole range "
+                                     f"({span:.4g}) would take {ramp:.2g} s, under {UNREACHED_LIMIT:g} of a sample "
+                                     "period: the data show no acceleration limit")
+            ci["accel"] = None
     warnings: list[str] = [f"not determined: {why}" for why in undetermined.values()]
     single = [p.exp.name for p in preps if p.exp.starts_moving]
     if single and not fit_offset:
@@ -825,7 +855,7 @@ def simulate_experiment(model: IdentifiedModel, experiment: Experiment, *, u0: f
 
         law = from_static(law)
     prep = _prepare(experiment, model.outputs, model.rate, law, fresh_only=False, u0=command if command else u0)
-    sim = _simulate(prep, model.plant, model.delay, law)
+    sim = _free_run(prep, model.structure, np.array([model.params[k] for k in model.structure.params]), law)
     return {o: y + prep.base[o] for o, y in sim.items()}
 
 
