@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from delaykit.errors import InvalidValueError
 from delaykit.identify._accel import simulate_accel
 from delaykit.identify.identification import IdentificationError, identify, load_model, predict
 from delaykit.identify.iodata import Experiment
@@ -119,3 +120,43 @@ def test_closed_loop_is_refused_and_auto_leaves_it_out():
     with pytest.raises(IdentificationError, match="open loop only"):
         identify(e, model="ipdt_accel", loop=loop, outputs="z")
     assert STRUCTURES["ipdt_accel"].limited and not STRUCTURES["ipdt_lag"].limited
+
+
+def test_a_known_limit_is_held_not_fitted():
+    e = _accel_log(0)
+    m = identify(e, model="ipdt_accel", outputs="z", rate="vz", baseline="fit", per_log=False, accel_limit=1.0)
+    assert m.params["accel"] == 1.0 and m.stderr["accel"] == 0.0
+    assert any("accel is held at the value given" in w for w in m.warnings)
+    free = identify(e, model="ipdt_accel", outputs="z", rate="vz", baseline="fit", per_log=False)
+    for k in ("gain", "lag", "delay"):  # the truth (the simulated values) inside the intervals; errors no larger
+        lo, hi = m.ci[k]
+        assert lo <= {"gain": 1.0, "lag": 0.15, "delay": 0.25}[k] <= hi, (k, m.ci[k])
+        assert m.stderr[k] <= free.stderr[k] * 1.05
+    # a wrong limit is a worse fit
+    wrong = identify(e, model="ipdt_accel", outputs="z", rate="vz", baseline="fit", per_log=False, accel_limit=3.0)
+    assert wrong.rms > 2 * m.rms
+    with pytest.raises(IdentificationError, match="accel_limit"):
+        identify(e, model="ipdt_lag", outputs="z", accel_limit=1.0)
+    with pytest.raises(InvalidValueError, match="accel_limit must be greater than 0, got -1"):
+        identify(e, model="ipdt_accel", outputs="z", accel_limit=-1.0)
+
+
+def test_cli_fits_the_limit_or_holds_a_given_one(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+
+    e = _accel_log(0)
+    path = tmp_path / "flight.csv"
+    np.savetxt(path, np.column_stack([e.t, e.u, e.outputs["z"], e.outputs["vz"]]), delimiter=",",
+               header="t,u,z,vz", comments="")
+    runner = CliRunner()
+    args = ["identify", str(path), "--rate", "vz", "--model", "ipdt_accel", "--baseline", "fit", "--json"]
+    res = runner.invoke(app, args + ["--accel-limit", "1.0"])
+    assert res.exit_code == 0, res.output
+    d = json.loads(res.stdout)
+    assert d["model"] == "ipdt_accel" and d["params"]["accel"] == 1.0 and d["ci_status"]["delay"] == "determined"
+    res = runner.invoke(app, ["identify", str(path), "--model", "ipdt_lag", "--accel-limit", "1.0"])
+    assert res.exit_code == 2 and "accel_limit" in res.output and "Traceback" not in res.output

@@ -117,7 +117,14 @@ class AccelProblem(F._Problem):
             raise F.IdentificationError(f"{st.name} (an acceleration limit) is fitted open loop only, from the "
                                         "logged command")
         super().__init__(st, preps, law, weights, fit_offset)
-        self.fixed: dict[int, float] = {}
+        self.accel = dict(st.fixed).get("accel")  # a limit given, not fitted (None: fitted)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`~._fit._Problem.bounds`, with a given limit held at its value."""
+        lb, ub = super().bounds()
+        if self.accel is not None:
+            lb[1] = ub[1] = math.log(self.accel)
+        return lb, ub
 
     def raw(self, p: np.ndarray) -> np.ndarray:
         """Raw residuals as :meth:`~._fit._Problem.raw`, each log simulated by :func:`simulate_accel`."""
@@ -125,6 +132,8 @@ class AccelProblem(F._Problem):
         if not p[-1] >= 0.0:
             raise InvalidValueError(f"delay (s) must be >= 0, got {p[-1]!r}")
         gain, accel, lag, delay = (float(x) for x in p)
+        if self.accel is not None:
+            accel = self.accel
         if not (accel > 0.0 and lag >= 0.0 and math.isfinite(gain)):
             return np.full(self._rw.size, np.nan)
         for k in range(len(self.preps)):

@@ -30,6 +30,7 @@ IdentifiedModel(fopdt: gain=0.600... ± ..., time_constant=15... ± ... s, delay
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from dataclasses import dataclass, field
@@ -375,10 +376,15 @@ def _fit_structure(st: Structure, preps: list[_Prepared], law: _Law | None, fit_
         prob = _Problem(st, preps, law, weights, fit_offset)
         p = _fit(prob, [p] + starts[:1], explore=False)
     p = st.canonical(p)[0]
+    fixed = dict(st.fixed)
+    free = np.array([nm not in fixed for nm in st.params])
+    for i, nm in enumerate(st.params):
+        if nm in fixed:
+            p[i] = fixed[nm]
     blocks = prob.blocks(p)
-    # Jacobian in physical parameters, by central differences
+    # Jacobian in physical parameters, by central differences (the free ones: a given value has no error)
     with np.errstate(all="ignore"):
-        J = _jacobian(prob, p)
+        J = _jacobian(prob, p)[:, free]
     noise, loglik, row = [], 0.0, 0
     for _, o, r in blocks:
         rw = r / prob.w[o]
@@ -390,10 +396,12 @@ def _fit_structure(st: Structure, preps: list[_Prepared], law: _Law | None, fit_
         if not np.all(np.isfinite(J)):
             raise np.linalg.LinAlgError("sensitivities are not finite")
         models = _noise_models(prob, blocks, noise)
-        cov = _edge_covariance(prob, p, blocks, models, ar_covariance(_covariance_blocks(blocks, models, J)))
+        small = _edge_covariance(prob, p, blocks, models, ar_covariance(_covariance_blocks(blocks, models, J)), free)
+        cov = np.zeros((st.size, st.size))
+        cov[np.ix_(free, free)] = small
     except np.linalg.LinAlgError:
         cov = np.full((st.size, st.size), np.nan)
-    k = st.size + sum(a.order for a in noise) + prob.linear_count
+    k = int(free.sum()) + sum(a.order for a in noise) + prob.linear_count
     first = preps[0].outputs[0]
     rr = np.concatenate([r for _, o, r in blocks if o == first])
     rms = float(np.sqrt(np.mean(rr * rr)))
@@ -443,7 +451,8 @@ def _covariance_blocks(blocks: list, models: list, J: np.ndarray) -> list:
     return out
 
 
-def _edge_covariance(prob: _Problem, p: np.ndarray, blocks: list, models: list, cov: np.ndarray) -> np.ndarray:
+def _edge_covariance(prob: _Problem, p: np.ndarray, blocks: list, models: list, cov: np.ndarray,
+                     free: np.ndarray) -> np.ndarray:
     """The covariance, honest near a whole number of sample periods of delay.
 
     Where the delay crosses a multiple of the period a held input's edges cross the samples, and the
@@ -462,7 +471,7 @@ def _edge_covariance(prob: _Problem, p: np.ndarray, blocks: list, models: list, 
     step = max(1e-3 * h, 1e-5 * d)  # (ten times _jacobian's own step: its differences stay on that side)
     q[-1] = edge + (step if d <= edge else -step)
     with np.errstate(all="ignore"):
-        J = _jacobian(prob, q)
+        J = _jacobian(prob, q)[:, free]
     if not np.all(np.isfinite(J)):
         return cov
     other = ar_covariance(_covariance_blocks(blocks, models, J))
@@ -510,6 +519,7 @@ def identify(
     progress: Callable[[str], None] | None = None,
     u0: float | Sequence[float] | None = None,
     command: str | None = None,
+    accel_limit: float | None = None,
 ) -> IdentifiedModel:
     """Identify a plant and its dead time from one or more logs.
 
@@ -549,6 +559,11 @@ def identify(
     command : str, optional
         Closed loop: a column of the logs (read as one of their outputs, not fitted) holding the command; its
         mean before the reference moves is ``u0``.
+    accel_limit : float, optional
+        The vehicle's acceleration limit (the command's unit per second, e.g. m/s^2 for a speed command), when
+        known from its parameters (ArduCopter's ``WPNAV_ACCEL_Z``): ``ipdt_accel`` then holds its ``accel`` at
+        this value instead of fitting it (its standard error 0, one parameter fewer in BIC).  Only with
+        ``model="ipdt_accel"`` or ``"auto"`` with it among the candidates.
 
     Returns
     -------
@@ -590,6 +605,11 @@ def identify(
                                                                  if loop is None or not STRUCTURES[nm].limited))
     for nm in names:
         structure(nm)
+    if accel_limit is not None:
+        accel_limit = check_real("accel_limit", accel_limit, minimum=0.0, strict=True)
+        if "ipdt_accel" not in names:
+            raise IdentificationError(f"accel_limit is the limit of the ipdt_accel structure, which this fit does "
+                                      f"not try (model {model!r}{', candidates ' + ', '.join(names) if model == 'auto' else ''})")
     if (u0 is not None or command is not None) and loop is None:
         raise IdentificationError("u0 and command are the command at rest of a closed-loop fit: give the loop too")
     if u0 is not None and command is not None:
@@ -623,6 +643,8 @@ def identify(
     fitted: dict[str, _Outcome] = {}
     for nm in sorted(names, key=_FIT_ORDER.index):  # simpler structures first: they start the richer ones
         st = STRUCTURES[nm]
+        if st.limited and accel_limit is not None:
+            st = dataclasses.replace(st, fixed=(("accel", accel_limit),))
         say(f"fitting {nm}")
         starts = _guesses(st, preps, law)
         starts += _nested_starts(st, fitted)
@@ -730,6 +752,7 @@ def _assemble(o: _Outcome, preps: list[_Prepared], law: _Law | None, crit: tuple
                                      "period: the data show no acceleration limit")
             ci["accel"] = None
     warnings: list[str] = [f"not determined: {why}" for why in undetermined.values()]
+    warnings += [f"{nm} is held at the value given ({v:.6g}), not fitted" for nm, v in st.fixed]
     single = [p.exp.name for p in preps if p.exp.starts_moving]
     if single and not fit_offset:
         warnings.append(f"{', '.join(single[:3])}{', ...' if len(single) > 3 else ''}: the log starts with the drive "

@@ -69,6 +69,10 @@ class Structure:
         Whether the command is rate limited before the plant (``ipdt_accel``): the structure is not linear,
         :meth:`plant` is its linear part only (the limit left out), and fits simulate it with its own closed
         form (``delaykit.identify._accel``), open loop only.
+    fixed : tuple of (str, float)
+        Parameters held at a given value instead of fitted (``ipdt_accel``'s ``accel`` when the vehicle's limit
+        is known: :func:`~delaykit.identify.identification.identify`'s ``accel_limit``); empty for a registered
+        structure.
     """
 
     name: str
@@ -80,6 +84,7 @@ class Structure:
     _coeffs: Callable[[np.ndarray], tuple[list[float], list[float]]]
     code: int = -1
     limited: bool = False
+    fixed: tuple[tuple[str, float], ...] = ()
 
     @property
     def size(self) -> int:
