@@ -34,7 +34,7 @@ from delaykit.simulate.discrete import closed_loop_response, held_delay_model, h
 from delaykit.simulate.simulation import simulate
 from shared_data import PX4_WINDOW, data_path, px4_flights, write_window
 
-LINEAR = [n for n, st in STRUCTURES.items() if not st.limited]  # the linear structures (ipdt_accel: test_identify_accel.py)
+LINEAR = [n for n, st in STRUCTURES.items() if not st.limited]  # (ipdt_accel: test_identify_accel.py)
 
 HEATER = ("tclab", "step_test.csv")
 PX4_LOOP = Loop("1/s", Controller.p(0.95), umin=-1.0, umax=3.0, period=0.02)  # the flights' outer loop (data README)

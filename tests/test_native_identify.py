@@ -28,7 +28,7 @@ from delaykit.identify.structures import STRUCTURES
 
 from shared_data import data_path
 
-LINEAR = [n for n, st in STRUCTURES.items() if not st.limited]  # the linear structures (ipdt_accel: test_identify_accel.py)
+LINEAR = [n for n, st in STRUCTURES.items() if not st.limited]  # (ipdt_accel: test_identify_accel.py)
 
 PKG = "delaykit.identify"
 # the real logs, read from ../shared/data (tests/shared_data.py: the tests on them skip, saying why, where absent);

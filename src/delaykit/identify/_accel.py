@@ -144,9 +144,9 @@ class AccelProblem(F._Problem):
             self._uy[a:b] = gain * (t - t[0])  # a constant bias of the command: a ramp (see the module)
             self._udy[a:b] = gain
         out = np.empty(self._rw.size)
+        w1 = float(self.w[self.rate]) if self.rate else 1.0
         F.FK.residual_blocks(self._y, self._dy, self._uy, self._udy, self.starts, self.k0, self.p0, self.m0, self.k1,
-                             self.p1, self.m1, float(self.w[self.first]), float(self.w[self.rate]) if self.rate else 1.0,
-                             self.fit_bias, self.fit_offset, out)
+                             self.p1, self.m1, float(self.w[self.first]), w1, self.fit_bias, self.fit_offset, out)
         return out
 
 

@@ -608,8 +608,9 @@ def identify(
     if accel_limit is not None:
         accel_limit = check_real("accel_limit", accel_limit, minimum=0.0, strict=True)
         if "ipdt_accel" not in names:
+            tried = f", candidates {', '.join(names)}" if model == "auto" else ""
             raise IdentificationError(f"accel_limit is the limit of the ipdt_accel structure, which this fit does "
-                                      f"not try (model {model!r}{', candidates ' + ', '.join(names) if model == 'auto' else ''})")
+                                      f"not try (model {model!r}{tried})")
     if (u0 is not None or command is not None) and loop is None:
         raise IdentificationError("u0 and command are the command at rest of a closed-loop fit: give the loop too")
     if u0 is not None and command is not None:

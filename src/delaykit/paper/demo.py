@@ -455,7 +455,8 @@ def identify_flights(
                     "jointly, an output offset fitted (see identify_flights)",
         "period": period, "logs": [str(f) for f in p_logs], "filled_packets": p_filled + pv_filled,
         "structure": model.model, "title": model.structure.title, "criterion": model.criterion,
-        "params": dict(model.params), "stderr": dict(model.stderr), "ci": {k: None if v is None else list(v) for k, v in model.ci.items()},
+        "params": dict(model.params), "stderr": dict(model.stderr), "ci": {k: None if v is None else list(v)
+                                                                   for k, v in model.ci.items()},
         "delay": model.delay, "delay_ci": None if lo is None else [lo, hi], "true_delay": truth,
         "delay_error": None if truth is None else model.delay - truth,
         "delay_covers_truth": None if truth is None or lo is None else bool(lo <= truth <= hi),
