@@ -160,3 +160,21 @@ def test_cli_fits_the_limit_or_holds_a_given_one(tmp_path):
     assert d["model"] == "ipdt_accel" and d["params"]["accel"] == 1.0 and d["ci_status"]["delay"] == "determined"
     res = runner.invoke(app, ["identify", str(path), "--model", "ipdt_lag", "--accel-limit", "1.0"])
     assert res.exit_code == 2 and "accel_limit" in res.output and "Traceback" not in res.output
+
+
+def test_cli_candidates_choose_what_auto_tries(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from delaykit.cli import app
+
+    e = _accel_log(0)
+    path = tmp_path / "flight.csv"
+    np.savetxt(path, np.column_stack([e.t, e.u, e.outputs["z"]]), delimiter=",", header="t,u,z", comments="")
+    runner = CliRunner()
+    res = runner.invoke(app, ["identify", str(path), "--candidates", "ipdt, ipdt_lag", "--json"])
+    assert res.exit_code == 0, res.output
+    assert [c["model"] for c in json.loads(res.stdout)["candidates"]] == ["ipdt", "ipdt_lag"]
+    res = runner.invoke(app, ["identify", str(path), "--candidates", "ipdt,nope"])
+    assert res.exit_code == 2 and "nope" in res.output and "Traceback" not in res.output
