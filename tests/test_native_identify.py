@@ -25,7 +25,10 @@ from delaykit.identify import structures as S
 from delaykit.identify.identification import identify
 from delaykit.identify.iodata import read_experiment
 from delaykit.identify.structures import STRUCTURES
+
 from shared_data import data_path
+
+LINEAR = [n for n, st in STRUCTURES.items() if not st.limited]  # (ipdt_accel: test_identify_accel.py)
 
 PKG = "delaykit.identify"
 # the real logs, read from ../shared/data (tests/shared_data.py: the tests on them skip, saying why, where absent);
@@ -68,7 +71,7 @@ def _problem(case: str, name: str) -> F._Problem:
     return F._Problem(st, [prep], PX4_LAW, {"z": 0.01, "vz": 0.05}, True)
 
 
-CASES = [("heater", n) for n in STRUCTURES] + [("px4", "ipdt"), ("px4", "ipdt_speed"), ("px4", "ipdt_lag")]
+CASES = [("heater", n) for n in LINEAR] + [("px4", "ipdt"), ("px4", "ipdt_speed"), ("px4", "ipdt_lag")]
 
 
 @pytest.mark.parametrize("case,name", CASES)
@@ -104,7 +107,7 @@ def test_each_fit_kernel_gives_numbas_numbers_compiled_by_cython_and_interpreted
     # test_identification.py's test_compiled_residuals_equal_the_public_simulators)
 
 
-@pytest.mark.parametrize("name", list(STRUCTURES))
+@pytest.mark.parametrize("name", LINEAR)
 def test_the_compiled_realisation_is_the_structures_transfer_function(name, fit_kernels):
     # independent: C (sI - A)^-1 B against the structure's polynomial ratio, at a few points of the plane
     st = STRUCTURES[name]

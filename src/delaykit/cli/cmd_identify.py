@@ -192,12 +192,14 @@ def identify(
     output: str = typer.Option("z", "--output", help="The output column."),
     rate: Optional[str] = typer.Option(None, "--rate", help="A column holding the output's rate (e.g. vz), fitted jointly."),
     time_col: str = typer.Option("t", "--time", help="The time column (s)."),
-    model: str = typer.Option("auto", "--model", help="auto | ipdt | ipdt_lag | ipdt_speed | fopdt | sopdt."),
+    model: str = typer.Option("auto", "--model", help="auto | ipdt | ipdt_lag | ipdt_speed | fopdt | sopdt | ipdt_accel (an acceleration limit: open loop only)."),
     baseline: str = typer.Option("initial", "--baseline", help="initial (mean before the drive moves) | fit (an offset per log)."),
     u_before: Optional[float] = typer.Option(None, "--u-before", help="The input before the log, when the log starts with the step (default 0)."),
     u0: Optional[float] = typer.Option(None, "--u0", help="With --closed-loop: the absolute command at rest before the logs, which places the limits (needed for an integrating controller, limits and a self-regulating plant)."),
     command: Optional[str] = typer.Option(None, "--command", help="With --closed-loop: the logs' command column; its value at rest is --u0."),
     resample: Optional[float] = typer.Option(None, "--resample", help="Put the logs on this uniform period first, s (the drive held, the outputs interpolated; timing then known to this period). Optional: logs are fitted on their own clock, even an irregular one; only a closed loop sampled at the log's samples needs a uniform clock."),
+    candidates: Optional[str] = typer.Option(None, "--candidates", help="With --model auto: the structures tried, comma-separated, e.g. ipdt,ipdt_lag (default: all those of the fit's kind; ipdt_accel is simulated in Python, about 4 ms per thousand samples per trial point: leave it out of long logs that show no acceleration limit)."),
+    accel_limit: Optional[float] = typer.Option(None, "--accel-limit", help="The vehicle's acceleration limit (the input's unit per second, m/s^2 for a speed command; ArduCopter's WPNAV_ACCEL_Z), held by ipdt_accel instead of fitted."),
     fresh_only: bool = typer.Option(False, "--fresh-only", help="Count only output samples that changed (a sensor slower than the log repeats its values)."),
     window: Optional[str] = typer.Option(None, "--window", help="T0:T1, the part of the logs used, in the log's own seconds (a flight log: since boot, as `delaykit log` shows)."),
     allow_truncated: bool = typer.Option(False, "--allow-truncated", help="Read a flight log cut short up to its last whole message."),
@@ -241,10 +243,12 @@ def identify(
     with err.status(f"reading {len(logs)} log(s)…"):  # (a log of millions of rows takes seconds)
         exps = [read_experiment(f, outputs=cols, time=time_col, resample=resample, window=win,
                                 allow_truncated=allow_truncated, **drive) for f in logs]
+    tried = None if candidates is None else [c.strip() for c in candidates.split(",") if c.strip()]
     with progress_bar(spinner=True) as bar:
         task = bar.add_task("identifying…", total=None)
         m = run_identify(exps, model=model, loop=loop, outputs=[output], rate=rate,
-                         baseline=baseline, fresh_only=fresh_only, u0=u0, command=command,
+                         baseline=baseline, fresh_only=fresh_only, u0=u0, command=command, accel_limit=accel_limit,
+                         candidates=tried,
                          progress=lambda msg: bar.update(task, description=msg))
     if save is not None:
         m.save(save)
@@ -264,7 +268,7 @@ def identify(
     drive_col = reference if closed_loop else input_col
     for p, unit in zip(m.structure.params, m.structure.units):
         table.add_row(p, _unit(unit, output, drive_col), f"{m.params[p]:.5g}", f"{m.stderr[p]:.2g}",
-                      fmt_ci(m.ci[p]))
+                      fmt_ci(m.ci[p]) if m.is_determined(p) else "not determined")
     out.print(table, highlight=False)
     if m.candidates:
         ct = Table(title=f"candidates (chosen by {m.criterion} among those whose status is ok)")

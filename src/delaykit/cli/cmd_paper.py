@@ -133,10 +133,10 @@ def demo(
 
     ident = rep.identification
     if ident and "structure" in ident:
-        lo, hi = ident["delay_ci"]
+        interval = "not determined" if ident["delay_ci"] is None else "{:.4f} to {:.4f}".format(*ident["delay_ci"])
         truth = "" if ident["true_delay"] is None else f"; truth {ident['true_delay']:.4f} s"
         pv = ident["pv_flight"]
-        out.print(f"Identified: {ident['structure']}, dead time {ident['delay']:.4f} s (95 % {lo:.4f} to {hi:.4f}"
+        out.print(f"Identified: {ident['structure']}, dead time {ident['delay']:.4f} s (95 % {interval}"
                   f"{truth}); PV flight predicted within {1e3 * pv['identified_rms']:.1f} mm RMS (the paper model: "
                   f"{1e3 * pv['paper_rms']:.1f} mm).", highlight=False)
     elif ident:

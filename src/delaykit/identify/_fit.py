@@ -223,7 +223,11 @@ class _Problem:
     max_nfev = 300  # residual evaluations allowed to one Levenberg-Marquardt run
 
     def __new__(cls, st: Structure, preps: list[_Prepared], law: Any, *args: Any, **kwargs: Any) -> "_Problem":
-        if cls is _Problem and law is not None and not isinstance(law, _Law):
+        if cls is _Problem and st.limited:
+            from ._accel import AccelProblem
+
+            cls = AccelProblem
+        elif cls is _Problem and law is not None and not isinstance(law, _Law):
             from ._closed_general import GeneralProblem
 
             cls = GeneralProblem
@@ -434,7 +438,7 @@ def _guesses(st: Structure, preps: list[_Prepared], law: Any) -> list[np.ndarray
         if law is not None and not st.integrating:
             tau = max(tau, gain)  # near an integrator of unit gain: K / (tau s + 1) ~ (K / tau) / s
         vals = {"gain": gain, "delay": td, "lag": lag, "time_constant": tau, "time_constant2": max(0.2 * tau, h),
-                "wn": 2.0 / lag, "zeta": 0.7, "zero": lag}
+                "wn": 2.0 / lag, "zeta": 0.7, "zero": lag, "accel": _drive_span(preps) / lag}
         if st.name == "sopdt":
             vals["time_constant"] = max(0.8 * tau, 2.0 * h)
         starts.append(np.array([vals[p] for p in st.params]))
@@ -443,6 +447,11 @@ def _guesses(st: Structure, preps: list[_Prepared], law: Any) -> list[np.ndarray
 
 _SHORTEST = 1e-5
 """The shortest time constant a fit considers, as a fraction of the sample period."""
+
+
+def _drive_span(preps: list[_Prepared]) -> float:
+    """The drive's largest range over the logs (1 where it never moves): the scale of a rate limit's guess."""
+    return max(float(np.ptp(p.drive)) for p in preps) or 1.0
 
 
 def _delay_bound(preps: list[_Prepared]) -> float:
@@ -454,11 +463,12 @@ def _grid_starts(st: Structure, preps: list[_Prepared]) -> list[np.ndarray]:
     (gain 1: it is solved for linearly in open loop)."""
     dur = min(p.exp.duration for p in preps)
     h = preps[0].exp.period
+    span = _drive_span(preps)
     out = []
     for td in np.r_[0.0, np.geomspace(h, max(0.2 * dur, 2 * h), 7)]:
         for ts in np.geomspace(2 * h, dur / 3.0, 5):
             vals = {"gain": 1.0, "delay": td, "lag": ts, "time_constant": ts, "time_constant2": 0.25 * ts,
-                    "wn": 1.0 / ts, "zeta": 0.8, "zero": ts}
+                    "wn": 1.0 / ts, "zeta": 0.8, "zero": ts, "accel": span / ts}
             out.append(np.array([vals[p] for p in st.params]))
     return out
 

@@ -30,6 +30,7 @@ IdentifiedModel(fopdt: gain=0.600... ± ..., time_constant=15... ± ... s, delay
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from dataclasses import dataclass, field
@@ -50,7 +51,7 @@ from .structures import STRUCTURES, Structure, structure
 
 __all__ = ["IdentifiedModel", "Candidate", "LogFit", "Prediction", "identify", "predict", "simulate_experiment",
            "load_model", "IdentificationError", "CORRELATION_WARNING", "candidate_status", "PLAUSIBLE_SPAN",
-           "PLAUSIBLE_TIME"]
+           "PLAUSIBLE_TIME", "UNDETERMINED_PERIODS", "UNREACHED_LIMIT", "undetermined_reason"]
 
 CORRELATION_WARNING = 0.9
 """Above this absolute correlation two time parameters are reported as traded against each other."""
@@ -146,6 +147,61 @@ def candidate_status(st: Structure, p: np.ndarray, cov: np.ndarray, preps: list[
 
 
 
+UNDETERMINED_PERIODS = 10.0
+"""A time parameter whose 95 % interval, before it is cut at 0, reaches more than this many sample periods below 0
+is not determined (see :func:`undetermined_reason`)."""
+
+
+UNREACHED_LIMIT = 0.01
+"""An acceleration limit (``ipdt_accel``) whose ramp over the command's whole range takes less than this fraction
+of a sample period is one the log never shows: not determined."""
+
+
+def undetermined_reason(name: str, unit: str, value: float, stderr: float, longest: float,
+                        period: float) -> str | None:
+    """Why the data do not determine a fitted parameter, or ``None`` when its 95 % interval stands.
+
+    The rule reads only the fit's own information (its value ``value``, its standard error ``stderr``, the
+    longest log's duration ``longest`` and the sample period ``period``, in seconds):
+
+    * the standard error is not finite: the sensitivities (the information matrix) are singular in that
+      direction, so no interval exists;
+    * a time (unit ``"s"``: the delay, a lag, a time constant, a zero) whose 95 % Wald interval is wider than the
+      longest log: the data say nothing a log can show;
+    * a time whose interval, before it is cut at the bound 0, reaches more than :data:`UNDETERMINED_PERIODS`
+      sample periods below 0 (``value - 1.96 stderr < -10 period``): the data cannot tell it from 0 and the
+      linear approximation behind the interval fails at its ends (a delay of ``0.2 ± 4 s`` in a 20 Hz log);
+    * any other parameter (a gain, a frequency, a damping) whose interval contains 0 and reaches below it by
+      more than the value itself (``1.96 stderr > 2 |value|``): not even its size is known.
+
+    Such a parameter is reported as not determined (:attr:`IdentifiedModel.undetermined`, its interval
+    ``None``), never as a huge interval.
+
+    Examples
+    --------
+    >>> undetermined_reason("delay", "s", 0.26, 0.01, 60.0, 0.05) is None
+    True
+    >>> undetermined_reason("delay", "s", 0.0, 2558.0, 60.0, 0.05)
+    'delay: its 95 % interval (0 to 5014 s) is wider than the longest log (60 s)'
+    >>> print(undetermined_reason("delay", "s", 0.22, 4.1, 60.0, 0.05))
+    delay = 0.22 ± 4.1 s cannot be told from 0: its 95 % interval reaches 7.82 s below 0, over 10 sample periods
+    """
+    if not math.isfinite(stderr) or not math.isfinite(value):
+        return f"{name}: the data do not determine it (its sensitivities are singular: no standard error)"
+    half = Z95 * stderr
+    if unit == "s":
+        if 2.0 * half > longest:
+            return (f"{name}: its 95 % interval ({max(value - half, 0.0):.4g} to {value + half:.4g} s) is wider "
+                    f"than the longest log ({longest:.4g} s)")
+        if value - half < -UNDETERMINED_PERIODS * period:
+            return (f"{name} = {value:.4g} ± {stderr:.2g} s cannot be told from 0: its 95 % interval reaches "
+                    f"{half - value:.3g} s below 0, over {UNDETERMINED_PERIODS:g} sample periods")
+        return None
+    if half > 2.0 * abs(value):
+        return f"{name} = {value:.4g} ± {stderr:.2g}: its 95 % interval reaches below 0 by more than its size"
+    return None
+
+
 def _nulls(v: Any) -> Any:
     """``v`` with every float that is not finite replaced by ``None`` (JSON's null), in dicts and lists."""
     if isinstance(v, float):
@@ -179,12 +235,14 @@ class IdentifiedModel:
 
     ``params``, ``stderr`` and ``ci`` are keyed by the structure's parameter names (``gain``, ``delay``,
     ``time_constant``...).  ``closed_loop`` holds the controller of a closed-loop fit (``None`` for open loop).
+    A parameter the data do not determine (:func:`undetermined_reason`) is in ``undetermined`` with the reason,
+    and its interval in ``ci`` is ``None`` (JSON: null, and ``ci_status`` ``"not determined"``).
     """
 
     model: str
     params: dict[str, float]
     stderr: dict[str, float]
-    ci: dict[str, tuple[float, float]]
+    ci: dict[str, tuple[float, float] | None]
     cov: np.ndarray
     rms: float
     aic: float
@@ -200,6 +258,13 @@ class IdentifiedModel:
     per_log: tuple[dict[str, Any], ...] = ()
     combinations: tuple[dict[str, Any], ...] = field(default=())
     drive_column: str = "u"
+    undetermined: dict[str, str] = field(default_factory=dict)
+    """The parameters the data do not determine, each with the reason (:func:`undetermined_reason`)."""
+
+    def is_determined(self, name: str) -> bool:
+        """Whether the data determine parameter ``name`` (its 95 % interval in :attr:`ci` is not ``None``)."""
+        ci = self.ci.get(name)
+        return name not in self.undetermined and ci is not None and all(math.isfinite(x) for x in ci)
 
     @property
     def structure(self) -> Structure:
@@ -227,7 +292,9 @@ class IdentifiedModel:
         """JSON-ready form (the contract of ``delaykit identify --json``), enough to :func:`load_model` it."""
         return {
             "model": self.model, "params": dict(self.params), "stderr": dict(self.stderr),
-            "ci": {k: [lo, hi] for k, (lo, hi) in self.ci.items()},
+            "ci": {k: None if v is None else [v[0], v[1]] for k, v in self.ci.items()},
+            "ci_status": {k: "determined" if self.is_determined(k) else "not determined" for k in self.ci},
+            "undetermined": dict(self.undetermined),
             "correlation": {f"{a},{b}": self.correlation(a, b) for i, a in enumerate(self.structure.params)
                             for b in self.structure.params[i + 1:]},
             "cov": self.cov.tolist(), "rms": self.rms, "aic": self.aic, "bic": self.bic, "n": self.n,
@@ -256,7 +323,8 @@ class IdentifiedModel:
             st = structure(name)
             params = {k: check_real(f"parameter {k}", d["params"][k]) for k in st.params}
             stderr = {k: _number(d["stderr"][k]) for k in st.params}
-            ci = {k: (_number(v[0]), _number(v[1])) for k, v in d["ci"].items()}
+            ci = {k: None if v is None else (_number(v[0]), _number(v[1])) for k, v in d["ci"].items()}
+            undetermined = {str(k): str(v) for k, v in (d.get("undetermined") or {}).items()}
             cov = np.array([[_number(x) for x in row] for row in d["cov"]], dtype=float).reshape(st.size, st.size)
             logs = tuple(LogFit(g["file"], {k: _number(v) for k, v in g["rms_by_output"].items()},
                                 {k: math.nan for k in g["rms_by_output"]}, _count(g["samples"], "samples"),
@@ -281,7 +349,7 @@ class IdentifiedModel:
                        outputs=tuple(d["outputs"]),
                        rate=d.get("rate"), closed_loop=closed, logs=logs,
                        criterion=d.get("criterion", "bic"), warnings=tuple(d.get("warnings", ())),
-                       drive_column=str(d.get("drive_column", "u")))
+                       drive_column=str(d.get("drive_column", "u")), undetermined=undetermined)
         except (KeyError, TypeError, ValueError, IndexError, OverflowError) as exc:
             what = str(exc) if isinstance(exc, DelaykitError) else f"{type(exc).__name__}: {exc}"
             raise IdentificationError(f"{source}: not a usable delaykit model file ({what})") from None
@@ -290,7 +358,8 @@ class IdentifiedModel:
         parts = []
         for p, u in zip(self.structure.params, self.structure.units):
             unit = " s" if u == "s" else (" rad/s" if u == "rad/s" else "")
-            parts.append(f"{p}={self.params[p]:.4g} ± {self.stderr[p]:.2g}{unit}")
+            parts.append(f"{p}={self.params[p]:.4g} ± {self.stderr[p]:.2g}{unit}"
+                         + ("" if self.is_determined(p) else " (not determined)"))
         return (f"IdentifiedModel({self.model}: {', '.join(parts)}; rms={self.rms:.4g}, "
                 f"{len(self.logs)} log{'s' if len(self.logs) != 1 else ''})")
 
@@ -324,10 +393,15 @@ def _fit_structure(st: Structure, preps: list[_Prepared], law: _Law | None, fit_
         prob = _Problem(st, preps, law, weights, fit_offset)
         p = _fit(prob, [p] + starts[:1], explore=False)
     p = st.canonical(p)[0]
+    fixed = dict(st.fixed)
+    free = np.array([nm not in fixed for nm in st.params])
+    for i, nm in enumerate(st.params):
+        if nm in fixed:
+            p[i] = fixed[nm]
     blocks = prob.blocks(p)
-    # Jacobian in physical parameters, by central differences
+    # Jacobian in physical parameters, by central differences (the free ones: a given value has no error)
     with np.errstate(all="ignore"):
-        J = _jacobian(prob, p)
+        J = _jacobian(prob, p)[:, free]
     noise, loglik, row = [], 0.0, 0
     for _, o, r in blocks:
         rw = r / prob.w[o]
@@ -339,10 +413,12 @@ def _fit_structure(st: Structure, preps: list[_Prepared], law: _Law | None, fit_
         if not np.all(np.isfinite(J)):
             raise np.linalg.LinAlgError("sensitivities are not finite")
         models = _noise_models(prob, blocks, noise)
-        cov = _edge_covariance(prob, p, blocks, models, ar_covariance(_covariance_blocks(blocks, models, J)))
+        small = _edge_covariance(prob, p, blocks, models, ar_covariance(_covariance_blocks(blocks, models, J)), free)
+        cov = np.zeros((st.size, st.size))
+        cov[np.ix_(free, free)] = small
     except np.linalg.LinAlgError:
         cov = np.full((st.size, st.size), np.nan)
-    k = st.size + sum(a.order for a in noise) + prob.linear_count
+    k = int(free.sum()) + sum(a.order for a in noise) + prob.linear_count
     first = preps[0].outputs[0]
     rr = np.concatenate([r for _, o, r in blocks if o == first])
     rms = float(np.sqrt(np.mean(rr * rr)))
@@ -392,7 +468,8 @@ def _covariance_blocks(blocks: list, models: list, J: np.ndarray) -> list:
     return out
 
 
-def _edge_covariance(prob: _Problem, p: np.ndarray, blocks: list, models: list, cov: np.ndarray) -> np.ndarray:
+def _edge_covariance(prob: _Problem, p: np.ndarray, blocks: list, models: list, cov: np.ndarray,
+                     free: np.ndarray) -> np.ndarray:
     """The covariance, honest near a whole number of sample periods of delay.
 
     Where the delay crosses a multiple of the period a held input's edges cross the samples, and the
@@ -411,7 +488,7 @@ def _edge_covariance(prob: _Problem, p: np.ndarray, blocks: list, models: list, 
     step = max(1e-3 * h, 1e-5 * d)  # (ten times _jacobian's own step: its differences stay on that side)
     q[-1] = edge + (step if d <= edge else -step)
     with np.errstate(all="ignore"):
-        J = _jacobian(prob, q)
+        J = _jacobian(prob, q)[:, free]
     if not np.all(np.isfinite(J)):
         return cov
     other = ar_covariance(_covariance_blocks(blocks, models, J))
@@ -459,6 +536,7 @@ def identify(
     progress: Callable[[str], None] | None = None,
     u0: float | Sequence[float] | None = None,
     command: str | None = None,
+    accel_limit: float | None = None,
 ) -> IdentifiedModel:
     """Identify a plant and its dead time from one or more logs.
 
@@ -498,6 +576,11 @@ def identify(
     command : str, optional
         Closed loop: a column of the logs (read as one of their outputs, not fitted) holding the command; its
         mean before the reference moves is ``u0``.
+    accel_limit : float, optional
+        The vehicle's acceleration limit (the command's unit per second, e.g. m/s^2 for a speed command), when
+        known from its parameters (ArduCopter's ``WPNAV_ACCEL_Z``): ``ipdt_accel`` then holds its ``accel`` at
+        this value instead of fitting it (its standard error 0, one parameter fewer in BIC).  Only with
+        ``model="ipdt_accel"`` or ``"auto"`` with it among the candidates.
 
     Returns
     -------
@@ -535,9 +618,16 @@ def identify(
                                       f"{e.name} every {e.period:.6g} s; resample them onto one clock")
     if baseline not in ("initial", "fit"):
         raise IdentificationError(f"baseline must be 'initial' or 'fit', got {baseline!r}")
-    names = [model] if model != "auto" else list(candidates or STRUCTURES)
+    names = [model] if model != "auto" else list(candidates or (nm for nm in STRUCTURES
+                                                                 if loop is None or not STRUCTURES[nm].limited))
     for nm in names:
         structure(nm)
+    if accel_limit is not None:
+        accel_limit = check_real("accel_limit", accel_limit, minimum=0.0, strict=True)
+        if "ipdt_accel" not in names:
+            tried = f", candidates {', '.join(names)}" if model == "auto" else ""
+            raise IdentificationError(f"accel_limit is the limit of the ipdt_accel structure, which this fit does "
+                                      f"not try (model {model!r}{tried})")
     if (u0 is not None or command is not None) and loop is None:
         raise IdentificationError("u0 and command are the command at rest of a closed-loop fit: give the loop too")
     if u0 is not None and command is not None:
@@ -575,6 +665,8 @@ def identify(
     fitted: dict[str, _Outcome] = {}
     for nm in sorted(names, key=_FIT_ORDER.index):  # simpler structures first: they start the richer ones
         st = STRUCTURES[nm]
+        if st.limited and accel_limit is not None:
+            st = dataclasses.replace(st, fixed=(("accel", accel_limit),))
         say(f"fitting {nm}")
         starts = _guesses(st, preps, law)
         starts += _nested_starts(st, fitted)
@@ -597,7 +689,7 @@ def identify(
     return _assemble(best, preps, law, crit[chosen], cands, criterion, per_log, fit_offset, say)
 
 
-_FIT_ORDER = ("ipdt", "ipdt_lag", "fopdt", "sopdt", "ipdt_speed")
+_FIT_ORDER = ("ipdt", "ipdt_lag", "fopdt", "sopdt", "ipdt_speed", "ipdt_accel")
 
 
 def _nested_starts(st: Structure, done: dict[str, _Outcome]) -> list[np.ndarray]:
@@ -614,11 +706,27 @@ def _nested_starts(st: Structure, done: dict[str, _Outcome]) -> list[np.ndarray]
         g, t1, t2, d = done["sopdt"].p
         tz = 1e3 * (t1 + t2 + d)
         out.append(np.array([g / tz, 1.0 / math.sqrt(t1 * t2), 0.5 * (t1 + t2) / math.sqrt(t1 * t2), tz, d]))
+    if st.name == "ipdt_accel" and "ipdt_lag" in done:  # a limit the ramps never reach, then ones they do
+        g, lag, d = done["ipdt_lag"].p
+        h = done["ipdt_lag"].prob.h
+        span = max(float(np.ptp(q.drive)) for q in done["ipdt_lag"].prob.preps) or 1.0
+        for reach in (h, 10 * h, 30 * h):  # the time a full-range ramp takes
+            out.append(np.array([g, span / reach, max(0.5 * lag, 1e-3), d]))
     if st.name == "sopdt" and "fopdt" in done:
         g, tau, d = done["fopdt"].p
         out.append(np.array([g, 0.9 * tau, 0.1 * tau + 0.2 * d, 0.5 * d]))
         out.append(np.array([g, 0.7 * tau, 0.3 * tau, 0.1 * d]))
     return out
+
+
+def _free_run(prep: _Prepared, st: Structure, p: np.ndarray, law: Any) -> dict[str, np.ndarray]:
+    """A structure's free-run outputs (deviations) over a prepared log: the rate-limited structure by its own
+    closed form, the linear ones by the exact discrete simulator."""
+    if st.limited:
+        from ._accel import simulate
+
+        return simulate(prep, p)
+    return _simulate(prep, st.plant(p), float(p[-1]), law)
 
 
 def _leave_one_out(o: _Outcome, preps: list[_Prepared], law: _Law | None, fit_offset: bool) -> float:
@@ -627,7 +735,7 @@ def _leave_one_out(o: _Outcome, preps: list[_Prepared], law: _Law | None, fit_of
         rest = preps[:i] + preps[i + 1:]
         sub = _Problem(o.st, rest, law, o.prob.w, fit_offset)
         p = _fit(sub, [o.p], explore=False)
-        sim = _simulate(held, o.st.plant(p), float(p[-1]), law)
+        sim = _free_run(held, o.st, p, law)
         first = held.outputs[0]
         k = held.keep[first]
         r = held.meas[first][k] - sim[first][k]
@@ -646,8 +754,27 @@ def _assemble(o: _Outcome, preps: list[_Prepared], law: _Law | None, crit: tuple
     stderr = {nm: float(s) for nm, s in zip(st.params, se)}
     # Wald intervals, cut at the parameters' bounds (a time constant or a delay is not negative)
     floor = [0.0 if (pos or nm == "delay") else -math.inf for nm, pos in zip(st.params, st.positive)]
-    ci = {nm: (float(max(v - Z95 * s, f)), float(v + Z95 * s)) for nm, v, s, f in zip(st.params, o.p, se, floor)}
-    warnings: list[str] = []
+    ci: dict[str, tuple[float, float] | None] = {
+        nm: (float(max(v - Z95 * s, f)), float(v + Z95 * s)) for nm, v, s, f in zip(st.params, o.p, se, floor)}
+    # an interval the data do not support is reported as not determined, never as a huge interval
+    longest = max(p.exp.duration for p in preps)
+    period = max(p.exp.period for p in preps)
+    undetermined: dict[str, str] = {}
+    for nm, unit, v, var in zip(st.params, st.units, o.p, np.diag(o.cov)):
+        why = undetermined_reason(nm, unit, float(v), math.sqrt(var) if var >= 0 else math.nan, longest, period)
+        if why is not None:
+            undetermined[nm] = why
+            ci[nm] = None
+    if st.limited:  # a limit no ramp of the log reaches: the data show no limit, not its value
+        span = max(float(np.ptp(q.drive)) for q in preps)
+        ramp = span / params["accel"] if params["accel"] > 0 else math.inf
+        if ramp < UNREACHED_LIMIT * period:
+            undetermined["accel"] = (f"accel = {params['accel']:.4g}: a ramp over the command's whole range "
+                                     f"({span:.4g}) would take {ramp:.2g} s, under {UNREACHED_LIMIT:g} of a sample "
+                                     "period: the data show no acceleration limit")
+            ci["accel"] = None
+    warnings: list[str] = [f"not determined: {why}" for why in undetermined.values()]
+    warnings += [f"{nm} is held at the value given ({v:.6g}), not fitted" for nm, v in st.fixed]
     single = [p.exp.name for p in preps if p.exp.starts_moving]
     if single and not fit_offset:
         warnings.append(f"{', '.join(single[:3])}{', ...' if len(single) > 3 else ''}: the log starts with the drive "
@@ -659,7 +786,8 @@ def _assemble(o: _Outcome, preps: list[_Prepared], law: _Law | None, crit: tuple
     combos, w = _combinations(st, o.p, o.cov)
     warnings += w
     for nm, v, s in zip(st.params, o.p, se):
-        if v != 0 and s > 0.5 * abs(v) and not any(nm in c["sum"].split("+") for c in combos):
+        if (v != 0 and s > 0.5 * abs(v) and nm not in undetermined
+                and not any(nm in c["sum"].split("+") for c in combos)):
             warnings.append(f"{nm} is poorly determined by these data ({v:.4g} ± {s:.2g})")
     logs = []
     for prep in preps:
@@ -723,7 +851,7 @@ def _assemble(o: _Outcome, preps: list[_Prepared], law: _Law | None, crit: tuple
         outputs=preps[0].outputs, rate=preps[0].rate,
         closed_loop=_law_dict(law),
         logs=tuple(logs), candidates=cands, criterion=criterion, warnings=tuple(warnings), per_log=tuple(per),
-        combinations=tuple(combos),
+        combinations=tuple(combos), undetermined=undetermined,
         drive_column=preps[0].exp.reference_name if law is not None else preps[0].exp.input_name)
 
 
@@ -772,7 +900,7 @@ def simulate_experiment(model: IdentifiedModel, experiment: Experiment, *, u0: f
 
         law = from_static(law)
     prep = _prepare(experiment, model.outputs, model.rate, law, fresh_only=False, u0=command if command else u0)
-    sim = _simulate(prep, model.plant, model.delay, law)
+    sim = _free_run(prep, model.structure, np.array([model.params[k] for k in model.structure.params]), law)
     return {o: y + prep.base[o] for o, y in sim.items()}
 
 

@@ -11,6 +11,9 @@ name            plant (times ``exp(-delay s)``)                                 
 ``fopdt``       ``K / (T s + 1)``: first order plus dead time                    gain, time_constant, delay
 ``sopdt``       ``K / ((T1 s + 1)(T2 s + 1))``: second order plus dead time      gain, time_constant, time_constant2,
                 (``T1 >= T2``)                                                   delay
+``ipdt_accel``  the command's rate limited to ``accel`` (an autopilot's          gain, accel, lag, delay
+                acceleration limit), then ``K / (s (T s + 1))``: not linear,
+                simulated by its own exact closed form (open loop only)
 ==============  ===============================================================  =====================================
 
 A PI speed controller ``(P s + I)/s`` around an acceleration ``b/s`` closes to ``wn^2 = b I``, ``2 zeta wn = b P``
@@ -62,6 +65,14 @@ class Structure:
         Whether the plant has an integrator.
     code : int
         Which compiled realisation :meth:`realise` uses (-1: the companion form of :meth:`plant`).
+    limited : bool
+        Whether the command is rate limited before the plant (``ipdt_accel``): the structure is not linear,
+        :meth:`plant` is its linear part only (the limit left out), and fits simulate it with its own closed
+        form (``delaykit.identify._accel``), open loop only.
+    fixed : tuple of (str, float)
+        Parameters held at a given value instead of fitted (``ipdt_accel``'s ``accel`` when the vehicle's limit
+        is known: :func:`~delaykit.identify.identification.identify`'s ``accel_limit``); empty for a registered
+        structure.
     """
 
     name: str
@@ -72,6 +83,8 @@ class Structure:
     integrating: bool
     _coeffs: Callable[[np.ndarray], tuple[list[float], list[float]]]
     code: int = -1
+    limited: bool = False
+    fixed: tuple[tuple[str, float], ...] = ()
 
     @property
     def size(self) -> int:
@@ -135,6 +148,10 @@ def _ipdt_speed(v: np.ndarray) -> tuple[list[float], list[float]]:
     return [k * wn * wn * tz, k * wn * wn], [1.0, 2.0 * zeta * wn, wn * wn, 0.0]
 
 
+def _ipdt_accel(v: np.ndarray) -> tuple[list[float], list[float]]:
+    return [v[0]], [v[2], 1.0, 0.0]
+
+
 def _fopdt(v: np.ndarray) -> tuple[list[float], list[float]]:
     return [v[0]], [v[1], 1.0]
 
@@ -156,6 +173,9 @@ STRUCTURES: dict[str, Structure] = {
                   (False, True, False), False, _fopdt, 3),
         Structure("sopdt", "second order plus dead time", ("gain", "time_constant", "time_constant2", "delay"),
                   ("y/u", "s", "s", "s"), (False, True, True, False), False, _sopdt, 4),
+        Structure("ipdt_accel", "integrating with a first-order lag behind an acceleration (rate) limit, plus "
+                  "dead time", ("gain", "accel", "lag", "delay"), ("y/(u s)", "u/s", "s", "s"),
+                  (False, True, True, False), True, _ipdt_accel, -1, True),
     )
 }
 """Every structure by name."""

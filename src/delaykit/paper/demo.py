@@ -433,7 +433,7 @@ def identify_flights(
         return {"error": str(exc)}
     if save is not None:
         model.save(save)
-    lo, hi = model.ci["delay"]
+    lo, hi = model.ci["delay"] or (None, None)  # (None: the data did not determine the delay)
     pv_law = {"kp": PV_KP, "kv": float(kv), "umin": -1.0, "umax": 1.0, "period": period}
     names = ("gain", "lag", "delay") if lag else ("gain", "delay")
     values = (1.0, float(lag), estimate.delay) if lag else (1.0, estimate.delay)
@@ -455,10 +455,11 @@ def identify_flights(
                     "jointly, an output offset fitted (see identify_flights)",
         "period": period, "logs": [str(f) for f in p_logs], "filled_packets": p_filled + pv_filled,
         "structure": model.model, "title": model.structure.title, "criterion": model.criterion,
-        "params": dict(model.params), "stderr": dict(model.stderr), "ci": {k: list(v) for k, v in model.ci.items()},
-        "delay": model.delay, "delay_ci": [lo, hi], "true_delay": truth,
+        "params": dict(model.params), "stderr": dict(model.stderr), "ci": {k: None if v is None else list(v)
+                                                                   for k, v in model.ci.items()},
+        "delay": model.delay, "delay_ci": None if lo is None else [lo, hi], "true_delay": truth,
         "delay_error": None if truth is None else model.delay - truth,
-        "delay_covers_truth": None if truth is None else bool(lo <= truth <= hi),
+        "delay_covers_truth": None if truth is None or lo is None else bool(lo <= truth <= hi),
         "candidates": [c.to_dict() for c in model.candidates], "warnings": list(model.warnings),
         "paper_model": {"structure": paper.model, "params": paper_params},
         "estimator": {"delay": estimate.delay, "ci": None if est_ci is None else list(est_ci),
@@ -542,14 +543,15 @@ def _identification_text(ident: dict, truth: float | None, vehicle: str | None =
         return head + f"The P flights could not be identified: {ident['error']}\n"
     ms = lambda x: f"{1e3 * x:.1f}"  # noqa: E731
     rows = ["| parameter | value | 95 % interval |", "|---|---|---|"]
-    rows += [f"| {k} | {v:.4g} | {ident['ci'][k][0]:.4g} to {ident['ci'][k][1]:.4g} |"
+    rows += [f"| {k} | {v:.4g} | " + ("not determined" if ident["ci"][k] is None else
+                                     f"{ident['ci'][k][0]:.4g} to {ident['ci'][k][1]:.4g}") + " |"
              for k, v in ident["params"].items()]
     cands = ["| structure | values fitted (BIC's count) | leave-one-log-out RMS (mm) | BIC |", "|---|---|---|---|"]
     for c in ident["candidates"]:
         lolo = "–" if c["lolo_rms"] is None else ms(c["lolo_rms"])
         mark = " (chosen)" if c["model"] == ident["structure"] else ""
         cands.append(f"| {c['model']}{mark} | {c['k']} | {lolo} | {c['bic']:.1f} |")
-    lo, hi = ident["delay_ci"]
+    lo, hi = ident["delay_ci"] or (None, None)
     text = (head + f"The P flight's step logs merged into the whole flight (from the hover before its first step, "
             f"at rest), identified closed loop from the reference through the P law (Kp = {P_KP:g}, ±1 m/s, a "
             f"command every {1e3 * ident['period']:.1f} ms), the altitude and the navdata's vertical speed fitted "
@@ -560,14 +562,19 @@ def _identification_text(ident: dict, truth: float | None, vehicle: str | None =
             f"{'BIC' if ident['criterion'] == 'bic' else ident['criterion']}: **{ident['structure']}**, "
             f"{ident['title']}.\n\n" + "\n".join(rows) + "\n\n"
             + ("\n".join(cands) + "\n\n" if ident["candidates"] else ""))
-    text += f"Identified dead time: **{ident['delay']:.4f} s** (95 % {lo:.4f} to {hi:.4f} s)"
+    text += (f"Identified dead time: **{ident['delay']:.4f} s** "
+             + ("(its interval not determined by these data)" if lo is None else f"(95 % {lo:.4f} to {hi:.4f} s)"))
     e = ident["estimator"]
     if truth is not None:
-        text += (f"; the emulator's true loop delay is {truth:.4f} s, "
-                 + ("inside" if ident["delay_covers_truth"] else "**outside**")
-                 + f" the interval (error {1e3 * ident['delay_error']:+.1f} ms"
-                 + ("" if ident["delay_covers_truth"] else "; the interval counts the hover wander and the sensor "
-                    "noise, not the timing of the real-time loop, whose latency is given above") + ").")
+        if lo is None:
+            text += (f"; the emulator's true loop delay is {truth:.4f} s (error {1e3 * ident['delay_error']:+.1f} "
+                     "ms).")
+        else:
+            text += (f"; the emulator's true loop delay is {truth:.4f} s, "
+                     + ("inside" if ident["delay_covers_truth"] else "**outside**")
+                     + f" the interval (error {1e3 * ident['delay_error']:+.1f} ms"
+                     + ("" if ident["delay_covers_truth"] else "; the interval counts the hover wander and the "
+                        "sensor noise, not the timing of the real-time loop, whose latency is given above") + ").")
         text += (f"  The paper estimator's delay, {e['delay']:.4f} s, is off by {1e3 * e['error']:+.1f} ms"
                  + ("" if e["ci"] is None else f" (its 95 % interval {e['ci'][0]:.4f} to {e['ci'][1]:.4f} s "
                     + ("holds the truth)" if e["covers_truth"] else "does not hold the truth)")))
