@@ -132,6 +132,7 @@ class DroneLink(VehicleLink):
 
     def takeoff(self, timeout: float, status: Callable[[str], None] | None = None) -> None:
         """Flat trim, then the take-off bit until the drone hovers."""
+        (status or (lambda _m: None))(f"flat trim and take-off of {self.name}")
         enc = self.enc
         self.send(enc.ftrim())
         deadline = time.monotonic() + timeout

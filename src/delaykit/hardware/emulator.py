@@ -333,6 +333,7 @@ class DroneEmulator:
 
     def _send_sample(self, now: float, z_true: float, v: float, mode: int, snap: Any) -> None:
         """Send one sample (a navdata packet) of the state at ``now``; outside the lock."""
+        del now  # (the AR.Drone's navdata carry no time; other front ends stamp their samples with it)
         state, client, demo_on = snap
         self._seq += 1
         if client is None:

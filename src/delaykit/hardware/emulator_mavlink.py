@@ -297,7 +297,7 @@ class MavlinkEmulator(DroneEmulator):
         """Bytes from the ground station (b"" after a short wait); accepts a TCP client when none is connected."""
         try:
             if self.endpoint[0] == "udp":
-                data, addr = self._sock.recvfrom(65536)
+                data, _addr = self._sock.recvfrom(65536)
                 return data
             if self._conn is None:
                 conn, _ = self._server.accept()
@@ -447,6 +447,7 @@ class MavlinkEmulator(DroneEmulator):
             return m.MAV_RESULT_ACCEPTED
 
     def _takeoff(self, height: float, t: float) -> int:
+        del t  # (the climb starts at the next tick)
         m = self._m
         height = 2.5 if not math.isfinite(height) or height <= 0 else min(height, self._alt_max)
         with self._lock:
@@ -464,6 +465,7 @@ class MavlinkEmulator(DroneEmulator):
 
     def _hold(self, t: float) -> None:
         """Stop climbing or descending (under the lock): a zero speed command, now."""
+        del t  # (now: the hook's time is not needed to stop)
         p = self._phys
         if p.mode in (CtrlState.FLYING, CtrlState.HOVERING):
             p.pending.clear()

@@ -129,7 +129,7 @@ class VehicleLink(ABC):
         """Wait until the vehicle can take off (estimator, pre-arm checks), showing progress through ``status``;
         raise :class:`VehicleRefusedError` naming the vehicle's reason after ``timeout`` seconds.  Nothing to wait
         for by default."""
-        return None
+        del timeout, status  # (a vehicle with nothing to wait for)
 
     @abstractmethod
     def takeoff(self, timeout: float, status: Callable[[str], None] | None = None) -> None:

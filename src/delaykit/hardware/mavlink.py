@@ -334,6 +334,7 @@ class MavlinkLink(VehicleLink):
     def connect(self, timeout: float, *, vmax: float, z_max: float,
                 status: Callable[[str], None] | None = None) -> None:
         """Open the connection, wait for the autopilot's heartbeat, ask for LOCAL_POSITION_NED at ``rate``."""
+        del vmax  # (the autopilot has its own climb-rate limits; the flight clips the command to vmax itself)
         self._say = say = status or (lambda _m: None)
         if self.takeoff_height >= z_max:
             raise InvalidValueError(f"takeoff_height {self.takeoff_height:g} m must be below z_max {z_max:g} m")

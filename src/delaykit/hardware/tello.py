@@ -314,6 +314,7 @@ class TelloLink(VehicleLink):
     def connect(self, timeout: float, *, vmax: float, z_max: float,
                 status: Callable[[str], None] | None = None) -> None:
         """``command`` until answered, then the first state line (see the module docstring)."""
+        del z_max  # (the Tello takes off to its own height; the flight checks the altitude bounds itself)
         say = status or (lambda _m: None)
         top = 100 * self.speed_per_percent
         if vmax > top + 1e-12:
@@ -333,6 +334,7 @@ class TelloLink(VehicleLink):
 
     def takeoff(self, timeout: float, status: Callable[[str], None] | None = None) -> None:
         """``takeoff``, answered once the drone hovers."""
+        (status or (lambda _m: None))(f"take-off of {self.name}")
         self._drain_replies()
         self.send("takeoff")
         answer = self._reply(timeout)
