@@ -343,7 +343,7 @@ def test_px4_setpoint_loss_failsafe_lands():
         link = MavlinkLink(conn)
         link.connect(3.0, vmax=1.0, z_max=3.5)
         link.takeoff(10.0)
-        link._stop_keepalive()  # the ground station goes quiet
+        link._keeper.stop()  # the ground station goes quiet
         t0 = time.monotonic()
         while emu.summary()["armed"] and time.monotonic() - t0 < 6:
             time.sleep(0.1)

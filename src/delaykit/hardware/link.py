@@ -25,13 +25,15 @@ AltitudeSample(z=1.200 m, vz=-0.050 m/s, seq 7, vehicle 12.340 s, arrived 100.00
 
 from __future__ import annotations
 
+import threading
+import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any, Callable
 
 from ..errors import DelaykitError
 
-__all__ = ["LinkError", "VehicleRefusedError", "AltitudeSample", "VehicleLink"]
+__all__ = ["KeepAlive", "LinkError", "VehicleRefusedError", "AltitudeSample", "VehicleLink"]
 
 
 class LinkError(DelaykitError, RuntimeError):
@@ -155,3 +157,52 @@ class VehicleLink(ABC):
     @abstractmethod
     def close(self) -> None:
         """Release the link (sockets, threads)."""
+
+
+class KeepAlive:
+    """A daemon thread that resends a link's last command whenever ``period`` seconds pass without one sent.
+
+    Vehicles drop a setpoint that is not repeated (ArduPilot after about 3 s, PX4's offboard mode below 2 Hz, a
+    Tello lands after 15 s), while the flight loop may pause between samples.  ``last_sent()`` gives the monotonic
+    time of the last command, ``resend()`` sends it again; the thread stops at :meth:`stop`, or when ``resend``
+    raises :class:`LinkError` (the link is gone: the flight loop reports it).
+
+    Examples
+    --------
+    >>> import time
+    >>> sent = []
+    >>> k = KeepAlive("demo", 0.02, lambda: sent[-1] if sent else 0.0, lambda: sent.append(time.monotonic()))
+    >>> k.start(); time.sleep(0.2); k.stop()
+    >>> len(sent) >= 3
+    True
+    """
+
+    def __init__(self, name: str, period: float, last_sent: Callable[[], float], resend: Callable[[], Any], *,
+                 poll: float | None = None) -> None:
+        self.name, self.period = name, float(period)
+        self._poll = self.period / 2 if poll is None else min(self.period / 2, poll)
+        self._last_sent, self._resend = last_sent, resend
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def _loop(self) -> None:
+        while not self._stop.wait(self._poll):
+            if time.monotonic() - self._last_sent() >= self.period:
+                try:
+                    self._resend()
+                except LinkError:
+                    return
+
+    def start(self) -> None:
+        """Start the thread (once; again after :meth:`stop`)."""
+        if self._thread is None:
+            self._stop.clear()
+            self._thread = threading.Thread(target=self._loop, daemon=True, name=self.name)
+            self._thread.start()
+
+    def stop(self) -> None:
+        """Stop the thread and wait (up to a second) for it."""
+        if self._thread is not None:
+            self._stop.set()
+            self._thread.join(timeout=1.0)
+            self._thread = None

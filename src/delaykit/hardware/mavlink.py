@@ -46,7 +46,7 @@ import time
 from typing import Any, Callable
 
 from ..errors import InvalidTypeError, InvalidValueError, check_real
-from .link import AltitudeSample, LinkError, VehicleLink, VehicleRefusedError
+from .link import AltitudeSample, KeepAlive, LinkError, VehicleLink, VehicleRefusedError
 
 __all__ = ["MavlinkLink", "VELOCITY_ONLY", "encode_velocity", "CONNECTION_KINDS"]
 
@@ -162,8 +162,8 @@ class MavlinkLink(VehicleLink):
         self._tx = threading.Lock()
         self._last_vz = 0.0
         self._last_tx = 0.0
-        self._keep: threading.Thread | None = None
-        self._keep_stop = threading.Event()
+        self._keeper = KeepAlive("mavlink-keepalive", 1.0 / self.keepalive, lambda: self._last_tx,
+                                 lambda: self.send_velocity(self._last_vz))
         self._say: Callable[[str], None] = lambda _m: None
         self._t_msg = 0.0  # arrival of the last message from the vehicle
 
@@ -257,27 +257,6 @@ class MavlinkLink(VehicleLink):
             self._last_vz = vz
             self._last_tx = time.monotonic()
             return self._last_tx
-
-    def _keepalive_loop(self) -> None:
-        period = 1.0 / self.keepalive
-        while not self._keep_stop.wait(period / 2):
-            if time.monotonic() - self._last_tx >= period:
-                try:
-                    self.send_velocity(self._last_vz)
-                except LinkError:
-                    return
-
-    def _start_keepalive(self) -> None:
-        if self._keep is None:
-            self._keep_stop.clear()
-            self._keep = threading.Thread(target=self._keepalive_loop, daemon=True, name="mavlink-keepalive")
-            self._keep.start()
-
-    def _stop_keepalive(self) -> None:
-        if self._keep is not None:
-            self._keep_stop.set()
-            self._keep.join(timeout=1.0)
-            self._keep = None
 
     def _command(self, command: int, params: tuple, what: str, timeout: float, *, retry_temporary: bool = False,
                  pump: Callable[[], None] | None = None) -> None:
@@ -387,7 +366,7 @@ class MavlinkLink(VehicleLink):
             while time.monotonic() - t0 < 0.5:  # the setpoint stream first: PX4 refuses OFFBOARD without it
                 self.send_velocity(0.0)
                 self._next(0.05)
-            self._start_keepalive()
+            self._keeper.start()
             say("OFFBOARD")
             self._command(c.MAV_CMD_DO_SET_MODE, (*_PX4_OFFBOARD, 0, 0, 0, 0), "OFFBOARD mode", 5.0)
             say("arming")
@@ -421,11 +400,11 @@ class MavlinkLink(VehicleLink):
                 if time.monotonic() > deadline:
                     raise LinkError(f"{self.name} did not reach {self.takeoff_height:g} m within {timeout:g} s")
             self.send_velocity(0.0)
-            self._start_keepalive()
+            self._keeper.start()
 
     def land(self, timeout: float) -> bool:
         """LAND, then wait until the vehicle disarms; False after ``timeout`` s or a second of silence."""
-        self._stop_keepalive()
+        self._keeper.stop()
         if self._conn is None:
             return False
         c = _mavutil().mavlink
@@ -449,7 +428,7 @@ class MavlinkLink(VehicleLink):
         return False
 
     def close(self) -> None:
-        self._stop_keepalive()
+        self._keeper.stop()
         if self._conn is not None:
             try:
                 self._conn.close()

@@ -60,7 +60,7 @@ from typing import Any, Callable
 
 from ..errors import InvalidValueError, check_real
 from .emulator_config import _check_port, _resolve_ipv4
-from .link import AltitudeSample, LinkError, VehicleLink, VehicleRefusedError
+from .link import AltitudeSample, KeepAlive, LinkError, VehicleLink, VehicleRefusedError
 from .stamps import enable_stamps, recv_stamped
 
 __all__ = ["TelloLink", "parse_state", "rc_command", "ALTITUDE_SOURCES", "TELLO_HOST", "SPEED_PER_PERCENT"]
@@ -172,8 +172,8 @@ class TelloLink(VehicleLink):
         self._tx = threading.Lock()
         self._last_rc = "rc 0 0 0 0"
         self._last_tx = 0.0
-        self._keep: threading.Thread | None = None
-        self._keep_stop = threading.Event()
+        self._keeper = KeepAlive("tello-keepalive", 1.0 / self.keepalive, lambda: self._last_tx,
+                                 lambda: self.send(self._last_rc), poll=0.25)
         self._seq = 0
         self._t_state = 0.0  # arrival of the last valid state line
         local = "127.0.0.1" if ipaddress.ip_address(host).is_loopback else "0.0.0.0"
@@ -288,28 +288,6 @@ class TelloLink(VehicleLink):
             self._t_state = t
             return AltitudeSample(z_cm / 100.0, st.get("vgz", 0.0) / 100.0, None, t, self._seq)
 
-    # ---- keep-alive ------------------------------------------------------------------------------------------
-    def _keepalive_loop(self) -> None:
-        period = 1.0 / self.keepalive
-        while not self._keep_stop.wait(min(period / 2, 0.25)):
-            if time.monotonic() - self._last_tx >= period:
-                try:
-                    self.send(self._last_rc)
-                except LinkError:
-                    return
-
-    def _start_keepalive(self) -> None:
-        if self._keep is None:
-            self._keep_stop.clear()
-            self._keep = threading.Thread(target=self._keepalive_loop, daemon=True, name="tello-keepalive")
-            self._keep.start()
-
-    def _stop_keepalive(self) -> None:
-        if self._keep is not None:
-            self._keep_stop.set()
-            self._keep.join(timeout=1.0)
-            self._keep = None
-
     # ---- the vehicle-link interface --------------------------------------------------------------------------
     def connect(self, timeout: float, *, vmax: float, z_max: float,
                 status: Callable[[str], None] | None = None) -> None:
@@ -343,7 +321,7 @@ class TelloLink(VehicleLink):
         if answer.lower() != "ok":
             raise VehicleRefusedError(f"{self.name} refused the take-off: {answer!r}")
         self._last_rc = "rc 0 0 0 0"
-        self._start_keepalive()
+        self._keeper.start()
 
     def send_velocity(self, vz: float) -> float:
         """``rc 0 0 c 0`` for ``vz`` m/s up (see :func:`rc_command`)."""
@@ -357,7 +335,7 @@ class TelloLink(VehicleLink):
 
     def land(self, timeout: float) -> bool:
         """Stop, then ``land`` until answered ``ok``; False on ``timeout`` or a second without state."""
-        self._stop_keepalive()
+        self._keeper.stop()
         try:
             self._last_rc = "rc 0 0 0 0"
             self.send(self._last_rc)
@@ -374,7 +352,7 @@ class TelloLink(VehicleLink):
         return False
 
     def close(self) -> None:
-        self._stop_keepalive()
+        self._keeper.stop()
         for s in (getattr(self, "cmd", None), getattr(self, "state", None)):
             if s is not None:
                 s.close()
