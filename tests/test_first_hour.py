@@ -229,9 +229,11 @@ def test_auto_selection_flags_implausible_candidates_by_status() -> None:
     e = read_experiment(data_path(*HEATER), outputs=["z"], input="u", u_before=0.0)
     m = identify(e, model="auto")
     status = {c.model: c.status for c in m.candidates}
-    assert status == {"ipdt": "implausible", "ipdt_lag": "implausible", "ipdt_speed": "implausible",
-                      "fopdt": "ok", "sopdt": "ok"}
-    assert status[m.model] == "ok"
+    # (ipdt_accel, the acceleration-limited integrator, is a candidate too: its rate limit lets it bend the ramp, so
+    # it is not flagged by the span; it is not chosen either, the second-order model fitting better)
+    assert {k: v for k, v in status.items() if k != "ipdt_accel"} == {
+        "ipdt": "implausible", "ipdt_lag": "implausible", "ipdt_speed": "implausible", "fopdt": "ok", "sopdt": "ok"}
+    assert status[m.model] == "ok" and m.model != "ipdt_accel"
     for c in m.candidates:
         d = c.to_dict()
         assert d["status"] == c.status and (d["reason"] is None) == (c.status == "ok")

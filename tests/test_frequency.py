@@ -218,7 +218,7 @@ def test_pade_order_is_required_and_checked():
     for bad in (0, -2, 2.5, True):
         with pytest.raises(InvalidValueError, match="pade_order"):
             to_control(PAPER_P, pade_order=bad)
-    with pytest.raises(InvalidValueError, match="pade_order"):
+    with pytest.raises(InvalidValueError, match="order must be an integer"):  # (pade_error's parameter: order)
         pade_error(PAPER_P, 0, [1.0])
     with pytest.raises(InvalidValueError, match="empty"):
         pade_error(PAPER_P, 2, [])
