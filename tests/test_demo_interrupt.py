@@ -64,7 +64,10 @@ def test_demo_on_the_emulator_lands_and_stops_on_a_signal(tmp_path, sig):
     out = tmp_path / "demo"
     proc = subprocess.Popen([sys.executable, "-m", "delaykit.cli", "demo", "--out", str(out), "--p-steps", "2",
                              "--step-duration", "4", "--no-compensate", "--no-identify", "--seed", "1"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                            # Ctrl-C as a terminal delivers it: a run started in the background of a non-interactive
+                            # shell (a CI job) inherits SIGINT ignored, and Python then keeps ignoring it
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         deadline = time.monotonic() + 90  # (a first run may compile numba code)
         while not list(out.glob("p_flight*-1.csv")) and proc.poll() is None and time.monotonic() < deadline:
