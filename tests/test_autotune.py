@@ -126,8 +126,10 @@ def test_autotune_on_the_emulator_finds_the_vehicles_exact_ultimate_point(tmp_pa
     lo, hi = ultimate_point(shape, truth), ultimate_point(shape, truth + late)
     assert hi.ku <= got["ku"] * (1 + 0.01) and got["ku"] <= lo.ku * (1 + 0.01), (got["ku"], lo, hi)
     assert lo.pu * (1 - 0.01) <= got["pu"] <= hi.pu * (1 + 0.01), (got["pu"], lo, hi)
-    # the describing-function estimate, reported beside it, falls below the bracket: the test tells them apart
-    assert got["found"]["ku_describing"] < hi.ku
+    # the describing-function estimate is reported beside it, and is not what the exact analysis returns (with the
+    # relay switching late on a loaded machine it falls below the whole bracket; on an idle one, switching promptly,
+    # it can land inside it, 3.82 against a bracket from 3.75 in one run: so only their difference is asserted)
+    assert got["found"]["ku_describing"] != pytest.approx(got["ku"], rel=1e-6)
     cyc = got["found"]["cycle"]
     assert relay_cycle(shape, truth, 0.5).period * 0.99 <= cyc["period"] <= relay_cycle(shape, truth + late, 0.5).period * 1.01
     # the gain is the vehicle's (unit: gaz * control_vz_max is the speed), to the RMS's sampling and noise
